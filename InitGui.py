@@ -1,0 +1,32 @@
+# tsplcam: FreeCAD GUI start-up. Defines the workbench; commands load on activation.
+import FreeCADGui
+
+
+class TsplcamWorkbench(FreeCADGui.Workbench):
+    """Five-axis finishing of T-spline mold surfaces."""
+
+    MenuText = "T-spline CAM"
+    ToolTip = "Five-axis finishing paths without retraction for T-spline mold surfaces"
+
+    def __init__(self):
+        import os
+        import tsplcam
+        self.__class__.Icon = os.path.join(tsplcam.resource_dir(), "icons", "tsplcam.svg")
+
+    def Initialize(self):
+        from tsplcam.workbench import commands
+        names = commands.register()
+        self.appendToolbar("tsplcam", names)
+        self.appendMenu("T-spline CAM", names)
+
+    def Activated(self):
+        pass
+
+    def Deactivated(self):
+        pass
+
+    def GetClassName(self):
+        return "Gui::PythonWorkbench"
+
+
+FreeCADGui.addWorkbench(TsplcamWorkbench())

@@ -1,0 +1,69 @@
+#!/usr/bin/env bash
+# Set up everything tsplcam needs on Debian 12, idempotently.
+#
+#   bash scripts/install.sh            # packages + link into the isolated test home
+#   bash scripts/install.sh --user     # also link into the real ~/.local/share/FreeCAD/Mod
+#
+# What it does:
+#  1. Debian packages: FreeCAD 0.20 (freecad-python3, freecad), numpy, scipy, pip, pytest,
+#     Xvfb + xauth for GUI tests, linuxcnc-uspace for LinuxCNC's own G-code interpreter (rs274).
+#  2. python-fcl and elkai into the system Python (/usr/bin/python3) that FreeCAD runs,
+#     pinned, with --no-deps so pip never replaces Debian's numpy.
+#  3. Links this checkout as the workbench "tsplcam" into an isolated FreeCAD user home
+#     ($TSPLCAM_FC_HOME, default <repo>/build/fchome, used as FREECAD_USER_HOME); the user's real home only with --user.
+set -euo pipefail
+
+REPO="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
+PY=/usr/bin/python3
+APT_PACKAGES=(freecad-python3 freecad python3-numpy python3-scipy python3-pip python3-pytest
+              xvfb xauth linuxcnc-uspace)
+PIP_PACKAGES=("python-fcl==0.7.0.11:fcl" "elkai==2.0.1:elkai")
+
+SUDO=""
+if [ "$(id -u)" -ne 0 ]; then SUDO="sudo"; fi
+
+say() { printf '[install] %s\n' "$*"; }
+
+# 1. Debian packages ---------------------------------------------------------------
+missing=()
+for p in "${APT_PACKAGES[@]}"; do
+  dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
+done
+if [ ${#missing[@]} -gt 0 ]; then
+  say "installing Debian packages: ${missing[*]}"
+  export DEBIAN_FRONTEND=noninteractive
+  $SUDO apt-get update -qq
+  $SUDO apt-get install -y -qq --no-install-recommends "${missing[@]}" >/dev/null
+else
+  say "Debian packages present"
+fi
+
+# 2. Wheels into the system Python ----------------------------------------------------
+for spec in "${PIP_PACKAGES[@]}"; do
+  req="${spec%%:*}"; mod="${spec##*:}"; want="${req##*==}"; dist="${req%%==*}"
+  have="$($PY -c "import importlib.metadata as m; print(m.version('$dist'))" 2>/dev/null || true)"
+  if [ "$have" != "$want" ] || ! $PY -c "import $mod" 2>/dev/null; then
+    say "installing $req into $PY"
+    $SUDO $PY -m pip install -q --break-system-packages --no-deps --root-user-action=ignore "$req"
+  fi
+done
+$PY -c "import numpy, scipy, fcl, elkai" || { say "a Python dependency does not import"; exit 1; }
+
+# 3. Link the workbench -----------------------------------------------------------------
+link_into() {  # $1 = a FreeCAD Mod directory
+  mkdir -p "$1"
+  local target="$1/tsplcam"
+  if [ -L "$target" ] && [ "$(readlink -f "$target")" = "$REPO" ]; then return; fi
+  if [ -e "$target" ] && [ ! -L "$target" ]; then
+    say "refusing to replace $target: it is not a link (move it away first)"; exit 1
+  fi
+  ln -sfn "$REPO" "$target"
+  say "linked $target -> $REPO"
+}
+FC_HOME="${TSPLCAM_FC_HOME:-$REPO/build/fchome}"
+# FreeCAD 0.20 with FREECAD_USER_HOME=$FC_HOME uses $FC_HOME itself as the user data directory.
+link_into "$FC_HOME/Mod"
+if [ "${1:-}" = "--user" ]; then
+  link_into "$HOME/.local/share/FreeCAD/Mod"
+fi
+say "ready (FreeCAD test home: $FC_HOME)"

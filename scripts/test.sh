@@ -1,0 +1,50 @@
+#!/usr/bin/env bash
+# Set everything up, then run every test of tsplcam:
+#   1. engine tests with plain /usr/bin/python3 -m pytest (no FreeCAD),
+#   2. all non-GUI tests under FreeCAD: freecadcmd -t TestTsplcam (OCCT comparisons run here),
+#   3. GUI tests in the real FreeCAD GUI under Xvfb (screenshots land in build/artifacts).
+# FreeCAD runs with an isolated user home (build/fchome) and HOME (build/home).
+# Exit status 0 only when all three pass; each runner's summary line is printed at the end.
+set -uo pipefail
+REPO="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
+bash "$REPO/scripts/install.sh" || exit 1
+
+export FREECAD_USER_HOME="${TSPLCAM_FC_HOME:-$REPO/build/fchome}"
+export TSPLCAM_ARTIFACTS="${TSPLCAM_ARTIFACTS:-$REPO/build/artifacts}"
+LOGS="$REPO/build/test-logs"
+mkdir -p "$LOGS" "$TSPLCAM_ARTIFACTS" "$REPO/build/home"
+FC_ENV=(env HOME="$REPO/build/home" FREECAD_USER_HOME="$FREECAD_USER_HOME" QTWEBENGINE_DISABLE_SANDBOX=1)
+cd "$REPO"
+
+echo "== 1/3 engine tests: /usr/bin/python3 -m pytest"
+/usr/bin/python3 -m pytest -q -p no:cacheprovider tests 2>&1 | tee "$LOGS/pytest.log"
+rc_py=${PIPESTATUS[0]}
+
+echo "== 2/3 FreeCAD tests: freecadcmd -t TestTsplcam"
+( cd "$REPO/build" && "${FC_ENV[@]}" freecadcmd -t TestTsplcam ) > "$LOGS/freecadcmd.log" 2>&1
+rc_fc=$?
+grep -E "^(ok|FAIL|ERROR|skipped)|\.\.\. (ok|FAIL|ERROR|skipped)" "$LOGS/freecadcmd.log" | tail -n 400 || true
+if [ $rc_fc -ne 0 ]; then sed -n '/^======/,$p' "$LOGS/freecadcmd.log" | head -n 200; fi
+# A module that fails to import shows as a failed test, so a missing line here is a failure too.
+grep -qE "^Ran [0-9]+ tests?" "$LOGS/freecadcmd.log" || rc_fc=1
+
+echo "== 3/3 GUI tests: freecad under xvfb-run"
+rm -f "$LOGS/gui.result"
+( cd "$REPO/build" && "${FC_ENV[@]}" TSPLCAM_GUI_RESULT="$LOGS/gui.result" timeout 1800 \
+    xvfb-run -a -s "-screen 0 1280x1024x24" freecad "$REPO/tests/gui/run_gui_tests.py" ) \
+    > "$LOGS/gui.log" 2>&1
+rc_gui=$?
+grep -E "\.\.\. (ok|FAIL|ERROR|skipped)" "$LOGS/gui.log" || true
+if [ $rc_gui -ne 0 ]; then sed -n '/^======/,$p' "$LOGS/gui.log" | head -n 200; fi
+[ -f "$LOGS/gui.result" ] && grep -q "^OK" "$LOGS/gui.result" || rc_gui=1
+
+echo
+echo "== summary"
+echo "pytest (engine):     $(tail -n 1 "$LOGS/pytest.log")"
+echo "freecadcmd (all):    $(grep -E "^Ran [0-9]+ tests?" "$LOGS/freecadcmd.log" | tail -n 1) $(grep -E "^(OK|FAILED)" "$LOGS/freecadcmd.log" | tail -n 1)"
+echo "freecad GUI (xvfb):  $(cat "$LOGS/gui.result" 2>/dev/null || echo 'no result: the GUI run did not finish')"
+echo "screenshots:         $TSPLCAM_ARTIFACTS"
+if [ $rc_py -eq 0 ] && [ $rc_fc -eq 0 ] && [ $rc_gui -eq 0 ]; then
+  echo "tsplcam tests: PASSED"; exit 0
+fi
+echo "tsplcam tests: FAILED (pytest $rc_py, freecadcmd $rc_fc, gui $rc_gui)"; exit 1

@@ -1,0 +1,60 @@
+"""Command line of the engine: ``python3 -m tsplcam <command> ...``; runs without FreeCAD.
+
+Exit codes: 0 success, 2 bad input or a geometric refusal (message on stderr, no traceback).
+"""
+from __future__ import annotations
+
+import argparse
+import sys
+
+from . import __version__
+from .errors import TsplcamError
+
+
+def dependency_versions() -> dict[str, str]:
+    """Versions of the Python packages the engine uses (or 'missing')."""
+    import importlib.metadata as md
+    out = {"python": sys.version.split()[0]}
+    for dist in ("numpy", "scipy", "python-fcl", "elkai"):
+        try:
+            out[dist] = md.version(dist)
+        except md.PackageNotFoundError:
+            out[dist] = "missing"
+    return out
+
+
+def _cmd_info(args) -> int:
+    print(f"tsplcam {__version__}")
+    for name, version in dependency_versions().items():
+        print(f"  {name:<11} {version}")
+    return 0
+
+
+def _cmd_job(args) -> int:
+    print(f"tsplcam {__version__}: main job on the bundled default model")
+    print("  (the job so far only reports versions: path generation and posting are not built yet)")
+    for name, version in dependency_versions().items():
+        print(f"  {name:<11} {version}")
+    return 0
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(prog="python3 -m tsplcam",
+                                     description="Five-axis finishing paths for T-spline mold surfaces.")
+    parser.add_argument("--version", action="version", version=f"tsplcam {__version__}")
+    sub = parser.add_subparsers(dest="command", required=True)
+    p = sub.add_parser("info", help="print the version and the installed dependency versions")
+    p.set_defaults(func=_cmd_info)
+    p = sub.add_parser("job", help="run the main job on the bundled default model")
+    p.set_defaults(func=_cmd_job)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    try:
+        return args.func(args)
+    except TsplcamError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 2

@@ -1,0 +1,1 @@
+"""Model stage: T-meshes, blending functions, extraordinary regions, patches and their evaluation."""

@@ -1,0 +1,137 @@
+"""Catmull-Clark control cages (OBJ, OpenSubdiv conventions) as patch models.
+
+The limit surface of a quad cage: faces whose four corners are regular are bicubic
+B-spline patches (16 points, phantom points beyond an open boundary) converted to Bezier
+cells; faces with one irregular corner are evaluated exactly by eigen-analysis
+(``eigen.py``). Where a face has more than one irregular corner the cage is refined once
+first, so that every face has at most one (Stam 1998's assumption). Patches come from
+``decompose``; a cage face keeps its place in its patch for ``Model.evaluate_faces``.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..errors import InputError
+from ..layout.layout import CORNER_UV
+from .basis import BSPLINE_TO_BEZIER
+from .cells import SQUARE_MAPS, BezierCells, EigenCells
+from .decompose import decompose
+from .eigen import scheme_for
+from .model import ExtraordinaryPoint, FaceMap, Model, link_patches
+from .patch import Patch
+from .quadmesh import QuadMesh
+
+
+@dataclass
+class Cage:
+    """A quad control mesh with positions (n, 3) and weights (n,), as read from a file."""
+    mesh: QuadMesh
+    points: np.ndarray
+    weights: np.ndarray | None = None
+    tags: dict = field(default_factory=dict)
+
+    def homogeneous(self) -> np.ndarray:
+        w = np.ones(len(self.points)) if self.weights is None else np.asarray(self.weights, float)
+        return np.column_stack([self.points * w[:, None], w])
+
+
+def _map_index(rotation: int) -> int:
+    """SQUARE_MAPS entry taking corner m of the unit square to corner (m + rotation) % 4."""
+    for idx, (A, o) in enumerate(SQUARE_MAPS):
+        if all(np.allclose(A @ CORNER_UV[m] + o, CORNER_UV[(m + rotation) % 4]) for m in range(4)):
+            return idx
+    raise AssertionError(rotation)
+
+
+def cage_model(cage: Cage, name: str | None = None) -> Model:
+    """The limit surface of ``cage`` split into patches."""
+    mesh = cage.mesh
+    H0 = cage.homogeneous()
+    mesh.validate(H0)
+    dec = decompose(mesh)
+    irregular = np.array([bool(mesh.valence(v)) and not mesh.is_regular_vertex(v)
+                          for v in range(mesh.n_vertices)])
+    level = 1 if (irregular[mesh.faces].sum(axis=1) >= 2).any() else 0
+    if level:
+        emesh, R, _ = mesh.refine()
+        He = R @ H0
+    else:
+        emesh, He = mesh, H0
+    e_irregular = np.array([bool(emesh.valence(v)) and not emesh.is_regular_vertex(v)
+                            for v in range(emesh.n_vertices)])
+    M = BSPLINE_TO_BEZIER
+    patches = []
+    for r, reg in enumerate(dec.regions):
+        nc, nr = reg.size
+        sub = 1 << level
+        nu, nv = nc * sub, nr * sub
+        group = np.zeros((nu, nv), dtype=int)
+        local = np.zeros((nu, nv), dtype=int)
+        bez, eig = [], {}
+        for f, (i, j), rot in zip(reg.faces, reg.cell, reg.rot):
+            if level == 0:
+                items = [(int(f), i, j, int(rot))]
+            else:
+                items = []
+                for k in range(4):
+                    m = (k - rot) % 4                       # parent cell corner of child k
+                    di, dj = ((0, 0), (1, 0), (1, 1), (0, 1))[m]
+                    items.append((4 * int(f) + k, 2 * i + di, 2 * j + dj, (-m) % 4))
+            for e, ci, cj, re in items:
+                corners = [k for k in range(4) if e_irregular[emesh.faces[e][k]]]
+                if not corners:
+                    G = (emesh.regular_stencil(e, re) @ He).reshape(4, 4, 4)      # [j, i, c]
+                    local[ci, cj] = len(bez)
+                    group[ci, cj] = -1
+                    bez.append(np.einsum("aj,bi,jic->abc", M, M, G))
+                    continue
+                if len(corners) > 1:
+                    raise AssertionError("face with two irregular corners after refinement")
+                k = corners[0]
+                scheme, cfg = scheme_for(emesh, e, k)
+                hat = scheme.project(He[cfg])
+                lst = eig.setdefault(id(scheme), (scheme, [], []))
+                local[ci, cj] = len(lst[1])
+                group[ci, cj] = -2 - list(eig).index(id(scheme))
+                lst[1].append(hat)
+                lst[2].append(_map_index((re - k) % 4))
+        groups, gid = [], {}
+        if bez:
+            gid[-1] = len(groups)
+            groups.append(BezierCells(np.array(bez)))
+        for n, (scheme, hats, maps) in enumerate(eig.values()):
+            gid[-2 - n] = len(groups)
+            groups.append(EigenCells(scheme, np.array(hats), np.array(maps)))
+        group = np.vectorize(gid.get)(group)
+        patch = Patch(r, np.linspace(0, 1, nu + 1), np.linspace(0, 1, nv + 1), group, local,
+                      groups, knot_size=(nc, nr))
+        patches.append(patch)
+    link_patches(patches, dec.links)
+    node_vertex = sorted({int(v) for reg in dec.regions for v in reg.corners})
+    node_of = {v: n for n, v in enumerate(node_vertex)}
+    node_points = np.zeros((len(node_vertex), 3))
+    for patch, reg in zip(patches, dec.regions):
+        patch.corner_nodes = np.array([node_of[int(v)] for v in reg.corners])
+        P = patch.evaluate(CORNER_UV[:, 0], CORNER_UV[:, 1]).P
+        node_points[patch.corner_nodes] = P
+    eps = []
+    for v in range(mesh.n_vertices):
+        fan, boundary = mesh.fan(v)
+        if fan and mesh.is_layout_vertex(v) and (not boundary or not mesh.is_regular_vertex(v)):
+            if v in node_of:
+                eps.append(ExtraordinaryPoint(node_of[v], len(fan), node_points[node_of[v]], boundary))
+    fmap_patch = dec.face_region.copy()
+    fmap_cell = np.zeros((len(mesh.faces), 2), dtype=int)
+    fmap_map = np.zeros(len(mesh.faces), dtype=int)
+    fmap_size = np.zeros((len(mesh.faces), 2), dtype=int)
+    for reg in dec.regions:
+        for f, c, rot in zip(reg.faces, reg.cell, reg.rot):
+            fmap_cell[f] = c
+            fmap_map[f] = _map_index((-int(rot)) % 4)     # face corner c -> cell corner c - rot
+            fmap_size[f] = reg.size
+    model = Model(patches, node_points, eps, "catmull-clark", mesh.source,
+                  FaceMap(fmap_patch, fmap_cell, fmap_map, fmap_size), control=cage, name=name)
+    model.node_vertex = np.array(node_vertex)
+    return model

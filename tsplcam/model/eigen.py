@@ -1,0 +1,165 @@
+"""Exact evaluation next to irregular vertices by eigen-analysis of the subdivision matrix.
+
+Stam (1998, "Exact evaluation of Catmull-Clark subdivision surfaces at arbitrary parameter
+values") writes the surface over a face F with one extraordinary corner as
+    P(s, t) = b(s', t')^T  S_k  A^(n-1)  C0,
+where C0 are the K control points around F, A the K x K subdivision matrix (one
+refinement maps the configuration to the same configuration one level down), n the level
+at which (s, t) falls into one of the three regular sub-patches k of the ring
+[0, 2^(1-n)]^2 minus [0, 2^-n]^2, S_k picks that sub-patch's 16 B-spline control points,
+and b the bicubic B-spline basis. With A = V diag(lambda) V^-1 this is
+    P(s, t) = sum_i lambda_i^(n-1) (b^T S_k V)_i (V^-1 C0)_i,
+exact at any (s, t), cheap, and precise near the vertex because every term carries its
+own power of lambda (the dominant term, lambda = 1, is the limit point).
+
+Unlike Stam's paper, A and S_k are not written out by hand for interior vertices only:
+they are computed for the configuration at hand by refining its own neighbourhood with the
+mesh's Catmull-Clark rules (``QuadMesh.refine``) and read off the sparse refinement
+matrix, so the same code covers any valence and boundary vertices under OpenSubdiv's
+rules. The eigen-decomposition is numpy's, for the valence at hand; no tables are shipped.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from ..errors import InputError
+from .quadmesh import QuadMesh
+
+# sub-patches of Stam's ring, in the order cells.EigenCells uses:
+# k = 0: s' >= 1/2, t' < 1/2; k = 1: both >= 1/2; k = 2: s' < 1/2, t' >= 1/2.
+# (child corner offset d from the irregular corner, stencil frame corner k0 of that child)
+_SUBPATCH_CHILDREN = ((1, 3), (2, 2), (3, 1))
+
+
+class SubdivisionScheme:
+    """Eigen-structure of one local configuration (one irregular vertex type)."""
+
+    def __init__(self, template: QuadMesh, face: int, corner: int, cut_edges: set, label: str):
+        self.label = label
+        config = template.config(face, corner)
+        K = len(config)
+        if sorted(config) != list(range(template.n_vertices)):
+            raise AssertionError("configuration and template vertices differ")
+        self.K = K
+        child, R, tainted = template.refine(cut_edges)
+        child_cut = set()
+        eid = {e: i for i, e in enumerate(template.undirected_edges())}
+        nv = template.n_vertices
+        for (a, b) in cut_edges:
+            e = nv + eid[(a, b)]
+            child_cut.add((min(a, e), max(a, e)))
+            child_cut.add((min(b, e), max(b, e)))
+        cfg1 = child.config(4 * face + corner, 0)
+        if len(cfg1) != K or tainted[cfg1].any():
+            raise InputError(f"{label}: the neighbourhood of this irregular vertex does not "
+                             f"subdivide into the same configuration")
+        Rd = R.toarray()
+        perm = np.asarray(config)
+        A = Rd[np.asarray(cfg1)][:, perm]
+        S = []
+        for d, k0 in _SUBPATCH_CHILDREN:
+            cf = 4 * face + (corner + d) % 4
+            St = child.regular_stencil(cf, k0, cut_edges=child_cut).toarray()
+            used = np.nonzero(np.abs(St).sum(axis=0) > 0)[0]
+            if tainted[used].any():
+                raise InputError(f"{label}: a regular sub-patch needs points outside the "
+                                 f"configuration")
+            S.append((St @ Rd)[:, perm])
+        self.A = A
+        lam, V = np.linalg.eig(A)
+        if np.abs(lam.imag).max() > 1e-9 or np.abs(V.imag).max() > 1e-9:
+            raise InputError(f"{label}: complex eigen-structure, cannot evaluate exactly")
+        lam, V = lam.real, V.real
+        order = np.argsort(-np.abs(lam), kind="stable")
+        lam, V = lam[order], V[:, order]
+        cond = np.linalg.cond(V)
+        Vinv = np.linalg.inv(V)
+        err = np.abs(V @ np.diag(lam) @ Vinv - A).max()
+        if not (cond < 1e10 and err < 1e-9):
+            raise InputError(f"{label}: the subdivision matrix is defective (condition "
+                             f"{cond:.3g}), exact evaluation by eigen-analysis is not possible")
+        self.lam = lam
+        self.V = V
+        self.Vinv = Vinv
+        self.dominant = int(np.argmin(np.abs(lam - 1.0)))
+        if abs(lam[self.dominant] - 1.0) > 1e-9:
+            raise InputError(f"{label}: no eigenvalue 1 (not an affine-invariant scheme)")
+        self.zero_lam = np.abs(lam) < 1e-14
+        with np.errstate(divide="ignore"):
+            self.log_abs_lam = np.where(self.zero_lam, 0.0, np.log(np.abs(lam)))
+        self.sign_lam = np.sign(lam)
+        self.phi = np.stack([Sk @ V for Sk in S])          # (3, 16, K)
+        self.config_order = perm
+
+    @property
+    def subdominant(self) -> float:
+        others = [abs(x) for i, x in enumerate(self.lam) if i != self.dominant]
+        return max(others)
+
+    def project(self, C0: np.ndarray) -> np.ndarray:
+        """Eigen-coefficients V^-1 C0 of control points given in configuration order (K, 4)."""
+        return self.Vinv @ C0
+
+    def limit_point(self, hat: np.ndarray) -> np.ndarray:
+        h = hat[self.dominant]
+        return h[:3] / h[3]
+
+    def limit_normal(self, hat: np.ndarray) -> np.ndarray:
+        """Unit normal of the tangent plane at the irregular vertex (orientation unfixed):
+        spanned by the eigen-coefficients of the two largest eigenvalues below 1."""
+        h0 = hat[self.dominant]
+        X = h0[:3] / h0[3]
+        tangents = []
+        for i in range(len(self.lam)):
+            if i == self.dominant or self.zero_lam[i]:
+                continue
+            t = (hat[i, :3] - X * hat[i, 3]) / h0[3]
+            if np.linalg.norm(t) <= 1e-14 * (1.0 + np.linalg.norm(X)):
+                continue
+            if tangents:
+                c = np.cross(tangents[0], t)
+                if np.linalg.norm(c) > 1e-9 * np.linalg.norm(tangents[0]) * np.linalg.norm(t):
+                    return c / np.linalg.norm(c)
+            else:
+                tangents.append(t)
+        raise InputError(f"{self.label}: degenerate tangent plane at the irregular vertex")
+
+
+_SCHEMES: dict = {}
+
+
+def scheme_for(mesh: QuadMesh, face: int, corner: int) -> tuple[SubdivisionScheme, list[int]]:
+    """The scheme of face ``face`` with its irregular vertex at ``corner``, and the face's
+    configuration vertices (mesh indices) in the scheme's order. Schemes are cached by the
+    configuration's topology, so all faces at vertices of one kind share one decomposition."""
+    config = mesh.config(face, corner)
+    local = {v: i for i, v in enumerate(config)}
+    faces = mesh.neighbourhood_faces(face)
+    tfaces = np.array([[local[int(v)] for v in mesh.faces[g]] for g in faces])
+    real_boundary, cut = [], set()
+    for g in faces:
+        quad = mesh.faces[g]
+        for k in range(4):
+            a, b = int(quad[k]), int(quad[(k + 1) % 4])
+            in_sub = any((int(mesh.faces[h][(m + 1) % 4]), int(mesh.faces[h][m])) == (a, b)
+                         for h in faces for m in range(4))
+            if in_sub:
+                continue
+            la, lb = local[a], local[b]
+            key = (min(la, lb), max(la, lb))
+            if mesh.is_boundary_edge(a, b):
+                real_boundary.append(key)
+            else:
+                cut.add(key)
+    fi = faces.index(face)
+    signature = (mesh.boundary_rule, fi, corner, tuple(map(tuple, tfaces)), tuple(sorted(real_boundary)))
+    sch = _SCHEMES.get(signature)
+    if sch is None:
+        v = int(mesh.faces[face][corner])
+        fan, boundary = mesh.fan(v)
+        label = (f"{'boundary' if boundary else 'interior'} vertex of {len(fan)} faces "
+                 f"({mesh.vertex_name(v)}{', ' + mesh.source if mesh.source else ''})")
+        template = QuadMesh(tfaces, len(config), mesh.boundary_rule, mesh.source)
+        sch = SubdivisionScheme(template, fi, corner, cut, label)
+        _SCHEMES[signature] = sch
+    return sch, config

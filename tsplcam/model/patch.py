@@ -1,0 +1,137 @@
+"""A four-sided patch of the model with its own (u, v) on the unit square.
+
+The domain is cut by ``ubreaks`` x ``vbreaks`` into a grid of cells; every cell belongs to
+one cell evaluator group (Bezier or extraordinary, see ``cells.py``). Evaluation of any
+number of points is a handful of array calls: locate cells with ``searchsorted``, evaluate
+each group's points at once, convert homogeneous to Euclidean derivatives.
+
+Corner and edge numbering follow ``tsplcam.layout.layout`` (corner 0 = (0,0), edge 0 = v=0).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..errors import InputError
+from .diffgeom import SurfacePoints, rational_from_homogeneous
+
+CHUNK = 1 << 16
+
+
+@dataclass(frozen=True)
+class EdgeNeighbour:
+    """Across an edge of a patch: patch ``patch``'s edge ``edge``; ``reversed`` as in EdgeLink."""
+    patch: int
+    edge: int
+    reversed: bool = True
+
+
+class Patch:
+    """One patch: cells on a grid of the unit square, neighbours, corner nodes.
+
+    ``knot_size`` (ku, kv) is the patch's extent in knot units (for a cage: faces along u
+    and v); it fixes the scale of the parameter transform to neighbours.
+    """
+
+    def __init__(self, index: int, ubreaks, vbreaks, cell_group, cell_local, groups,
+                 name: str | None = None, knot_size=(1.0, 1.0)):
+        self.index = index
+        self.name = name or f"patch {index}"
+        self.ubreaks = np.asarray(ubreaks, float)
+        self.vbreaks = np.asarray(vbreaks, float)
+        self.cell_group = np.asarray(cell_group, int)      # (nu, nv)
+        self.cell_local = np.asarray(cell_local, int)      # (nu, nv)
+        self.groups = list(groups)
+        self.knot_size = tuple(float(x) for x in knot_size)
+        self.neighbours: list[EdgeNeighbour | None] = [None, None, None, None]
+        self.corner_nodes = np.full(4, -1, dtype=int)
+        nu, nv = len(self.ubreaks) - 1, len(self.vbreaks) - 1
+        if self.cell_group.shape != (nu, nv) or self.cell_local.shape != (nu, nv):
+            raise ValueError(f"{self.name}: cell table shape {self.cell_group.shape} != ({nu}, {nv})")
+
+    def __repr__(self) -> str:
+        return (f"<Patch {self.index} '{self.name}' {len(self.ubreaks) - 1}x{len(self.vbreaks) - 1} cells>")
+
+    @property
+    def shape(self) -> tuple[int, int]:
+        return len(self.ubreaks) - 1, len(self.vbreaks) - 1
+
+    def evaluate(self, u, v) -> SurfacePoints:
+        """Position, first and second partial derivatives and everything derived from them,
+        at parameters u, v (arrays of equal length, or scalars) in [0, 1]."""
+        u = np.atleast_1d(np.asarray(u, dtype=float)).reshape(-1)
+        v = np.atleast_1d(np.asarray(v, dtype=float)).reshape(-1)
+        if u.shape != v.shape:
+            u, v = np.broadcast_arrays(u, v)
+            u, v = u.copy(), v.copy()
+        bad = ~(np.isfinite(u) & np.isfinite(v)) | (u < -1e-9) | (u > 1 + 1e-9) | (v < -1e-9) | (v > 1 + 1e-9)
+        if bad.any():
+            i = int(np.nonzero(bad)[0][0])
+            raise InputError(f"parameter (u, v) = ({u[i]:g}, {v[i]:g}) is outside the unit square "
+                             f"({int(bad.sum())} such points)", item=self.name)
+        u = np.clip(u, 0.0, 1.0)
+        v = np.clip(v, 0.0, 1.0)
+        n = len(u)
+        H = np.empty((6, n, 4))
+        normal_override = None
+        ep_rows = []
+        for start in range(0, n, CHUNK):
+            sl = slice(start, min(n, start + CHUNK))
+            Hc, ep = self._evaluate_h(u[sl], v[sl])
+            H[:, sl] = Hc
+            if ep is not None:
+                ep_rows.append((start + ep[0], ep[1]))
+        P, Pu, Pv, Puu, Puv, Pvv = rational_from_homogeneous(H)
+        if ep_rows:
+            rows = np.concatenate([r for r, _ in ep_rows])
+            nrm = np.concatenate([m for _, m in ep_rows])
+            normal_override = _unit(np.cross(Pu, Pv))
+            sign = np.sign(np.einsum("ij,ij->i", nrm, normal_override[rows]))
+            normal_override[rows] = nrm * np.where(sign == 0, 1.0, sign)[:, None]
+        return SurfacePoints(P, Pu, Pv, Puu, Puv, Pvv, u, v, self.index, normal_override)
+
+    def _evaluate_h(self, u, v):
+        nu, nv = self.shape
+        iu = np.clip(np.searchsorted(self.ubreaks, u, side="right") - 1, 0, nu - 1)
+        iv = np.clip(np.searchsorted(self.vbreaks, v, side="right") - 1, 0, nv - 1)
+        wu = self.ubreaks[iu + 1] - self.ubreaks[iu]
+        wv = self.vbreaks[iv + 1] - self.vbreaks[iv]
+        a = (u - self.ubreaks[iu]) / wu
+        b = (v - self.vbreaks[iv]) / wv
+        group = self.cell_group[iu, iv]
+        local = self.cell_local[iu, iv]
+        H = np.empty((6, len(u), 4))
+        ep = None
+        for g in np.unique(group):
+            sel = np.nonzero(group == g)[0]
+            Hg, at_vertex, ep_normal = self.groups[g].evaluate(local[sel], a[sel], b[sel])
+            H[:, sel] = Hg
+            if at_vertex is not None and at_vertex.any():
+                rows = sel[at_vertex]
+                ep = (rows, ep_normal[at_vertex]) if ep is None else (
+                    np.concatenate([ep[0], rows]), np.concatenate([ep[1], ep_normal[at_vertex]]))
+        # from cell (a, b) to patch (u, v)
+        H[1] /= wu[:, None]
+        H[2] /= wv[:, None]
+        H[3] /= (wu * wu)[:, None]
+        H[4] /= (wu * wv)[:, None]
+        H[5] /= (wv * wv)[:, None]
+        return H, ep
+
+    def corner_point(self, k: int) -> np.ndarray:
+        from ..layout.layout import CORNER_UV
+        return self.evaluate(*CORNER_UV[k]).P[0]
+
+    def edge_params(self, edge: int, tau: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(u, v) along edge ``edge`` at fraction tau from its first corner to its second."""
+        from ..layout.layout import CORNER_UV, EDGE_CORNERS
+        c0, c1 = EDGE_CORNERS[edge]
+        tau = np.asarray(tau, float)
+        uv = CORNER_UV[c0][None, :] * (1 - tau)[:, None] + CORNER_UV[c1][None, :] * tau[:, None]
+        return uv[:, 0], uv[:, 1]
+
+
+def _unit(x: np.ndarray) -> np.ndarray:
+    n = np.linalg.norm(x, axis=1, keepdims=True)
+    return x / np.where(n > 0, n, 1.0)

@@ -1,0 +1,393 @@
+"""Quad control meshes: topology, validation, Catmull-Clark refinement, regular stencils.
+
+A ``QuadMesh`` is the topology of a cage (faces of four vertex indices, counter-clockwise
+seen from the side the normal points to) plus its boundary rule. Positions are kept apart
+(homogeneous (n, 4) arrays), so that refinement is a sparse matrix R with
+``new_points = R @ old_points``: the same matrix gives the refined cage, OpenSubdiv-style
+reference meshes, and the local subdivision matrices of extraordinary points.
+
+Boundary rules follow OpenSubdiv (``Sdc::Options::VtxBoundaryInterpolation``):
+``edge-only`` (default, tag value 2): boundary edges are infinitely sharp creases, every
+boundary vertex uses the crease rule (a + 6 v + b)/8, so the boundary limit curve is the
+uniform cubic B-spline of the boundary vertices; ``edge-and-corner`` (tag value 1): as
+edge-only, but vertices with a single face are infinitely sharp corners (v' = v).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+import scipy.sparse as sp
+
+from ..errors import InputError
+
+BOUNDARY_RULES = ("edge-only", "edge-and-corner")
+
+
+@dataclass
+class QuadMesh:
+    faces: np.ndarray                      # (F, 4) vertex indices
+    n_vertices: int
+    boundary_rule: str = "edge-only"
+    source: str | None = None              # file, for error messages
+    face_lines: np.ndarray | None = None   # (F,) 1-based line of each face in the source file
+    _edges: dict = field(default=None, init=False, repr=False)
+    _fans: list = field(default=None, init=False, repr=False)
+
+    def __post_init__(self):
+        self.faces = np.asarray(self.faces, dtype=int).reshape(-1, 4)
+        if self.boundary_rule not in BOUNDARY_RULES:
+            raise InputError(f"unknown boundary rule {self.boundary_rule!r}", path=self.source)
+
+    # -- naming ---------------------------------------------------------------------------
+    def face_name(self, f: int) -> str:
+        line = f" (line {int(self.face_lines[f])})" if self.face_lines is not None else ""
+        return f"face {f + 1}{line}"
+
+    @staticmethod
+    def vertex_name(v: int) -> str:
+        return f"vertex {v + 1}"
+
+    # -- topology -------------------------------------------------------------------------
+    @property
+    def edges(self) -> dict:
+        """Directed edge (a, b) -> (face, local edge k) with face[k] = a, face[k+1] = b."""
+        if self._edges is None:
+            self._build_edges()
+        return self._edges
+
+    def _build_edges(self):
+        edges = {}
+        for f, quad in enumerate(self.faces):
+            for k in range(4):
+                a, b = int(quad[k]), int(quad[(k + 1) % 4])
+                if a == b:
+                    raise InputError(f"{self.face_name(f)} uses {self.vertex_name(a)} twice in a row",
+                                     path=self.source)
+                if (a, b) in edges:
+                    g = edges[(a, b)][0]
+                    if g == f:
+                        raise InputError(f"{self.face_name(f)} repeats the edge {a + 1}-{b + 1}",
+                                         path=self.source)
+                    raise InputError(
+                        f"edge {a + 1}-{b + 1} is used in the same direction by {self.face_name(g)} and "
+                        f"{self.face_name(f)}: the cage is non-manifold or not consistently oriented",
+                        path=self.source)
+                edges[(a, b)] = (f, k)
+        self._edges = edges
+
+    def is_boundary_edge(self, a: int, b: int) -> bool:
+        return ((a, b) in self.edges) != ((b, a) in self.edges)
+
+    def undirected_edges(self) -> list[tuple[int, int]]:
+        """Each edge once, as (a, b) with a < b, in a fixed order."""
+        seen = set()
+        out = []
+        for f, quad in enumerate(self.faces):
+            for k in range(4):
+                a, b = int(quad[k]), int(quad[(k + 1) % 4])
+                key = (a, b) if a < b else (b, a)
+                if key not in seen:
+                    seen.add(key)
+                    out.append(key)
+        return out
+
+    def fan(self, v: int) -> tuple[list[tuple[int, int]], bool]:
+        """Faces around vertex v in rotational order, as (face, local corner), and whether v
+        is a boundary vertex (then the fan runs from one boundary edge to the other)."""
+        if self._fans is None:
+            self._build_fans()
+        return self._fans[v]
+
+    def _next_around(self, f: int, k: int):
+        """The face after (f, corner k) around the vertex, turning across edge (v, prev)."""
+        quad = self.faces[f]
+        v, prev = int(quad[k]), int(quad[(k + 3) % 4])
+        hit = self.edges.get((v, prev))
+        if hit is None:
+            return None
+        g, kk = hit
+        return g, kk
+
+    def _prev_around(self, f: int, k: int):
+        quad = self.faces[f]
+        v, nxt = int(quad[k]), int(quad[(k + 1) % 4])
+        hit = self.edges.get((nxt, v))
+        if hit is None:
+            return None
+        g, kk = hit
+        return g, (kk + 1) % 4
+
+    def _build_fans(self):
+        incident = [[] for _ in range(self.n_vertices)]
+        for f, quad in enumerate(self.faces):
+            for k in range(4):
+                incident[int(quad[k])].append((f, k))
+        fans = []
+        for v in range(self.n_vertices):
+            if not incident[v]:
+                fans.append(([], False))
+                continue
+            start = incident[v][0]
+            # walk backwards to a boundary (if any)
+            cur, boundary, steps = start, False, 0
+            while True:
+                prv = self._prev_around(*cur)
+                if prv is None:
+                    boundary = True
+                    break
+                cur = prv
+                steps += 1
+                if cur == start or steps > len(incident[v]):
+                    break
+            first = cur if boundary else start
+            order = [first]
+            cur = first
+            while True:
+                nxt = self._next_around(*cur)
+                if nxt is None or nxt == first:
+                    break
+                order.append(nxt)
+                cur = nxt
+                if len(order) > len(incident[v]):
+                    break
+            if len(order) != len(incident[v]):
+                raise InputError(
+                    f"{self.vertex_name(v)} is non-manifold: its {len(incident[v])} faces do not form "
+                    f"one fan (e.g. two surfaces touch at this vertex)", path=self.source)
+            fans.append((order, boundary))
+        self._fans = fans
+
+    def valence(self, v: int) -> int:
+        """Number of faces around v."""
+        return len(self.fan(v)[0])
+
+    def is_regular_vertex(self, v: int) -> bool:
+        """Whether the limit surface near v is a plain (boundary) B-spline: interior valence 4,
+        boundary with 2 faces, or a 1-face corner under the edge-and-corner rule."""
+        fan, boundary = self.fan(v)
+        if not boundary:
+            return len(fan) == 4
+        if len(fan) == 2:
+            return True
+        return len(fan) == 1 and self.boundary_rule == "edge-and-corner"
+
+    def is_layout_vertex(self, v: int) -> bool:
+        """Whether v starts patch boundaries: extraordinary points and boundary corners."""
+        fan, boundary = self.fan(v)
+        return (len(fan) != 2) if boundary else (len(fan) != 4)
+
+    def validate(self, points: np.ndarray | None = None):
+        """Raise InputError for what the kernel cannot evaluate, naming the face or vertex."""
+        if len(self.faces) == 0:
+            raise InputError("the cage has no faces", path=self.source)
+        if self.faces.min() < 0 or self.faces.max() >= self.n_vertices:
+            f = int(np.nonzero((self.faces < 0).any(1) | (self.faces >= self.n_vertices).any(1))[0][0])
+            raise InputError(f"{self.face_name(f)} refers to a vertex that does not exist", path=self.source)
+        used = np.zeros(self.n_vertices, bool)
+        used[self.faces.reshape(-1)] = True
+        if not used.all():
+            v = int(np.nonzero(~used)[0][0])
+            raise InputError(f"{self.vertex_name(v)} is not used by any face "
+                             f"({int((~used).sum())} unused vertices)", path=self.source)
+        if points is not None:
+            bad = ~np.isfinite(points).all(axis=1)
+            if bad.any():
+                v = int(np.nonzero(bad)[0][0])
+                raise InputError(f"{self.vertex_name(v)} has a coordinate that is not a number",
+                                 path=self.source)
+            if points.shape[1] == 4 and np.any(points[:, 3] <= 0):
+                v = int(np.nonzero(points[:, 3] <= 0)[0][0])
+                raise InputError(f"{self.vertex_name(v)} has weight {points[v, 3]:g}: weights must "
+                                 f"be positive", path=self.source)
+        self.edges  # noqa: B018  (orientation and manifold edges)
+        for v in range(self.n_vertices):
+            self.fan(v)
+
+    # -- refinement -----------------------------------------------------------------------
+    def refine(self, cut_edges: set | None = None) -> tuple["QuadMesh", sp.csr_matrix, np.ndarray]:
+        """One Catmull-Clark step: (child mesh, R, tainted).
+
+        New vertex numbering: vertex points keep the old indices, then one edge point per
+        edge of ``undirected_edges()``, then one face point per face. Child face 4 f + k is
+        (V(v_k), E(v_k, v_k+1), F(f), E(v_k-1, v_k)) for face f = (v_0..v_3), so children keep
+        the parent's orientation and child 4 f + k has its corner 0 at the parent's corner k.
+        ``cut_edges``: edges (a, b) with a < b where this mesh was cut out of a bigger one;
+        new points whose rule would need the missing faces are flagged in ``tainted``.
+        """
+        cut_edges = cut_edges or set()
+        nv = self.n_vertices
+        und = self.undirected_edges()
+        eid = {e: i for i, e in enumerate(und)}
+        ne, nf = len(und), len(self.faces)
+        rows, cols, vals = [], [], []
+
+        def put(r, c, w):
+            rows.append(r)
+            cols.append(c)
+            vals.append(w)
+
+        # face points
+        for f, quad in enumerate(self.faces):
+            for v in quad:
+                put(nv + ne + f, int(v), 0.25)
+        tainted = np.zeros(nv + ne + nf, dtype=bool)
+        # edge points
+        for i, (a, b) in enumerate(und):
+            r = nv + i
+            fa = self.edges.get((a, b))
+            fb = self.edges.get((b, a))
+            if (a, b) in cut_edges:
+                tainted[r] = True
+            if fa is not None and fb is not None:
+                put(r, a, 0.25)
+                put(r, b, 0.25)
+                for f, _ in (fa, fb):
+                    for v in self.faces[f]:
+                        put(r, int(v), 0.0625)
+            else:
+                put(r, a, 0.5)
+                put(r, b, 0.5)
+        # vertex points
+        for v in range(nv):
+            fan, boundary = self.fan(v)
+            if not fan:
+                continue
+            nbrs = [int(self.faces[f][(k + 1) % 4]) for f, k in fan]
+            if boundary:
+                last_f, last_k = fan[-1]
+                nbrs_b = [int(self.faces[fan[0][0]][(fan[0][1] + 1) % 4]),
+                          int(self.faces[last_f][(last_k + 3) % 4])]
+            if any(((v, w) if v < w else (w, v)) in cut_edges for w in nbrs) or (
+                    boundary and any(((v, w) if v < w else (w, v)) in cut_edges for w in nbrs_b)):
+                tainted[v] = True
+            if boundary:
+                if len(fan) == 1 and self.boundary_rule == "edge-and-corner":
+                    put(v, v, 1.0)
+                else:
+                    put(v, v, 0.75)
+                    put(v, nbrs_b[0], 0.125)
+                    put(v, nbrs_b[1], 0.125)
+            else:
+                n = len(fan)
+                put(v, v, (n - 2.0) / n)
+                for w in nbrs:
+                    put(v, w, 1.0 / (n * n))
+                for f, _ in fan:
+                    for w in self.faces[f]:
+                        put(v, int(w), 0.25 / (n * n))
+        R = sp.csr_matrix((vals, (rows, cols)), shape=(nv + ne + nf, nv))
+        R.sum_duplicates()
+        child = np.empty((4 * nf, 4), dtype=int)
+        for f, quad in enumerate(self.faces):
+            for k in range(4):
+                a, b, c = int(quad[k]), int(quad[(k + 1) % 4]), int(quad[(k + 3) % 4])
+                child[4 * f + k] = (a, nv + eid[(a, b) if a < b else (b, a)], nv + ne + f,
+                                    nv + eid[(c, a) if c < a else (a, c)])
+        lines = None if self.face_lines is None else np.repeat(self.face_lines, 4)
+        mesh = QuadMesh(child, nv + ne + nf, self.boundary_rule, self.source, lines)
+        return mesh, R, tainted
+
+    # -- stencils -------------------------------------------------------------------------
+    def regular_stencil(self, f: int, k0: int, cut_edges: set | None = None) -> sp.csr_matrix:
+        """The 16 B-spline control points of face f (all corners regular) as rows of a sparse
+        matrix on the mesh vertices, grid index j*4+i with i along corner k0 -> k0+1 and j
+        along k0 -> k0-1. Missing points beyond the boundary are the phantom points
+        2 P_edge - P_inner (OpenSubdiv's regular boundary and corner patches). ``cut_edges``
+        (a < b) mark where this mesh was cut out of a bigger one: no phantom may stand there."""
+        grid = {}
+
+        def place(face, rot, ci, cj):
+            # face corner (rot + m) sits at cell corner m of cell (ci, cj)
+            for m, (di, dj) in enumerate(((0, 0), (1, 0), (1, 1), (0, 1))):
+                key = (ci + di, cj + dj)
+                v = int(self.faces[face][(rot + m) % 4])
+                if grid.setdefault(key, v) != v:
+                    raise InputError(f"{self.face_name(f)}: its neighbourhood folds onto itself "
+                                     f"(cannot form a regular 4x4 stencil)", path=self.source)
+
+        cells = {(1, 1): (f, k0)}
+        place(f, k0, 1, 1)
+        queue = [(1, 1)]
+        steps = ((0, -1), (1, 0), (0, 1), (-1, 0))       # across cell edge m
+        while queue:
+            ci, cj = queue.pop(0)
+            face, rot = cells[(ci, cj)]
+            for m, (di, dj) in enumerate(steps):
+                ni, nj = ci + di, cj + dj
+                if not (0 <= ni <= 2 and 0 <= nj <= 2) or (ni, nj) in cells:
+                    continue
+                k = (rot + m) % 4
+                a, b = int(self.faces[face][k]), int(self.faces[face][(k + 1) % 4])
+                hit = self.edges.get((b, a))
+                if hit is None:
+                    if cut_edges and (min(a, b), max(a, b)) in cut_edges:
+                        raise AssertionError("stencil reaches the cut of a local neighbourhood")
+                    continue
+                g, kk = hit
+                rot_g = (kk - (m + 2)) % 4
+                cells[(ni, nj)] = (g, rot_g)
+                place(g, rot_g, ni, nj)
+                queue.append((ni, nj))
+        rows = {}
+        for key, v in grid.items():
+            rows[key] = {v: 1.0}
+
+        def lin(p, q):   # 2 p - q
+            out = {}
+            for w, x in rows[p].items():
+                out[w] = out.get(w, 0.0) + 2.0 * x
+            for w, x in rows[q].items():
+                out[w] = out.get(w, 0.0) - x
+            return out
+
+        for _ in range(3):
+            for i in range(4):
+                for j in range(4):
+                    if (i, j) in rows:
+                        continue
+                    dj = 1 if j == 0 else -1 if j == 3 else 0
+                    di = 1 if i == 0 else -1 if i == 3 else 0
+                    if dj and (i, j + dj) in rows and (i, j + 2 * dj) in rows:
+                        rows[(i, j)] = lin((i, j + dj), (i, j + 2 * dj))
+                    elif di and (i + di, j) in rows and (i + 2 * di, j) in rows:
+                        rows[(i, j)] = lin((i + di, j), (i + 2 * di, j))
+        if len(rows) != 16:
+            raise InputError(f"{self.face_name(f)}: cannot form its 4x4 stencil (irregular "
+                             f"neighbourhood)", path=self.source)
+        data, ri, ci_ = [], [], []
+        for (i, j), combo in rows.items():
+            for w, x in combo.items():
+                ri.append(j * 4 + i)
+                ci_.append(w)
+                data.append(x)
+        M = sp.csr_matrix((data, (ri, ci_)), shape=(16, self.n_vertices))
+        M.sum_duplicates()
+        return M
+
+    def config(self, f: int, k: int) -> list[int]:
+        """Vertices of the faces around the corners of face f, in a canonical order starting
+        at corner k: the configuration whose subdivision is closed (Stam 1998's 2N+8 points
+        for an interior extraordinary vertex)."""
+        order, seen = [], set()
+        for c in range(4):
+            v = int(self.faces[f][(k + c) % 4])
+            fan, _ = self.fan(v)
+            start = fan.index(next(x for x in fan if x[0] == f))
+            for g, kk in fan[start:] + fan[:start]:
+                for m in range(4):
+                    w = int(self.faces[g][(kk + m) % 4])
+                    if w not in seen:
+                        seen.add(w)
+                        order.append(w)
+        return order
+
+    def neighbourhood_faces(self, f: int) -> list[int]:
+        """Faces sharing a vertex with face f (f included), in a fixed order."""
+        out, seen = [], set()
+        for v in self.faces[f]:
+            for g, _ in self.fan(int(v))[0]:
+                if g not in seen:
+                    seen.add(g)
+                    out.append(g)
+        return out

@@ -1,0 +1,1 @@
+"""Plan stage: the processing list (patch order, start/finish corners, crossfeed)."""

@@ -1,0 +1,1 @@
+"""Post stage: machine kinematics, controller dialects, feeds and machining time."""

@@ -1,0 +1,2 @@
+"""Toolpath stage: isoparametric zigzag paths with scallop-height control."""
+from .path import Move, ToolPath  # noqa: F401

@@ -1,0 +1,2 @@
+"""Verify: measures what the other stages made (scallop, gouge, collisions, smoothness, time).
+May read any stage; no stage reads it."""

@@ -47,6 +47,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.set_defaults(func=_cmd_info)
     p = sub.add_parser("job", help="run the main job on the bundled default model")
     p.set_defaults(func=_cmd_job)
+    from .plan.commands import register as register_plan
+    register_plan(sub)
     return parser
 
 

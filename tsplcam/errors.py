@@ -25,7 +25,7 @@ class InputError(TsplcamError):
         self.item = item
         where = ""
         if path is not None:
-            where = str(path) + (f":{line}" if line is not None else "") + ": "
+            where = str(path) + (f", line {line}" if line is not None else "") + ": "
         elif line is not None:
             where = f"line {line}: "
         what = f"{item}: " if item else ""

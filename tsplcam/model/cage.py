@@ -16,9 +16,9 @@ import numpy as np
 from ..errors import InputError
 from ..layout.layout import CORNER_UV
 from .basis import BSPLINE_TO_BEZIER
-from .cells import SQUARE_MAPS, BezierCells, EigenCells
+from .cells import SQUARE_MAPS, BezierCells, EigenCells, LevelCells
 from .decompose import decompose
-from .eigen import scheme_for
+from .eigen import NotSelfSimilar, scheme_for
 from .model import ExtraordinaryPoint, FaceMap, Model, link_patches
 from .patch import Patch
 from .quadmesh import QuadMesh
@@ -45,6 +45,21 @@ def _map_index(rotation: int) -> int:
     raise AssertionError(rotation)
 
 
+def _children(items, level: int):
+    """Cells of the faces ``items`` = [(face, i, j, rot)] after ``level`` refinements: child
+    4 f + k of a face at cell (i, j) with rotation rot sits in the sub-cell at the parent's
+    cell corner m = k - rot, with its own corner 0 (the parent's vertex) there too."""
+    for _ in range(level):
+        out = []
+        for f, i, j, rot in items:
+            for k in range(4):
+                m = (k - rot) % 4
+                di, dj = ((0, 0), (1, 0), (1, 1), (0, 1))[m]
+                out.append((4 * f + k, 2 * i + di, 2 * j + dj, (-m) % 4))
+        items = out
+    return items
+
+
 def cage_model(cage: Cage, name: str | None = None) -> Model:
     """The limit surface of ``cage`` split into patches."""
     mesh = cage.mesh
@@ -54,11 +69,21 @@ def cage_model(cage: Cage, name: str | None = None) -> Model:
     irregular = np.array([bool(mesh.valence(v)) and not mesh.is_regular_vertex(v)
                           for v in range(mesh.n_vertices)])
     level = 1 if (irregular[mesh.faces].sum(axis=1) >= 2).any() else 0
-    if level:
-        emesh, R, _ = mesh.refine()
-        He = R @ H0
-    else:
-        emesh, He = mesh, H0
+    while True:
+        try:
+            patches = _build_patches(mesh, H0, dec, level)
+            break
+        except NotSelfSimilar:
+            if level >= 2:
+                raise
+            level += 1
+    return _finish(mesh, dec, patches, cage, name)
+
+def _build_patches(mesh: QuadMesh, H0: np.ndarray, dec, level: int) -> list[Patch]:
+    emesh, He = mesh, H0
+    for _ in range(level):
+        emesh, R, _ = emesh.refine()
+        He = R @ He
     e_irregular = np.array([bool(emesh.valence(v)) and not emesh.is_regular_vertex(v)
                             for v in range(emesh.n_vertices)])
     M = BSPLINE_TO_BEZIER
@@ -70,44 +95,41 @@ def cage_model(cage: Cage, name: str | None = None) -> Model:
         group = np.zeros((nu, nv), dtype=int)
         local = np.zeros((nu, nv), dtype=int)
         bez, eig = [], {}
-        for f, (i, j), rot in zip(reg.faces, reg.cell, reg.rot):
-            if level == 0:
-                items = [(int(f), i, j, int(rot))]
-            else:
-                items = []
-                for k in range(4):
-                    m = (k - rot) % 4                       # parent cell corner of child k
-                    di, dj = ((0, 0), (1, 0), (1, 1), (0, 1))[m]
-                    items.append((4 * int(f) + k, 2 * i + di, 2 * j + dj, (-m) % 4))
-            for e, ci, cj, re in items:
-                corners = [k for k in range(4) if e_irregular[emesh.faces[e][k]]]
-                if not corners:
-                    G = (emesh.regular_stencil(e, re) @ He).reshape(4, 4, 4)      # [j, i, c]
-                    local[ci, cj] = len(bez)
-                    group[ci, cj] = -1
-                    bez.append(np.einsum("aj,bi,jic->abc", M, M, G))
-                    continue
-                if len(corners) > 1:
-                    raise AssertionError("face with two irregular corners after refinement")
-                k = corners[0]
-                scheme, cfg = scheme_for(emesh, e, k)
-                hat = scheme.project(He[cfg])
-                lst = eig.setdefault(id(scheme), (scheme, [], []))
-                local[ci, cj] = len(lst[1])
-                group[ci, cj] = -2 - list(eig).index(id(scheme))
-                lst[1].append(hat)
-                lst[2].append(_map_index((re - k) % 4))
+        items = _children([(int(f), int(i), int(j), int(rot))
+                           for f, (i, j), rot in zip(reg.faces, reg.cell, reg.rot)], level)
+        for e, ci, cj, re in items:
+            corners = [k for k in range(4) if e_irregular[emesh.faces[e][k]]]
+            if not corners:
+                G = (emesh.regular_stencil(e, re) @ He).reshape(4, 4, 4)      # [j, i, c]
+                local[ci, cj] = len(bez)
+                group[ci, cj] = -1
+                bez.append(np.einsum("aj,bi,jic->abc", M, M, G))
+                continue
+            if len(corners) > 1:
+                raise AssertionError("face with two irregular corners after refinement")
+            k = corners[0]
+            scheme, cfg = scheme_for(emesh, e, k)
+            data = He[cfg]
+            lst = eig.setdefault(id(scheme), (scheme, [], []))
+            local[ci, cj] = len(lst[1])
+            group[ci, cj] = -2 - list(eig).index(id(scheme))
+            lst[1].append(data)
+            lst[2].append(_map_index((re - k) % 4))
         groups, gid = [], {}
         if bez:
             gid[-1] = len(groups)
             groups.append(BezierCells(np.array(bez)))
-        for n, (scheme, hats, maps) in enumerate(eig.values()):
+        for n, (scheme, data, maps) in enumerate(eig.values()):
             gid[-2 - n] = len(groups)
-            groups.append(EigenCells(scheme, np.array(hats), np.array(maps)))
+            cls = LevelCells if scheme.defective else EigenCells
+            groups.append(cls(scheme, np.array(data), np.array(maps)))
         group = np.vectorize(gid.get)(group)
-        patch = Patch(r, np.linspace(0, 1, nu + 1), np.linspace(0, 1, nv + 1), group, local,
-                      groups, knot_size=(nc, nr))
-        patches.append(patch)
+        patches.append(Patch(r, np.linspace(0, 1, nu + 1), np.linspace(0, 1, nv + 1), group, local,
+                             groups, knot_size=(nc, nr)))
+    return patches
+
+
+def _finish(mesh: QuadMesh, dec, patches: list[Patch], cage: Cage, name: str | None) -> Model:
     link_patches(patches, dec.links)
     node_vertex = sorted({int(v) for reg in dec.regions for v in reg.corners})
     node_of = {v: n for n, v in enumerate(node_vertex)}

@@ -91,65 +91,126 @@ def _chain(Hst: np.ndarray, A: np.ndarray) -> np.ndarray:
     return out
 
 
+def _ring_coordinates(maps: np.ndarray, a: np.ndarray, b: np.ndarray, eps_level: int, max_level: int):
+    """Where (a, b) falls in Stam's tiling of a face with its irregular vertex at (0, 0).
+
+    Returns the per-point map matrices A, the vertex mask, the level n (point in
+    [0, 2^(1-n)]^2 minus [0, 2^-n]^2), the sub-patch k (0: s' >= 1/2, t' < 1/2; 1: both
+    >= 1/2; 2: s' < 1/2, t' >= 1/2) and the sub-patch's own parameters."""
+    A = _MAP_A[maps]
+    o = _MAP_O[maps]
+    s = np.clip(A[:, 0, 0] * a + A[:, 0, 1] * b + o[:, 0], 0.0, 1.0)
+    t = np.clip(A[:, 1, 0] * a + A[:, 1, 1] * b + o[:, 1], 0.0, 1.0)
+    at_vertex = (s <= 0.0) & (t <= 0.0)
+    eps = 2.0 ** -eps_level
+    s = np.where(at_vertex, eps, s)
+    t = np.where(at_vertex, eps, t)
+    _, e = np.frexp(np.maximum(s, t))
+    level = np.clip(1 - e, 1, max_level)
+    scale = np.ldexp(1.0, level - 1)
+    s1, t1 = np.minimum(s * scale, 1.0), np.minimum(t * scale, 1.0)
+    k = np.where(t1 < 0.5, 0, np.where(s1 >= 0.5, 1, 2))
+    sh = np.clip(np.where(k == 2, 2 * s1, 2 * s1 - 1), 0.0, 1.0)
+    th = np.clip(np.where(k == 0, 2 * t1, 2 * t1 - 1), 0.0, 1.0)
+    return A, at_vertex, level, k, sh, th
+
+
+_MAP_A = np.stack([m[0] for m in SQUARE_MAPS])
+_MAP_O = np.stack([m[1] for m in SQUARE_MAPS])
+_ORDER = np.array([ds + dt for ds, dt in DERIVS])
+
+
+def _subpatch_coefficients(mats: np.ndarray, k: np.ndarray, sh: np.ndarray, th: np.ndarray) -> np.ndarray:
+    """b(s', t')^T M_k for every point: basis of the six derivatives times one of three
+    (16, K) matrices, (n, 6, K)."""
+    basis = tensor_basis(uniform_cubic(sh), uniform_cubic(th))        # (n, 6, 16)
+    coeff = np.empty((len(k), 6, mats.shape[2]))
+    for kk in range(3):
+        sel = np.nonzero(k == kk)[0]
+        if len(sel):
+            coeff[sel] = (basis[sel].reshape(-1, 16) @ mats[kk]).reshape(len(sel), 6, -1)
+    return coeff
+
+
 class EigenCells:
     """Subdivision faces with one irregular corner, all of one configuration (one scheme).
 
-    ``hat`` (ncell, K, 4): the cells' homogeneous control points projected on the scheme's
-    eigenvectors (V^-1 C0). ``maps`` (ncell,) index of SQUARE_MAPS taking the cell's local
+    ``C0`` (ncell, K, 4): the cells' homogeneous control points in configuration order; they
+    are kept projected on the scheme's eigenvectors (``hat`` = V^-1 C0). ``maps`` (ncell,) index of SQUARE_MAPS taking the cell's local
     (a, b) to the face frame (s, t) in which the irregular vertex sits at (0, 0).
     """
 
     kind = "eigen"
     EPS_LEVEL = 40       # derivatives at the irregular vertex itself are taken at (2^-40, 2^-40)
+    MAX_LEVEL = 1070     # below 2^-1070 parameters are zero in double precision anyway
 
-    def __init__(self, scheme, hat: np.ndarray, maps: np.ndarray):
+    def __init__(self, scheme, C0: np.ndarray, maps: np.ndarray):
         self.scheme = scheme
-        self.hat = np.ascontiguousarray(hat, dtype=float)
+        self.hat = np.ascontiguousarray([scheme.project(c) for c in C0], dtype=float)
         self.maps = np.asarray(maps, dtype=int)
-        self.limit_normal = np.array([scheme.limit_normal(h) for h in self.hat]).reshape(-1, 3)
+        self.limit_normal = np.array([scheme.limit_normal(c) for c in C0]).reshape(-1, 3)
 
     def __len__(self) -> int:
         return len(self.hat)
 
     def evaluate(self, idx: np.ndarray, a: np.ndarray, b: np.ndarray):
         sch = self.scheme
-        A = np.stack([SQUARE_MAPS[m][0] for m in range(8)])[self.maps[idx]]   # (n,2,2)
-        o = np.stack([SQUARE_MAPS[m][1] for m in range(8)])[self.maps[idx]]   # (n,2)
-        s = A[:, 0, 0] * a + A[:, 0, 1] * b + o[:, 0]
-        t = A[:, 1, 0] * a + A[:, 1, 1] * b + o[:, 1]
-        s = np.clip(s, 0.0, 1.0)
-        t = np.clip(t, 0.0, 1.0)
-        at_vertex = (s <= 0.0) & (t <= 0.0)
-        eps = 2.0 ** -self.EPS_LEVEL
-        s = np.where(at_vertex, eps, s)
-        t = np.where(at_vertex, eps, t)
-        m = np.maximum(s, t)
-        _, e = np.frexp(m)
-        level = np.maximum(1, 1 - e)                  # m in [2^-level, 2^(1-level))
-        scale = np.ldexp(1.0, level - 1)
-        s1, t1 = s * scale, t * scale                 # in [0,1]^2 minus [0,1/2)^2
-        k = np.where(t1 < 0.5, 0, np.where(s1 >= 0.5, 1, 2))
-        sh = np.where(k == 2, 2 * s1, 2 * s1 - 1)
-        th = np.where(k == 0, 2 * t1, 2 * t1 - 1)
-        basis = tensor_basis(uniform_cubic(sh), uniform_cubic(th))        # (n, 6, 16)
-        n = len(a)
-        coeff = np.empty((n, 6, sch.K))
-        for kk in range(3):
-            sel = np.nonzero(k == kk)[0]
-            if len(sel):
-                coeff[sel] = (basis[sel].reshape(-1, 16) @ sch.phi[kk]).reshape(len(sel), 6, sch.K)
-        # powers of the eigenvalues and the 2^level scale of each derivative
+        A, at_vertex, level, k, sh, th = _ring_coordinates(self.maps[idx], a, b, self.EPS_LEVEL,
+                                                           self.MAX_LEVEL)
+        coeff = _subpatch_coefficients(sch.phi, k, sh, th)
+        # lambda_i^(level-1) and the 2^level scale of each derivative order
         lam_pow = np.exp(np.multiply.outer(level - 1, sch.log_abs_lam)) * sch.sign_lam ** (level - 1)[:, None]
         lam_pow[:, sch.zero_lam] = np.where((level - 1)[:, None] == 0, 1.0, 0.0)
         coeff *= lam_pow[:, None, :]
-        order = np.array([ds + dt for ds, dt in DERIVS])
-        coeff *= np.ldexp(1.0, np.multiply.outer(level, order))[:, :, None]
+        coeff *= np.ldexp(1.0, np.multiply.outer(level, _ORDER))[:, :, None]
         coeff[:, 1:, sch.dominant] = 0.0              # the limit point does not move
-        H = np.einsum("ndk,nkc->dnc", coeff, self.hat[idx], optimize=False)
-        H = _chain(H, A)
+        H = _chain(np.einsum("ndk,nkc->dnc", coeff, self.hat[idx], optimize=False), A)
         ep_normal = None
         if at_vertex.any():
             H[0, at_vertex] = self.hat[idx[at_vertex], sch.dominant]
-            ep_normal = np.zeros((n, 3))
+            ep_normal = np.zeros((len(a), 3))
+            ep_normal[at_vertex] = self.limit_normal[idx[at_vertex]]
+        return H, at_vertex, ep_normal
+
+
+class LevelCells:
+    """Like EigenCells, for configurations whose subdivision matrix is defective (Jordan
+    blocks, as at some boundary vertices under OpenSubdiv's rules): the control points of
+    every level are precomputed per cell as d_m = A^m (C0 - L) (``SubdivisionScheme.levels``),
+    which is exact and keeps full relative precision; below 2^-MAX_LEVEL the point is the
+    limit point."""
+
+    kind = "levels"
+    EPS_LEVEL = 50
+    MAX_LEVEL = 60
+
+    def __init__(self, scheme, C0: np.ndarray, maps: np.ndarray):
+        self.scheme = scheme
+        self.maps = np.asarray(maps, dtype=int)
+        pairs = [scheme.levels(c, self.MAX_LEVEL) for c in C0]
+        self.limit = np.array([L for L, _ in pairs])                # (ncell, 4)
+        self.d = np.array([d for _, d in pairs])                    # (ncell, M, K, 4)
+        self.limit_normal = np.array([scheme.limit_normal(c) for c in C0]).reshape(-1, 3)
+
+    def __len__(self) -> int:
+        return len(self.d)
+
+    def _evaluate(self, idx, a, b):
+        A, at_vertex, level, k, sh, th = _ring_coordinates(self.maps[idx], a, b, self.EPS_LEVEL,
+                                                           self.MAX_LEVEL)
+        coeff = _subpatch_coefficients(self.scheme.S, k, sh, th)
+        coeff *= np.ldexp(1.0, np.multiply.outer(level, _ORDER))[:, :, None]
+        H = np.einsum("ndk,nkc->dnc", coeff, self.d[idx, level - 1], optimize=False)
+        H[0] += self.limit[idx]
+        H = _chain(H, A)
+        if at_vertex.any():
+            H[0, at_vertex] = self.limit[idx[at_vertex]]
+        return H, at_vertex, level
+
+    def evaluate(self, idx: np.ndarray, a: np.ndarray, b: np.ndarray):
+        H, at_vertex, _ = self._evaluate(idx, a, b)
+        ep_normal = None
+        if at_vertex.any():
+            ep_normal = np.zeros((len(a), 3))
             ep_normal[at_vertex] = self.limit_normal[idx[at_vertex]]
         return H, at_vertex, ep_normal

@@ -31,6 +31,10 @@ from .quadmesh import QuadMesh
 _SUBPATCH_CHILDREN = ((1, 3), (2, 2), (3, 1))
 
 
+class NotSelfSimilar(InputError):
+    """The face's neighbourhood only becomes self-similar after more refinement."""
+
+
 class SubdivisionScheme:
     """Eigen-structure of one local configuration (one irregular vertex type)."""
 
@@ -51,7 +55,7 @@ class SubdivisionScheme:
             child_cut.add((min(b, e), max(b, e)))
         cfg1 = child.config(4 * face + corner, 0)
         if len(cfg1) != K or tainted[cfg1].any():
-            raise InputError(f"{label}: the neighbourhood of this irregular vertex does not "
+            raise NotSelfSimilar(f"{label}: the neighbourhood of this irregular vertex does not "
                              f"subdivide into the same configuration")
         Rd = R.toarray()
         perm = np.asarray(config)
@@ -66,18 +70,46 @@ class SubdivisionScheme:
                                  f"configuration")
             S.append((St @ Rd)[:, perm])
         self.A = A
+        self.S = np.stack(S)                                 # (3, 16, K)
+        self.config_order = perm
+        # left eigenvector of eigenvalue 1: the limit-point mask (A 1 = 1, affine invariance)
+        _, sv, vt = np.linalg.svd((A - np.eye(K)).T)
+        if sv[-1] > 1e-9 or (K > 1 and sv[-2] < 1e-9):
+            raise InputError(f"{label}: eigenvalue 1 is not simple (no unique limit point)")
+        l0 = vt[-1]
+        self.limit_mask = l0 / l0.sum()
+        self.defective = False
+        self.tangent_masks = _tangent_masks(A, label)
         lam, V = np.linalg.eig(A)
-        if np.abs(lam.imag).max() > 1e-9 or np.abs(V.imag).max() > 1e-9:
-            raise InputError(f"{label}: complex eigen-structure, cannot evaluate exactly")
-        lam, V = lam.real, V.real
-        order = np.argsort(-np.abs(lam), kind="stable")
-        lam, V = lam[order], V[:, order]
-        cond = np.linalg.cond(V)
-        Vinv = np.linalg.inv(V)
-        err = np.abs(V @ np.diag(lam) @ Vinv - A).max()
-        if not (cond < 1e10 and err < 1e-9):
-            raise InputError(f"{label}: the subdivision matrix is defective (condition "
-                             f"{cond:.3g}), exact evaluation by eigen-analysis is not possible")
+        if np.abs(lam.imag).max() > 1e-9:
+            self.defective = True
+        else:
+            # numpy returns a repeated real eigenvalue as a "conjugate pair" with ~1e-17
+            # imaginary parts and complex eigenvectors: their real and imaginary parts span
+            # the same real eigenspace.
+            V = V.copy()
+            i = 0
+            while i < K:
+                if np.abs(V[:, i].imag).max() > 1e-12 and i + 1 < K:
+                    re, im = V[:, i].real.copy(), V[:, i].imag.copy()
+                    V[:, i], V[:, i + 1] = re, im
+                    i += 2
+                else:
+                    i += 1
+            lam, V = lam.real, V.real
+            order = np.argsort(-np.abs(lam), kind="stable")
+            lam, V = lam[order], V[:, order]
+            if not np.linalg.cond(V) < 1e10:
+                self.defective = True
+            else:
+                Vinv = np.linalg.inv(V)
+                if np.abs(V @ np.diag(lam) @ Vinv - A).max() > 1e-9:
+                    self.defective = True
+        if self.defective:
+            # Jordan blocks (OpenSubdiv's boundary rules at some boundary vertices): evaluate
+            # level by level instead, see LevelCells.
+            self.lam = np.sort(np.abs(np.linalg.eigvals(A)))[::-1]
+            return
         self.lam = lam
         self.V = V
         self.Vinv = Vinv
@@ -89,12 +121,24 @@ class SubdivisionScheme:
             self.log_abs_lam = np.where(self.zero_lam, 0.0, np.log(np.abs(lam)))
         self.sign_lam = np.sign(lam)
         self.phi = np.stack([Sk @ V for Sk in S])          # (3, 16, K)
-        self.config_order = perm
+
+    def levels(self, C0: np.ndarray, count: int) -> tuple[np.ndarray, np.ndarray]:
+        """Limit point L (4,) and d_m = A^m (C0 - L) for m < count, (count, K, 4).
+
+        Iterating on the difference keeps full relative precision at every level: no O(1)
+        quantities ever cancel, unlike powers of A applied to C0."""
+        L = self.limit_mask @ C0
+        d = np.empty((count, self.K, C0.shape[1]))
+        d[0] = C0 - L[None, :]
+        for m in range(1, count):
+            d[m] = self.A @ d[m - 1]
+        return L, d
 
     @property
     def subdominant(self) -> float:
-        others = [abs(x) for i, x in enumerate(self.lam) if i != self.dominant]
-        return max(others)
+        """Largest |eigenvalue| below the dominant 1."""
+        lam = np.sort(np.abs(self.lam))[::-1]
+        return float(lam[1])
 
     def project(self, C0: np.ndarray) -> np.ndarray:
         """Eigen-coefficients V^-1 C0 of control points given in configuration order (K, 4)."""
@@ -104,25 +148,45 @@ class SubdivisionScheme:
         h = hat[self.dominant]
         return h[:3] / h[3]
 
-    def limit_normal(self, hat: np.ndarray) -> np.ndarray:
-        """Unit normal of the tangent plane at the irregular vertex (orientation unfixed):
-        spanned by the eigen-coefficients of the two largest eigenvalues below 1."""
-        h0 = hat[self.dominant]
-        X = h0[:3] / h0[3]
-        tangents = []
-        for i in range(len(self.lam)):
-            if i == self.dominant or self.zero_lam[i]:
-                continue
-            t = (hat[i, :3] - X * hat[i, 3]) / h0[3]
-            if np.linalg.norm(t) <= 1e-14 * (1.0 + np.linalg.norm(X)):
-                continue
-            if tangents:
-                c = np.cross(tangents[0], t)
-                if np.linalg.norm(c) > 1e-9 * np.linalg.norm(tangents[0]) * np.linalg.norm(t):
-                    return c / np.linalg.norm(c)
-            else:
-                tangents.append(t)
-        raise InputError(f"{self.label}: degenerate tangent plane at the irregular vertex")
+    def limit_normal(self, C0: np.ndarray) -> np.ndarray:
+        """Unit normal of the tangent plane at the irregular vertex (orientation unfixed),
+        from the tangent masks (left eigenvectors of the largest eigenvalues below 1)
+        applied to the configuration's homogeneous control points C0 (K, 4)."""
+        L = self.limit_mask @ C0
+        X = L[:3] / L[3]
+        t1, t2 = ((m @ C0)[:3] - X * (m @ C0)[3] for m in self.tangent_masks)
+        n = np.cross(t1, t2)
+        length = np.linalg.norm(n)
+        if not length > 1e-12 * (np.linalg.norm(t1) * np.linalg.norm(t2) + 1e-300):
+            raise InputError(f"{self.label}: degenerate tangent plane at the irregular vertex")
+        return n / length
+
+
+def _tangent_masks(A: np.ndarray, label: str) -> tuple[np.ndarray, np.ndarray]:
+    """Two left eigenvectors of the largest eigenvalues below 1: masks whose application to
+    the control points gives two tangent vectors at the limit point (Halstead et al. 1993
+    write them in closed form for interior Catmull-Clark vertices). Found as null spaces of
+    A^T - lambda I by SVD, which works even where A as a whole is defective."""
+    K = len(A)
+    lam = np.linalg.eigvals(A)
+    lam = np.sort(lam.real[np.abs(lam.imag) < 1e-9])[::-1]
+    clusters: list[list[float]] = []            # equal eigenvalues, kept unrounded
+    for x in lam:
+        if clusters and abs(clusters[-1][-1] - x) < 1e-8:
+            clusters[-1].append(x)
+        else:
+            clusters.append([x])
+    masks = []
+    for value in (float(np.mean(c)) for c in clusters):
+        if abs(value - 1.0) < 1e-9 or value < 1e-12:
+            continue
+        _, sv, vt = np.linalg.svd((A - value * np.eye(K)).T)
+        null = vt[sv < 1e-8 * max(1.0, sv[0])]
+        for row in null:
+            masks.append(row)
+            if len(masks) == 2:
+                return masks[0], masks[1]
+    raise InputError(f"{label}: no tangent plane at the irregular vertex")
 
 
 _SCHEMES: dict = {}

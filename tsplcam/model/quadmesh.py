@@ -184,12 +184,6 @@ class QuadMesh:
         if self.faces.min() < 0 or self.faces.max() >= self.n_vertices:
             f = int(np.nonzero((self.faces < 0).any(1) | (self.faces >= self.n_vertices).any(1))[0][0])
             raise InputError(f"{self.face_name(f)} refers to a vertex that does not exist", path=self.source)
-        used = np.zeros(self.n_vertices, bool)
-        used[self.faces.reshape(-1)] = True
-        if not used.all():
-            v = int(np.nonzero(~used)[0][0])
-            raise InputError(f"{self.vertex_name(v)} is not used by any face "
-                             f"({int((~used).sum())} unused vertices)", path=self.source)
         if points is not None:
             bad = ~np.isfinite(points).all(axis=1)
             if bad.any():
@@ -201,6 +195,12 @@ class QuadMesh:
                 raise InputError(f"{self.vertex_name(v)} has weight {points[v, 3]:g}: weights must "
                                  f"be positive", path=self.source)
         self.edges  # noqa: B018  (orientation and manifold edges)
+        used = np.zeros(self.n_vertices, bool)
+        used[self.faces.reshape(-1)] = True
+        if not used.all():
+            v = int(np.nonzero(~used)[0][0])
+            raise InputError(f"{self.vertex_name(v)} is not used by any face "
+                             f"({int((~used).sum())} unused vertices)", path=self.source)
         for v in range(self.n_vertices):
             self.fan(v)
 
@@ -341,17 +341,23 @@ class QuadMesh:
                 out[w] = out.get(w, 0.0) - x
             return out
 
-        for _ in range(3):
-            for i in range(4):
-                for j in range(4):
-                    if (i, j) in rows:
-                        continue
-                    dj = 1 if j == 0 else -1 if j == 3 else 0
-                    di = 1 if i == 0 else -1 if i == 3 else 0
-                    if dj and (i, j + dj) in rows and (i, j + 2 * dj) in rows:
-                        rows[(i, j)] = lin((i, j + dj), (i, j + 2 * dj))
-                    elif di and (i + di, j) in rows and (i + 2 * di, j) in rows:
-                        rows[(i, j)] = lin((i + di, j), (i + 2 * di, j))
+        # The boundary lines of a regular configuration are sides of F whose neighbouring
+        # cell is missing; phantoms are extrapolated across those lines only.
+        jside = {0: (1, 0) not in cells, 3: (1, 2) not in cells}       # rows beyond a boundary
+        iside = {0: (0, 1) not in cells, 3: (2, 1) not in cells}       # columns beyond one
+        for (i, j) in [(i, j) for j in range(4) for i in range(4)]:
+            if (i, j) in rows or iside.get(i, False):
+                continue
+            if jside.get(j, False):
+                dj = 1 if j == 0 else -1
+                if (i, j + dj) in rows and (i, j + 2 * dj) in rows:
+                    rows[(i, j)] = lin((i, j + dj), (i, j + 2 * dj))
+        for (i, j) in [(i, j) for j in range(4) for i in range(4)]:
+            if (i, j) in rows or not iside.get(i, False):
+                continue
+            di = 1 if i == 0 else -1
+            if (i + di, j) in rows and (i + 2 * di, j) in rows:
+                rows[(i, j)] = lin((i + di, j), (i + 2 * di, j))
         if len(rows) != 16:
             raise InputError(f"{self.face_name(f)}: cannot form its 4x4 stencil (irregular "
                              f"neighbourhood)", path=self.source)

@@ -1,0 +1,143 @@
+"""Controller dialects: one module per control, each with a writer and a reader.
+
+A writer turns a :class:`Job` (the machine, the resolved settings and the motion rows) into
+program text; the text depends only on its input (no dates, no machine-dependent
+formatting), so the same input gives the same bytes. A reader parses the motion blocks of
+that dialect back into :class:`ReadMove` rows, so tests can check a program from its text
+alone: :func:`pose_of` turns a read move into tool tip and axis through the machine's
+kinematics.
+"""
+from __future__ import annotations
+
+import importlib
+import re
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ...errors import InputError
+
+NAMES = ("heidenhain", "sinumerik", "fanuc", "linuxcnc")
+
+
+def get(name: str):
+    """The dialect module called ``name``."""
+    if name not in NAMES:
+        raise InputError(f"unknown post dialect {name!r}; known: {', '.join(NAMES)}", item="--post")
+    return importlib.import_module(f"{__name__}.{name}")
+
+
+@dataclass
+class Motion:
+    """Program motion rows in program order (the block arriving at each row).
+
+    ``tip``/``axis``: tool tip and axis the row commands (part frame); ``joints``: machine
+    axes (mm, deg); ``rapid``: G0-type row; ``feed``: path feed (mm/min) of feed rows;
+    ``inverse_time``: 1/min of feed rows (G93); ``source``: index into the tool path
+    (fractional for inserted rows, -1 approach, -2 retract); ``move``: tsplcam Move of the
+    source point or -1 (approach) / -2 (retract).
+    """
+    tip: np.ndarray
+    axis: np.ndarray
+    joints: np.ndarray
+    rapid: np.ndarray
+    feed: np.ndarray
+    inverse_time: np.ndarray
+    source: np.ndarray
+    move: np.ndarray
+
+    def __len__(self):
+        return len(self.tip)
+
+
+@dataclass
+class Job:
+    """Everything a writer needs."""
+    machine: object
+    settings: dict
+    motion: Motion
+    header: list
+    preposition: tuple           # (tilt, rotary) values before TCP / tool length is switched on
+    blank: tuple                 # ((xmin, ymin, zmin), (xmax, ymax, zmax)) of the path, for BLK FORM
+    tool_radius: float = 0.0
+
+
+@dataclass
+class ReadMove:
+    """A motion block read back from program text."""
+    line: int                    # 1-based line of the program
+    rapid: bool
+    program: bool                # in part (TCP) or joint coordinates, not a machine-coordinate move
+    words: dict = field(default_factory=dict)   # axis letter / vector word -> value (modal values filled)
+    feed: float | None = None
+    inverse_time: bool = False
+
+
+# --- number formatting ---------------------------------------------------------------------
+
+def fmt(value: float, decimals: int, plus: bool = False) -> str:
+    """Fixed decimals, no negative zero, optional explicit '+' (Heidenhain)."""
+    s = f"{value:.{decimals}f}"
+    if s.startswith("-") and not s.strip("-0."):
+        s = s[1:]
+    if plus and not s.startswith("-"):
+        s = "+" + s
+    return s
+
+
+def fmt_col(values, decimals: int, plus: bool = False) -> list:
+    return [fmt(v, decimals, plus) for v in np.asarray(values, float).tolist()]
+
+
+def fmt_feed(value: float, decimals: int = 3) -> str:
+    """A feed with trailing zeros dropped (F1000, F237.5)."""
+    s = f"{value:.{decimals}f}"
+    if "." in s:
+        s = s.rstrip("0").rstrip(".")
+    return s
+
+
+def clean_comment(text: str, forbid: str = "()") -> str:
+    """Comment text safe for the dialect: printable ASCII, no characters it forbids."""
+    out = "".join(ch if 32 <= ord(ch) < 127 and ch not in forbid else " " for ch in text)
+    return re.sub(r"\s+", " ", out).strip()
+
+
+# --- reading -------------------------------------------------------------------------------
+
+NUMBER = r"[-+]?(?:\d+\.?\d*|\.\d+)"
+
+
+def words(line: str, pattern=re.compile(r"([A-Z]+\d(?==)|[A-Z]+)\s*=?\s*(" + NUMBER + r")")) -> list:
+    """(address, value) pairs of a block, e.g. 'G1 X1.5 A3=0.25' -> [('G', 1.0), ...]."""
+    return [(a, float(v)) for a, v in pattern.findall(line.upper())]
+
+
+def pose_of(machine, move: ReadMove, settings: dict, joint_space: bool):
+    """Tool tip and unit axis (part frame) a read move commands, via the kinematics."""
+    from ..kinematics import forward, orientation
+    names = machine.axis_names
+    if joint_space:
+        j = np.array([[move.words.get(n, 0.0) for n in names]])
+        tip, axis = forward(machine, j, tool_length=settings.get("tool_length"),
+                            part_origin=settings.get("part_origin"))
+        return tip[0], axis[0]
+    tip = np.array([move.words.get(n, 0.0) for n in "XYZ"])
+    vec = settings.get("vector_words")
+    if settings.get("orientation") == "vector" and vec:
+        axis = np.array([move.words.get(w, 0.0) for w in vec])
+        axis = axis / np.linalg.norm(axis)
+    else:
+        axis = orientation(machine, move.words.get(names[3], 0.0), move.words.get(names[4], 0.0))[0]
+    if settings.get("point") == "center":
+        tip = tip - settings.get("tool_radius", 0.0) * axis
+    return tip, axis
+
+
+def poses(machine, moves, settings: dict, joint_space: bool):
+    """Tips (m,3) and axes (m,3) of the program moves among ``moves``."""
+    sel = [mv for mv in moves if mv.program]
+    if not sel:
+        return np.zeros((0, 3)), np.zeros((0, 3))
+    pts = [pose_of(machine, mv, settings, joint_space) for mv in sel]
+    return np.array([p[0] for p in pts]), np.array([p[1] for p in pts])

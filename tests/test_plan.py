@@ -8,6 +8,7 @@ depth-first search for Hamiltonian paths over boundary links.
 import itertools
 import json
 import os
+import shutil
 import subprocess
 import tempfile
 import unittest
@@ -544,6 +545,7 @@ class ListFile(unittest.TestCase):
         self.lay = ex.figure4()
         self.pl = plan(self.lay, model="figure4")
         self.tmp = tempfile.mkdtemp()
+        self.addCleanup(shutil.rmtree, self.tmp, True)
         self.path = os.path.join(self.tmp, "list.json")
         save(self.pl, self.path)
 
@@ -689,7 +691,9 @@ class CommandLine(unittest.TestCase):
                               capture_output=True, text=True, env=env, cwd=REPO_DIR)
 
     def test_plan_writes_and_checks_a_list(self):
-        out = os.path.join(tempfile.mkdtemp(), "keycap.json")
+        tmp = tempfile.mkdtemp()
+        self.addCleanup(shutil.rmtree, tmp, True)
+        out = os.path.join(tmp, "keycap.json")
         res = self.run_cli("--example", "keycap", "--out", out)
         self.assertEqual(res.returncode, 0, res.stderr)
         self.assertIn("0 corner links, 0 retractions", res.stdout)

@@ -6,7 +6,8 @@
    (:func:`~tsplcam.plan.corners.choose_corners`).
 3. On small layouts (``exact_limit`` patches or fewer) a Held-Karp programme with the
    corner rules folded in certifies the result and replaces it if it is worse; on larger
-   ones, each corner link that cost a retraction is forbidden in turn and LKH asked again.
+   ones, each corner link that cost a retraction is forbidden and LKH asked once more, then
+   short runs next to the remaining retractions are reversed while that removes any.
 
 A result's quality is judged by (1) fewest retractions, (2) fewest corner links; pins are
 hard constraints; among equals, fewest steps whose crossfeed is not the preferred one.
@@ -18,10 +19,11 @@ from dataclasses import replace
 from ..errors import InputError
 from .corners import Rules, build_steps, choose_corners, cost_weights
 from .graph import NONE, PatchGraph, layout_hash, preferred_crossfeeds
-from .order import exact_order, lkh_order
+from .order import exact_order, lkh_order, polish_retractions
 from .steps import CROSSFEEDS, Pins, ProcessingList, crossfeeds_for
 
 EXACT_LIMIT = 12
+MAX_EXACT = 16      # Held-Karp's table has 2^n * n * 4 entries: 32 MB at 16 patches
 
 
 def normalise_pins(pins: Pins | None, n: int) -> Pins:
@@ -93,7 +95,7 @@ def _rank(cost: int, n: int) -> int:
 
 def plan(layout, pins: Pins | None = None, *, preferred: list[str] | None = None,
          edge_lengths=None, hints: dict | None = None, exact_limit: int = EXACT_LIMIT,
-         lkh_runs: int | None = None, max_resolves: int = 4, model: str = "",
+         lkh_runs: int = 1, max_resolves: int = 1, model: str = "",
          units: str = "mm") -> ProcessingList:
     """The processing list of a layout: order, transit corners and crossfeed per patch.
 
@@ -114,7 +116,7 @@ def plan(layout, pins: Pins | None = None, *, preferred: list[str] | None = None
     order = lkh_order(graph, pins, runs=lkh_runs)
     res, cost = choose_corners(rules, order)
     method = "LKH"
-    if n <= exact_limit:
+    if n <= min(exact_limit, MAX_EXACT):
         ex_order, ex_cost = exact_order(rules, pins)
         info["exact_rank"] = _rank(ex_cost, n)
         if _rank(ex_cost, n) < _rank(cost, n):
@@ -136,6 +138,12 @@ def plan(layout, pins: Pins | None = None, *, preferred: list[str] | None = None
             if _rank(c2, n) < _rank(cost, n):
                 order, res, cost = o2, r2, c2
                 method = "LKH, re-solved with retraction links forbidden"
+        if res.retractions:
+            o3, r3, c3 = polish_retractions(rules, order)
+            if _rank(c3, n) < _rank(cost, n):
+                order = o3
+                res, cost = choose_corners(rules, order)
+                method += ", polished by 2-opt at retractions"
     info.update(order_method=method, corner_method=res.method, dead_ends=res.dead_ends,
                 crossfeed_mismatches=sum(int(rules.miss[p, res.starts[i], res.finishes[i]])
                                          for i, p in enumerate(order)))

@@ -704,3 +704,45 @@ class CommandLine(unittest.TestCase):
         self.assertEqual(res.returncode, 2)
         self.assertIn("another model", res.stderr)
         self.assertNotIn("Traceback", res.stderr)
+
+
+BOX_OBJ = """v -10 -10 0\nv 10 -10 0\nv 10 10 0\nv -10 10 0
+v -9 -9 10\nv 9 -9 10\nv 9 9 10\nv -9 9 10
+f 5 6 7 8\nf 1 2 6 5\nf 2 3 7 6\nf 3 4 8 7\nf 4 1 5 8
+"""
+CUBE_OBJ = """v -40 -50 -60\nv 40 -50 -60\nv 40 50 -60\nv -40 50 -60
+v -40 -50 60\nv 40 -50 60\nv 40 50 60\nv -40 50 60
+f 1 4 3 2\nf 5 6 7 8\nf 1 2 6 5\nf 2 3 7 6\nf 3 4 8 7\nf 4 1 5 8
+"""
+
+
+class KernelModels(unittest.TestCase):
+    """The kernel's cage models of an open box and a cube plan like the hand-built layouts."""
+
+    def test_transit_corners_are_one_point_of_the_surface(self):
+        import tsplcam
+        from tsplcam.layout.layout import CORNER_UV
+        from tsplcam.plan.graph import model_edge_lengths
+        tmp = tempfile.mkdtemp()
+        self.addCleanup(shutil.rmtree, tmp, True)
+        for text, hand in ((BOX_OBJ, ex.keycap()), (CUBE_OBJ, ex.head())):
+            path = os.path.join(tmp, "model.obj")
+            with open(path, "w") as f:
+                f.write(text)
+            model = tsplcam.load(path)
+            lay = model.layout()
+            self.assertEqual(lay.n_patches, hand.n_patches)
+            self.assertEqual(sorted(ref_extraordinary(lay).values()),
+                             sorted(ref_extraordinary(hand).values()))
+            degrees = lambda L: sorted(  # noqa: E731
+                tuple(sorted(str(ref_kind(L, p, q)) for q in range(L.n_patches) if q != p))
+                for p in range(L.n_patches))
+            self.assertEqual(degrees(lay), degrees(hand))
+            pl = plan(lay, edge_lengths=model_edge_lengths(model))
+            self.assertEqual(rc(pl), (0, 0))
+            for a, b in zip(pl.steps, pl.steps[1:]):
+                ua, va = CORNER_UV[a.finish]
+                ub, vb = CORNER_UV[b.start]
+                pa = model.evaluate(a.patch, np.array([ua]), np.array([va])).P
+                pb = model.evaluate(b.patch, np.array([ub]), np.array([vb])).P
+                self.assertLess(np.linalg.norm(np.asarray(pa) - np.asarray(pb)), 1e-9)

@@ -1,18 +1,19 @@
 """Patch order (shang2020 section 3.3): a TSP over patches solved with LKH (``elkai``).
 
-Weights: a boundary link costs 1, a corner link ``c_w`` (more than any number of boundary
-links a path can hold), a pair of patches that touch nowhere ``p_w`` (more than any
-number of corner links): the order prefers to retract never, then to cross corners as
-seldom as it can.
+Weights: a boundary link costs 1, a corner link n (more than all the boundary links a
+path holds), a pair of patches that touch nowhere n^2 (more than all its corner links):
+the order avoids unlinked neighbours first, then corner links (the scale stops growing at
+200 patches to keep LKH's integers small; the order of preference stays).
 
 The paper closes the Hamiltonian path into a tour with a zero-weight link between the
 start patch and the suggested finish patch and opens the tour there. Here that link is
-drawn through a virtual city: zero-weight edges from it to the start patch and to the
-finish patch, and when an end is not pinned, to every patch that may take that end (so
-LKH also chooses the ends). Edges from the virtual city to any other patch weigh more
-than any path, so every good tour enters and leaves the virtual city through the two
-ends; the tour opened at the virtual city is the order, reversed when the finish patch
-comes first.
+drawn through a virtual city: zero-weight edges from it to the start patch and the finish
+patch. When neither end is pinned every patch (but those pinned to an interior position)
+gets a zero-weight edge to it, so LKH also chooses both ends; when one end is pinned, only
+that patch does and every other edge of the virtual city weighs more than any path, a
+constant that every tour pays once, so LKH still chooses the free end. The tour opened at
+the virtual city is the order, reversed when the pinned start comes last (or the pinned
+finish first).
 
 LKH is a heuristic. :func:`exact_order` is a Held-Karp dynamic programme over (set of
 patches done, last patch, its finish corner) with the corner rules of section 3.4 folded

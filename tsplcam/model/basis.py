@@ -20,6 +20,8 @@ def bernstein(p: int, t: np.ndarray, nderiv: int = 2) -> np.ndarray:
     Derivative rule: d/dt B_{i,p} = p (B_{i-1,p-1} - B_{i,p-1}).
     """
     t = np.asarray(t, dtype=float).reshape(-1)
+    if p == 3 and nderiv == 2:
+        return _bernstein3(t)
     n = len(t)
     out = np.zeros((n, nderiv + 1, p + 1))
     for d in range(nderiv + 1):
@@ -34,6 +36,26 @@ def bernstein(p: int, t: np.ndarray, nderiv: int = 2) -> np.ndarray:
         # apply the derivative difference operator d times
         coef = _difference_operator(p, d)          # (p+1, q+1)
         out[:, d, :] = vals @ coef.T
+    return out
+
+
+def _bernstein3(t: np.ndarray) -> np.ndarray:
+    """Cubic Bernstein basis with first and second derivatives, written out (the hot case)."""
+    s = 1.0 - t
+    t2, s2 = t * t, s * s
+    out = np.empty((len(t), 3, 4))
+    out[:, 0, 0] = s2 * s
+    out[:, 0, 1] = 3.0 * t * s2
+    out[:, 0, 2] = 3.0 * t2 * s
+    out[:, 0, 3] = t2 * t
+    out[:, 1, 0] = -3.0 * s2
+    out[:, 1, 1] = 3.0 * s2 - 6.0 * t * s
+    out[:, 1, 2] = 6.0 * t * s - 3.0 * t2
+    out[:, 1, 3] = 3.0 * t2
+    out[:, 2, 0] = 6.0 * s
+    out[:, 2, 1] = 18.0 * t - 12.0
+    out[:, 2, 2] = 6.0 - 18.0 * t
+    out[:, 2, 3] = 6.0 * t
     return out
 
 

@@ -8,7 +8,9 @@ eigen-decomposition of its local subdivision matrix (Stam 1998, generalised: the
 computed numerically for the configuration at hand, see ``eigen.py``).
 
 Every evaluator takes cell indices and local parameters (a, b) in [0, 1]^2 and returns
-homogeneous values and derivatives, shape (6, n, 4): H, H_a, H_b, H_aa, H_ab, H_bb.
+homogeneous values and derivatives coordinate-major, shape (6, 4, n): H, H_a, H_b, H_aa,
+H_ab, H_bb of (w x, w y, w z, w). Points of one cell given one after another are
+evaluated with one BLAS product per cell (the patch sorts them so).
 """
 from __future__ import annotations
 
@@ -42,20 +44,44 @@ class BezierCells:
         self.ctrl = np.ascontiguousarray(ctrl, dtype=float)
         self.q = self.ctrl.shape[1] - 1
         self.p = self.ctrl.shape[2] - 1
+        self.rational = bool(np.any(self.ctrl[..., 3] != 1.0))
+        # coordinates that vary: polynomial cells (all weights 1) skip w
+        self.nc = 4 if self.rational else 3
+        # per cell, the ((q+1)*nc) x (p+1) matrix of the contraction along a: [j*nc + c, i]
+        self._cj = np.ascontiguousarray(
+            self.ctrl[..., :self.nc].transpose(0, 1, 3, 2).reshape(len(self.ctrl), -1, self.p + 1))
 
     def __len__(self) -> int:
         return len(self.ctrl)
 
     def evaluate(self, idx: np.ndarray, a: np.ndarray, b: np.ndarray):
-        bs = bernstein(self.p, a)                     # (n, 3, p+1)
-        bt = bernstein(self.q, b)                     # (n, 3, q+1)
-        C = self.ctrl[idx]                            # (n, q+1, p+1, 4)
-        # contract along a first: T[n, da, j, c]
-        T = np.einsum("nai,njic->najc", bs, C, optimize=False)
-        H = np.empty((6, len(a), 4))
-        for k, (ds, dt) in enumerate(DERIVS):
-            H[k] = np.einsum("nj,njc->nc", bt[:, dt, :], T[:, ds], optimize=False)
-        return H, None, None
+        """Run by run of equal cell index: the contraction along a is one BLAS product per
+        run, the one along b a short sum over contiguous rows."""
+        n = len(a)
+        p1, q1, nc = self.p + 1, self.q + 1, self.nc
+        bs = np.ascontiguousarray(bernstein(self.p, a).transpose(2, 1, 0))   # (p+1, 3, n)
+        bt = np.ascontiguousarray(bernstein(self.q, b).transpose(1, 2, 0))   # (3, q+1, n)
+        cuts = np.flatnonzero(idx[1:] != idx[:-1]) + 1
+        starts = np.concatenate([[0], cuts]).tolist()
+        ends = np.concatenate([cuts, [n]]).tolist()
+        out = np.empty((6, 4, n))
+        if nc == 3:
+            out[0, 3] = 1.0
+            out[1:, 3] = 0.0
+        tmp = np.empty((nc, n))
+        for s0, e0 in zip(starts, ends):
+            m = e0 - s0
+            # T[j, c, d, point]: contraction along a for derivative order d
+            T = (self._cj[idx[s0]] @ bs[:, :, s0:e0].reshape(p1, -1)).reshape(q1, nc, 3, m)
+            t = tmp[:, :m]
+            for k, (ds, dt) in enumerate(DERIVS):
+                o = out[k, :nc, s0:e0]
+                w = bt[dt, :, s0:e0]
+                np.multiply(w[0], T[0, :, ds], out=o)
+                for j in range(1, q1):
+                    np.multiply(w[j], T[j, :, ds], out=t)
+                    o += t
+        return out, None, None
 
 
 # The eight symmetries of the unit square, as (A, o) with (s, t) = A (a, b) + o.
@@ -78,10 +104,11 @@ def square_map_index(A: np.ndarray) -> int:
 
 
 def _chain(Hst: np.ndarray, A: np.ndarray) -> np.ndarray:
-    """Derivatives in (a, b) from derivatives in (s, t) = A (a, b) + o (A per point, (n,2,2))."""
+    """Derivatives in (a, b) from derivatives in (s, t) = A (a, b) + o; Hst is (6, C, n),
+    A per point (n, 2, 2)."""
     out = np.empty_like(Hst)
     out[0] = Hst[0]
-    a00, a01, a10, a11 = (A[:, 0, 0, None], A[:, 0, 1, None], A[:, 1, 0, None], A[:, 1, 1, None])
+    a00, a01, a10, a11 = A[:, 0, 0], A[:, 0, 1], A[:, 1, 0], A[:, 1, 1]
     Hs, Ht, Hss, Hst_, Htt = Hst[1], Hst[2], Hst[3], Hst[4], Hst[5]
     out[1] = a00 * Hs + a10 * Ht                      # d/da = ds/da d/ds + dt/da d/dt
     out[2] = a01 * Hs + a11 * Ht
@@ -132,6 +159,20 @@ def _subpatch_coefficients(mats: np.ndarray, k: np.ndarray, sh: np.ndarray, th: 
     return coeff
 
 
+def _per_cell_product(coeff: np.ndarray, key: np.ndarray, mats: np.ndarray) -> np.ndarray:
+    """out[:, :, i] = coeff[i] @ mats[key[i]] for (n, 6, K) coefficients and (*, K, 4) matrices,
+    as one BLAS product per run of equal keys (sorted first), coordinate-major (6, 4, n)."""
+    n, nd, K = coeff.shape
+    order = np.argsort(key, kind="stable")
+    skey = key[order]
+    cuts = np.flatnonzero(skey[1:] != skey[:-1]) + 1
+    out = np.empty((n, nd, mats.shape[2]))
+    for s0, e0 in zip(np.concatenate([[0], cuts]).tolist(), np.concatenate([cuts, [n]]).tolist()):
+        rows = order[s0:e0]
+        out[rows] = (coeff[rows].reshape(-1, K) @ mats[skey[s0]]).reshape(e0 - s0, nd, -1)
+    return out.transpose(1, 2, 0)
+
+
 class EigenCells:
     """Subdivision faces with one irregular corner, all of one configuration (one scheme).
 
@@ -164,10 +205,10 @@ class EigenCells:
         coeff *= lam_pow[:, None, :]
         coeff *= np.ldexp(1.0, np.multiply.outer(level, _ORDER))[:, :, None]
         coeff[:, 1:, sch.dominant] = 0.0              # the limit point does not move
-        H = _chain(np.einsum("ndk,nkc->dnc", coeff, self.hat[idx], optimize=False), A)
+        H = _chain(_per_cell_product(coeff, idx, self.hat), A)
         ep_normal = None
         if at_vertex.any():
-            H[0, at_vertex] = self.hat[idx[at_vertex], sch.dominant]
+            H[0][:, at_vertex] = self.hat[idx[at_vertex], sch.dominant].T
             ep_normal = np.zeros((len(a), 3))
             ep_normal[at_vertex] = self.limit_normal[idx[at_vertex]]
         return H, at_vertex, ep_normal
@@ -200,11 +241,12 @@ class LevelCells:
                                                            self.MAX_LEVEL)
         coeff = _subpatch_coefficients(self.scheme.S, k, sh, th)
         coeff *= np.ldexp(1.0, np.multiply.outer(level, _ORDER))[:, :, None]
-        H = np.einsum("ndk,nkc->dnc", coeff, self.d[idx, level - 1], optimize=False)
-        H[0] += self.limit[idx]
+        M = self.MAX_LEVEL
+        H = _per_cell_product(coeff, idx * M + (level - 1), self.d.reshape(-1, *self.d.shape[2:]))
+        H[0] += self.limit[idx].T
         H = _chain(H, A)
         if at_vertex.any():
-            H[0, at_vertex] = self.limit[idx[at_vertex]]
+            H[0][:, at_vertex] = self.limit[idx[at_vertex]].T
         return H, at_vertex, level
 
     def evaluate(self, idx: np.ndarray, a: np.ndarray, b: np.ndarray):

@@ -19,11 +19,13 @@ import numpy as np
 def rational_from_homogeneous(H: np.ndarray) -> tuple[np.ndarray, ...]:
     """Euclidean position and partials from homogeneous ones.
 
-    ``H`` has shape (6, n, 4): value, d/du, d/dv, d2/du2, d2/dudv, d2/dv2 of (wx, wy, wz, w).
-    Returns P, Pu, Pv, Puu, Puv, Pvv, each (n, 3).
+    ``H`` has shape (6, 4, n): value, d/du, d/dv, d2/du2, d2/dudv, d2/dv2 of (wx, wy, wz, w),
+    coordinate-major. Returns S, S_u, S_v, S_uu, S_uv, S_vv, each (3, n).
     """
-    B = H[..., :3]
-    W = H[..., 3:4]
+    B = H[:, :3]
+    W = H[:, 3:4]
+    if not np.any(W[1:]) and np.all(W[0] == 1.0):         # polynomial: nothing to divide
+        return B[0], B[1], B[2], B[3], B[4], B[5]
     w = W[0]
     S = B[0] / w
     Su = (B[1] - W[1] * S) / w

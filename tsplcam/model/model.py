@@ -77,17 +77,17 @@ class Model:
         u = (fm.cell[face, 0] + a) / size[:, 0]
         v = (fm.cell[face, 1] + b) / size[:, 1]
         n = len(face)
-        H = np.empty((6, n, 3))
+        H = np.empty((6, 3, n))
         normal = np.empty((n, 3))
         for p in np.unique(fm.patch[face]):
             sel = np.nonzero(fm.patch[face] == p)[0]
             sp_ = self.patches[p].evaluate(u[sel], v[sel])
             for k, arr in enumerate((sp_.P, sp_.Pu, sp_.Pv, sp_.Puu, sp_.Puv, sp_.Pvv)):
-                H[k, sel] = arr
+                H[k][:, sel] = arr.T
             normal[sel] = sp_.normal
         # (u, v) = (cell + A (s, t) + o) / size: d(u,v)/d(s,t) = diag(1/size) A
         J = A / size[:, :, None]
-        H = _chain(H, J)
+        H = _chain(H, J).transpose(0, 2, 1)
         # the face frame may be mirrored against the patch frame: keep S_s x S_t orientation
         flip = np.linalg.det(A) < 0
         normal[flip] *= -1.0

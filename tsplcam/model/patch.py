@@ -16,7 +16,7 @@ import numpy as np
 from ..errors import InputError
 from .diffgeom import SurfacePoints, rational_from_homogeneous
 
-CHUNK = 1 << 16
+CHUNK = 1 << 17
 
 
 @dataclass(frozen=True)
@@ -73,51 +73,64 @@ class Patch:
         u = np.clip(u, 0.0, 1.0)
         v = np.clip(v, 0.0, 1.0)
         n = len(u)
-        H = np.empty((6, n, 4))
-        normal_override = None
-        ep_rows = []
+        out = np.empty((6, n, 3))
+        ep_rows, ep_normals = [], []
         for start in range(0, n, CHUNK):
-            sl = slice(start, min(n, start + CHUNK))
-            Hc, ep = self._evaluate_h(u[sl], v[sl])
-            H[:, sl] = Hc
+            stop = min(n, start + CHUNK)
+            order, H, ep = self._evaluate_h(u[start:stop], v[start:stop])
+            E = rational_from_homogeneous(H)                 # six (3, m), in cell order
+            rows = start + order
+            for k in range(6):
+                out[k, rows] = E[k].T
             if ep is not None:
-                ep_rows.append((start + ep[0], ep[1]))
-        P, Pu, Pv, Puu, Puv, Pvv = rational_from_homogeneous(H)
+                ep_rows.append(start + order[ep[0]])
+                ep_normals.append(ep[1])
+        P, Pu, Pv, Puu, Puv, Pvv = out
+        normal_override = None
         if ep_rows:
-            rows = np.concatenate([r for r, _ in ep_rows])
-            nrm = np.concatenate([m for _, m in ep_rows])
+            rows = np.concatenate(ep_rows)
+            nrm = np.concatenate(ep_normals)
             normal_override = _unit(np.cross(Pu, Pv))
             sign = np.sign(np.einsum("ij,ij->i", nrm, normal_override[rows]))
             normal_override[rows] = nrm * np.where(sign == 0, 1.0, sign)[:, None]
         return SurfacePoints(P, Pu, Pv, Puu, Puv, Pvv, u, v, self.index, normal_override)
 
     def _evaluate_h(self, u, v):
+        """Homogeneous derivatives (6, 4, m) of the points sorted by cell, the sorting order,
+        and (rows in sorted order, exact normals) of points at irregular vertices."""
         nu, nv = self.shape
         iu = np.clip(np.searchsorted(self.ubreaks, u, side="right") - 1, 0, nu - 1)
         iv = np.clip(np.searchsorted(self.vbreaks, v, side="right") - 1, 0, nv - 1)
+        order = np.argsort(iu * nv + iv, kind="stable")
+        iu, iv, u, v = iu[order], iv[order], u[order], v[order]
         wu = self.ubreaks[iu + 1] - self.ubreaks[iu]
         wv = self.vbreaks[iv + 1] - self.vbreaks[iv]
         a = (u - self.ubreaks[iu]) / wu
         b = (v - self.vbreaks[iv]) / wv
         group = self.cell_group[iu, iv]
         local = self.cell_local[iu, iv]
-        H = np.empty((6, len(u), 4))
+        H = np.empty((6, 4, len(u)))
         ep = None
-        for g in np.unique(group):
-            sel = np.nonzero(group == g)[0]
-            Hg, at_vertex, ep_normal = self.groups[g].evaluate(local[sel], a[sel], b[sel])
-            H[:, sel] = Hg
+        if len(self.groups) == 1:
+            H[:], at_vertex, ep_normal = self.groups[0].evaluate(local, a, b)
             if at_vertex is not None and at_vertex.any():
-                rows = sel[at_vertex]
-                ep = (rows, ep_normal[at_vertex]) if ep is None else (
-                    np.concatenate([ep[0], rows]), np.concatenate([ep[1], ep_normal[at_vertex]]))
+                ep = (np.nonzero(at_vertex)[0], ep_normal[at_vertex])
+        else:
+            for g in np.unique(group):
+                sel = np.nonzero(group == g)[0]
+                Hg, at_vertex, ep_normal = self.groups[g].evaluate(local[sel], a[sel], b[sel])
+                H[:, :, sel] = Hg
+                if at_vertex is not None and at_vertex.any():
+                    rows = sel[at_vertex]
+                    ep = (rows, ep_normal[at_vertex]) if ep is None else (
+                        np.concatenate([ep[0], rows]), np.concatenate([ep[1], ep_normal[at_vertex]]))
         # from cell (a, b) to patch (u, v)
-        H[1] /= wu[:, None]
-        H[2] /= wv[:, None]
-        H[3] /= (wu * wu)[:, None]
-        H[4] /= (wu * wv)[:, None]
-        H[5] /= (wv * wv)[:, None]
-        return H, ep
+        H[1] /= wu
+        H[2] /= wv
+        H[3] /= wu * wu
+        H[4] /= wu * wv
+        H[5] /= wv * wv
+        return order, H, ep
 
     def corner_point(self, k: int) -> np.ndarray:
         from ..layout.layout import CORNER_UV

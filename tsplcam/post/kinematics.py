@@ -428,6 +428,36 @@ def solve_joints(machine: Machine, tip, axis, *, tool_length=None, part_origin=N
                           deviation=deviation, flips=flips, info=info), new_tip)
 
 
+def slerp(a, b, t) -> np.ndarray:
+    """Great-circle interpolation between unit vectors a, b (n,3) at fraction t."""
+    ang = angle_between(a, b)
+    sa = np.sin(ang)
+    small = sa < 1e-12
+    safe = np.where(small, 1.0, sa)
+    w0 = np.where(small, 1.0 - t, np.sin((1.0 - t) * ang) / safe)
+    w1 = np.where(small, t, np.sin(t * ang) / safe)
+    v = w0[:, None] * a + w1[:, None] * b
+    return v / np.linalg.norm(v, axis=1, keepdims=True)
+
+
+def swing(machine: Machine, joints, axis, samples=(0.25, 0.5, 0.75)) -> np.ndarray:
+    """Largest angle (rad) between the tool axis while the rotaries move linearly from row k
+    to row k+1 and the great circle between the two programmed axes, per block (n-1,).
+
+    Small for ordinary blocks; large where the rotaries rewind a turn or flip branch while the
+    tool axis itself hardly changes, i.e. where the tool would sweep through the part.
+    """
+    j = np.asarray(joints, float)
+    if len(j) < 2:
+        return np.zeros(0)
+    k0, k1 = axis[:-1], axis[1:]
+    worst = np.zeros(len(j) - 1)
+    for t in samples:
+        q = (1 - t) * j[:-1, 3:] + t * j[1:, 3:]
+        worst = np.maximum(worst, angle_between(orientation(machine, q[:, 0], q[:, 1]), slerp(k0, k1, t)))
+    return worst
+
+
 # --- joint-space linearisation ------------------------------------------------------------
 
 def _segment_distance(p, a, b):

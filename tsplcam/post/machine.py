@@ -69,9 +69,8 @@ class RotaryAxis:
     without conventional directions turn the table by ``+value`` (``sign = +1``).
     ``pivot`` is a point of the axis line at home (all axes at zero), in machine coordinates
     for a table axis and relative to the spindle gauge point for a head axis (mm).
-    ``min``/``max`` are None for an endless axis (``continuous``). ``output`` says how values
-    are written: ``unwound`` (running values, no 360 degree swings) or ``modulo`` (0..360,
-    the control takes the shortest way, e.g. LinuxCNC WRAPPED_ROTARY, Heidenhain M126).
+    ``min``/``max`` are None for an endless axis (``continuous``); its values are written
+    unwound (running values, never a 360-degree swing).
     """
     name: str
     about: str
@@ -83,7 +82,6 @@ class RotaryAxis:
     continuous: bool
     max_velocity: float        # deg/min
     max_acceleration: float    # deg/s^2
-    output: str = "unwound"
 
     @property
     def index(self) -> int:
@@ -167,8 +165,6 @@ class Machine:
             else:
                 d.update(min=ax.min, max=ax.max)
             d.update(max_velocity=ax.max_velocity, max_acceleration=ax.max_acceleration)
-            if ax.output != "unwound":
-                d["output"] = ax.output
             return d
         out = {"format": FORMAT, "version": VERSION, "name": self.name}
         if self.title:
@@ -334,7 +330,7 @@ def machine_from_dict(doc: dict, path: str | None = None) -> Machine:
             r.fail(key, "rotary axes are named A, B or C")
         r.obj(a, key)
         allowed = {"about", "sign", "zero", "pivot", "min", "max", "continuous", "max_velocity",
-                   "max_acceleration", "output"}
+                   "max_acceleration"}
         if lc is not None:
             allowed -= {"sign", "zero", "pivot"}
         r.check_keys(a, key, allowed, required=("about", "max_velocity", "max_acceleration"))
@@ -358,15 +354,12 @@ def machine_from_dict(doc: dict, path: str | None = None) -> Machine:
             pivot=r.vec3(a, key, "pivot", default=(0.0, 0.0, 0.0)), min=lo, max=hi,
             continuous=continuous,
             max_velocity=r.num(a, key, "max_velocity", positive=True),
-            max_acceleration=r.num(a, key, "max_acceleration", positive=True),
-            output=r.choice(a, key, "output", ("unwound", "modulo"), default="unwound")))
+            max_acceleration=r.num(a, key, "max_acceleration", positive=True)))
     rot = [ax for ax in rotaries if ax.about == "Z"]
     tilt = [ax for ax in rotaries if ax.about != "Z"]
     if len(rot) != 1 or len(tilt) != 1:
         r.fail("rotary_axes", "need one rotary axis about Z and one tilt axis about X or Y")
     rot, tilt = rot[0], tilt[0]
-    if tilt.output == "modulo":
-        r.fail(f"rotary_axes.{tilt.name}.output", "only the axis about Z can be written modulo 360")
     if tilt.continuous:
         r.fail(f"rotary_axes.{tilt.name}.continuous", "a tilt axis needs min and max")
 
@@ -405,10 +398,10 @@ def machine_from_dict(doc: dict, path: str | None = None) -> Machine:
 
 
 # Keys a machine's "post" section may set (defaults for post_program's options).
-POST_KEYS = {"dialect", "tool", "spindle", "coolant", "approach_distance", "approach_feed",
-             "link_feed", "retract_feed", "inverse_time", "orientation", "tcp", "refpnt",
-             "decimals", "linear_tolerance", "singular_cone", "singular_swing", "blend_tolerance",
-             "program_name", "inverse_time_max", "work_offset"}
+POST_KEYS = {"dialect", "tool", "spindle", "coolant", "approach_distance", "approach_height_max",
+             "approach_feed", "link_feed", "retract_feed", "inverse_time", "orientation", "tcp",
+             "refpnt", "decimals", "linear_tolerance", "singular_cone", "swing_limit",
+             "blend_tolerance", "program_name", "program_number", "inverse_time_max", "work_offset"}
 
 
 def read_machine(path: str) -> Machine:

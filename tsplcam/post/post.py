@@ -17,7 +17,7 @@ from ..errors import InputError, KinematicsError
 from ..toolpath.path import Move, ToolPath
 from . import dialects
 from .dialects import Job, Motion
-from .kinematics import JointSolution, linear_joints, linearise, solve_joints
+from .kinematics import JointSolution, linear_joints, linearise, solve_joints, swing
 from .machine import Machine, load_machine
 from .timing import TimeReport, estimate
 
@@ -26,6 +26,7 @@ APPROACH, RETRACT_OUT = -1, -2
 # Options of post_program with their defaults when neither the call, the machine's "post"
 # section nor the dialect sets them.
 GENERIC = {"tool": 1, "spindle": 10000.0, "coolant": "flood", "approach_distance": 5.0,
+           "approach_height_max": 200.0, "swing_limit": 5.0,
            "approach_feed": None, "link_feed": None, "retract_feed": None, "inverse_time": False,
            "orientation": "angles", "tcp": None, "refpnt": None, "linear_tolerance": 0.001,
            "singular_cone": 0.5, "blend_tolerance": 0.01, "program_name": "TSPLCAM",
@@ -51,6 +52,7 @@ class PostResult:
     inserted: int = 0
     linear_deviation: float = float("nan")
     feed_clamped: int = 0
+    reorientations: int = 0     # retract-reorient-approach sequences the post inserted
     notes: list = field(default_factory=list)
 
     @property
@@ -113,7 +115,7 @@ def resolve_settings(machine: Machine, dialect_module, options: dict) -> dict:
         raise InputError(f"tcp must be 'FUNCTION TCPM' or 'M128', not {s['tcp']!r}", item="tcp")
     if s["coolant"] not in ("flood", "mist", "off", None):
         raise InputError(f"coolant must be flood, mist or off, not {s['coolant']!r}", item="coolant")
-    for k in ("approach_distance", "linear_tolerance", "singular_cone"):
+    for k in ("approach_distance", "linear_tolerance", "singular_cone", "swing_limit"):
         if not isinstance(s[k], (int, float)) or not np.isfinite(s[k]) or s[k] < 0:
             raise InputError(f"{k} must be a number >= 0, not {s[k]!r}", item=k)
     if s["linear_tolerance"] <= 0:
@@ -198,41 +200,70 @@ def post_program(toolpath: ToolPath, machine, dialect: str | None = None, **opti
     else:
         cmd_axis, cmd_tip = sol.axis, tip
 
-    # Approach from the safe height along the first tool axis, retract along the last.
-    d = float(s["approach_distance"])
-    q0, qe = joints[0, 3:], joints[-1, 3:]
-    h = _approach_height(machine, cmd_tip[0], cmd_axis[0], q0, L, origin, d)
-    pre_tip = [cmd_tip[0] + h * cmd_axis[0]] + ([cmd_tip[0] + d * cmd_axis[0]] if h > d + 1e-6 and d > 0 else [])
-    pre_tip = np.array(pre_tip)
-    post_tip = np.array([cmd_tip[-1] + d * cmd_axis[-1]]) if d > 0 else np.zeros((0, 3))
-    pre_j = np.column_stack([linear_joints(machine, pre_tip, np.full(len(pre_tip), q0[0]),
-                                           np.full(len(pre_tip), q0[1]), L, origin),
-                             np.tile(q0, (len(pre_tip), 1))])
-    post_j = np.column_stack([linear_joints(machine, post_tip, np.full(len(post_tip), qe[0]),
-                                            np.full(len(post_tip), qe[1]), L, origin),
-                              np.tile(qe, (len(post_tip), 1))]) if len(post_tip) else np.zeros((0, 5))
-    for label, jj in (("approach", pre_j), ("retract", post_j)):
-        lim = _travel_violation(machine, jj, L)
-        if lim:
-            raise KinematicsError(f"the {label} point {d:g} mm along the tool axis from "
-                                  f"point {0 if label == 'approach' else n - 1} is outside the "
-                                  f"travel of machine {machine.name}: {lim}")
-
+    # Where the rotaries would swing the tool through the part inside a cutting block (a
+    # rewind at the end of a limited C, a branch flip forced by the limits), leave the part:
+    # retract, reorient at the safe height, approach again.
     mv = np.asarray(toolpath.move, int)
     path_rapid = mv == Move.RAPID
     path_rapid[0] = False
-    path_feed = np.where(mv == Move.CUT, feed, np.where(mv == Move.LINK, f_link, f_ret))
-    path_feed[0] = f_app
+    sw = swing(machine, joints, cmd_axis)
+    rewind = np.abs(np.diff(joints[:, 4])) > 180.0 + 1e-6
+    flip = (sol.branch[1:] != sol.branch[:-1]) & ~sol.singular[1:] & ~sol.singular[:-1]
+    breaks = np.nonzero(~path_rapid[1:] & (rewind | flip)
+                        & (sw > float(s["swing_limit"]) * np.pi / 180.0))[0]
+    path_feed = np.where(mv == Move.CUT, feed, np.where(mv == Move.LINK, f_link, f_ret)).astype(float)
     path_move = mv.copy()
-    path_move[0] = APPROACH
-    np_, nq = len(pre_tip), len(post_tip)
-    tips = np.vstack([pre_tip, cmd_tip, post_tip])
-    axes = np.vstack([np.tile(cmd_axis[0], (np_, 1)), cmd_axis, np.tile(cmd_axis[-1], (nq, 1))])
-    J = np.vstack([pre_j, joints, post_j])
-    rapid = np.concatenate([np.ones(np_, bool), path_rapid, np.zeros(nq, bool)])
-    fmm = np.concatenate([np.full(np_, np.nan), np.where(path_rapid, np.nan, path_feed), np.full(nq, f_ret)])
-    source = np.concatenate([np.full(np_, -1.0), np.arange(n, dtype=float), np.full(nq, -2.0)])
-    move = np.concatenate([np.full(np_, APPROACH), path_move, np.full(nq, RETRACT_OUT)])
+    d = float(s["approach_distance"])
+    hmax = float(s["approach_height_max"]) if s["approach_height_max"] else np.inf
+    if machine.kind == "table-table":
+        hmax = np.inf                            # the tool axis is machine Z: up to safe Z
+
+    def along(i, dist):
+        """Rows on the tool axis of path point i at the given distances (tip, joints)."""
+        dist = np.asarray(dist, float)
+        p = cmd_tip[i] + dist[:, None] * cmd_axis[i]
+        q = joints[i, 3:]
+        jj = np.column_stack([linear_joints(machine, p, np.full(len(p), q[0]), np.full(len(p), q[1]),
+                                            L, origin), np.tile(q, (len(p), 1))])
+        lim = _travel_violation(machine, jj, L)
+        if lim:
+            raise KinematicsError(f"the approach or retract {dist.max():g} mm along the tool axis of "
+                                  f"point {i} is outside the travel of machine {machine.name}: {lim}")
+        return p, jj
+
+    rows = []                                    # (tip, axis, joints, rapid, feed, source, move)
+
+    def add(p, jj, i, rap, f, src, code):
+        for k in range(len(p)):
+            rows.append((p[k], cmd_axis[i], jj[k], rap, f, src, code))
+
+    cuts = np.concatenate([[-1], breaks, [n - 1]])
+    for seg, (a, b) in enumerate(zip(cuts[:-1] + 1, cuts[1:])):
+        h = min(_approach_height(machine, cmd_tip[a], cmd_axis[a], joints[a, 3:], L, origin, d), max(hmax, d))
+        dist = [h] + ([d] if h > d + 1e-6 and d > 0 else [])
+        p, jj = along(a, dist)
+        add(p, jj, a, True, np.nan, -1.0, APPROACH)
+        for i in range(a, b + 1):
+            first = i == a
+            rows.append((cmd_tip[i], cmd_axis[i], joints[i], bool(path_rapid[i]) and not first,
+                         f_app if first else (np.nan if path_rapid[i] else path_feed[i]), float(i),
+                         APPROACH if first else int(path_move[i])))
+        if d > 0:
+            p, jj = along(b, [d])
+            add(p, jj, b, False, f_ret, -2.0, RETRACT_OUT)
+        if b != n - 1:                           # up to the safe height before reorienting
+            h = min(_approach_height(machine, cmd_tip[b], cmd_axis[b], joints[b, 3:], L, origin, d),
+                    max(hmax, d))
+            if h > d + 1e-6:
+                p, jj = along(b, [h])
+                add(p, jj, b, True, np.nan, -2.0, RETRACT_OUT)
+    tips = np.array([r[0] for r in rows])
+    axes = np.array([r[1] for r in rows])
+    J = np.array([r[2] for r in rows])
+    rapid = np.array([r[3] for r in rows], bool)
+    fmm = np.array([r[4] for r in rows], float)
+    source = np.array([r[5] for r in rows], float)
+    move = np.array([r[6] for r in rows], int)
 
     inserted, lin_dev = 0, float("nan")
     if mod.JOINT_SPACE:
@@ -291,11 +322,14 @@ def post_program(toolpath: ToolPath, machine, dialect: str | None = None, **opti
               preposition=(float(J[0, 3]), float(J[0, 4])), blank=(lo, hi), tool_radius=R)
     text = mod.write(job)
     notes = []
-    if sol.flips:
-        notes.append(f"{sol.flips} branch flips between path points (forced by the limits)")
+    if len(breaks):
+        notes.append(f"{len(breaks)} retract-reorient-approach sequences inserted where the rotaries "
+                     f"would swing the tool axis more than {float(s['swing_limit']):g} deg inside a "
+                     f"feed block (before path points {', '.join(str(int(b) + 1) for b in breaks[:10])}"
+                     f"{', ...' if len(breaks) > 10 else ''})")
     return PostResult(text=text, dialect=mod.NAME, machine=machine, settings=s, motion=motion,
                       solution=sol, time=time, inserted=inserted, linear_deviation=lin_dev,
-                      feed_clamped=clamped, notes=notes)
+                      feed_clamped=clamped, reorientations=len(breaks), notes=notes)
 
 
 def _axes_of(machine, J, axes, owner, frac, L, origin):

@@ -1,0 +1,249 @@
+"""The four controller dialects: read each program back from its text alone, put its moves
+through the machine's forward kinematics and compare with the CL data (tip within 1 um, axis
+within 1e-6 rad, or the resolution of the control's number format where that is coarser)."""
+import hashlib
+import os
+import subprocess
+import unittest
+
+import numpy as np
+
+from tsplcam.errors import InputError
+from tsplcam.post import load_machine, post_program
+from tsplcam.post import dialects
+from tsplcam.post.kinematics import angle_between, forward, linear_joints
+from tsplcam.post.synthetic import helix, hemisphere_sweep, pole_pass
+from tsplcam.testing import REPO_DIR, artifact_path
+
+CASES = [  # machine, dialect, orientation
+    ("mikron_ucp600_heidenhain", "heidenhain", "angles"),
+    ("mikron_ucp600_heidenhain", "heidenhain", "vector"),
+    ("bc_head_table_sinumerik", "sinumerik", "angles"),
+    ("bc_head_table_sinumerik", "sinumerik", "vector"),
+    ("bc_head_head_fanuc", "fanuc", "angles"),
+    ("bc_head_head_fanuc", "fanuc", "vector"),
+    ("mikron_ucp600_heidenhain", "fanuc", "angles"),
+    ("mikron_ucp600_heidenhain", "sinumerik", "angles"),
+    ("bc_head_table_sinumerik", "heidenhain", "angles"),
+    ("linuxcnc_xyzac_trt", "linuxcnc", "angles"),
+]
+
+
+def paths():
+    return {"hemisphere": hemisphere_sweep(n=300), "helix": helix(n=400, turns=2.5, tilt=25.0, radius=30.0),
+            "pole": pole_pass(miss=0.1, tilt=15.0, length=40.0)}
+
+
+def angle_bound(decimals):
+    """Largest tool-axis error (rad) from rounding both angles to ``decimals`` places (deg)."""
+    return np.sqrt(2.0) * 0.5 * 10.0 ** -decimals * np.pi / 180.0 * (1 + 1e-6)
+
+
+class RoundTrip(unittest.TestCase):
+    def check_case(self, machine, dialect, orientation, tp, label, report):
+        r = post_program(tp, machine, dialect, orientation=orientation)
+        mod = dialects.get(dialect)
+        moves = mod.read(r.text)
+        prog = [mv for mv in moves if mv.program]
+        self.assertEqual(len(prog), len(r.motion), label)
+        tips, axes = dialects.poses(r.machine, moves, r.settings, mod.JOINT_SPACE)
+        s = r.settings
+        lin = 0.5 * 10.0 ** -s["decimals"]["linear"] * np.sqrt(3) * (1 + 1e-6)
+        if orientation == "vector":
+            ang = 1e-6
+        elif mod.JOINT_SPACE:
+            ang = angle_bound(s["decimals"]["angle"])
+        else:
+            ang = max(1e-6, angle_bound(s["decimals"]["angle"]))
+        # 1. the text gives back what the post meant
+        e_tip = np.linalg.norm(tips - r.motion.tip, axis=1).max()
+        e_ax = angle_between(axes, r.motion.axis).max()
+        self.assertLess(e_tip, max(lin, 1e-3) if mod.JOINT_SPACE else lin, label)
+        self.assertLess(e_ax, ang, label)
+        # 2. and what the post meant is the CL data: path points exactly (outside the singular
+        # cone), inserted points on the programmed segments, approach/retract on the tool axis.
+        src = r.motion.source
+        on = np.nonzero((src >= 0) & (src == np.floor(src)))[0]
+        idx = src[on].astype(int)
+        sing = r.solution.singular[idx]
+        ok = ~sing if orientation == "angles" else np.ones(len(idx), bool)
+        e_cl_tip = np.linalg.norm(tips[on][ok] - tp.tip[idx][ok], axis=1).max()
+        e_cl_ax = angle_between(axes[on][ok], tp.axis[idx][ok]).max()
+        self.assertLess(e_cl_tip, 1e-3, label)
+        self.assertLess(e_cl_ax, ang, label)
+        if sing.any() and orientation == "angles":
+            # Inside the singular cone the axis moves at most the cone; the ball centre stays.
+            centre = tips[on][sing] + tp.tool_radius * axes[on][sing]
+            self.assertLess(np.linalg.norm(centre - tp.center[idx][sing], axis=1).max(), 1e-3, label)
+            self.assertLess(np.degrees(angle_between(axes[on][sing], tp.axis[idx][sing]).max()),
+                            s["singular_cone"] + 1e-4, label)
+        ins = np.nonzero((src >= 0) & (src != np.floor(src)))[0]
+        if len(ins):
+            a, b = np.floor(src[ins]).astype(int), np.ceil(src[ins]).astype(int)
+            f = (src[ins] - a)[:, None]
+            row_of = {int(v): k for k, v in enumerate(src) if v >= 0 and v == np.floor(v)}
+            ra, rb = [row_of[int(x)] for x in a], [row_of[int(x)] for x in b]
+            expect = (1 - f) * r.motion.tip[ra] + f * r.motion.tip[rb]
+            self.assertLess(np.linalg.norm(tips[ins] - expect, axis=1).max(), 1e-3, label)
+        first = np.nonzero(src == 0)[0][0]
+        for k in range(first):                     # approach rows: on the first tool axis, above it
+            v = tips[k] - tp.tip[0]
+            along = v @ tp.axis[0]
+            self.assertGreaterEqual(along, s["approach_distance"] - 1e-3, label)
+            self.assertLess(np.linalg.norm(v - along * tp.axis[0]), 2e-3 * max(1.0, along / 100), label)
+        report.append(f"  {label:<58} tip {e_tip * 1000:7.4f} um  axis {e_ax:.2e} rad  "
+                      f"(CL: {e_cl_tip * 1000:.4f} um, {e_cl_ax:.2e} rad), {len(r.motion)} blocks")
+        return r, moves
+
+    def test_every_dialect_round_trips(self):
+        report = []
+        for machine, dialect, orientation in CASES:
+            for name, tp in paths().items():
+                self.check_case(machine, dialect, orientation, tp,
+                                f"{dialect}/{orientation} on {machine}, {name}", report)
+        print("\n" + "\n".join(report))
+        with open(artifact_path("post_round_trip.txt"), "w") as f:
+            f.write("\n".join(report) + "\n")
+
+    def test_inverse_time_feeds(self):
+        """Every G93 F is 1/t with t = max(length / feed, max over axes |dq| / v_max),
+        recomputed from the program text and the machine file (POST-NOTES 2.6)."""
+        tp = hemisphere_sweep(n=200)
+        for machine, dialect in (("bc_head_table_sinumerik", "sinumerik"), ("bc_head_head_fanuc", "fanuc"),
+                                 ("linuxcnc_xyzac_trt", "linuxcnc")):
+            r = post_program(tp, machine, dialect)
+            m = r.machine
+            mod = dialects.get(dialect)
+            moves = [mv for mv in mod.read(r.text) if mv.program]
+            tips, axes = dialects.poses(m, moves, r.settings, mod.JOINT_SPACE)
+            names = m.axis_names
+            rot = np.array([[mv.words[names[3]], mv.words[names[4]]] for mv in moves])
+            if mod.JOINT_SPACE:
+                J = np.array([[mv.words[n] for n in names] for mv in moves])
+            else:
+                J = np.column_stack([linear_joints(m, tips, rot[:, 0], rot[:, 1], r.settings["tool_length"],
+                                                   r.settings["part_origin"]), rot])
+            vmax = m.max_velocity * 60
+            feed_of = {0: tp.feed}
+            checked = 0
+            for i in range(1, len(moves)):
+                mv = moves[i]
+                if mv.rapid:
+                    continue
+                self.assertTrue(mv.inverse_time, f"{dialect} line {mv.line}")
+                self.assertIsNotNone(mv.feed, f"{dialect} line {mv.line}: G93 block without F")
+                L = np.linalg.norm(tips[i] - tips[i - 1])
+                f_path = feed_of.get(int(r.motion.move[i]) if r.motion.move[i] >= 0 else 0, tp.feed)
+                t = max(L / f_path, (np.abs(J[i] - J[i - 1]) / vmax).max())
+                self.assertAlmostEqual(1.0 / mv.feed, t, delta=2e-3 * t + 1e-6, msg=f"{dialect} line {mv.line}")
+                checked += 1
+            self.assertGreater(checked, 100)
+
+    def test_same_input_same_bytes(self):
+        tp = hemisphere_sweep(n=150)
+        code = ("import hashlib\nfrom tsplcam.post import post_program\n"
+                "from tsplcam.post.synthetic import hemisphere_sweep\n"
+                "tp = hemisphere_sweep(n=150)\n"
+                "for m, d in {cases!r}:\n"
+                "    print(hashlib.sha256(post_program(tp, m, d).text.encode()).hexdigest())\n")
+        cases = [(m, d) for m, d, o in CASES if o == "angles"]
+        here = [hashlib.sha256(post_program(tp, m, d).text.encode()).hexdigest() for m, d in cases]
+        again = [hashlib.sha256(post_program(tp, m, d).text.encode()).hexdigest() for m, d in cases]
+        self.assertEqual(here, again)
+        res = subprocess.run(["/usr/bin/python3", "-c", code.format(cases=cases)], capture_output=True,
+                             text=True, cwd=REPO_DIR, env=dict(os.environ, PYTHONPATH=REPO_DIR,
+                                                                PYTHONHASHSEED="12345"))
+        self.assertEqual(res.returncode, 0, res.stderr)
+        self.assertEqual(res.stdout.split(), here)
+        self.assertEqual(len(set(here)), len(here))
+
+
+class SafeStartAndEnd(unittest.TestCase):
+    """Units, work offset, tool call, spindle, coolant, rotaries, TCP, approach, retract, end
+    appear in this order in each dialect."""
+
+    ORDER = {
+        "heidenhain": ["BEGIN PGM TSPLCAM MM", "BLK FORM 0.1 Z", "BLK FORM 0.2", "R0 FMAX M91",
+                       "TOOL CALL 1 Z S12000", "R0 FMAX M91", "L A", "M3", "M8",
+                       "FUNCTION TCPM F TCP AXIS POS PATHCTRL AXIS", "FMAX", "FUNCTION RESET TCPM",
+                       "R0 FMAX M91", "M9", "M5", "M30", "END PGM TSPLCAM MM"],
+        "sinumerik": ["G17 G90 G71", "G0 SUPA Z", "T1", "M6", "D1", "G54", "S15000 M3", "M8", "G0 B",
+                      "TRAORI", "ORIWKS", "ORIAXES", "G0 X", "G93 G1", "G94", "TRAFOOF", "M9", "M5",
+                      "G0 SUPA Z", "M30"],
+        "fanuc": ["%", "O1000", "G21 G17 G40 G49 G80 G90 G94", "G90 G53 G0 Z", "T1 M6", "G54",
+                  "S14000 M3", "M8", "G0 B", "G0 G43.4 H1 X", "G93 G1", "G94", "G49", "M9", "M5",
+                  "G90 G53 G0 Z", "M30", "%"],
+        "linuxcnc": ["G21 G90 G94 G17 G40 G49 G80", "G10 L2 P1 X0 Y0 Z0 A0 C0", "G54", "G92.1",
+                     "T1 M6", "G53 G0 Z", "G0 A", "G43 H1", "S10000 M3", "M8", "G0 X", "G93", "G1 X",
+                     "G94", "M9", "M5", "G49", "G53 G0 Z", "M2"],
+    }
+
+    def test_block_order(self):
+        tp = hemisphere_sweep(n=50)
+        for machine, dialect in (("mikron_ucp600_heidenhain", "heidenhain"), ("bc_head_table_sinumerik", "sinumerik"),
+                                 ("bc_head_head_fanuc", "fanuc"), ("linuxcnc_xyzac_trt", "linuxcnc")):
+            r = post_program(tp, machine, dialect)
+            lines = r.text.splitlines()
+            pos = 0
+            for want in self.ORDER[dialect]:
+                while pos < len(lines) and want not in lines[pos]:
+                    pos += 1
+                self.assertLess(pos, len(lines), f"{dialect}: {want!r} missing or out of order")
+                pos += 1
+            with open(artifact_path(f"post_sample_{dialect}.txt"), "w") as f:
+                f.write(r.text)
+
+    def test_heidenhain_numbering_and_signs(self):
+        r = post_program(hemisphere_sweep(n=30), "mikron_ucp600_heidenhain", "heidenhain")
+        lines = r.text.splitlines()
+        self.assertEqual([int(ln.split()[0]) for ln in lines], list(range(len(lines))))
+        for ln in lines:
+            if ln.split()[1] == "L":
+                for tok in ln.split()[2:]:
+                    if tok[0] in "XYZAC" and tok[1:2] not in ("",):
+                        self.assertIn(tok[1], "+-", ln)
+
+    def test_approach_from_safe_height(self):
+        # On the table-table machine the tool axis is machine Z: the first move in the program
+        # frame puts the spindle gauge point at the safe Z, straight above the first point.
+        r = post_program(hemisphere_sweep(n=40), "mikron_ucp600_heidenhain", "heidenhain")
+        m = r.machine
+        j0 = r.motion.joints[0]
+        self.assertAlmostEqual(j0[2] + m.tool_length, m.safe_z, places=6)
+        self.assertTrue(r.motion.rapid[0] and r.motion.rapid[1] and not r.motion.rapid[2])
+        self.assertTrue(np.allclose(r.motion.joints[0, 3:], r.motion.joints[2, 3:]))
+
+    def test_bad_options(self):
+        tp = hemisphere_sweep(n=20)
+        with self.assertRaises(InputError):
+            post_program(tp, "linuxcnc_xyzac_trt", "linuxcnc", orientation="vector")
+        with self.assertRaises(InputError):
+            post_program(tp, "linuxcnc_xyzac_trt", "okuma")
+        with self.assertRaises(InputError):
+            post_program(tp, "linuxcnc_xyzac_trt", "linuxcnc", feedrate=3)
+        with self.assertRaises(InputError):
+            post_program(tp, "mikron_ucp600_heidenhain", "heidenhain", tcp="M999")
+
+
+class Reorientation(unittest.TestCase):
+    def test_rewind_at_the_c_limit_leaves_the_part(self):
+        # The fork head's C (-200..200) cannot follow three turns of the tool axis: the post
+        # retracts, turns C back at the safe height and approaches again; no cutting block
+        # swings the tool axis.
+        tp = helix(n=600, turns=3.0, tilt=30.0, radius=30.0)
+        r = post_program(tp, "bc_head_head_fanuc", "fanuc")
+        self.assertGreaterEqual(r.reorientations, 2)
+        c = r.motion.joints[:, 4]
+        self.assertTrue(((c >= -200) & (c <= 200)).all())
+        feed = ~r.motion.rapid[1:]
+        big = np.abs(np.diff(c)) > 30
+        self.assertFalse((big & feed).any())
+        moves = [mv for mv in dialects.get("fanuc").read(r.text) if mv.program]
+        tips, axes = dialects.poses(r.machine, moves, r.settings, False)
+        src = r.motion.source
+        on = src >= 0
+        self.assertLess(np.linalg.norm(tips[on] - tp.tip[src[on].astype(int)], axis=1).max(), 1e-3)
+
+
+if __name__ == "__main__":
+    unittest.main()

@@ -1,0 +1,61 @@
+"""Sample molds: shipped files match their generators and the sizes and layouts promised."""
+import os
+import unittest
+
+import numpy as np
+
+import tsplcam
+from tsplcam.layout import examples
+from tsplcam.model import samples
+from tsplcam.model.cage import cage_model
+
+
+def neighbour_signature(layout):
+    """Per patch, the sorted kinds of its links: equal for layouts equal up to relabelling."""
+    return sorted(sorted(layout.link_kind(a, b) or "-" for b in range(layout.n_patches) if b != a)
+                  for a in range(layout.n_patches))
+
+
+class ShippedSamples(unittest.TestCase):
+    def test_files_match_generators(self):
+        for name, fn in samples.SAMPLES.items():
+            path = samples.sample_path(name)
+            self.assertTrue(os.path.isfile(path), path)
+            shipped = tsplcam.load(path)
+            cage = fn()
+            np.testing.assert_allclose(shipped.control.points, cage.points, atol=1e-8, err_msg=name)
+            np.testing.assert_array_equal(shipped.control.mesh.faces, cage.mesh.faces)
+
+    def test_keycap_size_layout(self):
+        model = tsplcam.load(samples.sample_path("keycap"))
+        lo, hi = samples._limit_box(model.control, 65)
+        np.testing.assert_allclose(hi - lo, [14.4, 14.4, 6.8], atol=2e-3)
+        self.assertEqual(len(model.patches), 5)
+        self.assertEqual(sorted(e.valence for e in model.extraordinary if not e.boundary), [3, 3, 3, 3])
+        self.assertEqual(neighbour_signature(model.layout()), neighbour_signature(examples.keycap()))
+        # dished top: the centre of the top lies below the top's highest points
+        top = max(model.patches, key=lambda p: p.evaluate(0.5, 0.5).P[0, 2])
+        self.assertLess(top.evaluate(0.5, 0.5).P[0, 2], hi[2] - 0.3)
+
+    def test_keycap_mold_half(self):
+        model = tsplcam.load(samples.sample_path("keycap_mold"))
+        lo, hi = samples._limit_box(model.control, 65)
+        np.testing.assert_allclose(hi - lo, [14.4, 14.4, 6.8], atol=2e-3)
+        self.assertAlmostEqual(hi[2], samples.MOLD_BLOCK[2], delta=2e-3)
+        V, T = samples.keycap_mold_stock()
+        np.testing.assert_allclose(V.max(0) - V.min(0), samples.MOLD_BLOCK)
+        self.assertTrue(np.all(np.abs(lo[:2]) < samples.MOLD_BLOCK[0] / 2))
+        # normals point into the cavity, toward the tool: the bottom's normal points up
+        bottom = min(model.patches, key=lambda p: p.evaluate(0.5, 0.5).P[0, 2])
+        self.assertGreater(bottom.evaluate(0.5, 0.5).normal[0, 2], 0.99)
+
+    def test_head_and_figure4_layouts(self):
+        head = tsplcam.load(samples.sample_path("head"))
+        self.assertEqual((len(head.patches), len(head.extraordinary)), (6, 8))
+        self.assertEqual(neighbour_signature(head.layout()), neighbour_signature(examples.head()))
+        fig4 = tsplcam.load(samples.sample_path("figure4"))
+        self.assertEqual(len(fig4.patches), 12)
+        layout = fig4.layout()
+        self.assertEqual(neighbour_signature(layout), neighbour_signature(examples.figure4()))
+        kinds = [layout.link_kind(a, b) for a in range(12) for b in range(a + 1, 12)]
+        self.assertGreater(kinds.count("corner"), 0)

@@ -9,9 +9,9 @@ import unittest
 import numpy as np
 
 from tsplcam.errors import InputError
-from tsplcam.post import load_machine, post_program
-from tsplcam.post import dialects
-from tsplcam.post.kinematics import angle_between, forward, linear_joints
+from tsplcam.post import post_program
+from tsplcam.post import dialects, rs274
+from tsplcam.post.kinematics import angle_between, linear_joints
 from tsplcam.post.synthetic import helix, hemisphere_sweep, pole_pass
 from tsplcam.testing import REPO_DIR, artifact_path
 
@@ -34,6 +34,15 @@ def paths():
             "pole": pole_pass(miss=0.1, tilt=15.0, length=40.0)}
 
 
+def interpret_linuxcnc(case, r):
+    """Every LinuxCNC program of these tests also goes through LinuxCNC's interpreter."""
+    if r.dialect != "linuxcnc" or rs274.executable() is None:
+        return
+    res = rs274.run(r.text, precise=False)
+    case.assertTrue(res.ok, res.errors)
+    case.assertEqual(len(res.moves), len(dialects.get("linuxcnc").read(r.text)))
+
+
 def angle_bound(decimals):
     """Largest tool-axis error (rad) from rounding both angles to ``decimals`` places (deg)."""
     return np.sqrt(2.0) * 0.5 * 10.0 ** -decimals * np.pi / 180.0 * (1 + 1e-6)
@@ -42,6 +51,7 @@ def angle_bound(decimals):
 class RoundTrip(unittest.TestCase):
     def check_case(self, machine, dialect, orientation, tp, label, report):
         r = post_program(tp, machine, dialect, orientation=orientation)
+        interpret_linuxcnc(self, r)
         mod = dialects.get(dialect)
         moves = mod.read(r.text)
         prog = [mv for mv in moves if mv.program]
@@ -112,6 +122,7 @@ class RoundTrip(unittest.TestCase):
         for machine, dialect in (("bc_head_table_sinumerik", "sinumerik"), ("bc_head_head_fanuc", "fanuc"),
                                  ("linuxcnc_xyzac_trt", "linuxcnc")):
             r = post_program(tp, machine, dialect)
+            interpret_linuxcnc(self, r)
             m = r.machine
             mod = dialects.get(dialect)
             moves = [mv for mv in mod.read(r.text) if mv.program]
@@ -124,7 +135,6 @@ class RoundTrip(unittest.TestCase):
                 J = np.column_stack([linear_joints(m, tips, rot[:, 0], rot[:, 1], r.settings["tool_length"],
                                                    r.settings["part_origin"]), rot])
             vmax = m.max_velocity * 60
-            feed_of = {0: tp.feed}
             checked = 0
             for i in range(1, len(moves)):
                 mv = moves[i]
@@ -133,7 +143,7 @@ class RoundTrip(unittest.TestCase):
                 self.assertTrue(mv.inverse_time, f"{dialect} line {mv.line}")
                 self.assertIsNotNone(mv.feed, f"{dialect} line {mv.line}: G93 block without F")
                 L = np.linalg.norm(tips[i] - tips[i - 1])
-                f_path = feed_of.get(int(r.motion.move[i]) if r.motion.move[i] >= 0 else 0, tp.feed)
+                f_path = tp.feed                 # every block of this path runs at the path feed
                 t = max(L / f_path, (np.abs(J[i] - J[i - 1]) / vmax).max())
                 self.assertAlmostEqual(1.0 / mv.feed, t, delta=2e-3 * t + 1e-6, msg=f"{dialect} line {mv.line}")
                 checked += 1
@@ -183,6 +193,7 @@ class SafeStartAndEnd(unittest.TestCase):
         for machine, dialect in (("mikron_ucp600_heidenhain", "heidenhain"), ("bc_head_table_sinumerik", "sinumerik"),
                                  ("bc_head_head_fanuc", "fanuc"), ("linuxcnc_xyzac_trt", "linuxcnc")):
             r = post_program(tp, machine, dialect)
+            interpret_linuxcnc(self, r)
             lines = r.text.splitlines()
             pos = 0
             for want in self.ORDER[dialect]:
@@ -212,6 +223,19 @@ class SafeStartAndEnd(unittest.TestCase):
         self.assertAlmostEqual(j0[2] + m.tool_length, m.safe_z, places=6)
         self.assertTrue(r.motion.rapid[0] and r.motion.rapid[1] and not r.motion.rapid[2])
         self.assertTrue(np.allclose(r.motion.joints[0, 3:], r.motion.joints[2, 3:]))
+
+    def test_heidenhain_ball_centre_reference(self):
+        # REFPNT CENTER-CENTER: the program holds ball centres; read back, centre - R K is the tip.
+        tp = hemisphere_sweep(n=120)
+        r = post_program(tp, "mikron_ucp600_heidenhain", "heidenhain", refpnt="CENTER-CENTER")
+        self.assertIn("REFPNT CENTER-CENTER", r.text)
+        moves = [mv for mv in dialects.get("heidenhain").read(r.text) if mv.program]
+        raw = np.array([[mv.words[a] for a in "XYZ"] for mv in moves])
+        tips, axes = dialects.poses(r.machine, moves, r.settings, False)
+        src = r.motion.source
+        on = src >= 0
+        self.assertLess(np.linalg.norm(raw[on] - tp.center[src[on].astype(int)], axis=1).max(), 1e-4)
+        self.assertLess(np.linalg.norm(tips[on] - tp.tip[src[on].astype(int)], axis=1).max(), 1e-3)
 
     def test_bad_options(self):
         tp = hemisphere_sweep(n=20)

@@ -5,7 +5,6 @@ import subprocess
 import tempfile
 import unittest
 
-import numpy as np
 
 from tsplcam.errors import InputError
 from tsplcam.post import list_machines, load_machine

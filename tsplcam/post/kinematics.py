@@ -355,7 +355,9 @@ def solve_joints(machine: Machine, tip, axis, *, tool_length=None, part_origin=N
         dC = np.abs(dC if enumerate_reps else _wrap180(dC))
         trans = wt * dT + wc * dC
         trans = np.where(Fs[1:, None, :] & Fs[:-1, :, None], trans, np.inf)
-        first = np.where(Fs[0], 0.0, np.inf) + 1e-12 * np.arange(Fs.shape[1])
+        # Start anywhere feasible; ties go to the first branch, then to C nearest its zero.
+        first = (np.where(Fs[0], 0.0, np.inf) + 1e-9 * Bst[idx[0]]
+                 + 1e-12 * np.abs(Cs[0] - rax.zero))
         state[idx] = _viterbi(first, trans)
 
     tilt = Tst[np.arange(n), state]
@@ -374,7 +376,6 @@ def solve_joints(machine: Machine, tip, axis, *, tool_length=None, part_origin=N
         rotv[idx] = r
 
     # Singular runs: interpolate the free angle between the poses around the run.
-    deviation = np.zeros(n)
     if singular.any():
         s = singular.astype(np.int8)
         starts = np.nonzero(np.diff(np.concatenate([[0], s])) == 1)[0]
@@ -445,7 +446,8 @@ def swing(machine: Machine, joints, axis, samples=(0.25, 0.5, 0.75)) -> np.ndarr
     to row k+1 and the great circle between the two programmed axes, per block (n-1,).
 
     Small for ordinary blocks; large where the rotaries rewind a turn or flip branch while the
-    tool axis itself hardly changes, i.e. where the tool would sweep through the part.
+    tool axis itself hardly changes, i.e. where the tool would sweep through the part (the
+    post retracts around such blocks).
     """
     j = np.asarray(joints, float)
     if len(j) < 2:

@@ -267,14 +267,12 @@ def post_program(toolpath: ToolPath, machine, dialect: str | None = None, **opti
 
     inserted, lin_dev = 0, float("nan")
     if mod.JOINT_SPACE:
-        before = len(J)
         feedrow = ~rapid
         feedrow[0] = False
         src_key = np.arange(len(J), dtype=float)
         J, tips, src_key, feedrow, inserted, lin_dev = linearise(
             machine, J, tips, src_key, feedrow, float(s["linear_tolerance"]), tool_length=L,
             part_origin=origin, angle_decimals=da)
-        assert len(J) == before + inserted
         # Carry the per-row data over to the inserted rows (an inserted row belongs to the
         # block it splits: same feed, move kind; source interpolated).
         owner = np.ceil(src_key - 1e-9).astype(int)

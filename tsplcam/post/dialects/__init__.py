@@ -86,7 +86,14 @@ def fmt(value: float, decimals: int, plus: bool = False) -> str:
 
 
 def fmt_col(values, decimals: int, plus: bool = False) -> list:
-    return [fmt(v, decimals, plus) for v in np.asarray(values, float).tolist()]
+    """:func:`fmt` over an array (the hot loop of every writer)."""
+    f = f"{{:.{decimals}f}}".format
+    negzero = "-" + f(0.0)
+    out = [f(v) for v in np.asarray(values, float).tolist()]
+    out = [s[1:] if s == negzero else s for s in out]
+    if plus:
+        out = [s if s[0] == "-" else "+" + s for s in out]
+    return out
 
 
 def fmt_feed(value: float, decimals: int = 3) -> str:

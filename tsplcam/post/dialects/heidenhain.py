@@ -11,7 +11,6 @@ carries its sign.
 """
 from __future__ import annotations
 
-import numpy as np
 
 from . import Job, ReadMove, clean_comment, fmt, fmt_col, fmt_feed, words
 

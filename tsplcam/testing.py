@@ -8,7 +8,8 @@ from __future__ import annotations
 import os
 import unittest
 
-REPO_DIR = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+# realpath: under FreeCAD the checkout is reached through the Mod/tsplcam link
+REPO_DIR = os.path.dirname(os.path.dirname(os.path.realpath(__file__)))
 ARTIFACT_DIR = os.environ.get("TSPLCAM_ARTIFACTS", os.path.join(REPO_DIR, "build", "artifacts"))
 
 

@@ -264,6 +264,14 @@ def post_program(toolpath: ToolPath, machine, dialect: str | None = None, **opti
     fmm = np.array([r[4] for r in rows], float)
     source = np.array([r[5] for r in rows], float)
     move = np.array([r[6] for r in rows], int)
+    # A row that repeats the previous pose is a block that does nothing: leave it out.
+    same = np.zeros(len(rows), bool)
+    same[1:] = ((np.abs(np.diff(tips, axis=0)).max(axis=1) < 1e-9)
+                & (np.abs(np.diff(J, axis=0)).max(axis=1) < 1e-9))
+    dropped = int(same.sum())
+    if dropped:
+        keep = ~same
+        tips, axes, J, rapid, fmm, source, move = (a[keep] for a in (tips, axes, J, rapid, fmm, source, move))
 
     inserted, lin_dev = 0, float("nan")
     if mod.JOINT_SPACE:
@@ -320,6 +328,8 @@ def post_program(toolpath: ToolPath, machine, dialect: str | None = None, **opti
               preposition=(float(J[0, 3]), float(J[0, 4])), blank=(lo, hi), tool_radius=R)
     text = mod.write(job)
     notes = []
+    if dropped:
+        notes.append(f"{dropped} repeated poses left out (zero-length blocks)")
     if len(breaks):
         notes.append(f"{len(breaks)} retract-reorient-approach sequences inserted where the rotaries "
                      f"would swing the tool axis more than {float(s['swing_limit']):g} deg inside a "

@@ -1,0 +1,433 @@
+"""Collision geometry with python-fcl: the workpiece as one BVH, the tool as fcl shapes.
+
+Workpiece: every patch is tessellated on a (u, v) grid refined until the *measured* chordal
+error (distance between the surface and the triangles, sampled at every grid edge midpoint
+and cell centre) is below ``tolerance``; optional stock and fixture triangle meshes are
+added as they are. One ``fcl.BVHModel`` (OBBRSS) holds all of it, built once. Every
+triangle remembers its owner (a patch or a named mesh) so a collision names its obstacle.
+
+Tool: the solids above the ball centre (flutes, shank, holder segments; see
+:meth:`Tool.parts`) are turned into one closed triangle mesh of circumscribed polygons
+(the polygon contains the true circle), each part grown radially by ``margin`` (the
+chordal tolerance plus the requested clearance). So a pose the checker passes keeps the
+true tool at least ``clearance`` away from the true surface, and a reported collision is
+at most ``margin`` + the polygon excess (``polygon_tolerance``) from a real touch. The
+same parts also exist as fcl primitives (``fcl.Cylinder``, and ``fcl.Convex`` frustums):
+:meth:`CollisionChecker.collides_exact` uses them as the independent reference the tests
+compare against; the mesh form answers about four times faster (one BVH-BVH query per
+pose instead of one GJK traversal per part).
+
+Why no broad-phase manager: python-fcl's ``DynamicAABBTreeCollisionManager`` calls back
+into Python for every overlapping pair, so it cannot beat one ``fcl.collide`` per pose
+when the workpiece is a single BVH (every tool pose overlaps its box). Batches are
+therefore plain loops over poses with the transforms computed in numpy beforehand.
+
+The ball: it touches the surface at the contact by construction, so it is left out of the
+per-axis checks (it does not depend on the axis). :meth:`ball_gouges` checks it once per
+point: a sphere shrunk by ``gouge_tolerance`` must not touch the workpiece. With the
+chordal error below half of ``gouge_tolerance`` this never fires on the tangent contact
+(the mesh lies within ``tolerance`` of the true surface, outside the true ball) and finds
+every gouge deeper than ``gouge_tolerance + tolerance``.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..errors import GeometryError, InputError
+from .tool import Tool
+
+try:                                   # python-fcl is a dependency of this stage only
+    import fcl
+except ImportError:                    # pragma: no cover - reported when a checker is built
+    fcl = None
+
+
+# --- workpiece tessellation ------------------------------------------------------------------
+
+@dataclass
+class TriangleMesh:
+    """Triangles with an owner per triangle (index into ``owners``, names for messages)."""
+    vertices: np.ndarray            # (nv, 3)
+    triangles: np.ndarray           # (nt, 3) int
+    owner: np.ndarray               # (nt,) int
+    owners: list                    # names, e.g. "patch 3 'top'", "stock"
+    owner_patch: list               # patch index per owner, or None for a mesh
+    chordal_error: float = 0.0      # measured, mm (0 for meshes taken as they are)
+
+    @staticmethod
+    def concat(meshes: list) -> "TriangleMesh":
+        V, T, O, names, patches = [], [], [], [], []
+        off = 0
+        err = 0.0
+        for m in meshes:
+            V.append(m.vertices)
+            T.append(m.triangles + off)
+            O.append(m.owner + len(names))
+            names += list(m.owners)
+            patches += list(m.owner_patch)
+            off += len(m.vertices)
+            err = max(err, m.chordal_error)
+        return TriangleMesh(np.concatenate(V), np.concatenate(T), np.concatenate(O), names, patches, err)
+
+
+def _grid_triangles(nu: int, nv: int) -> np.ndarray:
+    """Two triangles per cell of an (nu+1) x (nv+1) vertex grid (u-major index)."""
+    i, j = np.meshgrid(np.arange(nu), np.arange(nv), indexing="ij")
+    a = (i * (nv + 1) + j).ravel()
+    b = a + (nv + 1)
+    return np.concatenate([np.column_stack([a, b, b + 1]), np.column_stack([a, b + 1, a + 1])])
+
+
+def _plane_distance(P, A, B, C):
+    """Distance of points P from the planes of triangles ABC (all (n,3))."""
+    nrm = np.cross(B - A, C - A)
+    ln = np.linalg.norm(nrm, axis=1)
+    return np.abs(np.einsum("ij,ij->i", P - A, nrm)) / np.where(ln > 0, ln, 1.0)
+
+
+def _patch_grid_error(patch, gu: np.ndarray, gv: np.ndarray) -> tuple[float, float]:
+    """Chordal error of the grid gu x gv measured on the patch: (along u, along v) maxima.
+
+    Sampled at edge midpoints (distance from the chord) and at the quarter points of each
+    cell's diagonals (distance from the triangle planes): the error of a smooth surface
+    between grid lines peaks near those places.
+    """
+    nu, nv = len(gu) - 1, len(gv) - 1
+    mu = 0.5 * (gu[:-1] + gu[1:])
+    mv = 0.5 * (gv[:-1] + gv[1:])
+    # u-edges: (mu, gv)
+    U, V = np.meshgrid(mu, gv, indexing="ij")
+    Pm = patch.evaluate(U.ravel(), V.ravel()).P.reshape(nu, nv + 1, 3)
+    G = patch.evaluate(*[a.ravel() for a in np.meshgrid(gu, gv, indexing="ij")]).P.reshape(nu + 1, nv + 1, 3)
+    eu = np.linalg.norm(Pm - 0.5 * (G[:-1] + G[1:]), axis=2).max()
+    U, V = np.meshgrid(gu, mv, indexing="ij")
+    Pm = patch.evaluate(U.ravel(), V.ravel()).P.reshape(nu + 1, nv, 3)
+    ev = np.linalg.norm(Pm - 0.5 * (G[:, :-1] + G[:, 1:]), axis=2).max()
+    # inside the cells: points at 1/3 along both triangles' barycentres
+    A, B, C, D = G[:-1, :-1], G[1:, :-1], G[1:, 1:], G[:-1, 1:]
+    ec = 0.0
+    for (fa, fb), tri in (((2 / 3, 1 / 3), (A, B, C)), ((1 / 3, 2 / 3), (A, C, D))):
+        uu = gu[:-1, None] + fa * np.diff(gu)[:, None] + 0 * gv[None, :-1]
+        vv = gv[None, :-1] + fb * np.diff(gv)[None, :] + 0 * gu[:-1, None]
+        P = patch.evaluate(uu.ravel(), vv.ravel()).P
+        ec = max(ec, _plane_distance(P, *(t.reshape(-1, 3) for t in tri)).max())
+    return max(eu, ec), max(ev, ec)
+
+
+def tessellate_patch(patch, tolerance: float, max_cells: int = 4000) -> tuple:
+    """Grid (u, v) tessellation of one patch with measured chordal error <= tolerance.
+
+    The grid starts from the patch's cell breaks (2 per cell) and is refined per direction
+    by the factor sqrt(error / tolerance) (the chordal error of a smooth surface falls with
+    the square of the spacing) until the measured error is below the tolerance.
+    Returns (vertices, triangles, uv, error).
+    """
+    nu = max(4, 2 * (len(patch.ubreaks) - 1))
+    nv = max(4, 2 * (len(patch.vbreaks) - 1))
+    for _ in range(12):
+        gu = np.linspace(0.0, 1.0, nu + 1)
+        gv = np.linspace(0.0, 1.0, nv + 1)
+        eu, ev = _patch_grid_error(patch, gu, gv)
+        if eu <= tolerance and ev <= tolerance:
+            break
+        if eu > tolerance:
+            nu = int(np.ceil(nu * min(4.0, 1.1 * np.sqrt(eu / tolerance))))
+        if ev > tolerance:
+            nv = int(np.ceil(nv * min(4.0, 1.1 * np.sqrt(ev / tolerance))))
+        if nu > max_cells or nv > max_cells:
+            raise GeometryError(f"{patch.name}: tessellation to {tolerance:g} mm needs more than "
+                                f"{max_cells} grid lines (error {max(eu, ev):.3g} mm at {nu} x {nv})")
+    else:                                                      # pragma: no cover
+        raise GeometryError(f"{patch.name}: tessellation did not reach {tolerance:g} mm")
+    U, V = np.meshgrid(gu, gv, indexing="ij")
+    uv = np.column_stack([U.ravel(), V.ravel()])
+    P = patch.evaluate(uv[:, 0], uv[:, 1]).P
+    return P, _grid_triangles(nu, nv), uv, max(eu, ev)
+
+
+def tessellate_model(model, tolerance: float = 0.005, patches=None) -> TriangleMesh:
+    """Every patch of the model (or those listed) as triangles within ``tolerance`` (mm)."""
+    if not tolerance > 0:
+        raise InputError(f"tessellation tolerance must be positive, not {tolerance!r}")
+    meshes = []
+    for k in (range(len(model.patches)) if patches is None else patches):
+        p = model.patches[k]
+        V, T, _, err = tessellate_patch(p, tolerance)
+        meshes.append(TriangleMesh(V, T, np.zeros(len(T), int), [f"patch {k} ({p.name})"], [k], err))
+    return TriangleMesh.concat(meshes)
+
+
+def named_mesh(vertices, triangles, name: str) -> TriangleMesh:
+    """A triangle mesh taken as it is (stock, fixture, neighbouring part)."""
+    V = np.asarray(vertices, float).reshape(-1, 3)
+    T = np.asarray(triangles, int).reshape(-1, 3)
+    if len(T) and (T.min() < 0 or T.max() >= len(V)):
+        raise InputError(f"triangle index out of range 0..{len(V) - 1}", item=name)
+    if not np.all(np.isfinite(V)):
+        raise InputError("a vertex is not finite", item=name)
+    return TriangleMesh(V, T, np.zeros(len(T), int), [name], [None], 0.0)
+
+
+# --- tool shapes -----------------------------------------------------------------------------
+
+def polygon_segments(radius: float, excess: float) -> int:
+    """Sides of a circumscribed polygon whose corners stay within ``excess`` of the circle."""
+    if radius <= 0:
+        return 8
+    c = radius / (radius + excess)
+    return int(max(12, np.ceil(np.pi / np.arccos(min(c, 1.0 - 1e-12)))))
+
+
+def tool_mesh(tool: Tool, margin: float = 0.0, polygon_tolerance: float = 0.01):
+    """Closed triangle mesh of the tool parts (tool frame: ball centre at the origin, axis +z),
+    each radius grown by ``margin`` and circumscribed. Returns (V, T, part_of_triangle, names)."""
+    parts = tool.parts()
+    V, T, owner = [], [], []
+    names = [p.name for p in parts]
+    for k, p in enumerate(parts):
+        r0, r1 = p.r0 + margin, p.r1 + margin
+        n = polygon_segments(max(r0, r1), polygon_tolerance)
+        a = np.arange(n) * 2 * np.pi / n
+        s = 1.0 / np.cos(np.pi / n)                       # circumscribed: edge midpoints on the circle
+        ring = np.column_stack([np.cos(a), np.sin(a)]) * s
+        base = sum(len(v) for v in V)
+        bottom = np.column_stack([ring * r0, np.full(n, p.z0)])
+        top = np.column_stack([ring * r1, np.full(n, p.z1)])
+        V.append(np.vstack([bottom, top, [[0, 0, p.z0], [0, 0, p.z1]]]))
+        i = np.arange(n)
+        j = (i + 1) % n
+        tri = np.concatenate([np.column_stack([i, j, n + j]), np.column_stack([i, n + j, n + i]),
+                              np.column_stack([np.full(n, 2 * n), j, i]),
+                              np.column_stack([np.full(n, 2 * n + 1), n + i, n + j])]) + base
+        T.append(tri)
+        owner.append(np.full(len(tri), k))
+    return np.vstack(V), np.vstack(T), np.concatenate(owner), names
+
+
+def tool_primitives(tool: Tool, margin: float = 0.0, polygon_tolerance: float = 0.01) -> list:
+    """fcl shapes of the tool parts with their offsets along the axis: [(name, geometry,
+    z_offset)]. Cylinders are exact ``fcl.Cylinder``; cone frustums are ``fcl.Convex``
+    hulls of two circumscribed polygons."""
+    out = []
+    for p in tool.parts():
+        r0, r1 = p.r0 + margin, p.r1 + margin
+        h = p.z1 - p.z0
+        if abs(r0 - r1) < 1e-12:
+            out.append((p.name, fcl.Cylinder(r0, h), 0.5 * (p.z0 + p.z1)))
+            continue
+        n = polygon_segments(max(r0, r1), polygon_tolerance)
+        a = np.arange(n) * 2 * np.pi / n
+        s = 1.0 / np.cos(np.pi / n)
+        ring = np.column_stack([np.cos(a), np.sin(a)]) * s
+        verts = np.vstack([np.column_stack([ring * r0, np.full(n, -0.5 * h)]),
+                           np.column_stack([ring * r1, np.full(n, 0.5 * h)])])
+        faces = [n] + list(range(n - 1, -1, -1)) + [n] + list(range(n, 2 * n))
+        for i in range(n):
+            j = (i + 1) % n
+            faces += [4, i, j, n + j, n + i]
+        out.append((p.name, fcl.Convex(verts, n + 2, np.array(faces, np.int32)), 0.5 * (p.z0 + p.z1)))
+    return out
+
+
+def axis_quaternions(axes: np.ndarray) -> np.ndarray:
+    """(w, x, y, z) quaternions of the shortest rotations taking +z to each unit axis (n,3)."""
+    a = np.asarray(axes, float).reshape(-1, 3)
+    w = 1.0 + a[:, 2]
+    q = np.column_stack([w, -a[:, 1], a[:, 0], np.zeros(len(a))])
+    flip = w < 1e-9                                          # axis ~ -z: half turn about x
+    q[flip] = [0.0, 1.0, 0.0, 0.0]
+    return q / np.linalg.norm(q, axis=1, keepdims=True)
+
+
+def _bvh(V, T):
+    m = fcl.BVHModel()
+    m.beginModel(len(T), len(V))
+    m.addSubModel(np.ascontiguousarray(V, float), np.ascontiguousarray(T, np.int64))
+    m.endModel()
+    return m
+
+
+# --- the checker ---------------------------------------------------------------------------
+
+@dataclass
+class Hit:
+    """Which part of the tool touches which obstacle, and where (mm)."""
+    part: str
+    obstacle: str
+    patch: int | None
+    point: np.ndarray = field(default_factory=lambda: np.full(3, np.nan))
+
+    def __str__(self) -> str:
+        p = self.point
+        return f"the {self.part} touches {self.obstacle} near ({p[0]:.3f}, {p[1]:.3f}, {p[2]:.3f})"
+
+
+class CollisionChecker:
+    """Tool poses against the workpiece, with the BVH built once.
+
+    ``model``: a Model (its patches are tessellated within ``tolerance``) or None;
+    ``meshes``: extra (name, vertices, triangles) obstacles (stock, fixture, neighbouring
+    blades); ``clearance``: distance the shank and holder must keep (mm);
+    ``gouge_tolerance``: depth below which the ball is not reported as gouging
+    (must be at least twice ``tolerance``). Poses are given by ball centres and unit axes.
+    """
+
+    def __init__(self, model, tool: Tool, meshes=(), tolerance: float = 0.005,
+                 clearance: float = 0.0, gouge_tolerance: float | None = None,
+                 polygon_tolerance: float = 0.01, patches=None):
+        if fcl is None:
+            raise GeometryError("python-fcl is not installed: tool orientation needs it "
+                                "(pip install python-fcl)")
+        self.tool = tool
+        self.tolerance = float(tolerance)
+        self.clearance = float(clearance)
+        self.gouge_tolerance = 2.0 * self.tolerance if gouge_tolerance is None else float(gouge_tolerance)
+        if self.gouge_tolerance < 2.0 * self.tolerance - 1e-12:
+            raise InputError(f"gouge tolerance {self.gouge_tolerance:g} mm must be at least twice the "
+                             f"tessellation tolerance {self.tolerance:g} mm")
+        if self.gouge_tolerance >= tool.ball_radius:
+            raise InputError(f"gouge tolerance {self.gouge_tolerance:g} mm is not below the ball radius")
+        parts = []
+        if model is not None:
+            parts.append(tessellate_model(model, self.tolerance, patches))
+        for item in meshes:
+            if isinstance(item, TriangleMesh):
+                parts.append(item)
+            else:
+                name, V, T = item
+                parts.append(named_mesh(V, T, name))
+        if not parts:
+            raise InputError("nothing to check collisions against (no model and no meshes)")
+        self.mesh = TriangleMesh.concat(parts)
+        self.margin = self.mesh.chordal_error + self.clearance
+        self.polygon_tolerance = float(polygon_tolerance)
+        self._wp = fcl.CollisionObject(_bvh(self.mesh.vertices, self.mesh.triangles), fcl.Transform())
+        TV, TT, self._tool_owner, self.part_names = tool_mesh(tool, self.margin, polygon_tolerance)
+        self.tool_vertices, self.tool_triangles = TV, TT
+        self._tool = fcl.CollisionObject(_bvh(TV, TT), fcl.Transform())
+        self._prims = [(name, fcl.CollisionObject(g, fcl.Transform()), z)
+                       for name, g, z in tool_primitives(tool, self.margin, polygon_tolerance)]
+        self._ball = fcl.CollisionObject(fcl.Sphere(tool.ball_radius - self.gouge_tolerance), fcl.Transform())
+        self._req = fcl.CollisionRequest()
+        self.checks = 0                    # poses checked so far (for reports and benchmarks)
+
+    @property
+    def triangles(self) -> int:
+        return len(self.mesh.triangles)
+
+    # --- batches -----------------------------------------------------------------------
+    def _grown_tool(self, grow: float):
+        """The tool mesh object grown radially (and along its length) by ``grow`` mm more."""
+        if grow == 0.0:
+            return self._tool
+        cache = self.__dict__.setdefault("_grown", {})
+        if grow not in cache:
+            V, T, _, _ = tool_mesh(self.tool, self.margin + grow, self.polygon_tolerance)
+            V = V.copy()
+            top = V[:, 2].max()
+            V[:, 2] = np.where(V[:, 2] >= top - 1e-12, V[:, 2] + grow, V[:, 2])
+            cache[grow] = fcl.CollisionObject(_bvh(V, T), fcl.Transform())
+        return cache[grow]
+
+    def collides(self, centers, axes, grow: float = 0.0) -> np.ndarray:
+        """True where the pose (ball centre, axis) makes flutes, shank or holder touch the
+        workpiece (within the margin, plus ``grow`` mm). One BVH-BVH query per pose."""
+        C = np.asarray(centers, float).reshape(-1, 3)
+        A = np.asarray(axes, float).reshape(-1, 3)
+        C, A = np.broadcast_arrays(C, A) if len(C) != len(A) else (C, A)
+        Q = axis_quaternions(A)
+        out = np.zeros(len(Q), bool)
+        obj, wp, req, collide = self._grown_tool(float(grow)), self._wp, self._req, fcl.collide
+        Res = fcl.CollisionResult
+        Ql = Q.tolist()
+        for k in range(len(Ql)):
+            obj.setQuatRotation(Ql[k])
+            obj.setTranslation(C[k])
+            if collide(obj, wp, req, Res()):
+                out[k] = True
+        if grow == 0.0:
+            self.checks += len(Q)
+        return out
+
+    def collides_exact(self, centers, axes) -> np.ndarray:
+        """The same question asked of fcl primitives (``Cylinder``/``Convex``) part by part:
+        slower, the reference the mesh form is tested against."""
+        C = np.asarray(centers, float).reshape(-1, 3)
+        A = np.asarray(axes, float).reshape(-1, 3)
+        C, A = np.broadcast_arrays(C, A) if len(C) != len(A) else (C, A)
+        Q = axis_quaternions(A)
+        out = np.zeros(len(Q), bool)
+        for k in range(len(Q)):
+            for _, obj, z in self._prims:
+                obj.setQuatRotation(Q[k])
+                obj.setTranslation(C[k] + z * A[k])
+                if fcl.collide(obj, self._wp, self._req, fcl.CollisionResult()):
+                    out[k] = True
+                    break
+        return out
+
+    def ball_gouges(self, centers) -> np.ndarray:
+        """True where the ball (shrunk by ``gouge_tolerance``) at the centre touches the
+        workpiece anywhere: the ball would cut into the part deeper than the tolerance."""
+        C = np.asarray(centers, float).reshape(-1, 3)
+        out = np.zeros(len(C), bool)
+        obj, wp, req = self._ball, self._wp, self._req
+        for k in range(len(C)):
+            obj.setTranslation(C[k])
+            out[k] = fcl.collide(obj, wp, req, fcl.CollisionResult()) > 0
+        return out
+
+    def clearance_of(self, centers, axes) -> np.ndarray:
+        """Distance (mm) between the tool parts above the ball and the workpiece per pose
+        (fcl.distance on the exact primitives; 0 where they touch). The tool is grown by the
+        margin, so the true distance is this plus ``margin``."""
+        C = np.asarray(centers, float).reshape(-1, 3)
+        A = np.asarray(axes, float).reshape(-1, 3)
+        Q = axis_quaternions(A)
+        out = np.empty(len(Q))
+        req = fcl.DistanceRequest()
+        for k in range(len(Q)):
+            best = np.inf
+            for _, obj, z in self._prims:
+                obj.setQuatRotation(Q[k])
+                obj.setTranslation(C[k] + z * A[k])
+                res = fcl.DistanceResult()
+                d = fcl.distance(obj, self._wp, req, res)
+                best = min(best, max(d, 0.0))
+                if best <= 0:
+                    break
+            out[k] = best
+        return out
+
+    # --- one pose, for messages ------------------------------------------------------------
+    def hit(self, center, axis) -> Hit | None:
+        """What the pose touches (tool part, obstacle), or None when it is free."""
+        q = axis_quaternions(np.asarray(axis, float))[0]
+        self._tool.setQuatRotation(q)
+        self._tool.setTranslation(np.asarray(center, float))
+        req = fcl.CollisionRequest(num_max_contacts=1, enable_contact=True)
+        res = fcl.CollisionResult()
+        if not fcl.collide(self._tool, self._wp, req, res):
+            return None
+        c = res.contacts[0]
+        b1, b2 = c.b1, c.b2                  # triangles of o1 (the tool) and o2 (the workpiece)
+        part = self.part_names[int(self._tool_owner[b1])] if 0 <= b1 < len(self._tool_owner) else "tool"
+        own = int(self.mesh.owner[b2]) if 0 <= b2 < len(self.mesh.owner) else -1
+        obstacle = self.mesh.owners[own] if own >= 0 else "the workpiece"
+        patch = self.mesh.owner_patch[own] if own >= 0 else None
+        return Hit(part, obstacle, patch, np.asarray(c.pos, float))
+
+    def ball_hit(self, center) -> Hit | None:
+        """What the shrunk ball touches at this centre, or None."""
+        self._ball.setTranslation(np.asarray(center, float))
+        req = fcl.CollisionRequest(num_max_contacts=1, enable_contact=True)
+        res = fcl.CollisionResult()
+        if not fcl.collide(self._ball, self._wp, req, res):
+            return None
+        c = res.contacts[0]
+        b = c.b2 if c.b2 >= 0 else c.b1
+        own = int(self.mesh.owner[b]) if 0 <= b < len(self.mesh.owner) else -1
+        return Hit("ball", self.mesh.owners[own] if own >= 0 else "the workpiece",
+                   self.mesh.owner_patch[own] if own >= 0 else None, np.asarray(c.pos, float))

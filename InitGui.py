@@ -16,7 +16,7 @@ class TsplcamWorkbench(FreeCADGui.Workbench):
     def Initialize(self):
         from tsplcam.workbench import commands
         names = commands.register()
-        self.appendToolbar("tsplcam", names)
+        self.appendToolbar("tsplcam", [n for n in names if n != "Tsplcam_About"])
         self.appendMenu("T-spline CAM", names)
 
     def Activated(self):

@@ -1,9 +1,30 @@
-"""Workbench commands. Each is registered only once it works end to end."""
+"""Workbench commands. Each is registered only once it works end to end.
+
+``COMMANDS`` maps command names to classes, in toolbar order; ``available()`` drops the
+ones whose engine parts are missing in this checkout (e.g. models from shapes without
+``shapes.py``). A later stage adds its commands the same way: a class with
+GetResources/IsActive/Activated here (or in its own module, imported here), an entry in
+COMMANDS, and its check in ``available()`` if it depends on optional parts.
+"""
+import os
+
 import FreeCAD
 import FreeCADGui
 
 import tsplcam
 from tsplcam.workbench.resources import icon
+
+PARAMS = "User parameter:BaseApp/Preferences/Mod/tsplcam"
+
+
+def _main_window():
+    return FreeCADGui.getMainWindow()
+
+
+def _selected_or_all_models():
+    from tsplcam.workbench.modelobject import is_model_object, model_objects
+    sel = [o for o in FreeCADGui.Selection.getSelection() if is_model_object(o)]
+    return sel or model_objects(FreeCAD.ActiveDocument)
 
 
 class AboutCommand:
@@ -23,18 +44,150 @@ class AboutCommand:
         FreeCAD.Console.PrintMessage("\n".join(lines) + "\n")
         if FreeCAD.GuiUp:
             from PySide import QtGui
-            QtGui.QMessageBox.information(FreeCADGui.getMainWindow(), "About tsplcam", "\n".join(lines))
+            QtGui.QMessageBox.information(_main_window(), "About tsplcam", "\n".join(lines))
+
+
+class ImportModelCommand:
+    """Import T-spline models from files (engine formats; STEP/IGES with shapes support)."""
+
+    def GetResources(self):
+        from tsplcam.workbench.modelobject import FORMAT_NAMES, readable_formats
+        names = ", ".join(FORMAT_NAMES[f] for f in readable_formats())
+        return {"Pixmap": icon("import"), "MenuText": "Import T-spline model...",
+                "ToolTip": f"Read a surface model into the active document ({names}); "
+                           "it shows its patches, patch numbers and extraordinary points"}
+
+    def IsActive(self):
+        return True
+
+    def Activated(self):
+        from PySide import QtGui
+        from tsplcam.workbench import importer
+        from tsplcam.workbench.modelobject import file_filters
+        params = FreeCAD.ParamGet(PARAMS)
+        start = params.GetString("LastImportDir", os.path.expanduser("~"))
+        paths, _ = QtGui.QFileDialog.getOpenFileNames(_main_window(), "Import T-spline model", start,
+                                                      ";;".join(file_filters() + ["All files (*)"]))
+        for path in paths:
+            params.SetString("LastImportDir", os.path.dirname(path))
+            obj = importer.import_file(path)
+            if obj is not None:
+                importer.fit_view(obj.Document)
+
+
+class OpenSampleCommand:
+    """Open one of the sample models shipped with tsplcam."""
+
+    def GetResources(self):
+        return {"Pixmap": icon("sample"), "MenuText": "Open sample model...",
+                "ToolTip": "Import a sample shipped with tsplcam: the keycap of the paper, its mold, "
+                           "a head-like closed model, or the 12-patch layout of the paper's figure 4"}
+
+    def IsActive(self):
+        return True
+
+    def Activated(self):
+        from PySide import QtGui
+        from tsplcam.model.samples import SAMPLES, sample_path
+        from tsplcam.workbench import importer
+        names = list(SAMPLES)
+        name, ok = QtGui.QInputDialog.getItem(_main_window(), "Open sample model", "Sample:", names, 0, False)
+        if ok and name:
+            obj = importer.import_file(sample_path(name))
+            if obj is not None:
+                importer.fit_view(obj.Document)
+
+
+class ModelFromShapeCommand:
+    """Build a model from the selected Part object(s) or faces."""
+
+    def GetResources(self):
+        return {"Pixmap": icon("fromshape"), "MenuText": "Model from selected shape",
+                "ToolTip": "Build a tsplcam model from the selected shape or faces (STEP/IGES "
+                           "imports, Part and PartDesign bodies); the shape is kept in the document"}
+
+    def IsActive(self):
+        if FreeCAD.ActiveDocument is None:
+            return False
+        from tsplcam.workbench.shapeimport import shape_selection
+        return bool(shape_selection())
+
+    def Activated(self):
+        from tsplcam.workbench.shapeimport import model_from_object, shape_selection
+        for obj, subs in shape_selection():
+            model_from_object(obj, subs)
+
+
+class _ToggleCommand:
+    """Switch a display layer of the selected models (all models when none is selected)."""
+    PROPERTY = ""
+    ICON = ""
+    TEXT = ""
+    TIP = ""
+
+    def GetResources(self):
+        return {"Pixmap": icon(self.ICON), "MenuText": self.TEXT, "ToolTip": self.TIP}
+
+    def IsActive(self):
+        return FreeCAD.ActiveDocument is not None and bool(_selected_or_all_models())
+
+    def Activated(self):
+        objs = [o for o in _selected_or_all_models() if getattr(o, "ViewObject", None) is not None]
+        if not objs:
+            return
+        on = not all(bool(getattr(o.ViewObject, self.PROPERTY)) for o in objs)
+        for o in objs:
+            setattr(o.ViewObject, self.PROPERTY, on)
+        FreeCADGui.updateGui()
+
+
+class ToggleControlMeshCommand(_ToggleCommand):
+    PROPERTY = "ShowControlMesh"
+    ICON = "controlmesh"
+    TEXT = "Control mesh"
+    TIP = "Show or hide the control mesh (cage or T-mesh) of the selected models"
+
+
+class TogglePatchNumbersCommand(_ToggleCommand):
+    PROPERTY = "ShowPatchNumbers"
+    ICON = "numbers"
+    TEXT = "Patch numbers"
+    TIP = "Show or hide the patch numbers of the selected models"
+
+
+class ToggleAdjacencyCommand(_ToggleCommand):
+    PROPERTY = "ShowAdjacency"
+    ICON = "adjacency"
+    TEXT = "Adjacency graph"
+    TIP = ("Show or hide the patch adjacency graph: boundary links (shared edge) solid, "
+           "corner links (shared corner only) dashed")
 
 
 COMMANDS = {
+    "Tsplcam_Import": ImportModelCommand,
+    "Tsplcam_OpenSample": OpenSampleCommand,
+    "Tsplcam_ModelFromShape": ModelFromShapeCommand,
+    "Tsplcam_ShowControlMesh": ToggleControlMeshCommand,
+    "Tsplcam_ShowPatchNumbers": TogglePatchNumbersCommand,
+    "Tsplcam_ShowAdjacency": ToggleAdjacencyCommand,
     "Tsplcam_About": AboutCommand,
 }
 
 
+def available() -> dict:
+    """COMMANDS without those whose engine parts this checkout lacks."""
+    from tsplcam.workbench.modelobject import shapes_module
+    out = dict(COMMANDS)
+    if shapes_module() is None:
+        out.pop("Tsplcam_ModelFromShape")
+    return out
+
+
 def register():
-    """Add the commands to FreeCAD (once) and return their names in toolbar order."""
+    """Add the available commands to FreeCAD (once) and return their names in toolbar order."""
     existing = set(FreeCADGui.listCommands())
-    for name, cls in COMMANDS.items():
+    cmds = available()
+    for name, cls in cmds.items():
         if name not in existing:
             FreeCADGui.addCommand(name, cls())
-    return list(COMMANDS)
+    return list(cmds)

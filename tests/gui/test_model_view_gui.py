@@ -1,0 +1,206 @@
+"""The model in the real FreeCAD GUI: import, screenshots, toggles, save and reload, bad files.
+
+Pictures go to build/artifacts (tsplcam.testing.artifact_path). Colour checks count
+pixels by hue: shading under white light keeps a colour's hue, so every patch shows up
+as pixels of its palette hue whatever the lighting (testsupport.colour_pixel_counts).
+"""
+import os
+import shutil
+import tempfile
+import unittest
+
+import numpy as np
+
+import FreeCAD
+import FreeCADGui
+
+from tsplcam.model.samples import sample_path
+from tsplcam.testing import artifact_path
+from tsplcam.workbench import display, importer, messages
+from tsplcam.workbench.modelobject import model_objects, model_of, patch_of_element
+from tsplcam.workbench.testsupport import (colour_pixel_counts, errors_since, image_rgb,
+                                           report_view_mark, view_from)
+
+W, H = 800, 600
+MIN_PIXELS = 400           # a patch "is in the picture" with at least this many of its pixels
+
+
+def grid_points(model, n=7):
+    g = np.linspace(0.0, 1.0, n)
+    U, V = np.meshgrid(g, g)
+    return np.concatenate([p.evaluate(U.ravel(), V.ravel()).P for p in model.patches])
+
+
+def dark_pixels(path):
+    return int((image_rgb(path).max(axis=2) < 0.25).sum())
+
+
+def render(name, azimuth=None, elevation=None, view="Isometric"):
+    v = FreeCADGui.ActiveDocument.ActiveView
+    if azimuth is None:
+        getattr(v, "view" + view)()
+        v.fitAll()
+    else:
+        view_from(azimuth, elevation)
+    FreeCADGui.updateGui()
+    path = artifact_path(name)
+    v.saveImage(path, W, H, "White")
+    return path
+
+
+class _GuiCase(unittest.TestCase):
+    def setUp(self):
+        self._dialogs = messages.show_dialogs
+        messages.show_dialogs = False
+        self.docs_before = set(FreeCAD.listDocuments())
+        self.tmp = tempfile.mkdtemp(prefix="tsplcam-guitest-")
+
+    def tearDown(self):
+        for name in set(FreeCAD.listDocuments()) - self.docs_before:
+            FreeCAD.closeDocument(name)
+        messages.show_dialogs = self._dialogs
+        shutil.rmtree(self.tmp, ignore_errors=True)
+        FreeCADGui.updateGui()
+
+
+class KeycapView(_GuiCase):
+    def test_keycap_shows_five_patch_colours_and_its_extraordinary_points(self):
+        obj = importer.open(sample_path("keycap"))
+        self.assertIsNotNone(obj, messages.recorded[-1:])
+        FreeCADGui.updateGui()
+        # from above every patch is in sight: the sides slope outwards to the rim
+        path = render("keycap_patches_top.png", view="Top")
+        counts = colour_pixel_counts(path, display.PALETTE[:5])
+        for k, n in enumerate(counts):
+            self.assertGreaterEqual(n, MIN_PIXELS, f"patch {k} colour: {counts}")
+        # the four extraordinary points: red markers
+        red = colour_pixel_counts(path, [display.EP_COLOUR], min_saturation=0.7)[0]
+        self.assertGreater(red, 4 * 20, red)
+        # the people's view: isometric, three patches in sight
+        iso = render("keycap_patches_iso.png")
+        self.assertEqual(sum(n >= MIN_PIXELS for n in colour_pixel_counts(iso, display.PALETTE[:5])), 3)
+
+    def test_picking_names_the_patch(self):
+        obj = importer.open(sample_path("keycap"))
+        v = FreeCADGui.ActiveDocument.ActiveView
+        v.viewTop()
+        v.fitAll()
+        FreeCADGui.updateGui()
+        model = model_of(obj)
+        for k, patch in enumerate(model.patches):
+            for u, w in ((0.5, 0.5), (0.3, 0.6)):
+                p = patch.evaluate(u, w).P[0]
+                x, y = v.getPointOnScreen(FreeCAD.Vector(*p))
+                info = v.getObjectInfo((int(round(x)), int(round(y))))
+                self.assertIsNotNone(info, (k, u, w))
+                self.assertEqual(info["Object"], obj.Name)
+                self.assertEqual(patch_of_element(info["Component"]), k, (k, u, w, info))
+
+    def test_control_mesh_on_demand(self):
+        obj = importer.open(sample_path("keycap"))
+        off = render("keycap_no_cage.png")
+        obj.ViewObject.ShowControlMesh = True
+        on = render("keycap_control_mesh.png")
+        obj.ViewObject.ShowControlMesh = False
+        again = render("keycap_no_cage.png")
+        self.assertGreater(dark_pixels(on), dark_pixels(off) + 2000)
+        self.assertEqual(dark_pixels(again), dark_pixels(off))
+
+    def test_save_and_reload_keeps_model_and_view(self):
+        obj = importer.open(sample_path("keycap"))
+        obj.ViewObject.ShowControlMesh = True
+        before = grid_points(model_of(obj))
+        path = os.path.join(self.tmp, "keycap.FCStd")
+        obj.Document.saveAs(path)
+        FreeCAD.closeDocument(obj.Document.Name)
+        FreeCADGui.updateGui()
+        doc = FreeCAD.openDocument(path)
+        FreeCADGui.updateGui()
+        objs = model_objects(doc)
+        self.assertEqual(len(objs), 1)
+        o = objs[0]
+        self.assertTrue(o.ViewObject.ShowControlMesh)
+        self.assertEqual(o.Patches, 5)
+        np.testing.assert_array_equal(grid_points(model_of(o)), before)
+        shot = render("keycap_reloaded_top.png", view="Top")
+        counts = colour_pixel_counts(shot, display.PALETTE[:5])
+        self.assertTrue(all(n >= MIN_PIXELS for n in counts), counts)
+
+
+class Figure4Adjacency(_GuiCase):
+    def test_adjacency_graph_of_figure4(self):
+        obj = importer.open(sample_path("figure4"))
+        plain = render("figure4_patches.png", view="Top")
+        obj.ViewObject.ShowAdjacency = True
+        top = render("figure4_adjacency_top.png", view="Top")
+        render("figure4_adjacency_iso.png", azimuth=-60, elevation=40)
+        self.assertGreater(dark_pixels(top), dark_pixels(plain) + 3000)
+        # the graph in the scene: boundary links solid, corner links dashed
+        from pivy import coin
+        layer = obj.ViewObject.Proxy.layers["adjacency"]
+        sets = []
+        sa = coin.SoSearchAction()
+        sa.setType(coin.SoLineSet.getClassTypeId())
+        sa.setInterest(coin.SoSearchAction.ALL)
+        sa.apply(layer)
+        for i in range(sa.getPaths().getLength()):
+            path = sa.getPaths()[i]
+            style = None
+            for k in range(path.getLength()):
+                node = path.getNode(k)
+                if isinstance(node, coin.SoSeparator):
+                    for c in range(node.getNumChildren()):
+                        if isinstance(node.getChild(c), coin.SoDrawStyle):
+                            style = node.getChild(c)
+            sets.append((path.getTail().numVertices.getNum(), style.linePattern.getValue()))
+        layout = model_of(obj).layout()
+        d = display.adjacency(model_of(obj), layout)
+        self.assertIn((len(layout.edge_links), 0xFFFF), sets)
+        self.assertIn((len(d.corner), 0x0F0F), sets)
+        self.assertEqual(len(layout.edge_links), 17)
+
+
+class BadFileInGui(_GuiCase):
+    def test_truncated_file_gives_one_message_and_no_object(self):
+        from PySide import QtGui
+        with open(sample_path("keycap")) as f:
+            lines = f.read().splitlines()
+        bad = os.path.join(self.tmp, "truncated.obj")
+        with open(bad, "w") as f:
+            f.write("\n".join(lines[:30] + ["v 1.5 2"]))
+        doc = FreeCAD.newDocument("TsplcamBadFile")
+        shown = []
+        original = QtGui.QMessageBox.critical
+        QtGui.QMessageBox.critical = staticmethod(lambda parent, title, text, *a: shown.append((title, text)))
+        messages.show_dialogs = True
+        mark = report_view_mark()
+        try:
+            obj = importer.import_file(bad, doc)
+        finally:
+            QtGui.QMessageBox.critical = original
+            messages.show_dialogs = False
+        self.assertIsNone(obj)
+        self.assertEqual(doc.Objects, [])
+        self.assertEqual(len(shown), 1, shown)
+        self.assertIn(bad, shown[0][1])
+        self.assertIn("line 31", shown[0][1])
+        errors = errors_since(mark)
+        self.assertTrue(any(bad in e and "line 31" in e for e in errors), errors)
+        self.assertIsNone(QtGui.QApplication.activeModalWidget())
+
+
+class Commands(unittest.TestCase):
+    def test_commands_registered(self):
+        FreeCADGui.activateWorkbench("TsplcamWorkbench")
+        from tsplcam.workbench import commands
+        from tsplcam.workbench.modelobject import shapes_module
+        names = set(FreeCADGui.listCommands())
+        for name in ("Tsplcam_Import", "Tsplcam_OpenSample", "Tsplcam_ShowControlMesh",
+                     "Tsplcam_ShowPatchNumbers", "Tsplcam_ShowAdjacency"):
+            self.assertIn(name, names)
+        self.assertEqual("Tsplcam_ModelFromShape" in commands.available(), shapes_module() is not None)
+        from PySide import QtGui
+        for name, cls in commands.available().items():
+            pix = cls().GetResources()["Pixmap"]
+            self.assertTrue(os.path.isfile(pix), pix)
+            self.assertFalse(QtGui.QIcon(pix).pixmap(32, 32).isNull(), name)

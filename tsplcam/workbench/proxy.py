@@ -1,0 +1,90 @@
+"""Base classes for tsplcam's document objects and view providers.
+
+Every pipeline stage that gets a document object (model, processing list, tool path,
+post) follows the same pattern:
+
+* a ``FeatureProxy`` subclass for ``App::FeaturePython`` that keeps its inputs in
+  properties (files inside the .FCStd via ``App::PropertyFileIncluded``), rebuilds engine
+  objects on demand and caches them in plain attributes that are never saved;
+* a ``ViewProxy`` subclass that draws with Coin from the engine objects (never from OCCT
+  shapes) and keeps its switches in view properties;
+* a maker function ``make_...(doc, ...)`` that reads/computes with the engine *first*
+  and only then creates the object, so bad input never leaves a half-built object.
+
+State: FreeCAD 0.20 saves a proxy with ``__getstate__``/``__setstate__``, FreeCAD 1.0
+with ``dumps``/``loads``; both are defined and save only a small JSON-able dict.
+"""
+from __future__ import annotations
+
+
+def add_property(obj, kind: str, name: str, group: str, doc: str, value=None,
+                 read_only: bool = False, hidden: bool = False) -> bool:
+    """Add property ``name`` unless present (so restored old files gain new properties);
+    returns True when it was added (and ``value`` set)."""
+    if name in obj.PropertiesList:
+        return False
+    obj.addProperty(kind, name, group, doc)
+    if value is not None:
+        setattr(obj, name, value)
+    modes = []
+    if read_only:
+        modes.append("ReadOnly")
+    if hidden:
+        modes.append("Hidden")
+    if modes:
+        obj.setEditorMode(name, modes)
+    return True
+
+
+def set_read_only(obj, name: str, value) -> None:
+    """Assign a property the user cannot edit (read-only only in the editor)."""
+    if getattr(obj, name) != value:
+        setattr(obj, name, value)
+
+
+class FeatureProxy:
+    """Proxy of an ``App::FeaturePython``; subclasses set TYPE and VERSION."""
+    TYPE = "TsplcamFeature"
+    VERSION = 1
+
+    def __init__(self, obj):
+        obj.Proxy = self
+        self.Type = self.TYPE
+
+    # -- persistence (0.20 and 1.0 names) -----------------------------------------------
+    def __getstate__(self):
+        return {"type": self.TYPE, "version": self.VERSION}
+
+    def __setstate__(self, state):
+        self.Type = self.TYPE
+        self.restored_version = (state or {}).get("version", self.VERSION) if isinstance(state, dict) else self.VERSION
+        return None
+
+    def dumps(self):
+        return self.__getstate__()
+
+    def loads(self, state):
+        return self.__setstate__(state)
+
+
+class ViewProxy:
+    """Proxy of a ``Gui::ViewProviderPythonFeature``: nothing of it is saved but its type."""
+
+    def __init__(self, vobj):
+        vobj.Proxy = self
+
+    def attach(self, vobj):
+        self.ViewObject = vobj
+        self.Object = vobj.Object
+
+    def __getstate__(self):
+        return None
+
+    def __setstate__(self, state):
+        return None
+
+    def dumps(self):
+        return None
+
+    def loads(self, state):
+        return None

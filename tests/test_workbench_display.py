@@ -154,6 +154,13 @@ class ControlNetAndPoints(unittest.TestCase):
         np.testing.assert_allclose(np.sort(np.abs(pos[:, 0])), np.abs(pos[0, 0]), atol=1e-9)
         self.assertTrue((pos[:, 2] > lo[2] + 0.8 * (hi[2] - lo[2])).all())
 
+    def test_model_without_extraordinary_points(self):
+        class Plain:
+            extraordinary = []
+        pos, valence, boundary = display.extraordinary_points(Plain())
+        self.assertEqual((pos.shape, valence.shape, boundary.dtype), ((0, 3), (0,), np.dtype(bool)))
+        self.assertEqual(len(pos[~boundary]), 0)
+
     def test_model_without_control_mesh(self):
         class Bare:
             control = None

@@ -213,12 +213,31 @@ def label_image(text: str, size: int = 14, text_colour=(0.0, 0.0, 0.0),
     return w, h, data
 
 
+def toward_viewer(distance: float) -> coin.SoCallback:
+    """A node that moves what follows it ``distance`` toward the viewer, along the view
+    direction, while rendering: on screen nothing moves, but labels clear the surface they
+    sit on (no half-hidden labels at grazing angles) and stay hidden behind anything
+    thicker than ``distance``."""
+    def pull(_data, action):
+        if not action.isOfType(coin.SoGLRenderAction.getClassTypeId()):
+            return
+        state = action.getState()
+        d = coin.SoViewVolumeElement.get(state).getProjectionDirection()
+        coin.SoModelMatrixElement.translateBy(state, None, d * (-float(distance)))
+    node = coin.SoCallback()
+    node.setCallback(pull)
+    return node
+
+
 def labels(texts, positions, size: int = 14, text_colour=(0.0, 0.0, 0.0),
-           background=(1.0, 1.0, 1.0), names=None) -> coin.SoSeparator:
+           background=(1.0, 1.0, 1.0), names=None, pull: float = 0.0) -> coin.SoSeparator:
     """Screen-aligned round labels (``label_image``) centred on 3D positions. They keep the
-    depth test, so a label on the far side of the model stays hidden. ``names`` name each
-    label's separator (a pick on a label then names what it labels)."""
+    depth test, so a label on the far side of the model stays hidden; ``pull`` moves them
+    that far toward the viewer (``toward_viewer``). ``names`` name each label's separator
+    (a pick on a label then names what it labels)."""
     sep = coin.SoSeparator()
+    if pull:
+        sep.addChild(toward_viewer(pull))
     positions = np.asarray(positions, float).reshape(-1, 3)
     names = list(names) if names is not None else [""] * len(positions)
     for text, p, name in zip(texts, positions, names):

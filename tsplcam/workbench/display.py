@@ -217,7 +217,8 @@ def extraordinary_points(model) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Positions (n, 3), valences (n,) and boundary flags (n,) of the extraordinary points."""
     eps = list(model.extraordinary)
     pos = np.array([np.asarray(e.position, float) for e in eps]).reshape(-1, 3)
-    return pos, np.array([e.valence for e in eps], int), np.array([bool(e.boundary) for e in eps])
+    return (pos, np.array([e.valence for e in eps], dtype=int).reshape(-1),
+            np.array([bool(e.boundary) for e in eps], dtype=bool).reshape(-1))
 
 
 # -- control mesh -------------------------------------------------------------------------------

@@ -144,6 +144,9 @@ def _read_shape_file(path: str, fmt: str, name: str):
     if shapes is None:
         raise InputError(f"{FORMAT_NAMES[fmt]} models need FreeCAD shapes support "
                          f"(tsplcam.workbench.shapes), which this installation lacks", path=path)
+    stem = os.path.splitext(name)[0]
+    if hasattr(shapes, "model_from_step"):          # reads STEP, IGES and BRep alike
+        return shapes.model_from_step(path, stem)
     import Part
     try:
         shape = Part.read(path)
@@ -151,7 +154,7 @@ def _read_shape_file(path: str, fmt: str, name: str):
         raise InputError(f"FreeCAD cannot read this {FORMAT_NAMES[fmt]} file ({exc})", path=path)
     if shape.isNull() or not shape.Faces:
         raise InputError(f"the {FORMAT_NAMES[fmt]} file holds no faces", path=path)
-    return shapes.model_from_shape(shape, os.path.splitext(name)[0])
+    return shapes.model_from_shape(shape, stem)
 
 
 # -- the document object ---------------------------------------------------------------------

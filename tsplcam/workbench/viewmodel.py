@@ -25,7 +25,8 @@ TOGGLES = {"ShowPatchEdges": "edges", "ShowPatchNumbers": "numbers",
            "ShowExtraordinary": "extraordinary", "ShowControlMesh": "control",
            "ShowAdjacency": "adjacency"}
 PROGRESS_PATCHES = 200
-LABEL_LIFT = 0.02           # labels float this fraction of the model size above the surface      # show a progress bar when tessellating more patches than this
+LABEL_LIFT = 0.01           # labels float this fraction of the model size above the surface
+LABEL_PULL = 0.04           # ... and are drawn this fraction nearer the viewer      # show a progress bar when tessellating more patches than this
 
 
 def ensure_view_properties(vobj) -> None:
@@ -247,7 +248,7 @@ class ViewProviderTsplcamModel(ViewProxy):
         size_px = int(getattr(self.ViewObject, "LabelSize", 16))
         n = len(model.patches)
         return coinutil.labels([str(k) for k in range(n)], centres, size_px,
-                               names=[PATCH_ELEMENT + str(k) for k in range(n)])
+                               names=[PATCH_ELEMENT + str(k) for k in range(n)], pull=LABEL_PULL * size)
 
     def _layer_extraordinary(self, model):
         pos, valence, boundary = display.extraordinary_points(model)
@@ -281,6 +282,7 @@ class ViewProviderTsplcamModel(ViewProxy):
         sep.addChild(coinutil.labels([str(k) for k in range(n)],
                                      display.patch_centres(model, lift=LABEL_LIFT * size),
                                      int(getattr(self.ViewObject, "LabelSize", 16)),
-                                     names=[PATCH_ELEMENT + str(k) for k in range(n)]))
+                                     names=[PATCH_ELEMENT + str(k) for k in range(n)],
+                                     pull=LABEL_PULL * size))
         return sep
 

@@ -96,6 +96,33 @@ class KeycapView(_GuiCase):
                 self.assertEqual(info["Object"], obj.Name)
                 self.assertEqual(patch_of_element(info["Component"]), k, (k, u, w, info))
 
+    def test_patch_numbers_readable_at_the_patch_centres(self):
+        """A white disc with dark text at every patch centre; off with ShowPatchNumbers."""
+        obj = importer.open(sample_path("keycap"))
+        v = FreeCADGui.ActiveDocument.ActiveView
+        v.viewTop()
+        v.fitAll()
+        FreeCADGui.updateGui()
+        w, h = v.getSize()
+        model = model_of(obj)
+
+        def discs(name):
+            path = artifact_path(name)
+            v.saveImage(path, w, h, "White")
+            img = image_rgb(path)
+            out = []
+            for patch in model.patches:
+                x, y = v.getPointOnScreen(FreeCAD.Vector(*patch.evaluate(0.5, 0.5).P[0]))
+                r, c = int(round(h - 1 - y)), int(round(x))
+                win = img[max(r - 7, 0):r + 8, max(c - 7, 0):c + 8]
+                white = (win.min(axis=2) > 0.93).sum()
+                dark = (win.max(axis=2) < 0.3).sum()
+                out.append(bool(white >= 20 and dark >= 5))
+            return out
+        self.assertEqual(discs("keycap_numbers_on.png"), [True] * 5)
+        obj.ViewObject.ShowPatchNumbers = False
+        self.assertEqual(discs("keycap_numbers_off.png"), [False] * 5)
+
     def test_control_mesh_on_demand(self):
         obj = importer.open(sample_path("keycap"))
         off = render("keycap_no_cage.png")
@@ -158,6 +185,62 @@ class Figure4Adjacency(_GuiCase):
         self.assertIn((len(layout.edge_links), 0xFFFF), sets)
         self.assertIn((len(d.corner), 0x0F0F), sets)
         self.assertEqual(len(layout.edge_links), 17)
+
+
+def tiled_figure4(tx, ty):
+    """A cage with the figure-4 edge rotation repeated on a tx x ty grid of 4 x 3 tiles:
+    4 extraordinary points per tile, a few hundred patches."""
+    from tsplcam.layout.layout import Layout
+    from tsplcam.model.samples import layout_cage
+    nx, ny = 4 * tx, 3 * ty
+    nid = lambda i, j: j * (nx + 1) + i    # noqa: E731
+    quads, rotated = [], set()
+    for a in range(tx):
+        for b in range(ty):
+            i, j = 4 * a + 1, 3 * b + 1
+            rotated |= {(i, j), (i + 1, j)}
+            A, B, C = nid(i, j), nid(i + 1, j), nid(i + 2, j)
+            D, E, F = nid(i + 2, j + 1), nid(i + 1, j + 1), nid(i, j + 1)
+            quads += [(A, B, C, F), (F, C, D, E)]
+    quads += [(nid(i, j), nid(i + 1, j), nid(i + 1, j + 1), nid(i, j + 1))
+              for j in range(ny) for i in range(nx) if (i, j) not in rotated]
+    pts = np.array([(10.0 * i, 10.0 * j, 0.0) for j in range(ny + 1) for i in range(nx + 1)])
+    return layout_cage(Layout.from_quads(quads, pts), 2, height=lambda x, y: 0.01 * (x - 120.0) ** 2)
+
+
+class LargeModel(_GuiCase):
+    def test_hundreds_of_patches_with_progress(self):
+        from tsplcam.model.samples import write_obj
+        from tsplcam.workbench import viewmodel
+        path = os.path.join(self.tmp, "tiles.obj")
+        write_obj(tiled_figure4(6, 6), path, "figure-4 tiles")
+        calls = []
+
+        class Recorder:
+            def start(self, text, steps):
+                calls.append(("start", steps))
+
+            def next(self, *a):
+                calls.append(("next",))
+
+            def stop(self):
+                calls.append(("stop",))
+        original = FreeCAD.Base.ProgressIndicator
+        FreeCAD.Base.ProgressIndicator = Recorder
+        try:
+            obj = importer.open(path)
+        finally:
+            FreeCAD.Base.ProgressIndicator = original
+        self.assertIsNotNone(obj, messages.recorded[-1:])
+        n = obj.Patches
+        self.assertGreater(n, viewmodel.PROGRESS_PATCHES)
+        self.assertEqual(calls[0], ("start", n))
+        self.assertEqual(calls.count(("next",)), n)
+        self.assertEqual(calls[-1], ("stop",))
+        shot = render("tiles_patches_top.png", view="Top")
+        # every palette colour is used, each on many patches
+        counts = colour_pixel_counts(shot, display.PALETTE)
+        self.assertTrue(all(c >= MIN_PIXELS for c in counts[:8]), counts)
 
 
 class BadFileInGui(_GuiCase):

@@ -230,17 +230,25 @@ def toward_viewer(distance: float) -> coin.SoCallback:
 
 
 def labels(texts, positions, size: int = 14, text_colour=(0.0, 0.0, 0.0),
-           background=(1.0, 1.0, 1.0), names=None, pull: float = 0.0) -> coin.SoSeparator:
-    """Screen-aligned round labels (``label_image``) centred on 3D positions. They keep the
-    depth test, so a label on the far side of the model stays hidden; ``pull`` moves them
-    that far toward the viewer (``toward_viewer``). ``names`` name each label's separator
-    (a pick on a label then names what it labels)."""
+           background=(1.0, 1.0, 1.0), names=None, pull: float = 0.0, extents=None,
+           room: float = 5.0) -> coin.SoSeparator:
+    """Screen-aligned round labels (``label_image``) centred on 3D positions.
+
+    They keep the depth test, so a label on the far side of the model stays hidden;
+    ``pull`` moves them that far toward the viewer (``toward_viewer``). ``names`` name
+    each label's separator (a pick on a label then names what it labels). With
+    ``extents`` (one (k, 3) point array per label: what it labels), a label shows only
+    while that thing covers ``room`` times the label's area on screen, so zooming out
+    over hundreds of patches does not bury the model under numbers (SoLevelOfDetail)."""
     sep = coin.SoSeparator()
-    if pull:
-        sep.addChild(toward_viewer(pull))
     positions = np.asarray(positions, float).reshape(-1, 3)
+    if pull and len(positions):
+        # the view's near and far planes follow the scene's bounds: make room for the pull
+        sep.addChild(_bounds_only(np.vstack([positions.min(axis=0) - pull, positions.max(axis=0) + pull])))
+        sep.addChild(toward_viewer(pull))
     names = list(names) if names is not None else [""] * len(positions)
-    for text, p, name in zip(texts, positions, names):
+    extents = list(extents) if extents is not None else [None] * len(positions)
+    for text, p, name, ext in zip(texts, positions, names, extents):
         w, h, data = label_image(str(text), size, text_colour, background)
         s = coin.SoSeparator()
         if name:
@@ -251,7 +259,33 @@ def labels(texts, positions, size: int = 14, text_colour=(0.0, 0.0, 0.0),
         image.image.setValue(coin.SbVec2s(w, h), 4, data)
         image.horAlignment = coin.SoImage.CENTER
         image.vertAlignment = coin.SoImage.HALF
-        s.addChild(t)
-        s.addChild(image)
+        if ext is None:
+            s.addChild(t)
+            s.addChild(image)
+        else:
+            lod = coin.SoLevelOfDetail()
+            lod.screenArea.setValue(float(room * w * h))
+            shown = coin.SoSeparator()
+            shown.addChild(_bounds_only(ext))
+            shown.addChild(t)
+            shown.addChild(image)
+            lod.addChild(shown)
+            lod.addChild(_bounds_only(ext))      # too small: nothing drawn, same bounds
+            s.addChild(lod)
         sep.addChild(s)
+    return sep
+
+
+def _bounds_only(points) -> coin.SoSeparator:
+    """Invisible points that give a node the bounding box of ``points``."""
+    pts = np.asarray(points, float).reshape(-1, 3)
+    lo, hi = pts.min(axis=0), pts.max(axis=0)
+    sep = coin.SoSeparator()
+    style = coin.SoDrawStyle()
+    style.style = coin.SoDrawStyle.INVISIBLE
+    coords = coin.SoCoordinate3()
+    coords.point.setValues(0, 2, [lo.tolist(), hi.tolist()])
+    sep.addChild(style)
+    sep.addChild(coords)
+    sep.addChild(coin.SoPointSet())
     return sep

@@ -207,6 +207,17 @@ class ViewProviderTsplcamModel(ViewProxy):
                     bar.stop()
         return cache[key]
 
+    def _extents(self):
+        """Per patch, its tessellation points: labels show only where a patch has room."""
+        return [m.points for m in self._meshes()]
+
+    def _marker_radius(self) -> float:
+        """Extraordinary point markers: small against the model and against its patches."""
+        if "marker" not in self._cache:
+            diags = [np.linalg.norm(m.points.max(axis=0) - m.points.min(axis=0)) for m in self._meshes()]
+            self._cache["marker"] = max(1e-9, min(0.014 * self._size(), 0.06 * float(np.median(diags))))
+        return self._cache["marker"]
+
     def _size(self) -> float:
         if "size" not in self._cache:
             self._cache["size"] = display.model_size(self._built_for)
@@ -248,12 +259,13 @@ class ViewProviderTsplcamModel(ViewProxy):
         size_px = int(getattr(self.ViewObject, "LabelSize", 16))
         n = len(model.patches)
         return coinutil.labels([str(k) for k in range(n)], centres, size_px,
-                               names=[PATCH_ELEMENT + str(k) for k in range(n)], pull=LABEL_PULL * size)
+                               names=[PATCH_ELEMENT + str(k) for k in range(n)], pull=LABEL_PULL * size,
+                               extents=self._extents())
 
     def _layer_extraordinary(self, model):
         pos, valence, boundary = display.extraordinary_points(model)
         sep = coin.SoSeparator()
-        r = 0.014 * self._size()
+        r = self._marker_radius()
         if (~boundary).any():
             sep.addChild(coinutil.spheres(pos[~boundary], r, display.EP_COLOUR))
         if boundary.any():
@@ -283,6 +295,6 @@ class ViewProviderTsplcamModel(ViewProxy):
                                      display.patch_centres(model, lift=LABEL_LIFT * size),
                                      int(getattr(self.ViewObject, "LabelSize", 16)),
                                      names=[PATCH_ELEMENT + str(k) for k in range(n)],
-                                     pull=LABEL_PULL * size))
+                                     pull=LABEL_PULL * size, extents=self._extents()))
         return sep
 

@@ -243,6 +243,41 @@ class LargeModel(_GuiCase):
         self.assertTrue(all(c >= MIN_PIXELS for c in counts[:8]), counts)
 
 
+class Neighbours(_GuiCase):
+    def test_neighbours_of_patch_0_as_in_figure4(self):
+        """Select patch 0 (a pick names it Patch0), run the command: figure 4 (a) colours."""
+        FreeCADGui.activateWorkbench("TsplcamWorkbench")
+        obj = importer.open(sample_path("figure4"))
+        FreeCADGui.Selection.clearSelection()
+        FreeCADGui.Selection.addSelection(obj, "Patch0")
+        FreeCADGui.runCommand("Tsplcam_PatchNeighbours")
+        self.assertEqual(obj.ViewObject.NeighboursOf, 0)
+        render("figure4_neighbours_of_0.png", view="Top")
+        # at the view's own size, screen points map to pixels one to one
+        v = FreeCADGui.ActiveDocument.ActiveView
+        w, h = v.getSize()
+        shot = artifact_path("figure4_neighbours_of_0_screen.png")
+        v.saveImage(shot, w, h, "White")
+        img = image_rgb(shot)
+        model = model_of(obj)
+        from tsplcam.workbench.testsupport import hsv
+        # each patch sampled away from its lines and label: its colour is its relation
+        kinds = {}
+        for k, patch in enumerate(model.patches):
+            x, y = v.getPointOnScreen(FreeCAD.Vector(*patch.evaluate(0.3, 0.7).P[0]))
+            hue_, sat, val = hsv(img[int(round(h - 1 - y)), int(round(x))][None, :])
+            kinds[k] = ("gray" if sat[0] < 0.15 else "blue" if 200 < hue_[0] < 240
+                        else "green" if 100 < hue_[0] < 150 else "yellow" if 35 < hue_[0] < 65 else "?")
+        self.assertEqual(kinds, {0: "yellow", 1: "blue", 3: "blue", 4: "blue", 6: "blue",
+                                 2: "green", 5: "green", 7: "green", 8: "green", 9: "green",
+                                 10: "gray", 11: "gray"})
+        FreeCADGui.Selection.clearSelection()
+        FreeCADGui.Selection.addSelection(obj)
+        FreeCADGui.runCommand("Tsplcam_PatchNeighbours")
+        self.assertEqual(obj.ViewObject.NeighboursOf, -1)
+        FreeCADGui.Selection.clearSelection()
+
+
 class BadFileInGui(_GuiCase):
     def test_truncated_file_gives_one_message_and_no_object(self):
         from PySide import QtGui

@@ -118,6 +118,35 @@ class ModelFromShapeCommand:
             model_from_object(obj, subs)
 
 
+class PatchNeighboursCommand:
+    """Colour the patches by their link to the selected patch (shang2020 figure 4 (a))."""
+
+    def GetResources(self):
+        return {"Pixmap": icon("neighbours"), "MenuText": "Neighbours of selected patch",
+                "ToolTip": "Click a patch first: its edge neighbours turn blue, its corner-only "
+                           "neighbours green, the rest gray. With a whole model selected: back to "
+                           "one colour per patch"}
+
+    def _targets(self):
+        from tsplcam.workbench.modelobject import is_model_object, patch_of_element
+        out = []
+        for sel in FreeCADGui.Selection.getSelectionEx():
+            if not is_model_object(sel.Object) or getattr(sel.Object, "ViewObject", None) is None:
+                continue
+            patches = [patch_of_element(n) for n in sel.SubElementNames]
+            patches = [p for p in patches if p is not None]
+            out.append((sel.Object, patches[-1] if patches else -1))
+        return out
+
+    def IsActive(self):
+        return bool(self._targets())
+
+    def Activated(self):
+        for obj, patch in self._targets():
+            obj.ViewObject.NeighboursOf = patch
+        FreeCADGui.updateGui()
+
+
 class _ToggleCommand:
     """Switch a display layer of the selected models (all models when none is selected)."""
     PROPERTY = ""
@@ -170,6 +199,7 @@ COMMANDS = {
     "Tsplcam_ShowControlMesh": ToggleControlMeshCommand,
     "Tsplcam_ShowPatchNumbers": TogglePatchNumbersCommand,
     "Tsplcam_ShowAdjacency": ToggleAdjacencyCommand,
+    "Tsplcam_PatchNeighbours": PatchNeighboursCommand,
     "Tsplcam_About": AboutCommand,
 }
 

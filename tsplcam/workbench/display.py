@@ -145,6 +145,24 @@ def patch_colours(layout, palette=PALETTE) -> list[int]:
     return colour
 
 
+# the colours of shang2020 figure 4 (a): each patch by its relation to one patch
+RELATION_COLOURS = {
+    "self": (0.98, 0.80, 0.10),        # the chosen patch: yellow
+    "boundary": (0.20, 0.45, 0.90),    # shares an edge with it: blue
+    "corner": (0.25, 0.70, 0.30),      # shares only a corner: green
+    None: (0.72, 0.72, 0.72),          # not linked: gray
+}
+
+
+def relation_colours(layout, patch: int) -> list[tuple[float, float, float]]:
+    """Per patch, the figure-4 colour of its relation to ``patch`` (shang2020 section 3.2)."""
+    out = []
+    for q in range(layout.n_patches):
+        kind = "self" if q == patch else layout.link_kind(patch, q)
+        out.append(RELATION_COLOURS[kind])
+    return out
+
+
 # -- adjacency graph ------------------------------------------------------------------------
 @dataclass
 class AdjacencyDrawing:

@@ -42,6 +42,9 @@ def ensure_view_properties(vobj) -> None:
     if add_property(vobj, "App::PropertyIntegerConstraint", "Density", g,
                     "Tessellation: quads per knot span along each direction"):
         vobj.Density = (8, 1, 64, 1)
+    add_property(vobj, "App::PropertyInteger", "NeighboursOf", g,
+                 "Colour patches by their link to this patch as in the paper's figure 4: "
+                 "blue shares an edge, green only a corner, gray none (-1: one colour per patch)", -1)
     if add_property(vobj, "App::PropertyIntegerConstraint", "LabelSize", g,
                     "Font size of the patch numbers (pixels)"):
         vobj.LabelSize = (16, 6, 48, 1)
@@ -106,6 +109,10 @@ class ViewProviderTsplcamModel(ViewProxy):
             self.rebuild(force=True)
         elif prop == "LabelSize":
             self._build_layer("numbers")
+            if coinutil.is_visible(self.layers["adjacency"]):
+                self._build_layer("adjacency")
+        elif prop == "NeighboursOf":
+            self._build_layer("surface")
 
     def finishRestoring(self):
         self.rebuild(after_restore=True)
@@ -243,9 +250,14 @@ class ViewProviderTsplcamModel(ViewProxy):
         offset.factor = 1.0
         offset.units = 1.0
         sep.addChild(offset)
-        colours = display.patch_colours(model.layout())
+        layout = model.layout()
+        focus = int(getattr(self.ViewObject, "NeighboursOf", -1))
+        if 0 <= focus < layout.n_patches:
+            colours = display.relation_colours(layout, focus)
+        else:
+            colours = [display.PALETTE[c] for c in display.patch_colours(layout)]
         for mesh, c in zip(self._meshes(), colours):
-            sep.addChild(coinutil.grid_mesh(mesh.points, mesh.normals, mesh.quads(), display.PALETTE[c],
+            sep.addChild(coinutil.grid_mesh(mesh.points, mesh.normals, mesh.quads(), c,
                                             PATCH_ELEMENT + str(mesh.patch)))
         return sep
 

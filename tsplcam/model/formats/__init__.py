@@ -16,4 +16,7 @@ def load(path, **options):
         from ..cage import cage_model
         from .obj import read_obj
         return cage_model(read_obj(path, **options))
+    if ext == ".iga":
+        from .iga import iga_model
+        return iga_model(path, **options)
     raise InputError(f"unknown model file type {ext!r}", path=path)

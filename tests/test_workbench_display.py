@@ -169,3 +169,37 @@ class ControlNetAndPoints(unittest.TestCase):
 
 if __name__ == "__main__":
     unittest.main()
+
+
+class PlanDrawing(unittest.TestCase):
+    def test_curves_run_from_start_to_finish_corner(self):
+        from tsplcam.layout.layout import CORNER_UV
+        from tsplcam.plan import plan
+        model = tsplcam.load(sample_path("figure4"))
+        plist = plan(model.layout())
+        size = display.model_size(model)
+        lift = 0.006 * size
+        d = display.plan_drawing(model, plist, lift)
+        self.assertEqual(len(d.curves), len(plist.steps))
+        for curve, s in zip(d.curves, plist.steps):
+            patch = model.patches[s.patch]
+            for end, corner in ((curve[0], s.start), (curve[-1], s.finish)):
+                sp = patch.evaluate(*CORNER_UV[corner])
+                self.assertLess(np.linalg.norm(end - sp.P[0]), lift * 1.000001 + 1e-9)
+        # a transit point wherever a step hands over without retracting
+        self.assertEqual(len(d.transits), len(plist.steps) - 1 - plist.retractions)
+        np.testing.assert_allclose(d.start, d.curves[0][0])
+        np.testing.assert_allclose(d.finish, d.curves[-1][-1])
+
+    def test_retraction_arcs_rise_above_the_surface(self):
+        from tsplcam.plan import plan
+        model = tsplcam.load(sample_path("keycap"))
+        plist = plan(model.layout())
+        plist.steps[2].retract_before = True
+        d = display.plan_drawing(model, plist)
+        self.assertEqual(len(d.retractions), 1)
+        arc = d.retractions[0]
+        np.testing.assert_allclose(arc[0], d.curves[1][-1])
+        np.testing.assert_allclose(arc[-1], d.curves[2][0])
+        rise = np.linalg.norm(arc - arc[0], axis=1).max()
+        self.assertGreater(rise, 0.03 * display.model_size(model))

@@ -322,3 +322,64 @@ class Commands(unittest.TestCase):
             pix = cls().GetResources()["Pixmap"]
             self.assertTrue(os.path.isfile(pix), pix)
             self.assertFalse(QtGui.QIcon(pix).pixmap(32, 32).isNull(), name)
+
+
+class ProcessingListView(_GuiCase):
+    def test_plan_drawn_and_edited_in_the_task_panel(self):
+        from pivy import coin
+        from tsplcam.workbench import planobject
+        FreeCADGui.activateWorkbench("TsplcamWorkbench")
+        model_obj = importer.open(sample_path("figure4"))
+        FreeCADGui.Selection.clearSelection()
+        FreeCADGui.Selection.addSelection(model_obj)
+        FreeCADGui.runCommand("Tsplcam_Plan")
+        plans = [o for o in model_obj.Document.Objects if planobject.is_plan_object(o)]
+        self.assertEqual(len(plans), 1)
+        plan = plans[0]
+        FreeCADGui.Selection.clearSelection()          # a selected object is drawn green
+        plan.ViewObject.CurrentStep = 1
+        render("figure4_processing_list.png", azimuth=-60, elevation=50)
+        plan.ViewObject.CurrentStep = 0
+        # one curve per step in the scene
+        sa = coin.SoSearchAction()
+        sa.setType(coin.SoLineSet.getClassTypeId())
+        sa.setInterest(coin.SoSearchAction.ALL)
+        sa.apply(plan.ViewObject.Proxy.layers["curves"])
+        counts = {sa.getPaths()[i].getTail().numVertices.getNum() for i in range(sa.getPaths().getLength())}
+        self.assertEqual(counts, {plan.Steps})
+
+        # the task panel: pin patch 9 first by moving it up, solve, accept
+        FreeCADGui.ActiveDocument.setEdit(plan.Name, 0)
+        FreeCADGui.updateGui()
+        panel = FreeCADGui.Control.activeDialog() and _active_panel()
+        self.assertIsNotNone(panel)
+        self.assertEqual(panel.table.rowCount(), 12)
+        row = [s.patch for s in panel.plist.steps].index(9)
+        for _ in range(row):
+            panel.table.selectRow([s.patch for s in panel.plist.steps].index(9))
+            panel.buttons["up"].click()
+        self.assertEqual(panel.plist.steps[0].patch, 9)
+        self.assertIn("P", panel.table.item(0, 5).text())
+        panel.buttons["solve"].click()
+        self.assertTrue(panel.valid, panel.status.text())
+        self.assertEqual(panel.plist.steps[0].patch, 9)
+        # an edit that breaks the chain is reported, not stored
+        s1 = panel.plist.steps[1]
+        bad = next(c for c in range(4) if c not in (s1.start, s1.finish))
+        panel.table.cellWidget(1, 1).setCurrentIndex(bad)
+        self.assertFalse(panel.valid)
+        self.assertIn("step 2", panel.status.text())
+        self.assertFalse(panel.accept())
+        panel.buttons["solve"].click()              # keeps the pinned start, fixes the rest
+        self.assertEqual(panel.plist.steps[1].start, bad)
+        status = panel.status.text()
+        self.assertTrue(panel.accept(), status)            # stores the list, closes the panel
+        self.assertIsNone(_active_panel())
+        FreeCADGui.updateGui()
+        self.assertEqual(plan.Order.split()[0], "9")
+        self.assertEqual(planobject.plan_of(plan).steps[1].start, bad)
+
+
+def _active_panel():
+    from tsplcam.workbench import planpanel
+    return planpanel.ProcessingListPanel.active

@@ -173,6 +173,61 @@ def spheres(centres, radius: float, colour, lit: bool = True) -> coin.SoSeparato
     return sep
 
 
+def cones(tips, directions, radius: float, height: float, colour, segments: int = 10) -> coin.SoSeparator:
+    """Arrow heads: a cone of ``height`` with its apex at each tip, pointing along each
+    direction (unit vectors). One face set in model coordinates: no per-cone rotation
+    nodes (they inflate Coin's bounding boxes, and with them the view's fit)."""
+    sep = coin.SoSeparator()
+    tips = np.asarray(tips, float).reshape(-1, 3)
+    dirs = np.asarray(directions, float).reshape(-1, 3)
+    if not len(tips):
+        return sep
+    sep.addChild(material(colour, diffuse=0.8, emissive=0.3, specular=0.3, shininess=0.5))
+    # two unit vectors across each direction
+    helper = np.where(np.abs(dirs[:, [0]]) < 0.9, [[1.0, 0.0, 0.0]], [[0.0, 1.0, 0.0]])
+    e1 = np.cross(dirs, helper)
+    e1 /= np.linalg.norm(e1, axis=1, keepdims=True)
+    e2 = np.cross(dirs, e1)
+    ang = np.linspace(0.0, 2 * np.pi, segments, endpoint=False)
+    base = tips - height * dirs                                            # (n, 3)
+    ring = (base[:, None, :] + radius * (np.cos(ang)[None, :, None] * e1[:, None, :]
+                                         + np.sin(ang)[None, :, None] * e2[:, None, :]))
+    pts = np.concatenate([tips[:, None, :], base[:, None, :], ring], axis=1)   # (n, 2 + s, 3)
+    n, m = len(tips), segments + 2
+    k = np.arange(segments)
+    side = np.column_stack([np.zeros(segments, int), 2 + k, 2 + (k + 1) % segments])
+    bottom = np.column_stack([np.ones(segments, int), 2 + (k + 1) % segments, 2 + k])
+    tri = np.concatenate([side, bottom])                                   # (2 s, 3)
+    idx = (tri[None, :, :] + (m * np.arange(n))[:, None, None]).reshape(-1, 3)
+    coords = coin.SoCoordinate3()
+    flat = pts.reshape(-1, 3)
+    coords.point.setValues(0, len(flat), _floats(flat))
+    faces = coin.SoIndexedFaceSet()
+    ci = np.column_stack([idx, -np.ones(len(idx), int)]).ravel().tolist()
+    faces.coordIndex.setValues(0, len(ci), ci)
+    hints = coin.SoShapeHints()
+    hints.vertexOrdering = coin.SoShapeHints.COUNTERCLOCKWISE
+    hints.shapeType = coin.SoShapeHints.SOLID
+    hints.creaseAngle = 0.0
+    for node in (hints, coords, faces):
+        sep.addChild(node)
+    return sep
+
+
+def haloed_polylines(lines, colour, width: float, halo=(1.0, 1.0, 1.0), halo_width: float | None = None,
+                     pull: float = 0.0, pattern: int | None = None) -> coin.SoSeparator:
+    """Polylines with a wider light line under them: readable on any patch colour. The
+    coloured line is drawn ``pull`` nearer the viewer so it always wins over its halo."""
+    sep = coin.SoSeparator()
+    sep.addChild(polylines(lines, halo, halo_width or width + 3.5))
+    top = coin.SoSeparator()
+    if pull:
+        top.addChild(toward_viewer(pull))
+    top.addChild(polylines(lines, colour, width, pattern))
+    sep.addChild(top)
+    return sep
+
+
 _LABEL_IMAGES: dict = {}
 
 

@@ -147,6 +147,35 @@ class PatchNeighboursCommand:
         FreeCADGui.updateGui()
 
 
+class PlanCommand:
+    """Plan the processing list of the selected model (or the document's only model)."""
+
+    def GetResources(self):
+        return {"Pixmap": icon("plan"), "MenuText": "Processing list",
+                "ToolTip": "Plan the order of the patches, their start and finish corners and "
+                           "crossfeed (no retractions where the layout allows); double-click the "
+                           "list to edit it, pin steps and solve again"}
+
+    def _models(self):
+        from tsplcam.workbench.modelobject import is_model_object, model_objects
+        sel = [o for o in FreeCADGui.Selection.getSelection() if is_model_object(o)]
+        if sel:
+            return sel
+        models = model_objects(FreeCAD.ActiveDocument)
+        return models if len(models) == 1 else []
+
+    def IsActive(self):
+        return FreeCAD.ActiveDocument is not None and bool(self._models())
+
+    def Activated(self):
+        from tsplcam.workbench.planobject import make_processing_list
+        for model in self._models():
+            obj = make_processing_list(model)
+            if obj is not None and FreeCAD.GuiUp:
+                FreeCADGui.Selection.clearSelection()
+                FreeCADGui.Selection.addSelection(obj)
+
+
 class _ToggleCommand:
     """Switch a display layer of the selected models (all models when none is selected)."""
     PROPERTY = ""
@@ -200,6 +229,7 @@ COMMANDS = {
     "Tsplcam_ShowPatchNumbers": TogglePatchNumbersCommand,
     "Tsplcam_ShowAdjacency": ToggleAdjacencyCommand,
     "Tsplcam_PatchNeighbours": PatchNeighboursCommand,
+    "Tsplcam_Plan": PlanCommand,
     "Tsplcam_About": AboutCommand,
 }
 
@@ -210,6 +240,10 @@ def available() -> dict:
     out = dict(COMMANDS)
     if shapes_module() is None:
         out.pop("Tsplcam_ModelFromShape")
+    try:
+        import tsplcam.plan  # noqa: F401
+    except ImportError:
+        out.pop("Tsplcam_Plan")
     return out
 
 

@@ -271,3 +271,71 @@ def control_net(model) -> tuple[np.ndarray, np.ndarray] | None:
 def _unique_edges(e: np.ndarray) -> np.ndarray:
     e = np.sort(e, axis=1)
     return np.unique(e[e[:, 0] != e[:, 1]], axis=0)
+
+
+# -- processing list --------------------------------------------------------------------------
+@dataclass
+class PlanDrawing:
+    """A processing list on the model (shang2020 figure 8): per step a curve across its patch
+    from the start corner to the finish corner, arrow positions and directions, where step
+    numbers go, the transit points, and lifted arcs for retractions."""
+    curves: list = field(default_factory=list)          # (k, 3) per step, in list order
+    arrows: np.ndarray = None                           # (n, 3) arrow tips
+    arrow_dirs: np.ndarray = None                       # (n, 3) unit directions
+    label_points: np.ndarray = None                     # (n, 3)
+    transits: np.ndarray = None                         # (m, 3) finish = next start points
+    retractions: list = field(default_factory=list)     # (k, 3) per retraction
+    start: np.ndarray = None                            # (3,) first step's start point
+    finish: np.ndarray = None                           # (3,) last step's finish point
+
+
+def _quadratic_uv(a, c, b, t):
+    t = np.asarray(t, float)[:, None]
+    return (1 - t) ** 2 * np.asarray(a, float) + 2 * t * (1 - t) * np.asarray(c, float) + t ** 2 * np.asarray(b, float)
+
+
+def plan_drawing(model, plist, lift: float | None = None, samples: int = 25) -> PlanDrawing:
+    """Geometry of a processing list on ``model``: each step's curve is the image of the
+    quadratic (u, v) Bezier start corner -> patch centre -> finish corner, lifted along the
+    normal; retractions rise by 8 % of the model size above both ends."""
+    size = model_size(model)
+    if lift is None:
+        lift = 0.006 * size
+    d = PlanDrawing()
+    t = np.linspace(0.0, 1.0, samples)
+    tips, dirs, labels, transits = [], [], [], []
+    centre = (0.5, 0.5)
+    ends = []
+    for s in plist.steps:
+        patch = model.patches[s.patch]
+        uv = _quadratic_uv(CORNER_UV[s.start], centre, CORNER_UV[s.finish], t)
+        sp = patch.evaluate(uv[:, 0], uv[:, 1])
+        n = _finite_unit(sp.normal)
+        curve = np.asarray(sp.P, float) + lift * n
+        d.curves.append(curve)
+        k = int(0.7 * (samples - 1))
+        tip = curve[k]
+        direction = curve[k + 1] - curve[k - 1]
+        dirs.append(direction / max(np.linalg.norm(direction), 1e-12))
+        tips.append(tip)
+        labels.append(curve[int(0.3 * (samples - 1))])
+        ends.append((curve[0], n[0], curve[-1], n[-1]))
+    for i, s in enumerate(plist.steps[1:], start=1):
+        p0, n0 = ends[i - 1][2], ends[i - 1][3]
+        p1, n1 = ends[i][0], ends[i][1]
+        if s.retract_before:
+            h = 0.08 * size
+            tt = np.linspace(0.0, 1.0, samples)[:, None]
+            # a cubic Bezier up from the finish, across, down to the next start
+            b = ((1 - tt) ** 3 * p0 + 3 * tt * (1 - tt) ** 2 * (p0 + h * n0)
+                 + 3 * tt ** 2 * (1 - tt) * (p1 + h * n1) + tt ** 3 * p1)
+            d.retractions.append(b)
+        else:
+            transits.append(p0)
+    d.arrows = np.array(tips).reshape(-1, 3)
+    d.arrow_dirs = np.array(dirs).reshape(-1, 3)
+    d.label_points = np.array(labels).reshape(-1, 3)
+    d.transits = np.array(transits).reshape(-1, 3)
+    if ends:
+        d.start, d.finish = ends[0][0], ends[-1][2]
+    return d

@@ -77,6 +77,29 @@ class ViewProxy:
         self.ViewObject = vobj
         self.Object = vobj.Object
 
+    def restoring(self) -> bool:
+        """True while the object's document is loading (properties arrive one by one)."""
+        obj = getattr(self, "Object", None)
+        if obj is None:
+            return True
+        return bool(getattr(obj.Document, "Restoring", False)) or "Restore" in getattr(obj, "State", [])
+
+    def later(self, fn) -> None:
+        """Run ``fn`` once the event loop is free (after a document finished loading on
+        FreeCAD versions that do not call finishRestoring on Python view providers)."""
+        if getattr(self, "_pending", False):
+            return
+        self._pending = True
+        from PySide import QtCore
+
+        def run():
+            self._pending = False
+            try:
+                fn()
+            except Exception:          # the document may have been closed meanwhile
+                pass
+        QtCore.QTimer.singleShot(0, run)
+
     def __getstate__(self):
         return None
 

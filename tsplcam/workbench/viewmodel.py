@@ -137,39 +137,16 @@ class ViewProviderTsplcamModel(ViewProxy):
             menu.addAction(action)
 
     # -- building -----------------------------------------------------------------------------
-    def _restoring(self) -> bool:
-        obj = getattr(self, "Object", None)
-        if obj is None:
-            return True
-        doc = obj.Document
-        return bool(getattr(doc, "Restoring", False)) or "Restore" in getattr(obj, "State", [])
-
     def model(self):
         return model_of(self.Object)
-
-    def _later(self) -> None:
-        """Build once the document has finished loading (for FreeCAD versions that do not
-        call finishRestoring on Python view providers)."""
-        if getattr(self, "_pending", False) or not FreeCAD.GuiUp:
-            return
-        self._pending = True
-        from PySide import QtCore
-
-        def run():
-            self._pending = False
-            try:
-                self.rebuild(after_restore=True)
-            except Exception:         # the document may have been closed meanwhile
-                pass
-        QtCore.QTimer.singleShot(0, run)
 
     def rebuild(self, force: bool = False, after_restore: bool = False) -> bool:
         """(Re)build every visible layer from the model; False when there is no model yet.
         While the document loads, waits for finishRestoring (properties arrive one by one)."""
         if self.layers is None:
             return False
-        if not after_restore and self._restoring():
-            self._later()
+        if not after_restore and self.restoring():
+            self.later(lambda: self.rebuild(after_restore=True))
             return False
         obj = self.Object
         if not getattr(obj, "SourceFile", ""):

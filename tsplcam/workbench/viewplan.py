@@ -1,0 +1,157 @@
+"""View provider of the processing list: the machining order drawn on the model.
+
+As in shang2020 figure 8: per step a curve across its patch from the start corner to the
+finish corner (navy on a white halo, with an arrow head), the step number near its start
+(white on navy, unlike the patch numbers), the transit points where one patch hands over
+to the next, retractions as dashed red arcs above the surface, the start of the whole
+list green and its end black. ``CurrentStep`` highlights one step (the task panel sets it
+for the selected row). Double-click opens the task panel.
+"""
+from __future__ import annotations
+
+from pivy import coin
+
+from . import coinutil, display, messages
+from .modelobject import model_of
+from .planobject import plan_of
+from .proxy import ViewProxy, add_property
+from .resources import icon
+
+CURVE = (0.05, 0.12, 0.50)
+CURRENT = (1.0, 0.85, 0.0)
+RETRACT = (0.85, 0.08, 0.08)
+START = (0.10, 0.75, 0.20)
+FINISH = (0.0, 0.0, 0.0)
+LAYERS = ("curves", "numbers", "retractions", "markers", "current")
+
+
+def ensure_view_properties(vobj) -> None:
+    g = "Processing list"
+    add_property(vobj, "App::PropertyBool", "ShowStepNumbers", g, "Number the steps", True)
+    add_property(vobj, "App::PropertyInteger", "CurrentStep", g,
+                 "Highlight this step (1-based; 0: none)", 0)
+
+
+class ViewProviderProcessingList(ViewProxy):
+    root = None
+    layers = None
+    _drawn = None
+
+    def __init__(self, vobj):
+        ensure_view_properties(vobj)
+        super().__init__(vobj)
+
+    def attach(self, vobj):
+        super().attach(vobj)
+        ensure_view_properties(vobj)
+        self.root = coin.SoSeparator()
+        self.layers = {}
+        for name in LAYERS:
+            visible = name != "numbers" or bool(getattr(vobj, "ShowStepNumbers", True))
+            sw = coinutil.switch(visible, "tsplcam_plan_" + name)
+            self.layers[name] = sw
+            self.root.addChild(sw)
+        vobj.addDisplayMode(self.root, "Order")
+        self.rebuild()
+
+    def getDisplayModes(self, vobj):
+        return ["Order"]
+
+    def getDefaultDisplayMode(self):
+        return "Order"
+
+    def setDisplayMode(self, mode):
+        return mode
+
+    def getIcon(self):
+        return icon("plan")
+
+    def claimChildren(self):
+        model = getattr(getattr(self, "Object", None), "Model", None)
+        return [model] if model is not None else []
+
+    def updateData(self, obj, prop):
+        if prop in ("ListText", "Model"):
+            self.rebuild()
+
+    def onChanged(self, vobj, prop):
+        if self.layers is None:
+            return
+        if prop == "ShowStepNumbers":
+            coinutil.set_visible(self.layers["numbers"], bool(vobj.ShowStepNumbers))
+        elif prop == "CurrentStep":
+            self._draw_current()
+
+    def finishRestoring(self):
+        self.rebuild(after_restore=True)
+
+    def setEdit(self, vobj, mode=0):
+        if mode != 0:
+            return False
+        import FreeCADGui
+        from .planpanel import ProcessingListPanel
+        FreeCADGui.Control.showDialog(ProcessingListPanel(vobj.Object))
+        return True
+
+    def unsetEdit(self, vobj, mode=0):
+        import FreeCADGui
+        FreeCADGui.Control.closeDialog()
+        return True
+
+    def doubleClicked(self, vobj):
+        import FreeCADGui
+        FreeCADGui.ActiveDocument.setEdit(vobj.Object.Name, 0)
+        return True
+
+    # -- drawing -------------------------------------------------------------------------------
+    def rebuild(self, after_restore: bool = False) -> bool:
+        if self.layers is None:
+            return False
+        obj = self.Object
+        if not after_restore and self.restoring():
+            self.later(lambda: self.rebuild(after_restore=True))
+            return False
+        for sw in self.layers.values():
+            sw.removeAllChildren()
+        self._drawn = None
+        if obj.Model is None or not obj.ListText:
+            return False
+        try:
+            model = model_of(obj.Model)
+            plist = plan_of(obj)
+            drawing = display.plan_drawing(model, plist)
+        except Exception as exc:
+            messages.exception("Processing list", exc, f"drawing {obj.Label}")
+            return False
+        self._drawn = (model, plist, drawing)
+        size = display.model_size(model)
+        pull = 0.002 * size
+        self.layers["curves"].addChild(coinutil.haloed_polylines(drawing.curves, CURVE, 3.5, pull=pull))
+        self.layers["curves"].addChild(coinutil.cones(drawing.arrows, drawing.arrow_dirs, 0.012 * size,
+                                                      0.04 * size, CURVE))
+        self.layers["numbers"].addChild(coinutil.labels(
+            [str(i + 1) for i in range(len(plist.steps))], drawing.label_points, 14,
+            text_colour=(1.0, 1.0, 1.0), background=CURVE, pull=0.04 * size))
+        if drawing.retractions:
+            self.layers["retractions"].addChild(coinutil.polylines(drawing.retractions, RETRACT, 3.0,
+                                                                   coinutil.DASHED))
+        markers = self.layers["markers"]
+        if len(drawing.transits):
+            markers.addChild(coinutil.spheres(drawing.transits, 0.008 * size, CURVE))
+        if drawing.start is not None:
+            markers.addChild(coinutil.spheres(drawing.start, 0.018 * size, START))
+            markers.addChild(coinutil.spheres(drawing.finish, 0.018 * size, FINISH))
+        self._draw_current()
+        return True
+
+    def _draw_current(self) -> None:
+        sw = self.layers["current"]
+        sw.removeAllChildren()
+        if self._drawn is None:
+            return
+        k = int(getattr(self.ViewObject, "CurrentStep", 0)) - 1
+        curves = self._drawn[2].curves
+        if 0 <= k < len(curves):
+            size = display.model_size(self._drawn[0])
+            sw.addChild(coinutil.haloed_polylines([curves[k]], CURRENT, 6.0, halo=(0.0, 0.0, 0.0),
+                                                  halo_width=9.0, pull=0.004 * size))

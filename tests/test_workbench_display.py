@@ -203,3 +203,21 @@ class PlanDrawing(unittest.TestCase):
         np.testing.assert_allclose(arc[-1], d.curves[2][0])
         rise = np.linalg.norm(arc - arc[0], axis=1).max()
         self.assertGreater(rise, 0.03 * display.model_size(model))
+
+
+class PathSegments(unittest.TestCase):
+    def test_runs_of_one_move_cover_every_segment_once(self):
+        rng = np.random.default_rng(3)
+        pts = rng.normal(size=(200, 3))
+        move = rng.integers(0, 4, 200)
+        move[:50] = 0
+        runs = display.segments_by_move(pts, move)
+        seen = []
+        for kind, lines in runs.items():
+            for line in lines:
+                # every segment of the run has this move at its end point
+                idx = [int(np.nonzero((pts == p).all(axis=1))[0][0]) for p in line]
+                self.assertEqual(idx, list(range(idx[0], idx[-1] + 1)))
+                self.assertTrue((move[idx[1:]] == kind).all())
+                seen += list(zip(idx[:-1], idx[1:]))
+        self.assertEqual(sorted(seen), [(i, i + 1) for i in range(199)])

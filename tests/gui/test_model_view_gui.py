@@ -383,3 +383,25 @@ class ProcessingListView(_GuiCase):
 def _active_panel():
     from tsplcam.workbench import planpanel
     return planpanel.ProcessingListPanel.active
+
+
+class ToolPathView(_GuiCase):
+    def test_keycap_path_preview(self):
+        from tsplcam.workbench import pathobject, planobject, viewpath
+        if not pathobject.toolpath_available():
+            self.skipTest("the path generator is absent")
+        model_obj = importer.open(sample_path("keycap"))
+        plan = planobject.make_processing_list(model_obj)
+        obj = pathobject.make_tool_path(plan, scallop=0.05)
+        self.assertIsNotNone(obj, messages.recorded[-1:])
+        FreeCADGui.Selection.clearSelection()
+        plan.ViewObject.Visibility = False
+        model_obj.ViewObject.ShowPatchNumbers = False
+        shot = render("keycap_tool_path.png", azimuth=-60, elevation=45)
+        link = colour_pixel_counts(shot, [viewpath.MOVE_STYLE[1][0]], min_saturation=0.8)[0]
+        self.assertGreater(link, 500)                  # orange links between lines and patches
+        model_obj.ViewObject.Visibility = False
+        alone = render("keycap_tool_path_alone.png", azimuth=-60, elevation=45)
+        navy = colour_pixel_counts(alone, [viewpath.MOVE_STYLE[0][0]], hue_tolerance=12,
+                                   min_saturation=0.5, min_value=0.1)[0]
+        self.assertGreater(navy, 5000)                 # the cutting lines

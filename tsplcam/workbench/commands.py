@@ -176,6 +176,35 @@ class PlanCommand:
                 FreeCADGui.Selection.addSelection(obj)
 
 
+class ToolPathCommand:
+    """Compute the finishing path of the selected processing list (or the only one)."""
+
+    def GetResources(self):
+        return {"Pixmap": icon("toolpath"), "MenuText": "Tool path",
+                "ToolTip": "Isoparametric zigzags patch after patch in the order of the processing "
+                           "list, side steps under the scallop height; change ToolRadius, Scallop "
+                           "or ChordTolerance in its properties and recompute"}
+
+    def _plans(self):
+        from tsplcam.workbench.planobject import is_plan_object
+        sel = [o for o in FreeCADGui.Selection.getSelection() if is_plan_object(o)]
+        if sel:
+            return sel
+        doc = FreeCAD.ActiveDocument
+        plans = [o for o in doc.Objects if is_plan_object(o)] if doc else []
+        return plans if len(plans) == 1 else []
+
+    def IsActive(self):
+        return FreeCAD.ActiveDocument is not None and bool(self._plans())
+
+    def Activated(self):
+        from tsplcam.workbench.pathobject import make_tool_path
+        for plan in self._plans():
+            obj = make_tool_path(plan)
+            if obj is not None:
+                FreeCADGui.Selection.clearSelection()
+
+
 class _ToggleCommand:
     """Switch a display layer of the selected models (all models when none is selected)."""
     PROPERTY = ""
@@ -230,6 +259,7 @@ COMMANDS = {
     "Tsplcam_ShowAdjacency": ToggleAdjacencyCommand,
     "Tsplcam_PatchNeighbours": PatchNeighboursCommand,
     "Tsplcam_Plan": PlanCommand,
+    "Tsplcam_ToolPath": ToolPathCommand,
     "Tsplcam_About": AboutCommand,
 }
 
@@ -244,6 +274,9 @@ def available() -> dict:
         import tsplcam.plan  # noqa: F401
     except ImportError:
         out.pop("Tsplcam_Plan")
+    from tsplcam.workbench.pathobject import toolpath_available
+    if not toolpath_available():
+        out.pop("Tsplcam_ToolPath")
     return out
 
 

@@ -339,3 +339,19 @@ def plan_drawing(model, plist, lift: float | None = None, samples: int = 25) -> 
     if ends:
         d.start, d.finish = ends[0][0], ends[-1][2]
     return d
+
+
+# -- tool path ------------------------------------------------------------------------------------
+def segments_by_move(points: np.ndarray, move: np.ndarray) -> dict:
+    """{move: [polylines]}: the path cut into runs of one move type (the move of point i is
+    the motion from i-1 to i, as in a G-code block)."""
+    out: dict = {}
+    if len(points) < 2:
+        return out
+    kind = np.asarray(move[1:], int)
+    change = np.nonzero(np.diff(kind))[0] + 1
+    starts = np.concatenate([[0], change])
+    stops = np.concatenate([change, [len(kind)]])
+    for a, b in zip(starts, stops):              # segments a..b-1 join points a..b
+        out.setdefault(int(kind[a]), []).append(points[a:b + 1])
+    return out

@@ -1,0 +1,101 @@
+"""View provider of the tool path: the path as polylines coloured by move type.
+
+CUT moves dark blue, LINK moves (between lines and between patches, on the surface)
+orange and thicker, RETRACT and RAPID moves red and dashed; the first point green, the
+last black. Drawn along the ball centres or the contact points (``Show``), from the
+stored ToolPath, never recomputed here.
+"""
+from __future__ import annotations
+
+import numpy as np
+from pivy import coin
+
+from . import coinutil, display, messages
+from .pathobject import path_of
+from .proxy import ViewProxy, add_property
+from .resources import icon
+
+MOVE_STYLE = {      # Move value: (colour, width, pattern)
+    0: ((0.05, 0.10, 0.45), 1.2, None),          # CUT
+    1: ((1.00, 0.50, 0.00), 3.0, None),          # LINK
+    2: ((0.85, 0.05, 0.05), 2.5, coinutil.DASHED),   # RETRACT
+    3: ((0.85, 0.05, 0.05), 2.0, coinutil.DOTTED),   # RAPID
+}
+
+
+def ensure_view_properties(vobj) -> None:
+    g = "Tool path"
+    if add_property(vobj, "App::PropertyEnumeration", "Show", g,
+                    "Draw the ball centres (what the tool follows) or the contact points"):
+        vobj.Show = ["Ball centre", "Contact"]
+        vobj.Show = "Ball centre"
+
+
+class ViewProviderToolPath(ViewProxy):
+    root = None
+    group = None
+
+    def __init__(self, vobj):
+        ensure_view_properties(vobj)
+        super().__init__(vobj)
+
+    def attach(self, vobj):
+        super().attach(vobj)
+        ensure_view_properties(vobj)
+        self.root = coin.SoSeparator()
+        self.group = coin.SoSeparator()
+        self.root.addChild(self.group)
+        vobj.addDisplayMode(self.root, "Path")
+        self.rebuild()
+
+    def getDisplayModes(self, vobj):
+        return ["Path"]
+
+    def getDefaultDisplayMode(self):
+        return "Path"
+
+    def setDisplayMode(self, mode):
+        return mode
+
+    def getIcon(self):
+        return icon("toolpath")
+
+    def claimChildren(self):
+        plan = getattr(getattr(self, "Object", None), "ProcessingList", None)
+        return [plan] if plan is not None else []
+
+    def updateData(self, obj, prop):
+        if prop in ("PathFile",):
+            self.rebuild()
+
+    def onChanged(self, vobj, prop):
+        if prop == "Show" and self.group is not None:
+            self.rebuild()
+
+    def finishRestoring(self):
+        self.rebuild(after_restore=True)
+
+    def rebuild(self, after_restore: bool = False) -> bool:
+        if self.group is None:
+            return False
+        if not after_restore and self.restoring():
+            self.later(lambda: self.rebuild(after_restore=True))
+            return False
+        self.group.removeAllChildren()
+        obj = self.Object
+        if not obj.PathFile:
+            return False
+        try:
+            tp = path_of(obj)
+        except Exception as exc:
+            messages.exception("Tool path", exc, f"drawing {obj.Label}")
+            return False
+        pts = tp.center if getattr(self.ViewObject, "Show", "Ball centre") == "Ball centre" else tp.contact
+        for move, lines in sorted(display.segments_by_move(pts, tp.move).items()):
+            colour, width, pattern = MOVE_STYLE.get(move, MOVE_STYLE[0])
+            self.group.addChild(coinutil.polylines(lines, colour, width, pattern))
+        if len(pts):
+            size = float(np.linalg.norm(pts.max(axis=0) - pts.min(axis=0))) or 1.0
+            self.group.addChild(coinutil.spheres(pts[:1], 0.012 * size, (0.10, 0.75, 0.20)))
+            self.group.addChild(coinutil.spheres(pts[-1:], 0.012 * size, (0.0, 0.0, 0.0)))
+        return True

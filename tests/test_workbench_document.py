@@ -152,6 +152,28 @@ class BadFiles(_DocCase):
         self.assertRefused(os.path.join(self.tmp, "absent.obj"))
         self.assertRefused(self._write("model.xyz", "1 2 3\n"))
 
+    def test_truncated_iga(self):
+        from tsplcam.testing import external
+        with open(external("geopdes", "square_unstructured.iga")) as f:
+            text = f.read()
+        cut = text[: len(text) // 2]
+        line = cut.count("\n") + 1                 # the line the cut falls on, or the next
+        text = self.assertRefused(self._write("cut.iga", cut))
+        import re
+        found = re.search(r"line (\d+)", text)
+        self.assertIsNotNone(found, text)
+        self.assertLessEqual(abs(int(found.group(1)) - line), 1, text)
+
+    def test_file_dialog_offers_what_can_be_read(self):
+        from tsplcam.workbench.modelobject import file_filters, readable_formats, shapes_module
+        fmts = readable_formats()
+        self.assertIn("obj", fmts)
+        self.assertEqual("step" in fmts, shapes_module() is not None)
+        first = file_filters()[0]
+        self.assertIn("*.obj", first)
+        for f in fmts:
+            self.assertTrue(any(f in x.lower() for x in file_filters()[1:]), f)
+
     def test_open_makes_no_document_for_a_bad_file(self):
         before = set(self.FreeCAD.listDocuments())
         path = self._write("cut.obj", "v 0 0\n")

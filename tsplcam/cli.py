@@ -49,6 +49,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.set_defaults(func=_cmd_job)
     from .plan.commands import register as register_plan
     register_plan(sub)
+    from .toolpath.commands import register as register_path
+    register_path(sub)
     from .post.commands import register as register_post
     register_post(sub)
     return parser

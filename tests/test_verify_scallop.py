@@ -1,0 +1,212 @@
+"""The verification module against closed forms and brute force, on paths built by hand
+(not by the generator): parallel lines on a plane and on a cylinder, chords across a
+convex curve, a point pushed into the surface, and the KD-tree search against all capsules."""
+import unittest
+
+import numpy as np
+
+from tsplcam.model.bspline import bspline_patch
+from tsplcam.model.model import Model
+from tsplcam.toolpath.path import Move, ToolPath
+from tsplcam.verify.metrics import compare_table, path_metrics
+from tsplcam.verify.scallop import Swept, measure, surface_grid
+
+
+def one_patch_model(patch) -> Model:
+    corners = patch.evaluate([0, 1, 1, 0], [0, 0, 1, 1]).P
+    patch.corner_nodes = np.arange(4)
+    return Model([patch], corners, [], "bspline", name="test patch")
+
+
+def plane(W=10.0, H=6.0):
+    poles = np.array([[[0, 0, 0], [0, H, 0]], [[W, 0, 0], [W, H, 0]]], float)
+    return one_patch_model(bspline_patch(poles, None, [0, 0, 1, 1], [0, 0, 1, 1], 1, 1))
+
+
+def cylinder(R, H, beta=np.radians(40), outward=True):
+    h = beta
+    az = np.array([[np.cos(-h), np.sin(-h)], [1 / np.cos(h), 0.0], [np.cos(h), np.sin(h)]])
+    wa = np.array([1.0, np.cos(h), 1.0])
+    poles = np.zeros((3, 2, 3))
+    w = np.zeros((3, 2))
+    for i in range(3):
+        for j in range(2):
+            poles[i, j] = [R * az[i, 0], R * az[i, 1], H * j]
+            w[i, j] = wa[i]
+    if not outward:
+        poles, w = poles[::-1], w[::-1]
+    return one_patch_model(bspline_patch(poles, w, [0, 0, 0, 1, 1, 1], [0, 0, 1, 1], 2, 1))
+
+
+def zigzag_by_hand(contacts_per_line, normals_per_line, r, patch=0):
+    """A ToolPath from lists of (m, 3) contact arrays, alternating direction, LINK between."""
+    P, N, M, L = [], [], [], []
+    for k, (c, n) in enumerate(zip(contacts_per_line, normals_per_line)):
+        if k % 2:
+            c, n = c[::-1], n[::-1]
+        mv = np.full(len(c), Move.CUT)
+        mv[0] = Move.LINK if k else Move.CUT
+        P.append(c), N.append(n), M.append(mv), L.append(np.full(len(c), k))
+    P, N = np.concatenate(P), np.concatenate(N)
+    n = len(P)
+    return ToolPath(P, N, N, np.concatenate(M), np.full(n, patch), np.zeros((n, 2)), np.concatenate(L), r,
+                    info={"settings": {}})
+
+
+class FlatCusps(unittest.TestCase):
+    """Straight parallel lines a distance w apart on a plane: the cusp is r - sqrt(r^2 - w^2/4)."""
+
+    @classmethod
+    def setUpClass(cls):
+        cls.r, cls.w = 1.0, 0.4
+        cls.model = plane(10.0, 6.0)
+        xs = np.arange(0.0, 10.0 + 1e-9, cls.w)
+        y = np.linspace(0.0, 6.0, 13)
+        lines = [np.column_stack([np.full_like(y, x), y, np.zeros_like(y)]) for x in xs]
+        normals = [np.tile([0.0, 0.0, 1.0], (len(y), 1)) for _ in xs]
+        cls.path = zigzag_by_hand(lines, normals, cls.r)
+        cls.h = cls.r - np.sqrt(cls.r ** 2 - cls.w ** 2 / 4)
+        cls.rep = measure(cls.path, cls.model, scallop=cls.h)
+
+    def test_cusp_heights_match_closed_form(self):
+        rep = self.rep
+        self.assertEqual(rep.uncovered, 0)
+        self.assertGreater(rep.cusps, 100)
+        self.assertAlmostEqual(rep.cusp_max / self.h, 1.0, places=5)
+        self.assertAlmostEqual(rep.cusp_mean / self.h, 1.0, places=5)
+        self.assertAlmostEqual(rep.max_scallop / self.h, 1.0, places=5)
+
+    def test_mean_material_matches_profile_integral(self):
+        # mean of r - sqrt(r^2 - x^2) over x in [0, w/2] (the material profile between lines)
+        half = self.w / 2
+        x = np.linspace(0, half, 200001)
+        ref = np.trapz(self.r - np.sqrt(self.r ** 2 - x ** 2), x) / half
+        # a spacing unrelated to w (samples at all phases between the lines), away from the
+        # edges where the links between the lines cut the cusps down
+        rep = measure(self.path, self.model, scallop=self.h, spacing=0.0371, region=(0, 1, 0.2, 0.8))
+        self.assertAlmostEqual(rep.mean_material / ref, 1.0, delta=0.01)
+        self.assertAlmostEqual(ref / self.h, 1 / 3, delta=0.01)       # the h/3 of the issue
+
+    def test_no_gouge_on_exact_path(self):
+        self.assertLess(self.rep.gouge_points, 1e-12)
+        self.assertLess(self.rep.gouge_chords, 1e-12)
+
+    def test_pushed_point_is_a_gouge(self):
+        p = self.path
+        contact = p.contact.copy()
+        contact[40, 2] -= 0.01                        # the ball moved 0.01 mm into the plane
+        bad = ToolPath(contact, p.normal, p.axis, p.move, p.patch, p.uv, p.line, p.tool_radius, info=p.info)
+        rep = measure(bad, self.model, scallop=self.h)
+        self.assertAlmostEqual(rep.gouge_points, 0.01, places=9)
+
+    def test_missing_line_shows_as_scallop(self):
+        """Leave one line out: the material there is the cusp of a gap 2w."""
+        xs = np.delete(np.arange(0.0, 10.0 + 1e-9, self.w), 10)
+        y = np.linspace(0.0, 6.0, 13)
+        lines = [np.column_stack([np.full_like(y, x), y, np.zeros_like(y)]) for x in xs]
+        path = zigzag_by_hand(lines, [np.tile([0.0, 0.0, 1.0], (len(y), 1)) for _ in xs], self.r)
+        rep = measure(path, self.model, scallop=self.h)
+        wide = self.r - np.sqrt(self.r ** 2 - (2 * self.w) ** 2 / 4)
+        self.assertAlmostEqual(rep.max_scallop / wide, 1.0, places=5)
+        self.assertAlmostEqual(rep.cusp_max / wide, 1.0, places=5)
+
+
+class CylinderCusps(unittest.TestCase):
+    """Lines along the axis of a cylinder, ball centres on the circle R + r (convex) or R - r
+    (concave); the cusp is where the two circles of radius r meet, found here in 2D."""
+
+    def check(self, outward):
+        R, r, H = 10.0, 1.0, 5.0
+        model = cylinder(R, H, outward=outward)
+        ang = np.radians(np.linspace(-40, 40, 41))
+        dth = ang[1] - ang[0]
+        z = np.linspace(0, H, 11)
+        sgn = 1.0 if outward else -1.0
+        lines, normals = [], []
+        for a in ang:
+            n = sgn * np.array([np.cos(a), np.sin(a), 0.0])
+            lines.append(np.column_stack([R * np.cos(a) + 0 * z, R * np.sin(a) + 0 * z, z]))
+            normals.append(np.tile(n, (len(z), 1)))
+        path = zigzag_by_hand(lines, normals, r)
+        Rc = R + sgn * r
+        half = Rc * np.sin(dth / 2)
+        root = np.sqrt(r * r - half * half)
+        if outward:
+            h = Rc * np.cos(dth / 2) - root - R
+        else:
+            h = R - (Rc * np.cos(dth / 2) + root)
+        rep = measure(path, model, scallop=h)
+        self.assertEqual(rep.uncovered, 0)
+        self.assertAlmostEqual(rep.cusp_max / h, 1.0, places=5)
+        self.assertAlmostEqual(rep.cusp_mean / h, 1.0, places=4)
+        self.assertLess(rep.gouge_points, 1e-9)
+
+    def test_convex(self):
+        self.check(True)
+
+    def test_concave(self):
+        self.check(False)
+
+    def test_chord_sag_on_convex_circle_is_the_overcut(self):
+        """Points every phi around the convex cylinder: the centre chord cuts (R + r)(1 - cos(phi/2))."""
+        R, r, H = 10.0, 1.0, 5.0
+        model = cylinder(R, H)
+        phi = np.radians(4.0)
+        ang = np.arange(-np.radians(40), np.radians(40) + 1e-12, phi)
+        lines, normals = [], []
+        for zz in np.linspace(0, H, 9):
+            n = np.column_stack([np.cos(ang), np.sin(ang), 0 * ang])
+            lines.append(np.column_stack([R * np.cos(ang), R * np.sin(ang), np.full_like(ang, zz)]))
+            normals.append(n)
+        path = zigzag_by_hand(lines, normals, r)
+        rep = measure(path, model, scallop=0.01)
+        self.assertAlmostEqual(rep.gouge_chords, (R + r) * (1 - np.cos(phi / 2)), places=9)
+        self.assertLess(rep.gouge_points, 1e-9)
+
+
+class NearSearch(unittest.TestCase):
+    """The KD-tree search over capsule pieces against all capsules (brute force)."""
+
+    def test_kdtree_never_hides_material(self):
+        r = 0.5
+        model = cylinder(8.0, 4.0, outward=False)
+        rng = np.random.default_rng(1)
+        ang = np.sort(rng.uniform(-0.69, 0.69, 60))
+        ang[0], ang[-1] = -np.radians(40), np.radians(40)
+        z = np.linspace(0, 4.0, 9)
+        lines = [np.column_stack([8 * np.cos(a) + 0 * z, 8 * np.sin(a) + 0 * z, z]) for a in ang]
+        normals = [np.tile([-np.cos(a), -np.sin(a), 0.0], (len(z), 1)) for a in ang]
+        path = zigzag_by_hand(lines, normals, r)
+        sw = Swept(path, piece=0.1)
+        grid = surface_grid(model, 0.2)
+        sel = rng.choice(len(grid), 400, replace=False)
+        p, n = grid.P[sel], grid.n[sel]
+        h_kd, _ = sw.height(p, n)
+        brute = np.full(len(p), np.inf)
+        allidx = np.arange(len(sw.a))
+        for s in range(0, len(p), 20):
+            e = slice(s, s + 20)
+            lam = sw.entry(p[e], n[e], np.tile(allidx, (len(p[e]), 1)))
+            brute[e] = lam.min(axis=1)
+        self.assertTrue(np.all(h_kd >= brute - 1e-12))
+        np.testing.assert_allclose(h_kd, brute, atol=1e-12)
+
+
+class Metrics(unittest.TestCase):
+
+    def test_lengths_by_kind(self):
+        P = np.array([[0, 0, 0], [3, 0, 0], [3, 1, 0], [0, 1, 0], [0, 1, 10], [5, 5, 10], [5, 5, 0], [9, 5, 0]], float)
+        n = np.tile([0.0, 0.0, 1.0], (len(P), 1))
+        mv = np.array([Move.CUT, Move.CUT, Move.LINK, Move.CUT, Move.RETRACT, Move.RAPID, Move.LINK, Move.CUT])
+        patch = np.array([0, 0, 0, 0, -1, -1, 0, 0])
+        tp = ToolPath(P, n, n, mv, patch, np.zeros((8, 2)), np.array([0, 0, 1, 1, -1, -1, 2, 2]), 1.0)
+        m = path_metrics(tp)
+        self.assertEqual((m.points, m.lines, m.retractions, m.rapid_moves, m.air_moves), (8, 3, 1, 1, 3))
+        self.assertAlmostEqual(m.cut_length, 3 + 3 + 4)
+        self.assertAlmostEqual(m.link_length, 1)
+        self.assertAlmostEqual(m.air_length, 10 + np.sqrt(41) + 10)
+        self.assertIn("retractions", compare_table({"a": m, "b": m}))
+
+
+if __name__ == "__main__":
+    unittest.main()

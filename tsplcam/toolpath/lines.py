@@ -1,0 +1,556 @@
+"""Where the isoparametric lines of one patch go: side steps under a scallop limit and
+parity tuning (shang2020 section 3.5; METHOD-NOTES section 3).
+
+Every patch is machined in a *line frame* (s, t): lines are s = const and run along t;
+s = 0 is the start corner's side, s = 1 the far side. For crossfeed ``u`` (lines of
+constant u), s is u or 1 - u and t is v; for crossfeed ``v`` the roles swap.
+
+Side step, in two stages:
+
+1. The paper's estimate: at samples of the current line, the exact side step for the
+   cross curvature (:func:`~tsplcam.toolpath.sidestep.side_step`, POST-NOTES 4.1), mapped
+   to the parameter with ``ds = g sqrt(G)/sqrt(EG - F^2)`` (METHOD-NOTES 3), minimum over the
+   samples. This is first order in the parameter and blind to how the metric changes
+   between the lines.
+2. A correction on the real geometry (what this module adds): for a candidate next line
+   the cusp between the two rows of balls is constructed in space (ball centres on both
+   lines in the plane across the feed, the lower intersection of the two balls, its height
+   above the surface through a second-order foot point), and the step is corrected by a
+   secant on log(cusp)/log(step) until the largest cusp on the line is within
+   [ACCEPT, 1] of the target. The samples avoid the line's very ends by 1e-5 in t, so a
+   singular corner (an extraordinary point, where E G - F^2 = 0) is never sampled. The
+   line ends are measured apart: where lines meet the patch edge at an angle, one line's
+   end ball faces the next line's side and the edge keeps more material than the middle
+   (:func:`cusp_heights`).
+
+The target is SAFETY h (0.995 h) less what the chords between points may add
+(:class:`Target`); what the generator cannot see between its samples is left to that
+margin, and tsplcam.verify measures the result (on the sample models the largest scallop
+came to 0.969-0.996 h before the margin, 0.971 h on the paper's keycap job after it).
+
+Parity (section 3.5): the zigzag ends on the finish corner's side only for the right
+parity of the line count; otherwise the scallop is lowered in steps of 0.1 h, bisecting
+between the last two scallops when a step overshoots, until the count has the needed
+parity. Then (``balance``, an addition to the paper) the slack of the partial last gap is
+spread over all gaps by scaling the line positions, and each gap's cusp is measured again;
+if any would exceed the limit the unscaled positions are kept.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..errors import GeometryError, InputError
+from ..layout.layout import CORNER_NAMES, CORNER_UV
+from .sidestep import parameter_step, side_step
+
+EDGE_EPS = 1e-5          # samples stay this far (in t) from the line's ends
+ACCEPT = 0.97            # accept a side step whose largest cusp is within [ACCEPT, 1] of the target
+AIM = 0.99               # the secant aims here
+FIT = 1.0 + 1e-9         # 'within the target' allows for rounding
+SAFETY = 0.995           # of h: the target the side step aims under (see Target)
+END_SAMPLES = 17         # edge samples between two line ends (twice: coarse, then fine)
+MAX_SECANT = 10
+MAX_TUNING = 60
+
+
+@dataclass
+class FrameGeom:
+    """Surface geometry in the line frame (s, t), one row per point."""
+    P: np.ndarray
+    n: np.ndarray
+    Ss: np.ndarray
+    St: np.ndarray
+    Sss: np.ndarray
+    Sst: np.ndarray
+    Stt: np.ndarray
+    u: np.ndarray
+    v: np.ndarray
+    s: np.ndarray
+    t: np.ndarray
+
+    def __post_init__(self):
+        d = lambda a, b: np.einsum("ij,ij->i", a, b)   # noqa: E731
+        self.E, self.F, self.G = d(self.Ss, self.Ss), d(self.Ss, self.St), d(self.St, self.St)
+        self.L, self.M, self.N = d(self.n, self.Sss), d(self.n, self.Sst), d(self.n, self.Stt)
+        self.det = self.E * self.G - self.F ** 2
+
+    def rows(self, index) -> "FrameGeom":
+        """The rows ``index`` (a slice or index array) as a FrameGeom."""
+        return FrameGeom(*(getattr(self, k)[index] for k in
+                           ("P", "n", "Ss", "St", "Sss", "Sst", "Stt", "u", "v", "s", "t")))
+
+    def cross_curvature(self) -> np.ndarray:
+        """Normal curvature across a line s = const, i.e. along S_s - (F/G) S_t
+        (METHOD-NOTES 3): (L G^2 - 2 M F G + N F^2) / (G (E G - F^2))."""
+        with np.errstate(divide="ignore", invalid="ignore"):
+            k = (self.L * self.G ** 2 - 2 * self.M * self.F * self.G + self.N * self.F ** 2) / (
+                self.G * self.det)
+        return np.where((self.det > 0) & (self.G > 0), k, 0.0)
+
+    def curve_curvature(self, along: str) -> tuple[np.ndarray, np.ndarray]:
+        """(normal, geodesic) curvature of the iso-curve running along ``along`` ('t' or 's')."""
+        d1, d2 = (self.St, self.Stt) if along == "t" else (self.Ss, self.Sss)
+        sp2 = np.einsum("ij,ij->i", d1, d1)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            kf = np.where(sp2 > 0, np.einsum("ij,ij->i", self.n, d2) / sp2, 0.0)
+            ktot = np.where(sp2 > 0, np.linalg.norm(np.cross(d1, d2), axis=1) / sp2 ** 1.5, 0.0)
+        return kf, np.sqrt(np.maximum(ktot * ktot - kf * kf, 0.0))
+
+    def principal_max(self) -> np.ndarray:
+        """Largest normal curvature (concave positive)."""
+        with np.errstate(divide="ignore", invalid="ignore"):
+            det = np.where(self.det > 0, self.det, np.inf)
+            K = (self.L * self.N - self.M ** 2) / det
+            H = (self.E * self.N - 2 * self.F * self.M + self.G * self.L) / (2 * det)
+        return H + np.sqrt(np.maximum(H * H - K, 0.0))
+
+
+class LineFrame:
+    """A patch seen in the (s, t) frame of one processing step."""
+
+    def __init__(self, patch, crossfeed: str, start: int):
+        if crossfeed not in ("u", "v"):
+            raise InputError(f"crossfeed {crossfeed!r} is not 'u' or 'v'", item=patch.name)
+        self.patch = patch
+        self.crossfeed = crossfeed
+        self.start = start
+        cu, cv = CORNER_UV[start]
+        # s runs from the start corner's side of the crossfeed parameter; t from its other side
+        self.s_flip = bool(cu if crossfeed == "u" else cv)
+        self.t0 = float(cv if crossfeed == "u" else cu)      # t of the start corner
+
+    def uv(self, s, t) -> tuple[np.ndarray, np.ndarray]:
+        s = np.asarray(s, float)
+        t = np.asarray(t, float)
+        a = 1.0 - s if self.s_flip else s
+        return (a, t) if self.crossfeed == "u" else (t, a)
+
+    def evaluate(self, s, t) -> FrameGeom:
+        s, t = np.broadcast_arrays(np.atleast_1d(np.asarray(s, float)), np.atleast_1d(np.asarray(t, float)))
+        s = np.clip(s, 0.0, 1.0)
+        t = np.clip(t, 0.0, 1.0)
+        u, v = self.uv(s, t)
+        sp = self.patch.evaluate(u, v)
+        sg = -1.0 if self.s_flip else 1.0
+        if self.crossfeed == "u":
+            Ss, St, Sss, Sst, Stt = sg * sp.Pu, sp.Pv, sp.Puu, sg * sp.Puv, sp.Pvv
+        else:
+            Ss, St, Sss, Sst, Stt = sg * sp.Pv, sp.Pu, sp.Pvv, sg * sp.Puv, sp.Puu
+        return FrameGeom(sp.P, sp.normal, Ss, St, Sss, Sst, Stt, sp.u, sp.v, s.copy(), t.copy())
+
+    @property
+    def cells_along(self) -> int:
+        nu, nv = self.patch.shape
+        return nv if self.crossfeed == "u" else nu
+
+    def end_t(self, k: int) -> float:
+        """t where line k (0-based) ends: lines alternate direction, the first leaves t0."""
+        return 1.0 - self.t0 if k % 2 == 0 else self.t0
+
+    def corner_of(self, s_side: int, t_value: float) -> int:
+        """Patch corner at s = s_side (0/1), t = t_value (0/1)."""
+        u, v = self.uv(float(s_side), float(t_value))
+        for k, c in enumerate(CORNER_UV):
+            if c[0] == round(float(u)) and c[1] == round(float(v)):
+                return k
+        raise AssertionError("not a corner")
+
+
+def check_reachable(frame: LineFrame, geom: FrameGeom, r: float) -> None:
+    """GeometryError when a concave curvature at the samples is 1/r or more: a ball of
+    radius r cannot touch there without cutting the surface around (METHOD-NOTES 3)."""
+    k1 = geom.principal_max()
+    bad = k1 * r >= 1.0 - 1e-9
+    if bad.any():
+        i = int(np.argmax(k1))
+        p = frame.patch
+        raise GeometryError(
+            f"{p.name}: concave radius of curvature {1.0 / k1[i]:.4g} mm at (u, v) = "
+            f"({geom.u[i]:.5f}, {geom.v[i]:.5f}) is not larger than the tool radius {r:g} mm; "
+            f"a ball that size gouges there (use a tool of radius below {1.0 / k1[i]:.4g} mm)")
+
+
+def check_patch_reachable(frame: LineFrame, r: float, per_cell: int = 8) -> None:
+    """The reachability check on a grid of the whole patch (corners excluded)."""
+    nu, nv = frame.patch.shape
+    gu = np.linspace(EDGE_EPS, 1 - EDGE_EPS, per_cell * nu + 1)
+    gv = np.linspace(EDGE_EPS, 1 - EDGE_EPS, per_cell * nv + 1)
+    U, V = np.meshgrid(gu, gv, indexing="ij")
+    # in the patch's own frame: crossfeed u, start corner 0
+    f0 = LineFrame(frame.patch, "u", 0)
+    check_reachable(frame, f0.evaluate(U.ravel(), V.ravel()), r)
+
+
+@dataclass
+class Target:
+    """The scallop a gap may leave, per sample: ``SAFETY`` h minus what the chords may add
+    (the chord of the ball-centre path runs outside the surface by up to ``undercut`` where
+    the line is concave along the feed, and the cusp rises with it).
+
+    SAFETY covers what the samples along a line cannot see; measured by tsplcam.verify on
+    the sample models (keycap, mold, head at several r and h) the largest scallop came to
+    0.969-0.996 h without it."""
+    r: float
+    h: float
+    undercut: float
+    max_step: float
+
+    def at(self, geom: FrameGeom) -> np.ndarray:
+        kf, _ = geom.curve_curvature("t")
+        shrink = np.maximum(1.0 - self.r * kf, 1e-12)          # centre path / contact path
+        kc = np.maximum(kf, 0.0) / shrink
+        sag = np.minimum(self.undercut, kc * (self.max_step * shrink) ** 2 / 8.0)
+        return SAFETY * self.h - sag
+
+    def scaled(self, factor: float) -> "Target":
+        return Target(self.r, self.h * factor, self.undercut, self.max_step)
+
+
+def _capsule_entry(p, n, a, b, r):
+    """Distance along the unit normals n from points p to where they enter the capsule of
+    radius r around segment a-b (inf if they miss); arrays broadcast over leading axes."""
+    e = b - a
+    L = np.linalg.norm(e, axis=-1)
+    eh = e / np.maximum(L, 1e-300)[..., None]
+    w = p - a
+    dn = np.sum(n * eh, axis=-1)
+    wn = np.sum(w * eh, axis=-1)
+    dp = n - dn[..., None] * eh
+    wp = w - wn[..., None] * eh
+    A = np.sum(dp * dp, axis=-1)
+    B = np.sum(wp * dp, axis=-1)
+    C = np.sum(wp * wp, axis=-1) - r * r
+    disc = B * B - A * C
+    with np.errstate(invalid="ignore", divide="ignore"):
+        lam = (-B - np.sqrt(np.where(disc >= 0, disc, np.nan))) / A
+        ax = wn + lam * dn
+    out = np.where((disc >= 0) & (A > 1e-14) & (ax >= 0) & (ax <= L), lam, np.inf)
+    for c in (a, b):
+        wc = p - c
+        bb = np.sum(n * wc, axis=-1)
+        cc = np.sum(wc * wc, axis=-1) - r * r
+        d = bb * bb - cc
+        with np.errstate(invalid="ignore"):
+            out = np.minimum(out, np.where(d >= 0, -bb - np.sqrt(np.where(d >= 0, d, 0.0)), np.inf))
+    return out
+
+
+def cusp_heights(frame: LineFrame, g1: FrameGeom, ds: float, r: float) -> tuple[np.ndarray, np.ndarray]:
+    """Heights of the cusps between the balls on line s1 (geometry ``g1`` at its samples) and
+    those on line s1 + ds: (one per sample, the two line ends). inf where the balls do not
+    meet; nan for a sample whose partner would lie beyond the line's end (the end value
+    covers that stretch).
+
+    Along the lines: the partner of each ball is taken in the plane through its centre
+    across the feed, to first order t2 = t - (F - r M)/(G - r N) ds (the centre path
+    c = S + r n has c_s.S_t = F - r M and c_t.S_t = G - r N). The cusp q is the
+    intersection of the two spheres nearest the surface; its height is measured from the
+    surface point found by one Gauss-Newton step from the mid parameter and the second
+    fundamental form there.
+
+    At the ends the lines stop at the patch edge, and where the parametrisation is skew one
+    line's end ball faces the other line's side, which leaves more material on the edge
+    than between the lines. There the height is measured directly: at points of the edge
+    between the two end balls, the entry along the normal into each line's tube, taken as a
+    straight capsule from its end ball along the line; the peak is where the two entries
+    are equal, bracketed on 17 samples, bracketed again on 17 inside, and interpolated.
+    """
+    s1 = g1.s
+    with np.errstate(divide="ignore", invalid="ignore"):
+        shift = -(g1.F - r * g1.M) / (g1.G - r * g1.N)
+    shift = np.where(np.isfinite(shift), shift, 0.0)
+    t2 = g1.t + shift * ds
+    beyond = (t2 < 0.0) | (t2 > 1.0)
+    t2 = np.clip(t2, 0.0, 1.0)
+    s2 = min(float(s1[0]) + ds, 1.0)
+    m = len(t2)
+    e = EDGE_EPS
+    f = np.linspace(0.0, 1.0, END_SAMPLES)
+    k_end = len(f)
+    # one evaluation: the partners on line 2 (m), line 2 at its ends and just inside them (4),
+    # line 1 at its ends (2), the mid points of the cusps (m), the edges between the ends (2 k)
+    sm = 0.5 * (s1 + s2)
+    tm = 0.5 * (g1.t + t2)
+    s_all = np.concatenate([np.full(m + 4, s2), [s1[0], s1[0]], sm, s1[0] + np.tile(f, 2) * (s2 - s1[0])])
+    t_all = np.concatenate([t2, [0.0, 1.0, e, 1.0 - e], [0.0, 1.0], tm, np.repeat([0.0, 1.0], k_end)])
+    ga = frame.evaluate(s_all, t_all)
+    gg = ga.rows(slice(0, m + 6))
+    gm = ga.rows(slice(m + 6, 2 * m + 6))
+    ge0 = ga.rows(slice(2 * m + 6, None))
+    c2all = gg.P + r * gg.n
+    c1 = g1.P + r * g1.n
+    c2 = c2all[:m]
+    w = c2 - c1
+    d2 = np.einsum("ij,ij->i", w, w)
+    meet = d2 < 4 * r * r
+    down = -(g1.n + gg.n[:m])
+    with np.errstate(divide="ignore", invalid="ignore"):
+        down -= (np.einsum("ij,ij->i", down, w) / np.where(d2 > 0, d2, 1.0))[:, None] * w
+    down /= np.maximum(np.linalg.norm(down, axis=1, keepdims=True), 1e-300)
+    q = 0.5 * (c1 + c2) + np.sqrt(np.maximum(r * r - 0.25 * d2, 0.0))[:, None] * down
+    rel = q - gm.P
+    # Gauss-Newton foot offset (ds, dt): (J^T J) x = J^T rel
+    a, b, c = gm.E, gm.F, gm.G
+    ra, rb = np.einsum("ij,ij->i", gm.Ss, rel), np.einsum("ij,ij->i", gm.St, rel)
+    det = a * c - b * b
+    with np.errstate(divide="ignore", invalid="ignore"):
+        x = np.where(det > 0, (c * ra - b * rb) / det, 0.0)
+        y = np.where(det > 0, (a * rb - b * ra) / det, 0.0)
+    height = np.einsum("ij,ij->i", gm.n, rel) - 0.5 * (gm.L * x * x + 2 * gm.M * x * y + gm.N * y * y)
+    height = np.where(meet, height, np.inf)
+    height = np.where(beyond, np.nan, height)
+    # the ends: material along the edge between the two end balls, each line's tube taken
+    # as a straight capsule from its end ball along the line (into the patch)
+    unit = lambda v: v / np.maximum(np.linalg.norm(v, axis=-1, keepdims=True), 1e-300)   # noqa: E731
+    tin1 = unit(np.array([g1.St[0], -g1.St[-1]]))
+    tin2 = unit(np.array([gg.St[m + 2], -gg.St[m + 3]]))
+    c1e, c2e = c2all[m + 4:m + 6], c2all[m:m + 2]
+    ends = np.zeros(2)
+    lo = np.zeros(2)
+    width = np.ones(2)
+    rows = np.arange(2)
+    for rnd in range(2):        # a coarse pass, then one inside the bracket of the crossing
+        if rnd == 0:
+            ge = ge0
+        else:
+            ff = lo[:, None] + width[:, None] * f[None, :]              # (2, k)
+            ge = frame.evaluate(s1[0] + np.clip(ff, 0, 1).ravel() * (s2 - s1[0]),
+                                np.repeat([0.0, 1.0], len(f)))
+        p_ = ge.P.reshape(2, -1, 3)
+        n_ = ge.n.reshape(2, -1, 3)
+        h1 = _capsule_entry(p_, n_, c1e[:, None, :], c1e[:, None, :] + 4 * r * tin1[:, None, :], r)
+        h2 = _capsule_entry(p_, n_, c2e[:, None, :], c2e[:, None, :] + 4 * r * tin2[:, None, :], r)
+        # the material peaks where the two tubes leave the same height (line 1's lower near
+        # its end, line 2's near the other): bracket that crossing and interpolate, since a
+        # cusp is a corner that samples alone would cut short
+        with np.errstate(invalid="ignore"):
+            d = h1 - h2
+        k = np.argmax(d >= 0, axis=1)
+        k = np.clip(np.where(np.any(d >= 0, axis=1), k, len(f) - 1), 1, len(f) - 1)
+        d0, d1 = d[rows, k - 1], d[rows, k]
+        with np.errstate(invalid="ignore", divide="ignore"):
+            x = np.clip(d0 / (d0 - d1), 0.0, 1.0)
+            cross = h1[rows, k - 1] + x * (h1[rows, k] - h1[rows, k - 1])
+        peak = np.max(np.minimum(h1, h2), axis=1)
+        ok = np.isfinite(cross) & (d0 < 0) & (d1 >= 0)
+        ends = np.maximum(ends, np.where(ok, np.maximum(cross, np.minimum(h1, h2)[rows, k]), peak))
+        step = width / (len(f) - 1)
+        lo = np.clip(lo + step * (k - 1), 0.0, 1.0)
+        width = step
+    return height, ends
+
+
+@dataclass
+class LinePlacement:
+    """Line positions s_k (0 = first line, 1 = last) of one patch and how they were found."""
+    s: np.ndarray
+    scallop: float                       # the scallop limit the positions were made for
+    ratio: np.ndarray                    # largest cusp / target per gap (as placed)
+    trials: list = field(default_factory=list)   # (scallop, line count) of every trial
+    balanced: float = 1.0                # factor the positions were scaled by (1: not)
+
+    @property
+    def count(self) -> int:
+        return len(self.s)
+
+
+class Placer:
+    """Steps across one patch (:meth:`place`) and tunes the parity (:meth:`tuned`)."""
+
+    def __init__(self, frame: LineFrame, target: Target, samples: int | None = None):
+        self.frame = frame
+        self.target = target
+        m = samples or (16 * frame.cells_along + 1)
+        self.t = np.linspace(EDGE_EPS, 1.0 - EDGE_EPS, max(int(m), 9))
+        self.r = target.r
+        self.evaluations = 0
+        self._lines: dict[float, FrameGeom] = {}
+
+    def line(self, s: float) -> FrameGeom:
+        g = self._lines.get(s)
+        if g is None:
+            g = self.frame.evaluate(np.full_like(self.t, s), self.t)
+            check_reachable(self.frame, g, self.r)
+            self._lines[s] = g
+        return g
+
+    def ratio(self, g1: FrameGeom, ds: float, target_h: np.ndarray) -> float:
+        """Largest cusp / target between line g1 and the line ds further."""
+        self.evaluations += 2
+        h, ends = cusp_heights(self.frame, g1, ds, self.r)
+        rs = h / target_h
+        inner = float(np.max(rs[~np.isnan(rs)])) if np.any(~np.isnan(rs)) else 0.0
+        return max(inner, ends[0] / target_h[0], ends[1] / target_h[-1])
+
+    def first_order(self, g1: FrameGeom, target_h: np.ndarray) -> float:
+        g = side_step(self.r, target_h, g1.cross_curvature())
+        ds = parameter_step(g, g1.E, g1.F, g1.G)
+        return float(np.min(ds))
+
+    def step(self, s: float, guess_factor: float, target: Target):
+        """(ds, ratio, estimate of the uncapped step, correction factor) from line s."""
+        g1 = self.line(s)
+        th = target.at(g1)
+        d0 = self.first_order(g1, th)
+        if not np.isfinite(d0) or d0 <= 0:
+            raise GeometryError(f"{self.frame.patch.name}: no side step from the line at s = {s:.6f}")
+        cap = 1.0 - s
+        d = min(d0 * guess_factor, cap)
+        lo, lo_r, hi = 0.0, 0.0, np.inf
+        hist = []
+        for _ in range(MAX_SECANT):
+            R = self.ratio(g1, d, th)
+            hist.append((d, R))
+            if R <= FIT:
+                if d > lo:
+                    lo, lo_r = d, R
+                if d >= cap * (1 - 1e-12):
+                    full = cap * (AIM / R) ** 0.5 if R > 0 else np.inf
+                    return cap, R, max(full, cap), d / d0
+                if R >= ACCEPT:
+                    return d, R, d, d / d0
+            else:
+                hi = min(hi, d)
+            if len(hist) >= 2 and hist[-1][0] != hist[-2][0] and hist[-1][1] > 0 and hist[-2][1] > 0 \
+                    and np.isfinite(hist[-1][1]) and np.isfinite(hist[-2][1]):
+                p = np.log(hist[-1][1] / hist[-2][1]) / np.log(hist[-1][0] / hist[-2][0])
+                p = float(np.clip(p, 1.0, 4.0)) if np.isfinite(p) else 2.0
+            else:
+                p = 2.0
+            nd = d * (AIM / R) ** (1.0 / p) if np.isfinite(R) and R > 0 else 0.5 * d
+            if not lo < nd < hi:
+                nd = np.sqrt(lo * hi) if lo > 0 and np.isfinite(hi) else (0.5 * d if nd >= hi else 2 * d)
+            d = min(nd, cap)
+        if lo > 0:
+            return lo, lo_r, lo, lo / d0
+        d = min(hist[-1][0], cap)
+        for _ in range(60):                      # nothing fitted: shrink until it does
+            d *= 0.5
+            R = self.ratio(g1, d, th)
+            if R <= FIT:
+                return d, R, d, d / d0
+        raise GeometryError(f"{self.frame.patch.name}: the side step from the line at s = {s:.6f} "
+                            f"does not converge (scallop {target.h:g} mm)")
+
+    def place(self, target: Target) -> tuple[np.ndarray, np.ndarray, float]:
+        """Line positions for ``target``, their gap ratios, and the estimated uncapped last step."""
+        s = 0.0
+        pos, ratios = [0.0], []
+        factor = 1.0
+        full = np.nan
+        while True:
+            d, R, full, f = self.step(s, factor, target)
+            factor = float(np.clip(f, 0.25, 4.0))
+            ratios.append(R)
+            if s + d >= 1.0 - 1e-12:
+                pos.append(1.0)
+                break
+            s = s + d
+            pos.append(s)
+            if len(pos) > 200000:
+                raise GeometryError(f"{self.frame.patch.name}: more than 200000 lines: scallop "
+                                    f"{target.h:g} mm is too small for this patch")
+        return np.array(pos), np.array(ratios), full
+
+    def balance(self, pos: np.ndarray, full: float, target: Target):
+        """Scale the positions so the last gap is as full as the others (see module doc);
+        returns (positions, ratios, factor) or None when a gap would exceed the limit."""
+        if len(pos) < 3 or not np.isfinite(full):
+            return None
+        c = 1.0 / (pos[-2] + full)
+        if c >= 0.999:
+            return None
+        new = np.append(pos[:-1] * c, 1.0)
+        ratios = []
+        for a, b in zip(new[:-1], new[1:]):
+            g1 = self.frame.evaluate(np.full_like(self.t, a), self.t)
+            ratios.append(self.ratio(g1, b - a, target.at(g1)))
+        ratios = np.array(ratios)
+        if ratios.max() > FIT:
+            return None
+        return new, ratios, c
+
+    def tuned(self, parity: int | None, balance: bool = True) -> LinePlacement:
+        """Positions whose count has the given parity (0 even, 1 odd; None: any), by the
+        paper's scallop tuning."""
+        h = self.target.h
+        trials = []
+
+        def run(factor):
+            tg = self.target.scaled(factor)
+            pos, ratios, full = self.place(tg)
+            trials.append((h * factor, len(pos)))
+            return pos, ratios, full, tg
+
+        best = run(1.0)
+        n0 = len(best[0])
+        if parity is not None and n0 % 2 != parity:
+            found = None
+            results = []                                  # (factor, result) of every trial
+            hi_f, lo_f = 1.0, None                        # hi_f: count <= n0; lo_f: count > n0+1
+            for j in range(1, 10):
+                f = 1.0 - 0.1 * j
+                res = run(f)
+                results.append((f, res))
+                n = len(res[0])
+                if n == n0 + 1:
+                    found = res
+                    break
+                if n > n0 + 1:
+                    lo_f = f
+                    break
+                hi_f = f
+            if found is None and lo_f is not None:
+                # bisect between the last scallop with n0 lines or fewer and the overshoot
+                for _ in range(MAX_TUNING):
+                    if hi_f - lo_f < 1e-6:
+                        break
+                    f = 0.5 * (hi_f + lo_f)
+                    res = run(f)
+                    results.append((f, res))
+                    n = len(res[0])
+                    if n == n0 + 1:
+                        found = res
+                        break
+                    if n <= n0:
+                        hi_f = f
+                    else:
+                        lo_f = f
+            if found is None:
+                # the count jumped over n0 + 1 (the accepted steps move in steps too): take
+                # the largest scallop whose count has the needed parity
+                ok = [(f, res) for f, res in results if len(res[0]) % 2 == parity]
+                if not ok:
+                    raise GeometryError(f"{self.frame.patch.name}: scallop tuning found no line "
+                                        f"count of the needed parity down to 0.1 h")
+                found = max(ok, key=lambda x: x[0])[1]
+            best = found
+        pos, ratios, full, tg = best
+        out = LinePlacement(pos, tg.h, ratios, trials)
+        if balance:
+            b = self.balance(pos, full, tg)
+            if b is not None:
+                out.s, out.ratio, out.balanced = b
+        return out
+
+
+def parity_for(frame: LineFrame, finish: int | None) -> int | None:
+    """Needed parity of the line count so the zigzag ends at corner ``finish`` (None: any).
+
+    Raises InputError when the finish is not on the far side of the crossfeed."""
+    if finish is None:
+        return None
+    fu, fv = CORNER_UV[finish]
+    fs = fu if frame.crossfeed == "u" else fv
+    if frame.s_flip:
+        fs = 1 - fs
+    ft = fv if frame.crossfeed == "u" else fu
+    if fs != 1:
+        raise InputError(f"finish corner {CORNER_NAMES[finish]} is on the start corner's side "
+                         f"{'u' if frame.crossfeed == 'u' else 'v'} = "
+                         f"{int(CORNER_UV[frame.start][0 if frame.crossfeed == 'u' else 1])}; "
+                         f"crossfeed {frame.crossfeed} cannot reach it", item=frame.patch.name)
+    # line k ends at t0 for odd k: the last line (n - 1) ends at 1 - t0 when n is odd
+    return 1 if ft != frame.t0 else 0

@@ -1,0 +1,387 @@
+"""What the path leaves on the surface: scallop, cusp heights between lines, gouges.
+
+Independent of the generator: it reads only the ToolPath (contact points, normals, moves,
+line and patch ids) and evaluates the model's surface itself.
+
+The tool as it moves: the ball centre runs linearly from path point to path point (what a
+machine interpolating the tool tip does for a constant axis, and to first order otherwise),
+so the swept volume is a chain of *capsules* (cylinder of radius r around each segment of
+centres plus the balls at its ends). No densification error.
+
+* Material left at a surface point p (normal n toward the tool): the distance along n from
+  p to where the ray p + l n enters the swept volume, min over nearby capsules; negative
+  when p lies inside the volume (then it measures the gouge along the normal). Capsules are
+  cut into pieces no longer than ``piece`` and found with a KD tree (scipy cKDTree) around
+  p + r n, where a touching ball's centre would be; a capsule the search misses can only
+  make the height larger, never hide material.
+* The surface is sampled on a (u, v) grid per patch with about ``spacing`` mm between
+  samples. A grid cannot see the top of a cusp (a cusp is a sharp ridge: with a spacing d
+  the sampled maximum can be low by about 2 h d / g), so every pair of neighbouring samples
+  cut by different lines is refined: bisection on the parameter segment between them for
+  the point where both lines leave the same height, i.e. the ridge. The cusp heights are
+  those ridge heights; between consecutive lines of one patch they give the cusp mean.
+* Gouge: for ball centres at every path point, at the middle of every move on the surface
+  (the chord) and along air moves, the distance to the surface (nearest grid samples, then
+  Newton on the squared distance) compared with r.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+from ..toolpath.path import Move, ToolPath
+
+K_NEAR = 16
+GRID_EPS = 1e-7
+K_RIDGE = 10
+LINK_OWNER = 1 << 40
+
+
+@dataclass
+class SurfaceGrid:
+    """Samples of the model's surface: per patch a (nu, nv) grid, flattened in C order."""
+    patch: np.ndarray
+    uv: np.ndarray
+    P: np.ndarray
+    n: np.ndarray
+    shapes: list                 # (patch, offset, nu, nv)
+    spacing: float = 0.0
+
+    def __len__(self) -> int:
+        return len(self.P)
+
+
+def surface_grid(model, spacing: float, patches=None, region=None) -> SurfaceGrid:
+    """A grid on each patch (all, or ``patches``) with about ``spacing`` mm between samples;
+    ``region`` (u0, u1, v0, v1) restricts every patch's grid to a box of its (u, v)."""
+    pp, uvs, Ps, ns, shapes = [], [], [], [], []
+    offset = 0
+    u0, u1, v0, v1 = region if region is not None else (0.0, 1.0, 0.0, 1.0)
+    for p in (model.patches if patches is None else [model.patches[i] for i in patches]):
+        g = np.linspace(0, 1, 17)
+        U, V = np.meshgrid(g, g, indexing="ij")
+        sp = p.evaluate(U.ravel(), V.ravel())
+        su = float(np.linalg.norm(sp.Pu, axis=1).max()) * (u1 - u0)
+        sv = float(np.linalg.norm(sp.Pv, axis=1).max()) * (v1 - v0)
+        nu = max(2, int(np.ceil(su / spacing)) + 1)
+        nv = max(2, int(np.ceil(sv / spacing)) + 1)
+        # a hair inside the patch: exactly at an extraordinary corner the second derivatives
+        # are singular (the Newton projection starts from these samples)
+        gu = np.clip(np.linspace(u0, u1, nu), GRID_EPS, 1 - GRID_EPS)
+        gv = np.clip(np.linspace(v0, v1, nv), GRID_EPS, 1 - GRID_EPS)
+        U, V = np.meshgrid(gu, gv, indexing="ij")
+        sp = p.evaluate(U.ravel(), V.ravel())
+        pp.append(np.full(nu * nv, p.index))
+        uvs.append(np.column_stack([U.ravel(), V.ravel()]))
+        Ps.append(sp.P)
+        ns.append(sp.normal)
+        shapes.append((p.index, offset, nu, nv))
+        offset += nu * nv
+    return SurfaceGrid(np.concatenate(pp), np.concatenate(uvs), np.concatenate(Ps), np.concatenate(ns), shapes,
+                       spacing)
+
+
+class Swept:
+    """The swept volume of a ball of radius r along the path's centres, as capsule pieces."""
+
+    def __init__(self, path: ToolPath, piece: float):
+        r = path.tool_radius
+        C = path.center
+        self.r = r
+        mv = path.move[1:]
+        owner = np.where((mv == Move.CUT) & (path.line[1:] >= 0), path.line[1:],
+                         LINK_OWNER + np.arange(1, len(path)))
+        a, b = C[:-1], C[1:]
+        length = np.linalg.norm(b - a, axis=1)
+        k = np.maximum(1, np.ceil(length / piece).astype(int))
+        idx = np.repeat(np.arange(len(a)), k)
+        j = np.concatenate([np.arange(m) for m in k]) if len(k) else np.zeros(0, int)
+        kk = k[idx]
+        self.a = a[idx] + (b[idx] - a[idx]) * (j / kk)[:, None]
+        self.b = a[idx] + (b[idx] - a[idx]) * ((j + 1) / kk)[:, None]
+        self.owner = owner[idx]
+        if len(C) == 1:                    # a single point: one ball
+            self.a, self.b, self.owner = C.copy(), C.copy(), np.array([LINK_OWNER])
+        self.tree = cKDTree(0.5 * (self.a + self.b))
+
+    def candidates(self, p: np.ndarray, n: np.ndarray, k: int = K_NEAR):
+        kk = min(k, len(self.a))
+        _, idx = self.tree.query(p + self.r * n, k=kk)
+        return idx.reshape(len(p), kk)
+
+    def entry(self, p: np.ndarray, n: np.ndarray, idx: np.ndarray) -> np.ndarray:
+        """Distance along n from p to the entry into each candidate capsule (Q, k); inf when
+        the ray misses; negative when p is inside."""
+        r = self.r
+        a, b = self.a[idx], self.b[idx]
+        P = p[:, None, :]
+        N = n[:, None, :]
+        e = b - a
+        L = np.linalg.norm(e, axis=2)
+        eh = e / np.where(L > 0, L, 1.0)[..., None]
+        w = P - a
+        dn = np.einsum("qkc,qkc->qk", np.broadcast_to(N, w.shape), eh)
+        wn = np.einsum("qkc,qkc->qk", w, eh)
+        dp = N - dn[..., None] * eh
+        wp = w - wn[..., None] * eh
+        A = np.einsum("qkc,qkc->qk", dp, dp)
+        B = np.einsum("qkc,qkc->qk", wp, dp)
+        Cc = np.einsum("qkc,qkc->qk", wp, wp) - r * r
+        disc = B * B - A * Cc
+        with np.errstate(invalid="ignore", divide="ignore"):
+            lam = (-B - np.sqrt(np.where(disc >= 0, disc, np.nan))) / A
+        axial = wn + lam * dn
+        lam = np.where((disc >= 0) & (A > 1e-14) & (axial >= 0) & (axial <= L) & (L > 0), lam, np.inf)
+        for c in (a, b):
+            wc = P - c
+            bb = np.einsum("qkc,qkc->qk", np.broadcast_to(N, wc.shape), wc)
+            cc = np.einsum("qkc,qkc->qk", wc, wc) - r * r
+            d = bb * bb - cc
+            with np.errstate(invalid="ignore"):
+                ls = -bb - np.sqrt(np.where(d >= 0, d, np.nan))
+            lam = np.minimum(lam, np.where(d >= 0, ls, np.inf))
+        return lam
+
+    def height(self, p: np.ndarray, n: np.ndarray, chunk: int = 20000):
+        """(height, owner of the lowest capsule) of material at points p with normals n."""
+        out = np.empty(len(p))
+        own = np.empty(len(p), np.int64)
+        for s in range(0, len(p), chunk):
+            e = slice(s, s + chunk)
+            idx = self.candidates(p[e], n[e])
+            lam = self.entry(p[e], n[e], idx)
+            j = np.argmin(lam, axis=1)
+            out[e] = lam[np.arange(len(j)), j]
+            own[e] = self.owner[idx[np.arange(len(j)), j]]
+        return out, own
+
+    def owner_heights(self, p, n, A, B):
+        """Heights at p of the material left by owner A and by owner B alone (inf if neither
+        is among the near capsules)."""
+        idx = self.candidates(p, n, K_RIDGE)
+        lam = self.entry(p, n, idx)
+        own = self.owner[idx]
+        la = np.where(own == A[:, None], lam, np.inf).min(axis=1)
+        lb = np.where(own == B[:, None], lam, np.inf).min(axis=1)
+        return la, lb
+
+
+@dataclass
+class ScallopReport:
+    """Measured on the surface (mm). ``max_scallop`` is the largest material height found
+    (grid and ridges); ``cusp_*`` are ridge heights between consecutive lines of a patch;
+    ``mean_material`` is the mean height over the grid (about h/3 for an ideal path)."""
+    max_scallop: float
+    max_at: tuple
+    mean_material: float
+    cusp_mean: float
+    cusp_max: float
+    cusps: int
+    ridges: int
+    samples: int
+    uncovered: int               # grid samples no ball comes near (material height > r)
+    gouge_points: float          # deepest the surface enters a ball at a path point
+    gouge_chords: float          # ... at the middle of a move on the surface
+    gouge_air: float             # ... along air moves (retract, rapid, approach)
+    gouge_at: tuple
+    spacing: float
+    cusp_heights: np.ndarray = field(default=None, repr=False)
+
+    def as_dict(self) -> dict:
+        d = {k: getattr(self, k) for k in self.__dataclass_fields__ if k != "cusp_heights"}
+        return d
+
+
+def _evaluate_at(model, pat, uv):
+    P = np.empty((len(pat), 3))
+    Nn = np.empty((len(pat), 3))
+    for p in np.unique(pat):
+        sel = pat == p
+        sp = model.patches[p].evaluate(uv[sel, 0], uv[sel, 1])
+        P[sel], Nn[sel] = sp.P, sp.normal
+    return P, Nn
+
+
+def _refine_ridges(sw: Swept, model, grid: SurfaceGrid, i, j, A, B, iterations: int = 11):
+    """Ridge heights between grid samples i (lowest capsule of owner A) and j (owner B):
+    bisection on f = h_A - h_B along the parameter segment, then the crossing of the two
+    height profiles interpolated linearly inside the last bracket (each profile is smooth
+    there; only their minimum has the corner)."""
+    pat = grid.patch[i]
+    ua, ub = grid.uv[i].copy(), grid.uv[j].copy()
+    P, Nn = _evaluate_at(model, pat, ua)
+    a_a, b_a = sw.owner_heights(P, Nn, A, B)
+    P, Nn = _evaluate_at(model, pat, ub)
+    a_b, b_b = sw.owner_heights(P, Nn, A, B)
+    for _ in range(iterations):
+        um = 0.5 * (ua + ub)
+        P, Nn = _evaluate_at(model, pat, um)
+        la, lb = sw.owner_heights(P, Nn, A, B)
+        left = la <= lb                         # A still lower at the middle: ridge nearer j
+        ua = np.where(left[:, None], um, ua)
+        ub = np.where(left[:, None], ub, um)
+        a_a, b_a = np.where(left, la, a_a), np.where(left, lb, b_a)
+        a_b, b_b = np.where(left, a_b, la), np.where(left, b_b, lb)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        fa, fb = a_a - b_a, a_b - b_b           # fa <= 0 <= fb
+        x = np.clip(fa / (fa - fb), 0.0, 1.0)
+        h_lin = 0.5 * ((a_a + x * (a_b - a_a)) + (b_a + x * (b_b - b_a)))
+    fallback = np.maximum(np.minimum(a_a, b_a), np.minimum(a_b, b_b))
+    ok = np.isfinite(h_lin) & np.isfinite(fa) & np.isfinite(fb) & (fb > fa)
+    h = np.where(ok, h_lin, fallback)
+    where = ua + np.where(ok, x, 0.5)[:, None] * (ub - ua)
+    return h, where
+
+
+def measure(path: ToolPath, model, scallop: float | None = None, spacing: float | None = None,
+            patches=None, region=None, piece: float | None = None) -> ScallopReport:
+    """Scallop, cusps and gouges of ``path`` on ``model`` (see the module doc).
+
+    ``scallop``: the limit the path was made for (default: the path's settings); it sets
+    the default grid ``spacing`` (a quarter of the flat side step) and capsule ``piece``
+    length. ``patches`` / ``region`` restrict the sampled surface (tests on parts of a model).
+    """
+    r = path.tool_radius
+    if scallop is None:
+        scallop = float(path.info.get("settings", {}).get("scallop", 0.01 * r))
+    g = np.sqrt(8.0 * r * scallop)
+    spacing = spacing or 0.25 * g
+    piece = piece or 0.5 * g
+    sw = Swept(path, piece)
+    grid = surface_grid(model, spacing, patches, region)
+    hgt, own = sw.height(grid.P, grid.n)
+    uncovered = int(np.count_nonzero(~(hgt <= r)))
+    # neighbouring grid samples cut by different capsule owners: refine their ridge
+    pairs = []
+    for pidx, off, nu, nv in grid.shapes:
+        ids = off + np.arange(nu * nv).reshape(nu, nv)
+        pairs.append(np.column_stack([ids[:-1, :].ravel(), ids[1:, :].ravel()]))
+        pairs.append(np.column_stack([ids[:, :-1].ravel(), ids[:, 1:].ravel()]))
+    pairs = np.concatenate(pairs)
+    ok = (own[pairs[:, 0]] != own[pairs[:, 1]]) & np.isfinite(hgt[pairs[:, 0]]) & np.isfinite(hgt[pairs[:, 1]])
+    pairs = pairs[ok]
+    ridge_h = np.zeros(0)
+    ridge_uv = np.zeros((0, 2))
+    ra = rb = np.zeros(0, np.int64)
+    if len(pairs):
+        ra, rb = own[pairs[:, 0]], own[pairs[:, 1]]
+        parts_h, parts_uv = [], []
+        for s in range(0, len(pairs), 50000):
+            e = slice(s, s + 50000)
+            hh, ww = _refine_ridges(sw, model, grid, pairs[e, 0], pairs[e, 1], ra[e], rb[e])
+            parts_h.append(hh)
+            parts_uv.append(ww)
+        ridge_h = np.concatenate(parts_h)
+        ridge_uv = np.concatenate(parts_uv)
+    # consecutive lines of one patch
+    line_patch = {}
+    sel = path.line >= 0
+    for ln, pt in zip(path.line[sel], path.patch[sel]):
+        line_patch.setdefault(int(ln), int(pt))
+    lp = np.array([line_patch.get(int(x), -1) if x < LINK_OWNER else -2 for x in ra]) if len(ra) else np.zeros(0)
+    lq = np.array([line_patch.get(int(x), -1) if x < LINK_OWNER else -3 for x in rb]) if len(rb) else np.zeros(0)
+    neighbours = (np.abs(ra - rb) == 1) & (ra < LINK_OWNER) & (rb < LINK_OWNER) & (lp == lq) & (lp >= 0)
+    cusp = ridge_h[neighbours & np.isfinite(ridge_h)]
+    all_h = np.concatenate([hgt[np.isfinite(hgt)], ridge_h[np.isfinite(ridge_h)]])
+    if len(all_h):
+        k = int(np.argmax(all_h))
+        nfin = int(np.count_nonzero(np.isfinite(hgt)))
+        if k < nfin:
+            gi = np.nonzero(np.isfinite(hgt))[0][k]
+            at = (int(grid.patch[gi]), float(grid.uv[gi, 0]), float(grid.uv[gi, 1]))
+        else:
+            ri = np.nonzero(np.isfinite(ridge_h))[0][k - nfin]
+            gi = pairs[ri, 0]
+            at = (int(grid.patch[gi]), float(ridge_uv[ri, 0]), float(ridge_uv[ri, 1]))
+        hmax = float(all_h[k]) if uncovered == 0 else float("inf")
+    else:
+        hmax, at = float("inf"), (-1, np.nan, np.nan)
+    finite = hgt[np.isfinite(hgt)]
+    gp, gc, ga, gat = gouges(path, model, grid)
+    return ScallopReport(
+        max_scallop=hmax, max_at=at, mean_material=float(np.mean(np.maximum(finite, 0.0))) if len(finite) else np.nan,
+        cusp_mean=float(cusp.mean()) if len(cusp) else np.nan, cusp_max=float(cusp.max()) if len(cusp) else np.nan,
+        cusps=int(len(cusp)), ridges=int(len(ridge_h)), samples=len(grid), uncovered=uncovered,
+        gouge_points=gp, gouge_chords=gc, gouge_air=ga, gouge_at=gat, spacing=float(spacing),
+        cusp_heights=cusp)
+
+
+def project(model, patch: np.ndarray, uv: np.ndarray, x: np.ndarray, iterations: int = 5):
+    """Closest points to x on the given patches by Newton on |S(u, v) - x|^2 from uv
+    (clamped to the unit square). Returns (distance, uv)."""
+    uv = uv.copy()
+    d = np.full(len(x), np.inf)
+    for p in np.unique(patch):
+        sel = np.nonzero(patch == p)[0]
+        w = uv[sel]
+        for _ in range(iterations):
+            sp = model.patches[p].evaluate(w[:, 0], w[:, 1])
+            e = sp.P - x[sel]
+            gu = np.einsum("ij,ij->i", e, sp.Pu)
+            gv = np.einsum("ij,ij->i", e, sp.Pv)
+            huu = sp.E + np.einsum("ij,ij->i", e, sp.Puu)
+            huv = sp.F + np.einsum("ij,ij->i", e, sp.Puv)
+            hvv = sp.G + np.einsum("ij,ij->i", e, sp.Pvv)
+            det = huu * hvv - huv * huv
+            good = det > 1e-14 * np.maximum(huu * hvv, 1e-300)
+            # Newton where the Hessian is positive, gradient descent scaled by the metric otherwise
+            du = np.where(good, -(hvv * gu - huv * gv) / np.where(good, det, 1.0), -gu / np.maximum(sp.E, 1e-300))
+            dv = np.where(good, -(huu * gv - huv * gu) / np.where(good, det, 1.0), -gv / np.maximum(sp.G, 1e-300))
+            w = np.clip(w + np.column_stack([du, dv]), GRID_EPS, 1.0 - GRID_EPS)
+        sp = model.patches[p].evaluate(w[:, 0], w[:, 1])
+        d[sel] = np.linalg.norm(sp.P - x[sel], axis=1)
+        uv[sel] = w
+    return d, uv
+
+
+def gouges(path: ToolPath, model, grid: SurfaceGrid, k: int = 2):
+    """(at points, at chord middles, along air moves, where) deepest surface penetration
+    into the ball, >= 0 (mm)."""
+    r = path.tool_radius
+    C = path.center
+    on = path.patch >= 0
+    surf = on[1:] & on[:-1]
+    mids = 0.5 * (C[1:] + C[:-1])[surf]
+    air_seg = np.nonzero(~surf)[0]
+    air = []
+    for i in air_seg:
+        L = np.linalg.norm(C[i + 1] - C[i])
+        m = max(1, int(np.ceil(L / (0.25 * r))))
+        f = np.arange(1, m) / m
+        air.append(C[i] + (C[i + 1] - C[i]) * f[:, None])
+    air = np.concatenate(air) if air else np.zeros((0, 3))
+    tree = cKDTree(grid.P)
+    out = []
+    where = (-1, np.nan, np.nan)
+    worst = -np.inf
+    for X in (C, mids, air):
+        if len(X) == 0:
+            out.append(0.0)
+            continue
+        kk = min(k, len(grid.P))
+        dist, idx = tree.query(X, k=kk)
+        idx = idx.reshape(len(X), kk)
+        dist = dist.reshape(len(X), kk)
+        best = dist[:, 0].copy()
+        best_uv = grid.uv[idx[:, 0]].copy()
+        best_p = grid.patch[idx[:, 0]].copy()
+        # a surface point within r has a grid sample within r + spacing: only those need Newton
+        for j in range(kk):
+            near = np.nonzero(dist[:, j] < r + 2.0 * grid.spacing)[0]
+            if len(near) == 0:
+                continue
+            d, uv = project(model, grid.patch[idx[near, j]], grid.uv[idx[near, j]], X[near])
+            better = d < best[near]
+            sel = near[better]
+            best[sel] = d[better]
+            best_uv[sel] = uv[better]
+            best_p[sel] = grid.patch[idx[sel, j]]
+        pen = r - best
+        i = int(np.argmax(pen))
+        out.append(max(0.0, float(pen[i])))
+        if pen[i] > worst:
+            worst = pen[i]
+            where = (int(best_p[i]), float(best_uv[i, 0]), float(best_uv[i, 1]))
+    return out[0], out[1], out[2], where

@@ -24,6 +24,14 @@ class ShippedSamples(unittest.TestCase):
             shipped = tsplcam.load(path)
             cage = fn()
             np.testing.assert_allclose(shipped.control.points, cage.points, atol=1e-8, err_msg=name)
+            if name in samples.TSPLINE_SAMPLES:
+                self.assertTrue(path.endswith(".tspl"))
+                for a, b in zip(shipped.control.faces, cage.faces):
+                    np.testing.assert_array_equal(a, b)
+                for a, b in zip(shipped.control.intervals, cage.intervals):
+                    np.testing.assert_array_equal(a, b)
+                self.assertEqual(shipped.control.corners, cage.corners)
+                continue
             np.testing.assert_array_equal(shipped.control.mesh.faces, cage.mesh.faces)
 
     def test_keycap_size_layout(self):
@@ -59,3 +67,25 @@ class ShippedSamples(unittest.TestCase):
         self.assertEqual(neighbour_signature(layout), neighbour_signature(examples.figure4()))
         kinds = [layout.link_kind(a, b) for a in range(12) for b in range(a + 1, 12)]
         self.assertGreater(kinds.count("corner"), 0)
+
+    def test_tjunction_mold(self):
+        """The T-spline sample: T-junctions, non-uniform knot intervals, clamped boundary; a
+        60 x 40 mm pocket floor 8 mm deep with a rib, normals toward the tool (+z)."""
+        model = tsplcam.load(samples.sample_path("tjunction_mold"))
+        mesh = model.control
+        self.assertEqual(model.kind, "t-spline")
+        self.assertGreaterEqual(sum(len(f) > 4 for f in mesh.faces), 8)
+        positive = np.concatenate([d[d > 0] for d in mesh.intervals])
+        self.assertGreater(len(np.unique(np.round(positive, 9))), 4)
+        self.assertEqual(len(model.patches), 1)
+        g = np.linspace(0, 1, 81)
+        U, V = np.meshgrid(g, g)
+        s = model.patches[0].evaluate(U.ravel(), V.ravel())
+        np.testing.assert_allclose(s.P.min(axis=0)[:2], [0.0, 0.0], atol=1e-9)
+        np.testing.assert_allclose(s.P.max(axis=0)[:2], samples.TJUNCTION_MOLD_SIZE[:2], atol=1e-9)
+        self.assertAlmostEqual(s.P[:, 2].max(), 0.0, delta=1e-9)      # the rim
+        self.assertLess(s.P[:, 2].min(), -samples.TJUNCTION_MOLD_SIZE[2] + 0.1)
+        self.assertGreater(s.normal[:, 2].min(), 0.0)
+        # the rib: higher at x = 30 than 10 mm beside it, across the middle
+        mid = model.patches[0].evaluate([0.5, 20 / 60, 40 / 60], [0.5, 0.5, 0.5]).P
+        self.assertGreater(mid[0, 2] - mid[1, 2], 1.5)

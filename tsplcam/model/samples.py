@@ -10,6 +10,10 @@
   extraordinary points.
 * ``figure4``: a surface with the 12-patch layout of the paper's figure 4
   (``tsplcam.layout.examples.figure4``), including corner-connected patches.
+* ``tjunction_mold``: a T-spline (not a cage): the floor of a 60 x 40 mm mold pocket, 8 mm
+  deep, with a rib across it. Knot lines are refined around the rib only, so the T-mesh has
+  T-junctions and non-uniform knot intervals; the boundary is clamped. Shipped as a native
+  ``.tspl`` file (the cage samples are OBJ).
 
 Cages are sized on their *limit* surfaces: Catmull-Clark is affine invariant, so scaling
 the cage scales the surface and a measured box can be hit exactly.
@@ -223,12 +227,47 @@ def figure4(k: int = 2) -> Cage:
     return layout_cage(layout4(), k, height=_bump)
 
 
+TJUNCTION_MOLD_SIZE = (60.0, 40.0, 8.0)
+
+
+def tjunction_mold():
+    """A mold pocket floor with a rib: a clamped T-mesh with T-junctions and non-uniform knot
+    intervals (60 x 40 mm, floor 8 mm below the rim, rib 2 mm high along x = 30 mm)."""
+    from .tmesh import from_lines
+    from .tspline import knot_vectors
+    sx, sy, depth = TJUNCTION_MOLD_SIZE
+    # knot lines finer toward the rib; repeated end values: zero outer intervals (clamped)
+    X = np.array([0.0, 0.0, 7.0, 15.0, 21.0, 25.0, 28.0, 30.0, 32.0, 35.0, 39.0, 45.0, 53.0, 60.0, 60.0])
+    Y = np.array([0.0, 0.0, 6.0, 13.0, 16.5, 20.0, 23.5, 27.0, 34.0, 40.0, 40.0])
+    nx, ny = len(X), len(Y)
+    # lines next to the rib stop short of the rim, rows 16.5 and 23.5 exist near the rib
+    # only: T-junctions at their ends
+    short_v = {5: (2, 8), 9: (2, 8), 6: (3, 7), 8: (3, 7)}
+    short_h = {4: (4, 10), 6: (4, 10)}
+    vsegs = [(i, *short_v.get(i, (0, ny - 1))) for i in range(nx)]
+    hsegs = [(j, *short_h.get(j, (0, nx - 1))) for j in range(ny)]
+    mesh = from_lines(X, Y, hsegs, vsegs, lambda i, j: (0.0, 0.0, 0.0))
+    # control points over the Greville points of their knot vectors, z from the shape
+    S, T = knot_vectors(mesh)
+    gi = mesh.grid_index
+    x = X[gi[:, 0]] + S[:, 1:4].mean(axis=1)
+    y = Y[gi[:, 1]] + T[:, 1:4].mean(axis=1)
+    ramp_x = np.sin(0.5 * np.pi * np.minimum(np.minimum(x, sx - x) / 8.0, 1.0))
+    ramp_y = np.sin(0.5 * np.pi * np.minimum(np.minimum(y, sy - y) / 8.0, 1.0))
+    rib = 2.0 * np.exp(-((x - 30.0) / 3.0) ** 2) * ramp_y
+    mesh.points = np.column_stack([x, y, -depth * ramp_x * ramp_y + rib])
+    mesh.name = "tjunction_mold"
+    return mesh
+
+
 SAMPLES = {
     "keycap": keycap,
     "keycap_mold": keycap_mold,
     "head": head,
     "figure4": figure4,
+    "tjunction_mold": tjunction_mold,
 }
+TSPLINE_SAMPLES = frozenset({"tjunction_mold"})       # shipped as native .tspl files
 
 
 def write_obj(cage: Cage, path: str, comment: str = "") -> None:
@@ -244,8 +283,8 @@ def write_obj(cage: Cage, path: str, comment: str = "") -> None:
 
 
 def sample_path(name: str) -> str:
-    """Path of a shipped sample file."""
-    return os.path.join(SAMPLE_DIR, name + ".obj")
+    """Path of a shipped sample file (.obj cages, .tspl T-splines)."""
+    return os.path.join(SAMPLE_DIR, name + (".tspl" if name in TSPLINE_SAMPLES else ".obj"))
 
 
 def write_samples(folder: str = SAMPLE_DIR) -> list[str]:
@@ -253,6 +292,12 @@ def write_samples(folder: str = SAMPLE_DIR) -> list[str]:
     os.makedirs(folder, exist_ok=True)
     out = []
     for name, fn in SAMPLES.items():
+        if name in TSPLINE_SAMPLES:
+            from .formats.native import write_native
+            path = os.path.join(folder, name + ".tspl")
+            write_native(fn(), path, name=name)
+            out.append(path)
+            continue
         path = os.path.join(folder, name + ".obj")
         write_obj(fn(), path, f"{name} ({(fn.__doc__ or '').strip().splitlines()[0]})")
         out.append(path)

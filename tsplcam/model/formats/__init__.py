@@ -19,4 +19,10 @@ def load(path, **options):
     if ext == ".iga":
         from .iga import iga_model
         return iga_model(path, **options)
+    if ext == ".tsm":
+        from .tsm import tsm_model
+        return tsm_model(path, **options)
+    if ext == ".tspl":
+        from .native import native_model
+        return native_model(path, **options)
     raise InputError(f"unknown model file type {ext!r}", path=path)

@@ -11,7 +11,7 @@ from tsplcam.errors import InputError
 from tsplcam.model import samples
 from tsplcam.model.cage import cage_model
 from tsplcam.model.tmesh import TMesh, bspline_tmesh, from_lines, quad_tmesh
-from tsplcam.model.tspline import knot_vectors, tspline_model
+from tsplcam.model.tspline import homogeneous_parts, knot_vectors, tspline_model
 from tsplcam.testing import require_freecad
 
 RNG_SEED = 20240611
@@ -315,18 +315,21 @@ class TJunctions(unittest.TestCase):
         mesh, X, Y, hsegs, vsegs = t_junction_mesh(1, True)
         self.assertGreaterEqual(sum(len(f) > 4 for f in mesh.faces), 3)
         G = np.array([[k[1:4].mean() for k in grid_knots(X, Y, hsegs, vsegs, i, j)] for i, j in mesh.grid_index])
-        mesh.points = np.column_stack([np.ones(len(G)), G])
+        mesh.points = np.column_stack([G, np.zeros(len(G))])
         mesh.weights = np.ones(len(G))
         model = tspline_model(mesh)
-        patch = model.patches[0]
+        # without the rational division (which would hide a failure): sum B_i and sum B_i G_i
+        numerator, weight = homogeneous_parts(model.patches[0])
         rng = np.random.default_rng(6)
         u, v = rng.random(3000), rng.random(3000)
-        s = patch.evaluate(u, v)
-        W, H = patch.knot_size
-        self.assertLess(np.abs(s.P[:, 0] - 1).max(), 1e-12)
-        self.assertLess(np.abs(s.P[:, 1] - u * W).max(), 1e-12 * W)
-        self.assertLess(np.abs(s.P[:, 2] - v * H).max(), 1e-12 * H)
-        self.assertLess(np.abs(s.Pu - [0, W, 0]).max(), 1e-11 * W)
+        total = weight.evaluate(u, v)
+        self.assertLess(np.abs(total.P[:, 0] - 1).max(), 1e-12)
+        self.assertLess(np.abs(total.Pu).max() + np.abs(total.Puv).max(), 1e-10)
+        s = numerator.evaluate(u, v)
+        W, H = numerator.knot_size
+        self.assertLess(np.abs(s.P[:, 0] - u * W).max(), 1e-12 * W)
+        self.assertLess(np.abs(s.P[:, 1] - v * H).max(), 1e-12 * H)
+        self.assertLess(np.abs(s.Pu - [W, 0, 0]).max(), 1e-11 * W)
         self.assertLess(np.abs(s.Puu).max(), 1e-9 * W)
 
     def test_equals_brute_force_rational_sum(self):

@@ -86,6 +86,12 @@ class ShippedSamples(unittest.TestCase):
         self.assertAlmostEqual(s.P[:, 2].max(), 0.0, delta=1e-9)      # the rim
         self.assertLess(s.P[:, 2].min(), -samples.TJUNCTION_MOLD_SIZE[2] + 0.1)
         self.assertGreater(s.normal[:, 2].min(), 0.0)
+        # partition of unity of its blending functions (without the rational division)
+        from tsplcam.model.tspline import homogeneous_parts, tspline_model
+        unit = mesh.copy()
+        unit.weights = np.ones(mesh.n_vertices)
+        weight = homogeneous_parts(tspline_model(unit).patches[0])[1]
+        self.assertLess(np.abs(weight.evaluate(U.ravel(), V.ravel()).P[:, 0] - 1).max(), 1e-12)
         # the rib: higher at x = 30 than 10 mm beside it, across the middle
         mid = model.patches[0].evaluate([0.5, 20 / 60, 40 / 60], [0.5, 0.5, 0.5]).P
         self.assertGreater(mid[0, 2] - mid[1, 2], 1.5)

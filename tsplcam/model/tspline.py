@@ -288,6 +288,29 @@ def knot_vectors(mesh: TMesh) -> tuple[np.ndarray, np.ndarray]:
     return S, T
 
 
+def homogeneous_parts(patch: Patch) -> tuple[Patch, Patch]:
+    """Two polynomial patches over a T-spline patch's Bezier cells, without the rational
+    division: the first evaluates to sum w_i B_i P_i, the second to (sum w_i B_i, 0, 0).
+    With unit weights the second is the sum of the blending functions (partition of unity
+    checks) and the first their combination of the points (linear precision checks)."""
+    out = []
+    for part in ("numerator", "weight"):
+        groups = []
+        for g in patch.groups:
+            if not isinstance(g, BezierCells):
+                raise InputError("homogeneous parts exist for Bezier cells only (this patch has "
+                                 "extraordinary cells)", item=patch.name)
+            c = g.ctrl.copy()
+            if part == "weight":
+                c[..., 0] = c[..., 3]
+                c[..., 1:3] = 0.0
+            c[..., 3] = 1.0
+            groups.append(BezierCells(c))
+        out.append(Patch(patch.index, patch.ubreaks, patch.vbreaks, patch.cell_group, patch.cell_local,
+                         groups, name=f"{patch.name} ({part})", knot_size=patch.knot_size))
+    return out[0], out[1]
+
+
 def tspline_model(mesh: TMesh, name: str | None = None) -> TSplineModel:
     """The surface of a T-mesh as patches over Bezier (and extraordinary) cells."""
     return _Builder(mesh).build(name)
@@ -296,6 +319,7 @@ def tspline_model(mesh: TMesh, name: str | None = None) -> TSplineModel:
 class _Builder:
     def __init__(self, mesh: TMesh):
         self.mesh = mesh
+        mesh.validate()                   # points and weights may have changed since the topology
         self.topo = mesh.topology
         self.tol = self.topo.tol
         self.lex = _Lex(self.tol)

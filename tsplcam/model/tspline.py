@@ -33,6 +33,10 @@ extraordinary point and boundary corner (convex or concave) straight through the
 (through a face where they meet a T-junction's stem) to the next such point or the
 boundary; each region between them is a rectangle in knot units, with T-junctions inside,
 laid out on a grid of all its cells' knot lines and mapped to the unit square.
+
+API: ``tspline_model(mesh)`` -> ``TSplineModel`` (a ``Model``; ``evaluate_faces`` in T-mesh
+face coordinates), ``knot_vectors(mesh)`` (every vertex's local knot vectors),
+``homogeneous_parts(patch)`` (sum w B P and sum w B without the division, for checks).
 """
 from __future__ import annotations
 

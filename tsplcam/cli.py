@@ -30,14 +30,6 @@ def _cmd_info(args) -> int:
     return 0
 
 
-def _cmd_job(args) -> int:
-    print(f"tsplcam {__version__}: main job on the bundled default model")
-    print("  (the job so far only reports versions: path generation and posting are not built yet)")
-    for name, version in dependency_versions().items():
-        print(f"  {name:<11} {version}")
-    return 0
-
-
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="python3 -m tsplcam",
                                      description="Five-axis finishing paths for T-spline mold surfaces.")
@@ -45,12 +37,11 @@ def build_parser() -> argparse.ArgumentParser:
     sub = parser.add_subparsers(dest="command", required=True)
     p = sub.add_parser("info", help="print the version and the installed dependency versions")
     p.set_defaults(func=_cmd_info)
-    p = sub.add_parser("job", help="run the main job on the bundled default model")
-    p.set_defaults(func=_cmd_job)
+    from .pipeline import add_job_command, add_path_command
+    add_job_command(sub)
     from .plan.commands import register as register_plan
     register_plan(sub)
-    from .toolpath.commands import register as register_path
-    register_path(sub)
+    add_path_command(sub)         # the toolpath stage's options plus orientation and posting
     from .post.commands import register as register_post
     register_post(sub)
     return parser

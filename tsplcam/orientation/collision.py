@@ -180,14 +180,23 @@ def polygon_segments(radius: float, excess: float) -> int:
     return int(max(12, np.ceil(np.pi / np.arccos(min(c, 1.0 - 1e-12)))))
 
 
-def tool_mesh(tool: Tool, margin: float = 0.0, polygon_tolerance: float = 0.01):
+def _part_margin(name: str, margin: float, cutting_margin: float | None) -> float:
+    """The flutes cut: they only must not touch other surfaces (``cutting_margin``), while the
+    shank and holder keep the full ``margin`` (chordal error plus clearance)."""
+    return margin if (cutting_margin is None or name != "flutes") else cutting_margin
+
+
+def tool_mesh(tool: Tool, margin: float = 0.0, polygon_tolerance: float = 0.01,
+              cutting_margin: float | None = None):
     """Closed triangle mesh of the tool parts (tool frame: ball centre at the origin, axis +z),
-    each radius grown by ``margin`` and circumscribed. Returns (V, T, part_of_triangle, names)."""
+    each radius grown by ``margin`` (the flutes by ``cutting_margin`` when given) and
+    circumscribed. Returns (V, T, part_of_triangle, names)."""
     parts = tool.parts()
     V, T, owner = [], [], []
     names = [p.name for p in parts]
     for k, p in enumerate(parts):
-        r0, r1 = p.r0 + margin, p.r1 + margin
+        g = _part_margin(p.name, margin, cutting_margin)
+        r0, r1 = p.r0 + g, p.r1 + g
         n = polygon_segments(max(r0, r1), polygon_tolerance)
         a = np.arange(n) * 2 * np.pi / n
         s = 1.0 / np.cos(np.pi / n)                       # circumscribed: edge midpoints on the circle
@@ -206,13 +215,15 @@ def tool_mesh(tool: Tool, margin: float = 0.0, polygon_tolerance: float = 0.01):
     return np.vstack(V), np.vstack(T), np.concatenate(owner), names
 
 
-def tool_primitives(tool: Tool, margin: float = 0.0, polygon_tolerance: float = 0.01) -> list:
+def tool_primitives(tool: Tool, margin: float = 0.0, polygon_tolerance: float = 0.01,
+                    cutting_margin: float | None = None) -> list:
     """fcl shapes of the tool parts with their offsets along the axis: [(name, geometry,
     z_offset)]. Cylinders are exact ``fcl.Cylinder``; cone frustums are ``fcl.Convex``
-    hulls of two circumscribed polygons."""
+    hulls of two circumscribed polygons. Margins as in :func:`tool_mesh`."""
     out = []
     for p in tool.parts():
-        r0, r1 = p.r0 + margin, p.r1 + margin
+        g = _part_margin(p.name, margin, cutting_margin)
+        r0, r1 = p.r0 + g, p.r1 + g
         h = p.z1 - p.z0
         if abs(r0 - r1) < 1e-12:
             out.append((p.name, fcl.Cylinder(r0, h), 0.5 * (p.z0 + p.z1)))
@@ -304,11 +315,14 @@ class CollisionChecker:
         self.margin = self.mesh.chordal_error + self.clearance
         self.polygon_tolerance = float(polygon_tolerance)
         self._wp = fcl.CollisionObject(_bvh(self.mesh.vertices, self.mesh.triangles), fcl.Transform())
-        TV, TT, self._tool_owner, self.part_names = tool_mesh(tool, self.margin, polygon_tolerance)
+        self.cutting_margin = self.mesh.chordal_error
+        TV, TT, self._tool_owner, self.part_names = tool_mesh(tool, self.margin, polygon_tolerance,
+                                                              self.cutting_margin)
         self.tool_vertices, self.tool_triangles = TV, TT
         self._tool = fcl.CollisionObject(_bvh(TV, TT), fcl.Transform())
         self._prims = [(name, fcl.CollisionObject(g, fcl.Transform()), z)
-                       for name, g, z in tool_primitives(tool, self.margin, polygon_tolerance)]
+                       for name, g, z in tool_primitives(tool, self.margin, polygon_tolerance,
+                                                         self.cutting_margin)]
         self._ball = fcl.CollisionObject(fcl.Sphere(tool.ball_radius - self.gouge_tolerance), fcl.Transform())
         self._req = fcl.CollisionRequest()
         self.checks = 0                    # poses checked so far (for reports and benchmarks)
@@ -324,7 +338,8 @@ class CollisionChecker:
             return self._tool
         cache = self.__dict__.setdefault("_grown", {})
         if grow not in cache:
-            V, T, _, _ = tool_mesh(self.tool, self.margin + grow, self.polygon_tolerance)
+            V, T, _, _ = tool_mesh(self.tool, self.margin + grow, self.polygon_tolerance,
+                                   self.cutting_margin + grow)
             V = V.copy()
             top = V[:, 2].max()
             V[:, 2] = np.where(V[:, 2] >= top - 1e-12, V[:, 2] + grow, V[:, 2])

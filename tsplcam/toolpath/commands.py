@@ -167,9 +167,16 @@ def _positive(text: str) -> float:
 
 
 def register(subparsers) -> None:
-    """Add the ``path`` command to the tsplcam command line."""
+    """Add the ``path`` command to the tsplcam command line (the toolpath stage alone; the full
+    command with orientation and posting is :mod:`tsplcam.pipeline`'s)."""
     p = subparsers.add_parser("path", help="isoparametric zigzag finishing path over the whole model "
                                            "(paper section 3.5), written as APT CL data")
+    add_arguments(p)
+    p.set_defaults(func=_cmd_path)
+
+
+def add_arguments(p) -> None:
+    """The toolpath stage's options of the ``path`` command."""
     p.add_argument("model", help="model file (e.g. a .obj quad cage) or a shipped sample name")
     p.add_argument("--tool-radius", type=_positive, required=True, metavar="R", help="ball radius (mm)")
     p.add_argument("--scallop", type=_positive, required=True, metavar="H", help="scallop height limit (mm)")
@@ -193,5 +200,4 @@ def register(subparsers) -> None:
                    help="also make the compound-NURBS baseline (each face on its own) and compare")
     p.add_argument("--baseline-cl", metavar="OUT", help="write the baseline path as CL data (implies --baseline)")
     p.add_argument("--json", metavar="FILE", help="write the figures (and verification) as JSON")
-    p.set_defaults(func=_cmd_path)
 

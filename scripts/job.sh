@@ -1,8 +1,9 @@
 #!/usr/bin/env bash
 # Set everything up, then run the main job on the bundled default model.
-# Extra arguments go to `python3 -m tsplcam job`.
+# Extra arguments go to `python3 -m tsplcam job`; the program, CL data, processing list and
+# report land in build/job.
 set -euo pipefail
 REPO="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 bash "$REPO/scripts/install.sh"
 cd "$REPO"
-exec /usr/bin/python3 -m tsplcam job "$@"
+exec /usr/bin/python3 -m tsplcam job --out "$REPO/build/job" "$@"

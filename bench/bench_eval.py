@@ -16,7 +16,7 @@ HERE = os.path.dirname(os.path.abspath(__file__))
 sys.path.insert(0, os.path.dirname(HERE))
 sys.path.append("/usr/lib/freecad-python3/lib")
 
-from tsplcam.model.bspline import bspline_patch, flat_knots  # noqa: E402
+from tsplcam.model.bspline import bspline_patch  # noqa: E402
 
 N = 1_000_000
 

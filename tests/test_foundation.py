@@ -2,7 +2,6 @@
 import os
 import pkgutil
 import subprocess
-import sys
 import unittest
 import xml.etree.ElementTree as ET
 

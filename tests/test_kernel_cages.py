@@ -9,7 +9,7 @@ from scipy.spatial import cKDTree
 
 import tsplcam
 from tsplcam.errors import InputError
-from tsplcam.layout.layout import CORNER_UV, EDGE_CORNERS
+from tsplcam.layout.layout import CORNER_UV
 from tsplcam.model.cage import Cage, cage_model
 from tsplcam.model.eigen import scheme_for
 from tsplcam.model.formats.obj import read_obj

@@ -7,7 +7,6 @@ import numpy as np
 import tsplcam
 from tsplcam.layout import examples
 from tsplcam.model import samples
-from tsplcam.model.cage import cage_model
 
 
 def neighbour_signature(layout):

@@ -98,7 +98,7 @@ def _cmd_path(args) -> int:
     verification, extra = None, {}
     if args.verify:
         from .verify.scallop import measure
-        verification = measure(path, model)
+        verification = measure(path, model, progress=_progress("measuring scallop, patch"))
         extra["verification"] = verification.as_dict()
     machine = None
     if args.machine:
@@ -129,6 +129,15 @@ def _cmd_path(args) -> int:
         print(f"wrote {f}")
     print(f"time taken {time.perf_counter() - t0:.2f} s")
     return 0
+
+
+def _progress(what: str):
+    """A progress callback printing 'what k/n' on stderr (the report stays on stdout)."""
+    import sys
+
+    def report(done: int, total: int) -> None:
+        print(f"\r{what} {done}/{total}", end="\n" if done == total else "", file=sys.stderr, flush=True)
+    return report
 
 
 def _tool_for(args):

@@ -13,7 +13,6 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..errors import InputError
 from ..layout.layout import CORNER_UV
 from .basis import BSPLINE_TO_BEZIER
 from .cells import SQUARE_MAPS, BezierCells, EigenCells, LevelCells

@@ -152,7 +152,6 @@ def head(n: int = 3) -> Cage:
         return index[key]
 
     faces = []
-    g = np.arange(n + 1)
     # each cube side: origin o, axes a, b with a x b pointing outward
     sides = [((0, 0, 0), (0, 1, 0), (1, 0, 0)),      # z = 0, outward -z
              ((0, 0, n), (1, 0, 0), (0, 1, 0)),      # z = n, +z
@@ -174,10 +173,13 @@ def head(n: int = 3) -> Cage:
     return Cage(QuadMesh(np.array(faces), len(P), "edge-only"), P)
 
 
-def layout_cage(layout, k: int = 2, height=None) -> Cage:
+def layout_cage(layout, k: int = 2, height=None, boundary_rule: str = "edge-and-corner") -> Cage:
     """A cage whose patch layout is ``layout``: every layout patch becomes k x k faces
     between its corner nodes (bilinear), neighbours share their edge vertices, and z is
-    ``height(x, y)`` when given."""
+    ``height(x, y)`` when given. Open sheets get sharp boundary corners by default
+    (OpenSubdiv's edge-and-corner rule): a single-face corner under the edge-only rule is
+    an irregular vertex whose concave curvature grows without bound, which no ball can
+    follow."""
     nodes = layout.node_points
     pts = [tuple(p) for p in nodes]
     edge_pts = {}
@@ -218,7 +220,7 @@ def layout_cage(layout, k: int = 2, height=None) -> Cage:
     P = np.array(pts, float)
     if height is not None:
         P[:, 2] = height(P[:, 0], P[:, 1])
-    return Cage(QuadMesh(np.array(faces), len(P), "edge-only"), P)
+    return Cage(QuadMesh(np.array(faces), len(P), boundary_rule), P)
 
 
 def figure4(k: int = 2) -> Cage:

@@ -1,4 +1,6 @@
-"""``python3 -m tsplcam path``: the finishing path of a model, as CL data and a short report.
+"""The toolpath stage's part of ``python3 -m tsplcam path``: its options, building the path
+from the arguments, writing CL data and the report (the command itself, with orientation and
+posting, is registered by :mod:`tsplcam.pipeline`).
 
 Examples::
 
@@ -10,14 +12,13 @@ Examples::
 MODEL is a model file (``tsplcam.load``) or the name of a shipped sample (keycap,
 keycap_mold, head, figure4). Without ``--processing-list`` the planner's list is used.
 
-The command is three functions so later stages can add options: :func:`build` (arguments ->
-model, processing list, ToolPath), :func:`write_outputs` (files) and :func:`report` (text).
+Pieces: :func:`add_arguments` (options), :func:`build` (arguments -> model, processing list,
+ToolPath), :func:`write_outputs` (files) and :func:`report` (text).
 """
 from __future__ import annotations
 
 import json
 import os
-import time
 
 from ..errors import InputError
 
@@ -137,24 +138,6 @@ def report(path, verification=None, baseline=None) -> str:
     return "\n".join(out)
 
 
-def _cmd_path(args) -> int:
-    t0 = time.perf_counter()
-    model, plist, path = build(args)
-    baseline = build_baseline(args, model, plist) if args.baseline or args.baseline_cl else None
-    verification = None
-    extra = {}
-    if args.verify:
-        from ..verify.scallop import measure
-        verification = measure(path, model)
-        extra["verification"] = verification.as_dict()
-    written = write_outputs(args, path, baseline, extra)
-    print(report(path, verification, baseline))
-    for f in written:
-        print(f"wrote {f}")
-    print(f"time taken {time.perf_counter() - t0:.2f} s")
-    return 0
-
-
 def _positive(text: str) -> float:
     import argparse
     try:
@@ -164,15 +147,6 @@ def _positive(text: str) -> float:
     if not v > 0 or v != v or v == float("inf"):
         raise argparse.ArgumentTypeError(f"{text!r} must be a positive number")
     return v
-
-
-def register(subparsers) -> None:
-    """Add the ``path`` command to the tsplcam command line (the toolpath stage alone; the full
-    command with orientation and posting is :mod:`tsplcam.pipeline`'s)."""
-    p = subparsers.add_parser("path", help="isoparametric zigzag finishing path over the whole model "
-                                           "(paper section 3.5), written as APT CL data")
-    add_arguments(p)
-    p.set_defaults(func=_cmd_path)
 
 
 def add_arguments(p) -> None:

@@ -87,6 +87,7 @@ class Swept:
     """The swept volume of a ball of radius r along the path's centres, as capsule pieces."""
 
     def __init__(self, path: ToolPath, piece: float):
+        self.path = path
         r = path.tool_radius
         C = path.center
         self.r = r
@@ -236,12 +237,14 @@ def _refine_ridges(sw: Swept, model, grid: SurfaceGrid, i, j, A, B, iterations: 
 
 
 def measure(path: ToolPath, model, scallop: float | None = None, spacing: float | None = None,
-            patches=None, region=None, piece: float | None = None) -> ScallopReport:
+            patches=None, region=None, piece: float | None = None, progress=None) -> ScallopReport:
     """Scallop, cusps and gouges of ``path`` on ``model`` (see the module doc).
 
     ``scallop``: the limit the path was made for (default: the path's settings); it sets
     the default grid ``spacing`` (a quarter of the flat side step) and capsule ``piece``
     length. ``patches`` / ``region`` restrict the sampled surface (tests on parts of a model).
+    The surface is measured one patch at a time, so memory stays bounded by the largest
+    patch's grid however big the model; ``progress(done, total)`` is called after each.
     """
     r = path.tool_radius
     if scallop is None:
@@ -250,7 +253,42 @@ def measure(path: ToolPath, model, scallop: float | None = None, spacing: float 
     spacing = spacing or 0.25 * g
     piece = piece or 0.5 * g
     sw = Swept(path, piece)
+    # consecutive lines of one patch
+    line_patch = {}
+    sel = path.line >= 0
+    for ln, pt in zip(path.line[sel], path.patch[sel]):
+        line_patch.setdefault(int(ln), int(pt))
+    todo = list(range(len(model.patches)) if patches is None else patches)
+    parts = []
+    for k, p in enumerate(todo):
+        part = _measure_patches(sw, model, spacing, [p], region, line_patch, r)
+        if part is not None:
+            parts.append(part)
+        if progress is not None:
+            progress(k + 1, len(todo))
+    samples = sum(x["samples"] for x in parts)
+    uncovered = sum(x["uncovered"] for x in parts)
+    cusp = np.concatenate([x["cusp"] for x in parts]) if parts else np.zeros(0)
+    best = max(parts, key=lambda x: x["hmax"]) if parts else None
+    hmax = best["hmax"] if best is not None and uncovered == 0 else float("inf")
+    at = best["at"] if best is not None else (-1, np.nan, np.nan)
+    nfin = sum(x["finite"] for x in parts)
+    mean_material = sum(x["material_sum"] for x in parts) / nfin if nfin else np.nan
+    gouge = max(((x["gouge"]) for x in parts), key=lambda t: max(t[0], t[1], t[2]), default=(0.0, 0.0, 0.0, None))
+    gp, gc, ga, gat = gouge
+    return ScallopReport(
+        max_scallop=hmax, max_at=at, mean_material=float(mean_material),
+        cusp_mean=float(cusp.mean()) if len(cusp) else np.nan, cusp_max=float(cusp.max()) if len(cusp) else np.nan,
+        cusps=int(len(cusp)), ridges=sum(x["ridges"] for x in parts), samples=samples, uncovered=uncovered,
+        gouge_points=gp, gouge_chords=gc, gouge_air=ga, gouge_at=gat, spacing=float(spacing),
+        cusp_heights=cusp)
+
+
+def _measure_patches(sw: "Swept", model, spacing: float, patches, region, line_patch: dict, r: float):
+    """The figures of one grid (one patch), to be aggregated by :func:`measure`."""
     grid = surface_grid(model, spacing, patches, region)
+    if len(grid) == 0:
+        return None
     hgt, own = sw.height(grid.P, grid.n)
     uncovered = int(np.count_nonzero(~(hgt <= r)))
     # neighbouring grid samples cut by different capsule owners: refine their ridge
@@ -275,16 +313,12 @@ def measure(path: ToolPath, model, scallop: float | None = None, spacing: float 
             parts_uv.append(ww)
         ridge_h = np.concatenate(parts_h)
         ridge_uv = np.concatenate(parts_uv)
-    # consecutive lines of one patch
-    line_patch = {}
-    sel = path.line >= 0
-    for ln, pt in zip(path.line[sel], path.patch[sel]):
-        line_patch.setdefault(int(ln), int(pt))
     lp = np.array([line_patch.get(int(x), -1) if x < LINK_OWNER else -2 for x in ra]) if len(ra) else np.zeros(0)
     lq = np.array([line_patch.get(int(x), -1) if x < LINK_OWNER else -3 for x in rb]) if len(rb) else np.zeros(0)
     neighbours = (np.abs(ra - rb) == 1) & (ra < LINK_OWNER) & (rb < LINK_OWNER) & (lp == lq) & (lp >= 0)
     cusp = ridge_h[neighbours & np.isfinite(ridge_h)]
     all_h = np.concatenate([hgt[np.isfinite(hgt)], ridge_h[np.isfinite(ridge_h)]])
+    hmax, at = -np.inf, (-1, np.nan, np.nan)
     if len(all_h):
         k = int(np.argmax(all_h))
         nfin = int(np.count_nonzero(np.isfinite(hgt)))
@@ -295,17 +329,11 @@ def measure(path: ToolPath, model, scallop: float | None = None, spacing: float 
             ri = np.nonzero(np.isfinite(ridge_h))[0][k - nfin]
             gi = pairs[ri, 0]
             at = (int(grid.patch[gi]), float(ridge_uv[ri, 0]), float(ridge_uv[ri, 1]))
-        hmax = float(all_h[k]) if uncovered == 0 else float("inf")
-    else:
-        hmax, at = float("inf"), (-1, np.nan, np.nan)
+        hmax = float(all_h[k])
     finite = hgt[np.isfinite(hgt)]
-    gp, gc, ga, gat = gouges(path, model, grid)
-    return ScallopReport(
-        max_scallop=hmax, max_at=at, mean_material=float(np.mean(np.maximum(finite, 0.0))) if len(finite) else np.nan,
-        cusp_mean=float(cusp.mean()) if len(cusp) else np.nan, cusp_max=float(cusp.max()) if len(cusp) else np.nan,
-        cusps=int(len(cusp)), ridges=int(len(ridge_h)), samples=len(grid), uncovered=uncovered,
-        gouge_points=gp, gouge_chords=gc, gouge_air=ga, gouge_at=gat, spacing=float(spacing),
-        cusp_heights=cusp)
+    return {"samples": len(grid), "uncovered": uncovered, "cusp": cusp, "hmax": hmax, "at": at,
+            "finite": len(finite), "material_sum": float(np.sum(np.maximum(finite, 0.0))),
+            "ridges": int(len(ridge_h)), "gouge": gouges(sw.path, model, grid)}
 
 
 def project(model, patch: np.ndarray, uv: np.ndarray, x: np.ndarray, iterations: int = 5):

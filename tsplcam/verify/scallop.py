@@ -60,11 +60,13 @@ def surface_grid(model, spacing: float, patches=None, region=None) -> SurfaceGri
     offset = 0
     u0, u1, v0, v1 = region if region is not None else (0.0, 1.0, 0.0, 1.0)
     for p in (model.patches if patches is None else [model.patches[i] for i in patches]):
+        # side lengths as polylines through a coarse grid: parametric derivatives are
+        # singular at extraordinary corners and would size the grid absurdly
         g = np.linspace(0, 1, 17)
         U, V = np.meshgrid(g, g, indexing="ij")
-        sp = p.evaluate(U.ravel(), V.ravel())
-        su = float(np.linalg.norm(sp.Pu, axis=1).max()) * (u1 - u0)
-        sv = float(np.linalg.norm(sp.Pv, axis=1).max()) * (v1 - v0)
+        P = p.evaluate(U.ravel(), V.ravel()).P.reshape(17, 17, 3)
+        su = float(np.linalg.norm(np.diff(P, axis=0), axis=2).sum(axis=0).max()) * (u1 - u0)
+        sv = float(np.linalg.norm(np.diff(P, axis=1), axis=2).sum(axis=1).max()) * (v1 - v0)
         nu = max(2, int(np.ceil(su / spacing)) + 1)
         nv = max(2, int(np.ceil(sv / spacing)) + 1)
         # a hair inside the patch: exactly at an extraordinary corner the second derivatives

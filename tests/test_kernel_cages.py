@@ -145,8 +145,8 @@ class ExtraordinaryPoints(unittest.TestCase):
         np.testing.assert_allclose(sp.P[0], [0, -0.707107, 0.5], atol=5e-7)
         np.testing.assert_allclose(sp.normal[0], [0, -0.816496, 0.577350], atol=5e-7)
 
-    def test_limit_masks_valence_3_5_6_8(self):
-        for n in (3, 5, 6, 8):
+    def test_limit_masks_valence_3_to_12(self):
+        for n in (3, 5, 6, 8, 10, 12):
             cage = ngon_prism(n, seed=n)
             model = cage_model(cage)
             P = cage.points
@@ -236,6 +236,28 @@ class Continuity(unittest.TestCase):
                 self.assertLess(np.abs(sa.P - sb.P).max(), 1e-12 * scale, name)
                 angle = angle_between(sa.normal, sb.normal).max()
                 self.assertLess(angle, 1e-9, f"{name}: patches {link.a}/{link.b} normals {angle:.3g} rad")
+
+    def test_edge_transform_continues_the_parametrisation(self):
+        """Model.edge_transform maps (u, v) across a shared edge in knot units: the first
+        derivatives of both patches agree through its linear part (away from the
+        extraordinary corners, where no parametrisation is C1)."""
+        tau = np.linspace(0.1, 0.9, 9)
+        for name, model in all_models():
+            for link in model.layout().edge_links:
+                for a, ea, b, eb in ((link.a, link.ea, link.b, link.eb), (link.b, link.eb, link.a, link.ea)):
+                    pa, pb = model.patches[a], model.patches[b]
+                    T = model.edge_transform(a, ea)
+                    ua, va = pa.edge_params(ea, tau)
+                    ub, vb = T[:, :2] @ np.vstack([ua, va]) + T[:, 2:]
+                    sa, sb = pa.evaluate(ua, va), pb.evaluate(np.clip(ub, 0, 1), np.clip(vb, 0, 1))
+                    np.testing.assert_allclose(ub, np.clip(ub, 0, 1), atol=1e-12)
+                    scale = np.abs(sa.P).max()
+                    self.assertLess(np.abs(sa.P - sb.P).max(), 1e-12 * scale, name)
+                    L = T[:, :2]
+                    Pu = sb.Pu * L[0, 0] + sb.Pv * L[1, 0]
+                    Pv = sb.Pu * L[0, 1] + sb.Pv * L[1, 1]
+                    d = np.abs(sa.Pu - Pu).max() + np.abs(sa.Pv - Pv).max()
+                    self.assertLess(d / (np.abs(sa.Pu).max() + np.abs(sa.Pv).max()), 1e-9, f"{name} {a}->{b}")
 
     def test_curvature_continuous_across_edges_away_from_extraordinary_points(self):
         tau = np.linspace(0.2, 0.8, 13)

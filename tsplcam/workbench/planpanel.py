@@ -20,7 +20,7 @@ from ..errors import InputError
 from . import messages
 from .modelobject import model_of
 from .planobject import plan_of, replan
-from .resources import icon
+from .resources import icon, ui_file
 
 COLUMNS = ("Patch", "Start", "Finish", "Feed", "Link", "Pins")
 TIPS = ("Patch machined in this step", "Start corner of the zigzag (u, v)",
@@ -50,38 +50,21 @@ class ProcessingListPanel:
 
     # -- widgets --------------------------------------------------------------------------------
     def _build(self):
-        w = QtGui.QWidget()
-        w.setWindowTitle("Processing list")
+        """The form from resources/ui/processing_list.ui; headers and signals here."""
+        w = FreeCADGui.PySideUic.loadUi(ui_file("processing_list"))
         w.setWindowIcon(QtGui.QIcon(icon("plan")))
-        lay = QtGui.QVBoxLayout(w)
-        self.table = QtGui.QTableWidget(0, len(COLUMNS))
+        self.table = w.findChild(QtGui.QTableWidget, "table")
         self.table.setHorizontalHeaderLabels(list(COLUMNS))
         for k, tip in enumerate(TIPS):
             self.table.horizontalHeaderItem(k).setToolTip(tip)
-        self.table.setMinimumHeight(320)
-        self.table.setSelectionBehavior(QtGui.QAbstractItemView.SelectRows)
         self.table.verticalHeader().setVisible(True)
         self.table.itemSelectionChanged.connect(self._selection_changed)
-        lay.addWidget(self.table)
-        grid = QtGui.QGridLayout()
         self.buttons = {}
-        for k, (key, text, tip) in enumerate((
-                ("up", "Up", "Move the selected step earlier (pins its position)"),
-                ("down", "Down", "Move the selected step later (pins its position)"),
-                ("pin", "Pin order", "Pin or free the position of the selected steps"),
-                ("clear", "Clear pins", "Free every pinned field"),
-                ("solve", "Solve", "Keep the pins, plan everything else"),
-                ("load", "Load list...", "Read a processing list (JSON) planned for this model"),
-                ("save", "Save list...", "Write the list as JSON (tsplcam plan --check reads it)"))):
-            b = QtGui.QPushButton(text)
-            b.setToolTip(tip)
+        for key in ("up", "down", "pin", "clear", "solve", "load", "save"):
+            b = w.findChild(QtGui.QPushButton, key)
             b.clicked.connect(getattr(self, "_on_" + key))
             self.buttons[key] = b
-            grid.addWidget(b, k // 3 if k < 6 else 2, k % 3 if k < 6 else 1)
-        lay.addLayout(grid)
-        self.status = QtGui.QLabel()
-        self.status.setWordWrap(True)
-        lay.addWidget(self.status)
+        self.status = w.findChild(QtGui.QLabel, "status")
         return w
 
     def _combo(self, values, current, on_change):

@@ -290,6 +290,19 @@ class Continuity(unittest.TestCase):
                     scale = 1.0 + np.abs(got).max()
                     self.assertLess(np.abs(got - fd).max(), 1e-5 * scale, f"{name} {p.name}")
 
+    def test_grid_evaluation_equals_scattered_evaluation(self):
+        rng = np.random.default_rng(7)
+        us = np.sort(np.r_[0.0, 1.0, rng.random(23)])
+        vs = rng.random(17)                     # unsorted too
+        for name, model in all_models():
+            for p in model.patches:
+                g = p.evaluate_grid(us, vs)
+                U, V = np.meshgrid(us, vs, indexing="ij")
+                s = p.evaluate(U.ravel(), V.ravel())
+                for a, b in ((g.P, s.P), (g.Pu, s.Pu), (g.Pv, s.Pv), (g.Puu, s.Puu), (g.Puv, s.Puv),
+                             (g.Pvv, s.Pvv), (g.normal, s.normal), (g.u, s.u), (g.v, s.v)):
+                    self.assertLess(np.abs(a - b).max(), 1e-12 * (1.0 + np.abs(b).max()), f"{name} {p.name}")
+
     def test_no_nan_anywhere(self):
         g = np.linspace(0, 1, 17)
         U, V = np.meshgrid(g, g)

@@ -83,6 +83,27 @@ class BezierCells:
                     o += t
         return out, None, None
 
+    def evaluate_tensor(self, cell: int, a: np.ndarray, b: np.ndarray, wa: float = 1.0,
+                        wb: float = 1.0) -> np.ndarray:
+        """One cell on the tensor grid a x b: homogeneous derivatives (6, 4, len(a), len(b)),
+        taken with respect to a / wa and b / wb (the cell's widths in its patch). Both
+        contractions are BLAS products, so grids evaluate far faster than scattered points."""
+        p1, q1 = self.p + 1, self.q + 1
+        bs = bernstein(self.p, a)                        # (na, 3, p+1)
+        bt = bernstein(self.q, b)                        # (nb, 3, q+1)
+        bs[:, 1] /= wa
+        bs[:, 2] /= wa * wa
+        bt[:, 1] /= wb
+        bt[:, 2] /= wb * wb
+        C = self.ctrl[cell]                              # (q+1, p+1, 4)
+        # along a: T[d, j, c, na]
+        T = np.einsum("jic,nai->ajcn", C, bs, optimize=True)
+        out = np.empty((6, 4, len(a), len(b)))
+        for k, (ds, dt) in enumerate(DERIVS):
+            # (4 * na, q+1) @ (q+1, nb) -> (4, na, nb)
+            out[k] = (T[ds].reshape(q1, -1).T @ bt[:, dt, :].T).reshape(4, len(a), len(b))
+        return out
+
 
 # The eight symmetries of the unit square, as (A, o) with (s, t) = A (a, b) + o.
 SQUARE_MAPS = []

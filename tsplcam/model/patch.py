@@ -14,6 +14,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import InputError
+from .cells import BezierCells
 from .diffgeom import SurfacePoints, rational_from_homogeneous
 
 CHUNK = 1 << 17
@@ -95,6 +96,58 @@ class Patch:
             normal_override[rows] = nrm * np.where(sign == 0, 1.0, sign)[:, None]
         return SurfacePoints(P, Pu, Pv, Puu, Puv, Pvv, u, v, self.index, normal_override)
 
+    def evaluate_grid(self, us, vs) -> SurfacePoints:
+        """Everything :meth:`evaluate` gives, on the tensor grid us x vs: rows in the order of
+        ``np.meshgrid(us, vs, indexing='ij')`` (u slowest). Bezier cells are evaluated with
+        two BLAS products per cell (tessellation, verification grids, iso-lines); other cells
+        through :meth:`evaluate`."""
+        us = np.asarray(us, float).reshape(-1)
+        vs = np.asarray(vs, float).reshape(-1)
+        for name, x in (("u", us), ("v", vs)):
+            if not np.all(np.isfinite(x)) or x.min(initial=0.0) < -1e-9 or x.max(initial=0.0) > 1 + 1e-9:
+                raise InputError(f"grid {name} values must lie in [0, 1]", item=self.name)
+        us, vs = np.clip(us, 0.0, 1.0), np.clip(vs, 0.0, 1.0)
+        nu, nv = self.shape
+        iu = np.clip(np.searchsorted(self.ubreaks, us, side="right") - 1, 0, nu - 1)
+        iv = np.clip(np.searchsorted(self.vbreaks, vs, side="right") - 1, 0, nv - 1)
+        out = np.empty((6, 3, len(us), len(vs)))          # coordinate-major, filled by blocks
+        normal = None
+        for ci in np.unique(iu):
+            I = _index_or_slice(np.nonzero(iu == ci)[0])
+            wu = self.ubreaks[ci + 1] - self.ubreaks[ci]
+            a = (us[I] - self.ubreaks[ci]) / wu
+            for cj in np.unique(iv):
+                J = _index_or_slice(np.nonzero(iv == cj)[0])
+                ni, nj = len(a), len(vs[J])
+                group = self.groups[self.cell_group[ci, cj]]
+                if isinstance(group, BezierCells):
+                    wv = self.vbreaks[cj + 1] - self.vbreaks[cj]
+                    H = group.evaluate_tensor(self.cell_local[ci, cj], a,
+                                              (vs[J] - self.vbreaks[cj]) / wv, wu, wv).reshape(6, 4, -1)
+                    E = rational_from_homogeneous(H)
+                    nrm = None
+                else:
+                    U, V = np.meshgrid(us[I], vs[J], indexing="ij")
+                    sp = self.evaluate(U.ravel(), V.ravel())
+                    E = [x.T for x in (sp.P, sp.Pu, sp.Pv, sp.Puu, sp.Puv, sp.Pvv)]
+                    nrm = sp.normal_override
+                rows = (I, J) if isinstance(I, slice) and isinstance(J, slice) else np.ix_(
+                    np.arange(len(us))[I], np.arange(len(vs))[J])
+                for k in range(6):
+                    out[k][(slice(None),) + tuple(rows)] = E[k].reshape(3, ni, nj)
+                if nrm is not None:
+                    if normal is None:
+                        normal = np.full((len(us), len(vs), 3), np.nan)
+                    normal[rows] = nrm.reshape(ni, nj, 3)
+        # (n, 3) views of the coordinate-major blocks: no copy
+        P, Pu, Pv, Puu, Puv, Pvv = (x.reshape(3, -1).T for x in out)
+        if normal is not None:
+            normal = normal.reshape(-1, 3)
+            fill = np.isnan(normal[:, 0])
+            normal[fill] = _unit(np.cross(Pu[fill], Pv[fill]))
+        return SurfacePoints(P, Pu, Pv, Puu, Puv, Pvv, np.repeat(us, len(vs)), np.tile(vs, len(us)),
+                             self.index, normal)
+
     def _evaluate_h(self, u, v):
         """Homogeneous derivatives (6, 4, m) of the points sorted by cell, the sorting order,
         and (rows in sorted order, exact normals) of points at irregular vertices."""
@@ -143,6 +196,13 @@ class Patch:
         tau = np.asarray(tau, float)
         uv = CORNER_UV[c0][None, :] * (1 - tau)[:, None] + CORNER_UV[c1][None, :] * tau[:, None]
         return uv[:, 0], uv[:, 1]
+
+
+def _index_or_slice(idx: np.ndarray):
+    """A slice when the indices are one contiguous run (sorted grids), else the indices."""
+    if len(idx) and idx[-1] - idx[0] + 1 == len(idx):
+        return slice(int(idx[0]), int(idx[-1]) + 1)
+    return idx
 
 
 def _unit(x: np.ndarray) -> np.ndarray:

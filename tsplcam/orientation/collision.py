@@ -98,12 +98,10 @@ def _patch_grid_error(patch, gu: np.ndarray, gv: np.ndarray) -> tuple[float, flo
     mu = 0.5 * (gu[:-1] + gu[1:])
     mv = 0.5 * (gv[:-1] + gv[1:])
     # u-edges: (mu, gv)
-    U, V = np.meshgrid(mu, gv, indexing="ij")
-    Pm = patch.evaluate(U.ravel(), V.ravel()).P.reshape(nu, nv + 1, 3)
-    G = patch.evaluate(*[a.ravel() for a in np.meshgrid(gu, gv, indexing="ij")]).P.reshape(nu + 1, nv + 1, 3)
+    Pm = patch.evaluate_grid(mu, gv).P.reshape(nu, nv + 1, 3)
+    G = patch.evaluate_grid(gu, gv).P.reshape(nu + 1, nv + 1, 3)
     eu = np.linalg.norm(Pm - 0.5 * (G[:-1] + G[1:]), axis=2).max()
-    U, V = np.meshgrid(gu, mv, indexing="ij")
-    Pm = patch.evaluate(U.ravel(), V.ravel()).P.reshape(nu + 1, nv, 3)
+    Pm = patch.evaluate_grid(gu, mv).P.reshape(nu + 1, nv, 3)
     ev = np.linalg.norm(Pm - 0.5 * (G[:, :-1] + G[:, 1:]), axis=2).max()
     # inside the cells: points at 1/3 along both triangles' barycentres
     A, B, C, D = G[:-1, :-1], G[1:, :-1], G[1:, 1:], G[:-1, 1:]
@@ -141,10 +139,8 @@ def tessellate_patch(patch, tolerance: float, max_cells: int = 4000) -> tuple:
                                 f"{max_cells} grid lines (error {max(eu, ev):.3g} mm at {nu} x {nv})")
     else:                                                      # pragma: no cover
         raise GeometryError(f"{patch.name}: tessellation did not reach {tolerance:g} mm")
-    U, V = np.meshgrid(gu, gv, indexing="ij")
-    uv = np.column_stack([U.ravel(), V.ravel()])
-    P = patch.evaluate(uv[:, 0], uv[:, 1]).P
-    return P, _grid_triangles(nu, nv), uv, max(eu, ev)
+    sp = patch.evaluate_grid(gu, gv)
+    return np.ascontiguousarray(sp.P), _grid_triangles(nu, nv), np.column_stack([sp.u, sp.v]), max(eu, ev)
 
 
 def tessellate_model(model, tolerance: float = 0.005, patches=None) -> TriangleMesh:

@@ -63,8 +63,7 @@ def surface_grid(model, spacing: float, patches=None, region=None) -> SurfaceGri
         # side lengths as polylines through a coarse grid: parametric derivatives are
         # singular at extraordinary corners and would size the grid absurdly
         g = np.linspace(0, 1, 17)
-        U, V = np.meshgrid(g, g, indexing="ij")
-        P = p.evaluate(U.ravel(), V.ravel()).P.reshape(17, 17, 3)
+        P = p.evaluate_grid(g, g).P.reshape(17, 17, 3)
         su = float(np.linalg.norm(np.diff(P, axis=0), axis=2).sum(axis=0).max()) * (u1 - u0)
         sv = float(np.linalg.norm(np.diff(P, axis=1), axis=2).sum(axis=1).max()) * (v1 - v0)
         nu = max(2, int(np.ceil(su / spacing)) + 1)
@@ -73,10 +72,9 @@ def surface_grid(model, spacing: float, patches=None, region=None) -> SurfaceGri
         # are singular (the Newton projection starts from these samples)
         gu = np.clip(np.linspace(u0, u1, nu), GRID_EPS, 1 - GRID_EPS)
         gv = np.clip(np.linspace(v0, v1, nv), GRID_EPS, 1 - GRID_EPS)
-        U, V = np.meshgrid(gu, gv, indexing="ij")
-        sp = p.evaluate(U.ravel(), V.ravel())
+        sp = p.evaluate_grid(gu, gv)
         pp.append(np.full(nu * nv, p.index))
-        uvs.append(np.column_stack([U.ravel(), V.ravel()]))
+        uvs.append(np.column_stack([sp.u, sp.v]))
         Ps.append(sp.P)
         ns.append(sp.normal)
         shapes.append((p.index, offset, nu, nv))

@@ -81,9 +81,11 @@ def tessellate(model, density: int = 8, progress=None) -> list[PatchMesh]:
     out = []
     grids = samples_per_patch(model, density)
     for k, (patch, (nu, nv)) in enumerate(zip(model.patches, grids)):
-        U, V = np.meshgrid(np.linspace(0.0, 1.0, nu + 1), np.linspace(0.0, 1.0, nv + 1))
-        sp = patch.evaluate(U.ravel(), V.ravel())
-        out.append(PatchMesh(k, nu, nv, np.asarray(sp.P, float), _finite_unit(sp.normal)))
+        sp = patch.evaluate_grid(np.linspace(0.0, 1.0, nu + 1), np.linspace(0.0, 1.0, nv + 1))
+        # the mesh runs u fastest (rows of constant v); the grid comes u slowest
+        P = sp.P.reshape(nu + 1, nv + 1, 3).transpose(1, 0, 2).reshape(-1, 3)
+        N = sp.normal.reshape(nu + 1, nv + 1, 3).transpose(1, 0, 2).reshape(-1, 3)
+        out.append(PatchMesh(k, nu, nv, np.ascontiguousarray(P, float), _finite_unit(N)))
         if progress is not None:
             progress(k + 1, len(model.patches))
     return out

@@ -465,6 +465,24 @@ class _Builder:
                 return extent, ("edge", j, coord)
         raise AssertionError(f"ray lost in face {f}")
 
+    def _after_exit(self, f: int, dirf: int, hit):
+        """The walk's next state after leaving face f in direction ``dirf`` through ``hit``
+        (from :meth:`_chord_exit`): at a vertex ("v", vertex, direction around it), across
+        an edge ("c", face, x, y, direction), or None off the mesh."""
+        topo = self.topo
+        if hit[0] == "vertex":
+            j = hit[1]
+            w = int(self.mesh.faces[f][j])
+            thw = topo.fan_position[(f, j)] + (dirf - topo.out_dir(f, j)) % 4
+            if not topo.boundary[w]:
+                thw %= int(topo.total[w])
+            return ("v", w, thw)
+        nxt = self._cross(f, hit[1], hit[2])
+        if nxt is None:
+            return None
+        g, (x, y), dg = nxt
+        return ("c", g, x, y, dg)
+
     def _cross(self, f: int, j: int, coord: complex):
         """The point ``coord`` on face f's loop edge j, seen from the face across: (g,
         (x, y), direction into g), or None at the boundary."""
@@ -528,20 +546,9 @@ class _Builder:
                 extent, hit = self._chord_exit(f, x0, y0, dirf)
                 dist = dist + extent
                 knots.append(dist)
-                if hit[0] == "vertex":
-                    j = hit[1]
-                    w = int(self.mesh.faces[f][j])
-                    a = topo.fan_position[(f, j)]
-                    thw = a + (dirf - topo.out_dir(f, j)) % 4
-                    if not topo.boundary[w]:
-                        thw %= int(topo.total[w])
-                    state = ("v", w, thw)
-                else:
-                    nxt = self._cross(f, hit[1], hit[2])
-                    if nxt is None:
-                        break
-                    g, (x, y), dg = nxt
-                    state = ("c", g, x, y, dg)
+                state = self._after_exit(f, dirf, hit)
+                if state is None:
+                    break
         else:
             raise AssertionError("ray did not end")
         last = knots[-1] if knots else 0j
@@ -766,20 +773,9 @@ class _Builder:
                         return
                     xs.append(x0)
                 _, hit = self._chord_exit(f, x0, y0, dirf)
-                if hit[0] == "vertex":
-                    j = hit[1]
-                    w = int(self.mesh.faces[f][j])
-                    a = topo.fan_position[(f, j)]
-                    thw = a + (dirf - topo.out_dir(f, j)) % 4
-                    if not topo.boundary[w]:
-                        thw %= int(topo.total[w])
-                    state = ("v", w, thw)
-                else:
-                    nxt = self._cross(f, hit[1], hit[2])
-                    if nxt is None:
-                        return
-                    g, (x, y), dg = nxt
-                    state = ("c", g, x, y, dg)
+                state = self._after_exit(f, dirf, hit)
+                if state is None:
+                    return
         raise AssertionError("separatrix did not end")
 
     def _side_range(self, f, j):

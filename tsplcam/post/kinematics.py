@@ -238,8 +238,18 @@ class JointSolution:
     info: dict = field(default_factory=dict)
 
 
+_TIE = 1e-9        # relative: costs this close are a tie, decided for the lower state
+
+
+def _le(x: float, y: float) -> bool:
+    """x <= y up to a relative tie tolerance: the last bits of vectorised sums may differ with
+    memory alignment from run to run, and exact ties (symmetric branches) must not flip."""
+    return x <= y + _TIE * max(1.0, abs(x), abs(y))
+
+
 def _viterbi(cost_first: np.ndarray, trans: np.ndarray) -> np.ndarray:
-    """States minimising first cost plus the transition costs; ties pick the lower state."""
+    """States minimising first cost plus the transition costs; ties (within _TIE, relative)
+    pick the lower state, so the same input gives the same program in every process."""
     n, S = trans.shape[0] + 1, cost_first.shape[-1]
     back = np.zeros((n, S), np.int64)
     if S == 2:                                   # the common case, plain floats are faster
@@ -250,17 +260,32 @@ def _viterbi(cost_first: np.ndarray, trans: np.ndarray) -> np.ndarray:
             c00, c01, c10, c11 = t[i - 1]
             x0, x1 = a0 + c00, a1 + c10
             y0, y1 = a0 + c01, a1 + c11
-            b0 = 0 if x0 <= x1 else 1
-            b1 = 0 if y0 <= y1 else 1
+            b0 = 0 if _le(x0, x1) else 1
+            b1 = 0 if _le(y0, y1) else 1
             a0, a1 = (x0 if b0 == 0 else x1), (y0 if b1 == 0 else y1)
             bk[i] = (b0, b1)
         state = np.zeros(n, np.int64)
-        s = 0 if a0 <= a1 else 1
+        s = 0 if _le(a0, a1) else 1
         for i in range(n - 1, 0, -1):
             state[i] = s
             s = bk[i][s]
         state[0] = s
         return state
+
+    def first_min(v: np.ndarray, axis: int = 0) -> np.ndarray:
+        m = v.min(axis=axis, keepdims=True)
+        return np.argmax(v <= m + _TIE * np.maximum(1.0, np.abs(m)), axis=axis)
+
+    acc = cost_first.astype(float).copy()
+    for i in range(1, n):
+        tot = acc[:, None] + trans[i - 1]
+        back[i] = first_min(tot, axis=0)
+        acc = tot[back[i], np.arange(S)]
+    state = np.zeros(n, np.int64)
+    state[-1] = int(first_min(acc))
+    for i in range(n - 1, 0, -1):
+        state[i - 1] = back[i, state[i]]
+    return state
     acc = cost_first.astype(float).copy()
     for i in range(1, n):
         tot = acc[:, None] + trans[i - 1]

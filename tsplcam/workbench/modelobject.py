@@ -167,10 +167,6 @@ class TsplcamModel(FeatureProxy):
     _model = None
     _model_key = None
 
-    def __init__(self, obj):
-        super().__init__(obj)
-        self.ensure_properties(obj)
-
     @staticmethod
     def ensure_properties(obj) -> None:
         g = "Model"

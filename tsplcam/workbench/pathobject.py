@@ -60,10 +60,6 @@ class TsplcamToolPath(FeatureProxy):
     _path = None
     _path_file = None
 
-    def __init__(self, obj):
-        super().__init__(obj)
-        self.ensure_properties(obj)
-
     @staticmethod
     def ensure_properties(obj) -> None:
         g = "Tool path"

@@ -45,10 +45,6 @@ class TsplcamProcessingList(FeatureProxy):
     _plist = None
     _key = None
 
-    def __init__(self, obj):
-        super().__init__(obj)
-        self.ensure_properties(obj)
-
     @staticmethod
     def ensure_properties(obj) -> None:
         g = "Processing list"

@@ -43,13 +43,19 @@ def set_read_only(obj, name: str, value) -> None:
 
 
 class FeatureProxy:
-    """Proxy of an ``App::FeaturePython``; subclasses set TYPE and VERSION."""
+    """Proxy of an ``App::FeaturePython``; subclasses set TYPE and VERSION and add their
+    properties in ``ensure_properties`` (also called on restore, so old files gain new ones)."""
     TYPE = "TsplcamFeature"
     VERSION = 1
 
     def __init__(self, obj):
         obj.Proxy = self
         self.Type = self.TYPE
+        self.ensure_properties(obj)
+
+    @staticmethod
+    def ensure_properties(obj) -> None:
+        """Add the object's properties unless present (see :func:`add_property`)."""
 
     # -- persistence (0.20 and 1.0 names) -----------------------------------------------
     def __getstate__(self):

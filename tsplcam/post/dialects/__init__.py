@@ -104,6 +104,54 @@ def fmt_feed(value: float, decimals: int = 3) -> str:
     return s
 
 
+def spindle_coolant(s: dict) -> tuple[list, str | None]:
+    """The spindle start (S... M3) and coolant (M8 flood, M7 mist) lines of an ISO program,
+    and the coolant word (for its M9 at the end), from the post settings."""
+    out = []
+    if s.get("spindle"):
+        out.append(f"S{fmt_feed(s['spindle'], 1)} M3")
+    cool = {"flood": "M8", "mist": "M7"}.get(s.get("coolant"))
+    if cool:
+        out.append(cool)
+    return out, cool
+
+
+def tcp_columns(job) -> tuple[list, list, bool]:
+    """Formatted tip columns (X, Y, Z) and orientation columns: the tool axis vector
+    (orientation "vector") or the two rotary angles, for the dialects that program the
+    tool tip with TCP on (Fanuc, Sinumerik, Heidenhain)."""
+    s, mo = job.settings, job.motion
+    dl, da, dv = (s["decimals"][k] for k in ("linear", "angle", "vector"))
+    vector = s["orientation"] == "vector"
+    xyz = [fmt_col(mo.tip[:, k], dl) for k in range(3)]
+    ori = ([fmt_col(mo.axis[:, k], dv) for k in range(3)] if vector
+           else [fmt_col(mo.joints[:, k], da) for k in (3, 4)])
+    return xyz, ori, vector
+
+
+def iso_motion(mo, words, inverse_time: bool, feed_decimals: int, first: str = "") -> list:
+    """G0/G1 blocks of an ISO program: ``words[i]`` is block i's coordinates; ``first`` goes
+    before the first block's words (e.g. Fanuc's G43.4 H1). Inverse time (G93, F on every
+    block, POST-NOTES 2.6) or modal F per minute; G94 restored at the end."""
+    out, mode, last_f = [], None, None
+    for i in range(len(mo)):
+        lead = first if i == 0 else ""
+        if mo.rapid[i]:
+            out.append(f"G0 {lead}{words[i]}")
+            continue
+        if inverse_time:
+            pre = "G93 " if mode != "G93" else ""
+            mode = "G93"
+            out.append(f"{pre}G1 {lead}{words[i]} F{fmt(mo.inverse_time[i], feed_decimals)}")
+        else:
+            f = fmt_feed(max(mo.feed[i], 1.0), 3)
+            out.append(f"G1 {lead}{words[i]}" + (f" F{f}" if f != last_f else ""))
+            last_f = f
+    if mode == "G93":
+        out.append("G94")
+    return out
+
+
 def clean_comment(text: str, forbid: str = "()") -> str:
     """Comment text safe for the dialect: printable ASCII, no characters it forbids."""
     out = "".join(ch if 32 <= ord(ch) < 127 and ch not in forbid else " " for ch in text)

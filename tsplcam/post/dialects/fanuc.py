@@ -9,7 +9,7 @@ the Fanuc 16/18 manual) (POST-NOTES 2.3, 2.6). Comments are upper case in parent
 """
 from __future__ import annotations
 
-from . import Job, ReadMove, clean_comment, fmt, fmt_col, fmt_feed, words
+from . import Job, ReadMove, clean_comment, fmt, iso_motion, spindle_coolant, tcp_columns, words
 
 NAME = "fanuc"
 JOINT_SPACE = False
@@ -22,44 +22,21 @@ VECTOR_WORDS = ("I", "J", "K")
 
 def write(job: Job) -> str:
     m, s, mo = job.machine, job.settings, job.motion
-    dl, da, dv, fd = (s["decimals"][k] for k in ("linear", "angle", "vector", "feed"))
+    dl, da, fd = (s["decimals"][k] for k in ("linear", "angle", "feed"))
     t, r = m.axis_names[3], m.axis_names[4]
     name = clean_comment(str(s.get("program_name") or "TSPLCAM")).upper()
     out = ["%", f"O{int(s.get('program_number', 1000)):04d} ({name})"]
     out += [f"({clean_comment(h).upper()})" for h in job.header]
     safe = f"G90 G53 G0 Z{fmt(m.safe_z, dl)}"
     out += ["G21 G17 G40 G49 G80 G90 G94", safe, f"T{s['tool']} M6", s["work_offset"]]
-    if s.get("spindle"):
-        out.append(f"S{fmt_feed(s['spindle'], 1)} M3")
-    cool = {"flood": "M8", "mist": "M7"}.get(s.get("coolant"))
-    if cool:
-        out.append(cool)
+    lines, cool = spindle_coolant(s)
+    out += lines
     out.append(f"G0 {t}{fmt(job.preposition[0], da)} {r}{fmt(job.preposition[1], da)}")
-    vector = s["orientation"] == "vector"
-    xyz = [fmt_col(mo.tip[:, k], dl) for k in range(3)]
-    if vector:
-        ori = [fmt_col(mo.axis[:, k], dv) for k in range(3)]
-    else:
-        ori = [fmt_col(mo.joints[:, k], da) for k in (3, 4)]
-    inv = s["inverse_time"]
-    mode, last_f = None, None
-    for i in range(len(mo)):
-        pos = f"X{xyz[0][i]} Y{xyz[1][i]} Z{xyz[2][i]}"
-        o = (f"I{ori[0][i]} J{ori[1][i]} K{ori[2][i]}" if vector else f"{t}{ori[0][i]} {r}{ori[1][i]}")
-        tcp = (f"G43.5 H{s['tool']} " if vector else f"G43.4 H{s['tool']} ") if i == 0 else ""
-        if mo.rapid[i]:
-            out.append(f"G0 {tcp}{pos} {o}")
-            continue
-        if inv:
-            pre = "G93 " if mode != "G93" else ""
-            mode = "G93"
-            out.append(f"{pre}G1 {tcp}{pos} {o} F{fmt(mo.inverse_time[i], fd)}")
-        else:
-            f = fmt_feed(max(mo.feed[i], 1.0), 3)
-            out.append(f"G1 {tcp}{pos} {o}" + (f" F{f}" if f != last_f else ""))
-            last_f = f
-    if mode == "G93":
-        out.append("G94")
+    xyz, ori, vector = tcp_columns(job)
+    words = [f"X{xyz[0][i]} Y{xyz[1][i]} Z{xyz[2][i]} " +
+             (f"I{ori[0][i]} J{ori[1][i]} K{ori[2][i]}" if vector else f"{t}{ori[0][i]} {r}{ori[1][i]}")
+             for i in range(len(mo))]
+    out += iso_motion(mo, words, s["inverse_time"], fd, f"G43.5 H{s['tool']} " if vector else f"G43.4 H{s['tool']} ")
     out.append("G49")
     if cool:
         out.append("M9")

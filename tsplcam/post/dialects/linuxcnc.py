@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from . import Job, ReadMove, clean_comment, fmt, fmt_col, fmt_feed, words
+from . import Job, ReadMove, clean_comment, fmt, fmt_col, fmt_feed, spindle_coolant, words
 
 NAME = "linuxcnc"
 JOINT_SPACE = True
@@ -43,11 +43,7 @@ def write(job: Job) -> str:
             f"G53 G0 Z{fmt(m.safe_z, dl)}",
             f"G0 {names[3]}{fmt(job.preposition[0], da)} {names[4]}{fmt(job.preposition[1], da)}",
             f"G43 H{s['tool']}"]
-    if s.get("spindle"):
-        out.append(f"S{fmt_feed(s['spindle'], 1)} M3")
-    cool = {"flood": "M8", "mist": "M7"}.get(s.get("coolant"))
-    if cool:
-        out.append(cool)
+    out += spindle_coolant(s)[0]
     cols = [fmt_col(mo.joints[:, k], dl if k < 3 else da) for k in range(5)]
     inv = s["inverse_time"]
     mode = None

@@ -8,7 +8,7 @@ or ``ORIVECT`` with the tool vector ``A3= B3= C3=`` pointing to the tool adapter
 """
 from __future__ import annotations
 
-from . import Job, ReadMove, clean_comment, fmt, fmt_col, fmt_feed, words
+from . import Job, ReadMove, clean_comment, fmt, iso_motion, spindle_coolant, tcp_columns, words
 
 NAME = "sinumerik"
 JOINT_SPACE = False
@@ -20,43 +20,20 @@ VECTOR_WORDS = ("A3", "B3", "C3")
 
 def write(job: Job) -> str:
     m, s, mo = job.machine, job.settings, job.motion
-    dl, da, dv, fd = (s["decimals"][k] for k in ("linear", "angle", "vector", "feed"))
+    dl, da, fd = (s["decimals"][k] for k in ("linear", "angle", "feed"))
     t, r = m.axis_names[3], m.axis_names[4]
     out = [f"; {clean_comment(h, ';')}" for h in job.header]
     safe = f"G0 SUPA Z{fmt(m.safe_z, dl)} D0"
     out += ["G17 G90 G71 G40 G94", safe, f"T{s['tool']}", "M6", "D1", s["work_offset"]]
-    if s.get("spindle"):
-        out.append(f"S{fmt_feed(s['spindle'], 1)} M3")
-    cool = {"flood": "M8", "mist": "M7"}.get(s.get("coolant"))
-    if cool:
-        out.append(cool)
+    lines, cool = spindle_coolant(s)
+    out += lines
     out.append(f"G0 {t}{fmt(job.preposition[0], da)} {r}{fmt(job.preposition[1], da)}")
-    vector = s["orientation"] == "vector"
+    xyz, ori, vector = tcp_columns(job)
     out += ["TRAORI", "ORIWKS", "ORIVECT" if vector else "ORIAXES"]
-    xyz = [fmt_col(mo.tip[:, k], dl) for k in range(3)]
-    if vector:
-        ori = [fmt_col(mo.axis[:, k], dv) for k in range(3)]
-    else:
-        ori = [fmt_col(mo.joints[:, k], da) for k in (3, 4)]
-    inv = s["inverse_time"]
-    mode, last_f = None, None
-    for i in range(len(mo)):
-        pos = f"X{xyz[0][i]} Y{xyz[1][i]} Z{xyz[2][i]}"
-        o = (f"A3={ori[0][i]} B3={ori[1][i]} C3={ori[2][i]}" if vector
-             else f"{t}{ori[0][i]} {r}{ori[1][i]}")
-        if mo.rapid[i]:
-            out.append(f"G0 {pos} {o}")
-            continue
-        if inv:
-            pre = "G93 " if mode != "G93" else ""
-            mode = "G93"
-            out.append(f"{pre}G1 {pos} {o} F{fmt(mo.inverse_time[i], fd)}")
-        else:
-            f = fmt_feed(max(mo.feed[i], 1.0), 3)
-            out.append(f"G1 {pos} {o}" + (f" F{f}" if f != last_f else ""))
-            last_f = f
-    if mode == "G93":
-        out.append("G94")
+    words = [f"X{xyz[0][i]} Y{xyz[1][i]} Z{xyz[2][i]} " +
+             (f"A3={ori[0][i]} B3={ori[1][i]} C3={ori[2][i]}" if vector else f"{t}{ori[0][i]} {r}{ori[1][i]}")
+             for i in range(len(mo))]
+    out += iso_motion(mo, words, s["inverse_time"], fd)
     out += ["TRAFOOF"]
     if cool:
         out.append("M9")

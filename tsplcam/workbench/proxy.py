@@ -74,10 +74,32 @@ class FeatureProxy:
 
 
 class ViewProxy:
-    """Proxy of a ``Gui::ViewProviderPythonFeature``: nothing of it is saved but its type."""
+    """Proxy of a ``Gui::ViewProviderPythonFeature``: nothing of it is saved but its type.
+    Subclasses name their one display mode, their icon (resources/icons) and, in CHILD, the
+    link property whose object shows under them in the tree."""
+    DISPLAY_MODE = "Default"
+    ICON = "tsplcam"
+    CHILD = None
 
     def __init__(self, vobj):
         vobj.Proxy = self
+
+    def getDisplayModes(self, vobj):
+        return [self.DISPLAY_MODE]
+
+    def getDefaultDisplayMode(self):
+        return self.DISPLAY_MODE
+
+    def setDisplayMode(self, mode):
+        return mode
+
+    def getIcon(self):
+        from .resources import icon
+        return icon(self.ICON)
+
+    def claimChildren(self):
+        child = getattr(getattr(self, "Object", None), self.CHILD, None) if self.CHILD else None
+        return [child] if child is not None else []
 
     def attach(self, vobj):
         self.ViewObject = vobj

@@ -17,7 +17,6 @@ from pivy import coin
 from . import coinutil, display, messages
 from .modelobject import PATCH_ELEMENT, model_of, patch_of_element
 from .proxy import ViewProxy, add_property
-from .resources import icon
 
 LAYERS = ("surface", "edges", "numbers", "extraordinary", "control", "adjacency")
 # view property -> layer it switches
@@ -52,6 +51,8 @@ def ensure_view_properties(vobj) -> None:
 
 class ViewProviderTsplcamModel(ViewProxy):
     """Draws a TsplcamModel: see the module docstring for the layers."""
+    DISPLAY_MODE = "Patches"
+    ICON = "model"
 
     # transient (class defaults: __init__ does not run on restore)
     root = None
@@ -80,17 +81,6 @@ class ViewProviderTsplcamModel(ViewProxy):
         self.rebuild()
 
     # -- FreeCAD hooks ---------------------------------------------------------------------
-    def getDisplayModes(self, vobj):
-        return ["Patches"]
-
-    def getDefaultDisplayMode(self):
-        return "Patches"
-
-    def setDisplayMode(self, mode):
-        return mode
-
-    def getIcon(self):
-        return icon("model")
 
     def updateData(self, obj, prop):
         if prop in ("SourceFile", "Format", "Patches"):

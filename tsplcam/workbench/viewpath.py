@@ -13,7 +13,6 @@ from pivy import coin
 from . import coinutil, display, messages
 from .pathobject import path_of
 from .proxy import ViewProxy, add_property
-from .resources import icon
 
 MOVE_STYLE = {      # Move value: (colour, width, pattern)
     0: ((0.05, 0.10, 0.45), 1.2, None),          # CUT
@@ -32,6 +31,9 @@ def ensure_view_properties(vobj) -> None:
 
 
 class ViewProviderToolPath(ViewProxy):
+    DISPLAY_MODE = "Path"
+    ICON = "toolpath"
+    CHILD = "ProcessingList"
     root = None
     group = None
 
@@ -47,22 +49,6 @@ class ViewProviderToolPath(ViewProxy):
         self.root.addChild(self.group)
         vobj.addDisplayMode(self.root, "Path")
         self.rebuild()
-
-    def getDisplayModes(self, vobj):
-        return ["Path"]
-
-    def getDefaultDisplayMode(self):
-        return "Path"
-
-    def setDisplayMode(self, mode):
-        return mode
-
-    def getIcon(self):
-        return icon("toolpath")
-
-    def claimChildren(self):
-        plan = getattr(getattr(self, "Object", None), "ProcessingList", None)
-        return [plan] if plan is not None else []
 
     def updateData(self, obj, prop):
         if prop in ("PathFile",):

@@ -15,7 +15,6 @@ from . import coinutil, display, messages
 from .modelobject import model_of
 from .planobject import plan_of
 from .proxy import ViewProxy, add_property
-from .resources import icon
 
 CURVE = (0.05, 0.12, 0.50)
 CURRENT = (1.0, 0.85, 0.0)
@@ -33,6 +32,9 @@ def ensure_view_properties(vobj) -> None:
 
 
 class ViewProviderProcessingList(ViewProxy):
+    DISPLAY_MODE = "Order"
+    ICON = "plan"
+    CHILD = "Model"
     root = None
     layers = None
     _drawn = None
@@ -53,22 +55,6 @@ class ViewProviderProcessingList(ViewProxy):
             self.root.addChild(sw)
         vobj.addDisplayMode(self.root, "Order")
         self.rebuild()
-
-    def getDisplayModes(self, vobj):
-        return ["Order"]
-
-    def getDefaultDisplayMode(self):
-        return "Order"
-
-    def setDisplayMode(self, mode):
-        return mode
-
-    def getIcon(self):
-        return icon("plan")
-
-    def claimChildren(self):
-        model = getattr(getattr(self, "Object", None), "Model", None)
-        return [model] if model is not None else []
 
     def updateData(self, obj, prop):
         if prop in ("ListText", "Model"):

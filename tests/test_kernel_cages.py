@@ -14,29 +14,9 @@ from tsplcam.model.cage import Cage, cage_model
 from tsplcam.model.eigen import scheme_for
 from tsplcam.model.formats.obj import read_obj
 from tsplcam.model.quadmesh import QuadMesh
-from tsplcam.testing import external
+from tsplcam.testing import external, ngon_prism
 
 
-def ngon_prism(n: int, seed: int = 0, noise: float = 0.05) -> Cage:
-    """A closed quad cage: two caps of n quads around a centre of valence n, joined by 2n
-    side quads (rim vertices alternate valence 4 and 3). Slightly perturbed."""
-    rng = np.random.default_rng(seed)
-    pts = [[0, 0, 1.2], [0, 0, -1.2]]
-    for z in (1.0, -1.0):
-        for j in range(2 * n):
-            a = np.pi * j / n
-            r = 1.0 if j % 2 == 0 else 1.25
-            pts.append([r * np.cos(a), r * np.sin(a), z])
-    top = lambda j: 2 + (j % (2 * n))            # noqa: E731
-    bot = lambda j: 2 + 2 * n + (j % (2 * n))    # noqa: E731
-    faces = []
-    for j in range(n):
-        faces.append([0, top(2 * j), top(2 * j + 1), top(2 * j + 2)])
-        faces.append([1, bot(2 * j + 2), bot(2 * j + 1), bot(2 * j)])
-    for j in range(2 * n):
-        faces.append([top(j + 1), top(j), bot(j), bot(j + 1)])
-    pts = np.array(pts, float) + noise * rng.standard_normal((len(pts), 3))
-    return Cage(QuadMesh(np.array(faces), len(pts)), pts)
 
 
 def closed_form_limit(mesh: QuadMesh, P: np.ndarray, v: int):

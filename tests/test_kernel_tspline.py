@@ -12,7 +12,7 @@ from tsplcam.model import samples
 from tsplcam.model.cage import cage_model
 from tsplcam.model.tmesh import TMesh, bspline_tmesh, from_lines, quad_tmesh
 from tsplcam.model.tspline import homogeneous_parts, knot_vectors, tspline_model
-from tsplcam.testing import require_freecad
+from tsplcam.testing import require_freecad, ngon_prism
 
 RNG_SEED = 20240611
 
@@ -465,29 +465,12 @@ class ExtraordinaryPoints(unittest.TestCase):
             self.assertIn("not uniform", str(cm.exception))
             self.assertIn("vertex", str(cm.exception))
         # adjacent extraordinary points (two on one face)
-        two = quad_tmesh(*self._prism())
+        prism = ngon_prism(5, noise=0.0)
+        two = quad_tmesh(prism.points, prism.mesh.faces)
         with self.assertRaises(InputError) as cm:
             tspline_model(two)
         self.assertIn("two extraordinary corners", str(cm.exception))
 
-    @staticmethod
-    def _prism():
-        pts = [[0, 0, 1.2], [0, 0, -1.2]]
-        n = 5
-        for z in (1.0, -1.0):
-            for j in range(2 * n):
-                a = np.pi * j / n
-                r = 1.0 if j % 2 == 0 else 1.25
-                pts.append([r * np.cos(a), r * np.sin(a), z])
-        top = lambda j: 2 + (j % (2 * n))            # noqa: E731
-        bot = lambda j: 2 + 2 * n + (j % (2 * n))    # noqa: E731
-        faces = []
-        for j in range(n):
-            faces.append([0, top(2 * j), top(2 * j + 1), top(2 * j + 2)])
-            faces.append([1, bot(2 * j + 2), bot(2 * j + 1), bot(2 * j)])
-        for j in range(2 * n):
-            faces.append([top(j + 1), top(j), bot(j), bot(j + 1)])
-        return np.array(pts, float), np.array(faces)
 
 
 class Continuity(unittest.TestCase):

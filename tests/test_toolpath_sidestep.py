@@ -5,18 +5,12 @@ import unittest
 import numpy as np
 
 from tsplcam.model.bspline import bspline_patch
+from tsplcam.testing import arc_poles
 from tsplcam.toolpath.lines import LineFrame
 from tsplcam.toolpath.sidestep import (cusp_height, first_order_side_step, forward_step,
                                        parameter_step, side_step)
 
 
-def arc_poles(a0: float, a1: float):
-    """Rational quadratic arc of the unit circle from angle a0 to a1 (< 180 deg): poles, weights."""
-    h = 0.5 * (a1 - a0)
-    m = 0.5 * (a0 + a1)
-    P = np.array([[np.cos(a0), np.sin(a0)], [np.cos(m) / np.cos(h), np.sin(m) / np.cos(h)],
-                  [np.cos(a1), np.sin(a1)]])
-    return P, np.array([1.0, np.cos(h), 1.0])
 
 
 def sphere_band(R: float, beta: float = np.radians(40), alpha: float = np.radians(40), outward=True):
@@ -36,18 +30,6 @@ def sphere_band(R: float, beta: float = np.radians(40), alpha: float = np.radian
     return bspline_patch(poles, w, k, k, 2, 2)
 
 
-def cylinder(R: float, H: float, beta: float = np.radians(40), outward=True):
-    """Exact NURBS piece of a cylinder about z: angle -beta..beta along u, z = 0..H along v."""
-    az, wa = arc_poles(-beta, beta)
-    poles = np.zeros((3, 2, 3))
-    w = np.zeros((3, 2))
-    for i in range(3):
-        for j in range(2):
-            poles[i, j] = [R * az[i, 0], R * az[i, 1], H * j]
-            w[i, j] = wa[i]
-    if not outward:
-        poles, w = poles[::-1], w[::-1]
-    return bspline_patch(poles, w, [0, 0, 0, 1, 1, 1], [0, 0, 1, 1], 2, 1)
 
 
 class SignConvention(unittest.TestCase):

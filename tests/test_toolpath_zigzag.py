@@ -11,9 +11,9 @@ from tsplcam import load
 from tsplcam.errors import GeometryError, InputError
 from tsplcam.layout.layout import CORNER_UV
 from tsplcam.model.bspline import bspline_patch
-from tsplcam.model.model import Model
 from tsplcam.model.samples import sample_path
 from tsplcam.plan.steps import ProcessingList, Step
+from tsplcam.testing import cylinder_patch, one_patch_model
 from tsplcam.toolpath.baseline import baseline_path
 from tsplcam.toolpath.lines import LineFrame, Placer, Target, parity_for
 from tsplcam.toolpath.path import Move
@@ -22,9 +22,6 @@ from tsplcam.verify.metrics import path_metrics
 from tsplcam.verify.scallop import measure
 
 
-def one_patch_model(patch) -> Model:
-    patch.corner_nodes = np.arange(4)
-    return Model([patch], patch.evaluate([0, 1, 1, 0], [0, 0, 1, 1]).P, [], "bspline", name="patch")
 
 
 def plane(W, H):
@@ -32,18 +29,6 @@ def plane(W, H):
     return one_patch_model(bspline_patch(poles, None, [0, 0, 1, 1], [0, 0, 1, 1], 1, 1))
 
 
-def cylinder(R, H, beta=np.radians(40), outward=True):
-    az = np.array([[np.cos(-beta), np.sin(-beta)], [1 / np.cos(beta), 0.0], [np.cos(beta), np.sin(beta)]])
-    wa = np.array([1.0, np.cos(beta), 1.0])
-    poles = np.zeros((3, 2, 3))
-    w = np.zeros((3, 2))
-    for i in range(3):
-        for j in range(2):
-            poles[i, j] = [R * az[i, 0], R * az[i, 1], H * j]
-            w[i, j] = wa[i]
-    if not outward:
-        poles, w = poles[::-1], w[::-1]
-    return one_patch_model(bspline_patch(poles, w, [0, 0, 0, 1, 1, 1], [0, 0, 1, 1], 2, 1))
 
 
 def check_joined_path(test, model, path, plist, h):
@@ -113,7 +98,7 @@ class ClosedForms(unittest.TestCase):
         circles of radius r about the ball centres meet (computed here in 2D)."""
         R, H, r, h = 10.0, 5.0, 1.0, 0.005
         for outward in (True, False):
-            model = cylinder(R, H, outward=outward)
+            model = one_patch_model(cylinder_patch(R, H, outward=outward))
             path = build_path(model, [PathStep(0, 0, None, "u")], PathSettings(r, h, balance=False))
             sgn = 1.0 if outward else -1.0
             ang = []

@@ -6,16 +6,12 @@ import unittest
 import numpy as np
 
 from tsplcam.model.bspline import bspline_patch
-from tsplcam.model.model import Model
+from tsplcam.testing import cylinder_patch, one_patch_model
 from tsplcam.toolpath.path import Move, ToolPath
 from tsplcam.verify.metrics import compare_table, path_metrics
 from tsplcam.verify.scallop import Swept, measure, surface_grid
 
 
-def one_patch_model(patch) -> Model:
-    corners = patch.evaluate([0, 1, 1, 0], [0, 0, 1, 1]).P
-    patch.corner_nodes = np.arange(4)
-    return Model([patch], corners, [], "bspline", name="test patch")
 
 
 def plane(W=10.0, H=6.0):
@@ -23,19 +19,6 @@ def plane(W=10.0, H=6.0):
     return one_patch_model(bspline_patch(poles, None, [0, 0, 1, 1], [0, 0, 1, 1], 1, 1))
 
 
-def cylinder(R, H, beta=np.radians(40), outward=True):
-    h = beta
-    az = np.array([[np.cos(-h), np.sin(-h)], [1 / np.cos(h), 0.0], [np.cos(h), np.sin(h)]])
-    wa = np.array([1.0, np.cos(h), 1.0])
-    poles = np.zeros((3, 2, 3))
-    w = np.zeros((3, 2))
-    for i in range(3):
-        for j in range(2):
-            poles[i, j] = [R * az[i, 0], R * az[i, 1], H * j]
-            w[i, j] = wa[i]
-    if not outward:
-        poles, w = poles[::-1], w[::-1]
-    return one_patch_model(bspline_patch(poles, w, [0, 0, 0, 1, 1, 1], [0, 0, 1, 1], 2, 1))
 
 
 def zigzag_by_hand(contacts_per_line, normals_per_line, r, patch=0):
@@ -117,7 +100,7 @@ class CylinderCusps(unittest.TestCase):
 
     def check(self, outward):
         R, r, H = 10.0, 1.0, 5.0
-        model = cylinder(R, H, outward=outward)
+        model = one_patch_model(cylinder_patch(R, H, outward=outward))
         ang = np.radians(np.linspace(-40, 40, 41))
         dth = ang[1] - ang[0]
         z = np.linspace(0, H, 11)
@@ -150,7 +133,7 @@ class CylinderCusps(unittest.TestCase):
     def test_chord_sag_on_convex_circle_is_the_overcut(self):
         """Points every phi around the convex cylinder: the centre chord cuts (R + r)(1 - cos(phi/2))."""
         R, r, H = 10.0, 1.0, 5.0
-        model = cylinder(R, H)
+        model = one_patch_model(cylinder_patch(R, H))
         phi = np.radians(4.0)
         ang = np.arange(-np.radians(40), np.radians(40) + 1e-12, phi)
         lines, normals = [], []
@@ -169,7 +152,7 @@ class NearSearch(unittest.TestCase):
 
     def test_kdtree_never_hides_material(self):
         r = 0.5
-        model = cylinder(8.0, 4.0, outward=False)
+        model = one_patch_model(cylinder_patch(8.0, 4.0, outward=False))
         rng = np.random.default_rng(1)
         ang = np.sort(rng.uniform(-0.69, 0.69, 60))
         ang[0], ang[-1] = -np.radians(40), np.radians(40)

@@ -39,3 +39,77 @@ def require_freecad():
     except ImportError:
         raise unittest.SkipTest("FreeCAD is not importable here (run under freecadcmd)")
     return FreeCAD
+
+
+# -- test geometry several test files share (they cannot import one another) -------------
+def ngon_prism(n: int, seed: int = 0, noise: float = 0.05):
+    """A closed quad cage (Cage): two caps of n quads around a centre of valence n, joined by
+    2n side quads (rim vertices alternate valence 4 and 3); perturbed by ``noise``."""
+    import numpy as np
+    from .model.cage import Cage
+    from .model.quadmesh import QuadMesh
+    rng = np.random.default_rng(seed)
+    pts = [[0, 0, 1.2], [0, 0, -1.2]]
+    for z in (1.0, -1.0):
+        for j in range(2 * n):
+            a = np.pi * j / n
+            r = 1.0 if j % 2 == 0 else 1.25
+            pts.append([r * np.cos(a), r * np.sin(a), z])
+
+    def top(j):
+        return 2 + (j % (2 * n))
+
+    def bot(j):
+        return 2 + 2 * n + (j % (2 * n))
+
+    faces = []
+    for j in range(n):
+        faces.append([0, top(2 * j), top(2 * j + 1), top(2 * j + 2)])
+        faces.append([1, bot(2 * j + 2), bot(2 * j + 1), bot(2 * j)])
+    for j in range(2 * n):
+        faces.append([top(j + 1), top(j), bot(j), bot(j + 1)])
+    pts = np.array(pts, float) + noise * rng.standard_normal((len(pts), 3))
+    return Cage(QuadMesh(np.array(faces), len(pts)), pts)
+
+
+def arc_poles(a0: float, a1: float):
+    """Rational quadratic arc of the unit circle from angle a0 to a1 (< 180 deg): poles, weights."""
+    import numpy as np
+    h = 0.5 * (a1 - a0)
+    m = 0.5 * (a0 + a1)
+    P = np.array([[np.cos(a0), np.sin(a0)], [np.cos(m) / np.cos(h), np.sin(m) / np.cos(h)],
+                  [np.cos(a1), np.sin(a1)]])
+    return P, np.array([1.0, np.cos(h), 1.0])
+
+
+def cylinder_patch(R: float, H: float, beta: float = 0.6981317007977318, outward: bool = True):
+    """Exact NURBS piece of a cylinder about z (a Patch): angle -beta..beta along u (default
+    40 deg), z = 0..H along v; ``outward=False`` reverses u, so the normal points inward."""
+    import numpy as np
+    from .model.bspline import bspline_patch
+    az, wa = arc_poles(-beta, beta)
+    poles = np.zeros((3, 2, 3))
+    w = np.zeros((3, 2))
+    for i in range(3):
+        for j in range(2):
+            poles[i, j] = [R * az[i, 0], R * az[i, 1], H * j]
+            w[i, j] = wa[i]
+    if not outward:
+        poles, w = poles[::-1], w[::-1]
+    return bspline_patch(poles, w, [0, 0, 0, 1, 1, 1], [0, 0, 1, 1], 2, 1)
+
+
+def plane_patch(W: float, H: float):
+    """The rectangle [0, W] x [0, H] in z = 0 as a bilinear Patch."""
+    import numpy as np
+    from .model.bspline import bspline_patch
+    poles = np.array([[[0, 0, 0], [0, H, 0]], [[W, 0, 0], [W, H, 0]]], float)
+    return bspline_patch(poles, None, [0, 0, 1, 1], [0, 0, 1, 1], 1, 1)
+
+
+def one_patch_model(patch, name: str = "test patch"):
+    """A Model of a single patch (its corners are nodes 0..3)."""
+    from .model.model import Model
+    patch.corner_nodes = [0, 1, 2, 3]
+    corners = patch.evaluate([0, 1, 1, 0], [0, 0, 1, 1]).P
+    return Model([patch], corners, [], "bspline", name=name)

@@ -483,17 +483,20 @@ class _Builder:
         g, (x, y), dg = nxt
         return ("c", g, x, y, dg)
 
+    def _face_across(self, f: int, j: int):
+        """(face, its loop edge) across loop edge j of face f, or None at the boundary."""
+        loop = self.mesh.faces[f]
+        a, b = int(loop[j]), int(loop[(j + 1) % len(loop)])
+        return self.topo.edge_at.get((b, a))
+
     def _cross(self, f: int, j: int, coord: complex):
         """The point ``coord`` on face f's loop edge j, seen from the face across: (g,
         (x, y), direction into g), or None at the boundary."""
-        topo = self.topo
-        loop = self.mesh.faces[f]
-        m = len(loop)
-        a, b = int(loop[j]), int(loop[(j + 1) % m])
-        hit = topo.edge_at.get((b, a))
+        hit = self._face_across(f, j)
         if hit is None:
             return None
         g, k = hit
+        topo = self.topo
         side = int(topo.side[f][j])
         ca = topo.pos[f][j][1] if side % 2 else topo.pos[f][j][0]
         t = (coord - ca) if side < 2 else (ca - coord)          # distance from a along the edge
@@ -600,14 +603,11 @@ class _Builder:
         return cache[key]
 
     def _cross_map_uncached(self, f: int, j: int):
-        topo = self.topo
-        loop = self.mesh.faces[f]
-        m = len(loop)
-        a, b = int(loop[j]), int(loop[(j + 1) % m])
-        hit = topo.edge_at.get((b, a))
+        hit = self._face_across(f, j)
         if hit is None:
             return None
         g, k = hit
+        topo, m = self.topo, len(self.mesh.faces[f])
         q = (int(topo.side[f][j]) + 2 - int(topo.side[g][k])) % 4
         bx, by = topo.pos[f][(j + 1) % m]
         gx, gy = _rot(q, *topo.pos[g][k])
@@ -999,7 +999,7 @@ class _Builder:
                 round(y.imag * 1e6))
 
     def _patches(self) -> list[Patch]:
-        mesh, topo, lex = self.mesh, self.topo, self.lex
+        mesh, topo = self.mesh, self.topo
         patches = []
         self.region_patch = {}
         self.face_pieces = [[] for _ in range(topo.nf)]

@@ -14,6 +14,7 @@ import re
 import FreeCAD
 
 from . import messages
+from .transaction import in_transaction
 from .modelobject import format_of, make_model_object, read_model
 
 TITLE = "Import T-spline model"
@@ -35,17 +36,11 @@ def import_file(filename: str, doc=None, fmt: str | None = None, new_document: s
     if doc is None:
         doc = FreeCAD.newDocument(new_document or _doc_name(filename))
         created = True
-    doc.openTransaction(TITLE)
-    try:
-        obj = make_model_object(doc, model, filename, fmt or format_of(filename))
-        doc.recompute()
-    except Exception as exc:
-        doc.abortTransaction()
-        if created:
-            FreeCAD.closeDocument(doc.Name)
-        messages.exception(TITLE, exc, f"adding {filename} to the document")
+    obj = in_transaction(doc, TITLE, f"adding {filename} to the document",
+                         lambda: make_model_object(doc, model, filename, fmt or format_of(filename)),
+                         on_failure=(lambda: FreeCAD.closeDocument(doc.Name)) if created else None)
+    if obj is None:
         return None
-    doc.commitTransaction()
     messages.info(f"imported {os.path.basename(filename)}: {obj.Patches} patches, "
                   f"{obj.ExtraordinaryPoints} extraordinary points ({obj.Valences or 'none'})")
     return obj

@@ -20,6 +20,7 @@ import FreeCAD
 
 from ..errors import InputError
 from . import messages
+from .transaction import in_transaction
 from .modelobject import model_of
 from .planobject import is_plan_object, plan_of
 from .proxy import FeatureProxy, add_property, set_read_only
@@ -179,9 +180,9 @@ def make_tool_path(plan_obj, **settings):
         return None
     finally:
         busy()
-    doc.openTransaction(TITLE)
-    obj = doc.addObject("App::FeaturePython", "ToolPath")
-    try:
+
+    def work():
+        obj = doc.addObject("App::FeaturePython", "ToolPath")
         TsplcamToolPath(obj)
         obj.Label = f"{plan_obj.Model.Label} tool path"
         obj.ProcessingList = plan_obj
@@ -194,16 +195,10 @@ def make_tool_path(plan_obj, **settings):
         if FreeCAD.GuiUp:
             from .viewpath import ViewProviderToolPath
             ViewProviderToolPath(obj.ViewObject)
-        doc.recompute()
-    except Exception as exc:
-        doc.abortTransaction()
-        try:
-            doc.removeObject(obj.Name)
-        except Exception:
-            pass
-        messages.exception(TITLE, exc, f"adding the tool path of {plan_obj.Label}")
+        return obj
+    obj = in_transaction(doc, TITLE, f"adding the tool path of {plan_obj.Label}", work)
+    if obj is None:
         return None
-    doc.commitTransaction()
     messages.info(f"{obj.Label}: {obj.Points} points, {obj.Lines} lines, {obj.Retractions} retractions, "
                   f"cut {obj.CutLength.Value:.1f} mm, links {obj.LinkLength.Value:.1f} mm")
     return obj

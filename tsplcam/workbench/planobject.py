@@ -15,6 +15,7 @@ import FreeCAD
 
 from ..errors import InputError
 from . import messages
+from .transaction import in_transaction
 from .modelobject import is_model_object, model_of
 from .proxy import FeatureProxy, add_property, set_read_only
 
@@ -127,9 +128,9 @@ def make_processing_list(model_obj, plist=None):
         messages.exception(TITLE, exc, f"planning {model_obj.Label}")
         return None
     doc = model_obj.Document
-    doc.openTransaction(TITLE)
-    obj = doc.addObject("App::FeaturePython", "ProcessingList")
-    try:
+
+    def work():
+        obj = doc.addObject("App::FeaturePython", "ProcessingList")
         TsplcamProcessingList(obj)
         obj.Label = f"{model_obj.Label} processing list"
         obj.Model = model_obj
@@ -137,16 +138,10 @@ def make_processing_list(model_obj, plist=None):
         if FreeCAD.GuiUp:
             from .viewplan import ViewProviderProcessingList
             ViewProviderProcessingList(obj.ViewObject)
-        doc.recompute()
-    except Exception as exc:
-        doc.abortTransaction()
-        try:
-            doc.removeObject(obj.Name)
-        except Exception:
-            pass
-        messages.exception(TITLE, exc, f"adding the processing list of {model_obj.Label}")
+        return obj
+    obj = in_transaction(doc, TITLE, f"adding the processing list of {model_obj.Label}", work)
+    if obj is None:
         return None
-    doc.commitTransaction()
     messages.info(f"{obj.Label}: {obj.Steps} steps, {obj.BoundaryLinks} boundary links, "
                   f"{obj.CornerLinks} corner links, {obj.Retractions} retractions")
     return obj

@@ -15,6 +15,7 @@ import FreeCAD
 
 from ..errors import InputError
 from . import messages
+from .transaction import in_transaction
 from .modelobject import make_model_object, shapes_module
 
 TITLE = "Model from selected shape"
@@ -52,20 +53,17 @@ def model_from_object(obj, subnames=(), doc=None):
         messages.exception(TITLE, exc, f"building a model from {label}")
         return None
     tmp = tempfile.mkdtemp(prefix="tsplcam-shape-")
-    doc.openTransaction(TITLE)
-    try:
+    def work():
         path = os.path.join(tmp, _file_stem(label) + ".brep")
         shape.exportBrep(path)
-        made = make_model_object(doc, model, path, "brep", file_name=os.path.basename(path),
+        return make_model_object(doc, model, path, "brep", file_name=os.path.basename(path),
                                  source_object=obj, label=f"{obj.Label} model")
-        doc.recompute()
-    except Exception as exc:
-        doc.abortTransaction()
-        messages.exception(TITLE, exc, f"adding the model of {label} to the document")
-        return None
+    try:
+        made = in_transaction(doc, TITLE, f"adding the model of {label} to the document", work)
     finally:
         shutil.rmtree(tmp, ignore_errors=True)
-    doc.commitTransaction()
+    if made is None:
+        return None
     if FreeCAD.GuiUp and hasattr(obj, "ViewObject") and obj.ViewObject is not None:
         obj.ViewObject.Visibility = False
     messages.info(f"model from {label}: {made.Patches} patches, {made.ExtraordinaryPoints} "

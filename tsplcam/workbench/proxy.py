@@ -82,7 +82,12 @@ class ViewProxy:
     CHILD = None
 
     def __init__(self, vobj):
+        self.ensure_view_properties(vobj)
         vobj.Proxy = self
+
+    @staticmethod
+    def ensure_view_properties(vobj) -> None:
+        """Add the view's properties unless present (also on restore, in :meth:`attach`)."""
 
     def getDisplayModes(self, vobj):
         return [self.DISPLAY_MODE]
@@ -102,6 +107,7 @@ class ViewProxy:
         return [child] if child is not None else []
 
     def attach(self, vobj):
+        self.ensure_view_properties(vobj)
         self.ViewObject = vobj
         self.Object = vobj.Object
 

@@ -51,6 +51,7 @@ def ensure_view_properties(vobj) -> None:
 
 class ViewProviderTsplcamModel(ViewProxy):
     """Draws a TsplcamModel: see the module docstring for the layers."""
+    ensure_view_properties = staticmethod(ensure_view_properties)
     DISPLAY_MODE = "Patches"
     ICON = "model"
 
@@ -59,13 +60,8 @@ class ViewProviderTsplcamModel(ViewProxy):
     layers = None
     _built_for = None
 
-    def __init__(self, vobj):
-        ensure_view_properties(vobj)
-        super().__init__(vobj)
-
     def attach(self, vobj):
         super().attach(vobj)
-        ensure_view_properties(vobj)
         self.root = coin.SoSeparator()
         self.root.setName("TsplcamModel")
         self.root.addChild(coinutil.two_sided())

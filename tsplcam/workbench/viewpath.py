@@ -31,19 +31,15 @@ def ensure_view_properties(vobj) -> None:
 
 
 class ViewProviderToolPath(ViewProxy):
+    ensure_view_properties = staticmethod(ensure_view_properties)
     DISPLAY_MODE = "Path"
     ICON = "toolpath"
     CHILD = "ProcessingList"
     root = None
     group = None
 
-    def __init__(self, vobj):
-        ensure_view_properties(vobj)
-        super().__init__(vobj)
-
     def attach(self, vobj):
         super().attach(vobj)
-        ensure_view_properties(vobj)
         self.root = coin.SoSeparator()
         self.group = coin.SoSeparator()
         self.root.addChild(self.group)

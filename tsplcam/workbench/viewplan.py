@@ -32,6 +32,7 @@ def ensure_view_properties(vobj) -> None:
 
 
 class ViewProviderProcessingList(ViewProxy):
+    ensure_view_properties = staticmethod(ensure_view_properties)
     DISPLAY_MODE = "Order"
     ICON = "plan"
     CHILD = "Model"
@@ -39,13 +40,8 @@ class ViewProviderProcessingList(ViewProxy):
     layers = None
     _drawn = None
 
-    def __init__(self, vobj):
-        ensure_view_properties(vobj)
-        super().__init__(vobj)
-
     def attach(self, vobj):
         super().attach(vobj)
-        ensure_view_properties(vobj)
         self.root = coin.SoSeparator()
         self.layers = {}
         for name in LAYERS:

@@ -33,6 +33,20 @@ CORNERS = ("LL (0,0)", "LR (1,0)", "UR (1,1)", "UL (0,1)")      # CORNER_NAMES, 
 PIN_LETTERS = {"position": "P", "start": "S", "finish": "F", "crossfeed": "C"}
 
 
+def _widen_task_dock(table, extra: int = 110) -> None:
+    """Widen the dock holding the task panel so every column of ``table`` and every button
+    shows (a fresh FreeCAD opens the Combo View about 250 px wide)."""
+    mw = FreeCADGui.getMainWindow()
+    docks = [d for d in mw.findChildren(QtGui.QDockWidget) if d.objectName() in ("Combo View", "Tasks")]
+    if not docks:
+        return
+    table.resizeColumnsToContents()
+    width = table.verticalHeader().width() + sum(table.columnWidth(k) for k in range(table.columnCount()))
+    for dock in docks:
+        if dock.width() < width + extra:
+            mw.resizeDocks([dock], [width + extra], QtCore.Qt.Horizontal)
+
+
 class ProcessingListPanel:
     """FreeCAD task panel (``form``, ``accept``, ``reject``) over a working copy of the list."""
 
@@ -46,6 +60,7 @@ class ProcessingListPanel:
         self.valid = True
         self.form = self._build()
         self._fill()
+        _widen_task_dock(self.table)
         ProcessingListPanel.active = self
 
     # -- widgets --------------------------------------------------------------------------------
@@ -58,6 +73,7 @@ class ProcessingListPanel:
         for k, tip in enumerate(TIPS):
             self.table.horizontalHeaderItem(k).setToolTip(tip)
         self.table.verticalHeader().setVisible(True)
+        self.table.horizontalHeader().setSectionResizeMode(QtGui.QHeaderView.ResizeToContents)
         self.table.itemSelectionChanged.connect(self._selection_changed)
         self.buttons = {}
         for key in ("up", "down", "pin", "clear", "solve", "load", "save"):

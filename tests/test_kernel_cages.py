@@ -14,7 +14,7 @@ from tsplcam.model.cage import Cage, cage_model
 from tsplcam.model.eigen import scheme_for
 from tsplcam.model.formats.obj import read_obj
 from tsplcam.model.quadmesh import QuadMesh
-from tsplcam.testing import external, ngon_prism
+from tsplcam.testing import assert_finite_everywhere, external, ngon_prism
 
 
 
@@ -284,14 +284,7 @@ class Continuity(unittest.TestCase):
                     self.assertLess(np.abs(a - b).max(), 1e-12 * (1.0 + np.abs(b).max()), f"{name} {p.name}")
 
     def test_no_nan_anywhere(self):
-        g = np.linspace(0, 1, 17)
-        U, V = np.meshgrid(g, g)
-        for name, model in all_models():
-            for p in model.patches:
-                s = p.evaluate(U.ravel(), V.ravel())
-                for arr in (s.P, s.Pu, s.Pv, s.Puu, s.Puv, s.Pvv, s.normal,
-                            *s.principal_curvatures, *s.principal_directions):
-                    self.assertTrue(np.all(np.isfinite(arr)), f"{name} {p.name}")
+        assert_finite_everywhere(self, all_models())
 
 
 class FaceCoordinates(unittest.TestCase):

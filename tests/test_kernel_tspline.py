@@ -12,7 +12,7 @@ from tsplcam.model import samples
 from tsplcam.model.cage import cage_model
 from tsplcam.model.tmesh import TMesh, bspline_tmesh, from_lines, quad_tmesh
 from tsplcam.model.tspline import homogeneous_parts, knot_vectors, tspline_model
-from tsplcam.testing import require_freecad, ngon_prism
+from tsplcam.testing import assert_finite_everywhere, ngon_prism, require_freecad
 
 RNG_SEED = 20240611
 
@@ -558,14 +558,7 @@ class Continuity(unittest.TestCase):
                     self.assertLess(np.abs(got - ref).max(), 1e-5 * (1.0 + np.abs(got).max()), f"{name} {p.name}")
 
     def test_no_nan_anywhere(self):
-        g = np.linspace(0, 1, 17)
-        U, V = np.meshgrid(g, g)
-        for name, model in self.models:
-            for p in model.patches:
-                s = p.evaluate(U.ravel(), V.ravel())
-                for arr in (s.P, s.Pu, s.Pv, s.Puu, s.Puv, s.Pvv, s.normal,
-                            *s.principal_curvatures, *s.principal_directions):
-                    self.assertTrue(np.all(np.isfinite(arr)), f"{name} {p.name}")
+        assert_finite_everywhere(self, self.models)
 
 
 class BadInput(unittest.TestCase):

@@ -239,16 +239,12 @@ def run_job(s: JobSettings, log=print) -> dict:
     figures["machining_time_s"] = posted.time.total_s
     figures["seconds"] = time.perf_counter() - t_all
     with open(os.path.join(s.out, "report.json"), "w", encoding="utf-8") as fh:
+        from .toolpath.commands import _json_default
         json.dump(figures, fh, indent=2, sort_keys=True, default=_json_default)
         fh.write("\n")
     log(f"wrote {program}, {cl}, processing-list.json and report.json in {s.out} "
         f"({figures['seconds']:.1f} s in all)")
     return figures
-
-
-def _json_default(x):
-    from .toolpath.commands import _json_default as d
-    return d(x)
 
 
 def _cmd_job(args) -> int:

@@ -113,3 +113,17 @@ def one_patch_model(patch, name: str = "test patch"):
     patch.corner_nodes = [0, 1, 2, 3]
     corners = patch.evaluate([0, 1, 1, 0], [0, 0, 1, 1]).P
     return Model([patch], corners, [], "bspline", name=name)
+
+
+def assert_finite_everywhere(test, named_models, samples: int = 17) -> None:
+    """No evaluation returns NaN: position, derivatives, normal, principal curvatures and
+    directions on a grid of every patch (corners included) of every (name, model)."""
+    import numpy as np
+    g = np.linspace(0, 1, samples)
+    U, V = np.meshgrid(g, g)
+    for name, model in named_models:
+        for p in model.patches:
+            s = p.evaluate(U.ravel(), V.ravel())
+            for arr in (s.P, s.Pu, s.Pv, s.Puu, s.Puv, s.Pvv, s.normal,
+                        *s.principal_curvatures, *s.principal_directions):
+                test.assertTrue(np.all(np.isfinite(arr)), f"{name} {p.name}")

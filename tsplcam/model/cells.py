@@ -88,7 +88,7 @@ class BezierCells:
         """One cell on the tensor grid a x b: homogeneous derivatives (6, 4, len(a), len(b)),
         taken with respect to a / wa and b / wb (the cell's widths in its patch). Both
         contractions are BLAS products, so grids evaluate far faster than scattered points."""
-        p1, q1 = self.p + 1, self.q + 1
+        q1 = self.q + 1
         bs = bernstein(self.p, a)                        # (na, 3, p+1)
         bt = bernstein(self.q, b)                        # (nb, 3, q+1)
         bs[:, 1] /= wa
@@ -116,12 +116,6 @@ for _swap in (False, True):
             SQUARE_MAPS.append((A, o))
 del _swap, _fa, _fb
 
-
-def square_map_index(A: np.ndarray) -> int:
-    for k, (B, _) in enumerate(SQUARE_MAPS):
-        if np.array_equal(A, B):
-            return k
-    raise ValueError("not a symmetry of the square")
 
 
 def _chain(Hst: np.ndarray, A: np.ndarray) -> np.ndarray:

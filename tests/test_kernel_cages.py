@@ -14,6 +14,7 @@ from tsplcam.model.cage import Cage, cage_model
 from tsplcam.model.eigen import scheme_for
 from tsplcam.model.formats.obj import read_obj
 from tsplcam.model.quadmesh import QuadMesh
+from tsplcam.model.samples import sample_path
 from tsplcam.testing import assert_finite_everywhere, external, ngon_prism
 
 
@@ -238,6 +239,51 @@ class Continuity(unittest.TestCase):
                     Pv = sb.Pu * L[0, 1] + sb.Pv * L[1, 1]
                     d = np.abs(sa.Pu - Pu).max() + np.abs(sa.Pv - Pv).max()
                     self.assertLess(d / (np.abs(sa.Pu).max() + np.abs(sa.Pv).max()), 1e-9, f"{name} {a}->{b}")
+
+    def test_corner_neighbours_meet_at_one_point(self):
+        """Model.corner_neighbours: every patch corner lists the other patch corners at its
+        node (symmetrically); they evaluate to the same point, with one tangent plane where
+        the node is inside the surface; a closed fan around an inside node has as many patches
+        as edge links, and around an extraordinary point as many as its valence; corner-only
+        links (no shared edge) are exactly the layout's corner links."""
+        models = all_models() + [(n, tsplcam.load(sample_path(n))) for n in ("keycap", "figure4")]
+        for name, model in models:
+            layout = model.layout()
+            valence = {ep.node: ep.valence for ep in model.extraordinary if not ep.boundary}
+            scale = np.abs(model.node_points).max()
+            corner_only = set()
+            for p in model.patches:
+                for k in range(4):
+                    around = model.corner_neighbours(p.index, k)
+                    here = [(p.index, k)] + around
+                    for q, kq in around:
+                        self.assertIn((p.index, k), model.corner_neighbours(q, kq), name)
+                    pts = [model.patches[q].evaluate(*CORNER_UV[kq]) for q, kq in here]
+                    P = np.array([s.P[0] for s in pts])
+                    self.assertLess(np.abs(P - P[0]).max(), 1e-12 * scale, f"{name} patch {p.index} corner {k}")
+                    # a corner pair shares a whole edge or is a corner link
+                    edge_pairs = {(q, kq) for q, kq in around for link in layout.edge_links_between(p.index, q)
+                                  if (k, kq) in link.corner_pairs()}
+                    corner_only |= {tuple(sorted((p.index, q))) for q, kq in set(around) - edge_pairs
+                                    if not layout.edge_links_between(p.index, q)}
+                    on_boundary = any(model.patches[q].neighbours[e] is None
+                                      for q, kq in here for e in (kq, (kq + 3) % 4))
+                    if on_boundary:
+                        continue
+                    links = {tuple(sorted([(q, kq), (r, kr)])) for q, kq in here for r, kr in here
+                             if (kq, kr) in [c for lk in layout.edge_links_between(q, r) for c in lk.corner_pairs()]}
+                    self.assertEqual(len(links), len(here), f"{name}: fan at patch {p.index} corner {k}")
+                    node = p.corner_nodes[k]
+                    if node in valence:
+                        self.assertEqual(len(here), valence[node], name)
+                    normals = np.array([s.normal[0] for s in pts])
+                    self.assertLess(angle_between(normals, normals[[0]] * np.ones_like(normals)).max(), 1e-9,
+                                    f"{name}: tangent plane at patch {p.index} corner {k}")
+            expected = {tuple(sorted((a, b))) for a in range(layout.n_patches) for b in range(a)
+                        if layout.link_kind(a, b) == "corner"}
+            self.assertEqual(corner_only, expected, name)
+            if name == "figure4":
+                self.assertGreater(len(corner_only), 0)
 
     def test_curvature_continuous_across_edges_away_from_extraordinary_points(self):
         tau = np.linspace(0.2, 0.8, 13)

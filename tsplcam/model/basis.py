@@ -21,7 +21,7 @@ def bernstein(p: int, t: np.ndarray, nderiv: int = 2) -> np.ndarray:
     """
     t = np.asarray(t, dtype=float).reshape(-1)
     if p == 3 and nderiv == 2:
-        return _bernstein3(t)
+        return _bernstein3(t).transpose(2, 0, 1)
     n = len(t)
     out = np.zeros((n, nderiv + 1, p + 1))
     for d in range(nderiv + 1):
@@ -39,23 +39,33 @@ def bernstein(p: int, t: np.ndarray, nderiv: int = 2) -> np.ndarray:
     return out
 
 
+def bernstein_rows(p: int, t: np.ndarray) -> np.ndarray:
+    """The same values and first two derivatives point-minor, (3, p+1, n) contiguous: the
+    layout BLAS products over many points want."""
+    t = np.asarray(t, dtype=float).reshape(-1)
+    if p == 3:
+        return _bernstein3(t)
+    return np.ascontiguousarray(bernstein(p, t).transpose(1, 2, 0))
+
+
 def _bernstein3(t: np.ndarray) -> np.ndarray:
-    """Cubic Bernstein basis with first and second derivatives, written out (the hot case)."""
+    """Cubic Bernstein basis with first and second derivatives, written out (the hot case),
+    (3, 4, n)."""
     s = 1.0 - t
-    t2, s2 = t * t, s * s
-    out = np.empty((len(t), 3, 4))
-    out[:, 0, 0] = s2 * s
-    out[:, 0, 1] = 3.0 * t * s2
-    out[:, 0, 2] = 3.0 * t2 * s
-    out[:, 0, 3] = t2 * t
-    out[:, 1, 0] = -3.0 * s2
-    out[:, 1, 1] = 3.0 * s2 - 6.0 * t * s
-    out[:, 1, 2] = 6.0 * t * s - 3.0 * t2
-    out[:, 1, 3] = 3.0 * t2
-    out[:, 2, 0] = 6.0 * s
-    out[:, 2, 1] = 18.0 * t - 12.0
-    out[:, 2, 2] = 6.0 - 18.0 * t
-    out[:, 2, 3] = 6.0 * t
+    t2, s2, ts = t * t, s * s, t * s
+    out = np.empty((3, 4, len(t)))
+    np.multiply(s2, s, out=out[0, 0])
+    np.multiply(3.0 * t, s2, out=out[0, 1])
+    np.multiply(3.0 * t2, s, out=out[0, 2])
+    np.multiply(t2, t, out=out[0, 3])
+    np.multiply(-3.0, s2, out=out[1, 0])
+    out[1, 1] = 3.0 * s2 - 6.0 * ts
+    out[1, 2] = 6.0 * ts - 3.0 * t2
+    np.multiply(3.0, t2, out=out[1, 3])
+    np.multiply(6.0, s, out=out[2, 0])
+    out[2, 1] = 18.0 * t - 12.0
+    out[2, 2] = 6.0 - 18.0 * t
+    np.multiply(6.0, t, out=out[2, 3])
     return out
 
 

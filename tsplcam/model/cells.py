@@ -16,10 +16,12 @@ from __future__ import annotations
 
 import numpy as np
 
-from .basis import bernstein, uniform_cubic
+from .basis import bernstein, bernstein_rows, uniform_cubic
 
 # derivative combinations in output order: (order in first variable, order in second)
 DERIVS = ((0, 0), (1, 0), (0, 1), (2, 0), (1, 1), (0, 2))
+# weights this close to 1 are rounding of unit weights (Bezier extraction sums to 1 in floats)
+WEIGHT_ONE_TOL = 1e-13
 
 
 def tensor_basis(bs: np.ndarray, bt: np.ndarray) -> np.ndarray:
@@ -41,26 +43,40 @@ class BezierCells:
     kind = "bezier"
 
     def __init__(self, ctrl: np.ndarray):
-        self.ctrl = np.ascontiguousarray(ctrl, dtype=float)
+        self.ctrl = np.array(ctrl, dtype=float)
         self.q = self.ctrl.shape[1] - 1
         self.p = self.ctrl.shape[2] - 1
-        self.rational = bool(np.any(self.ctrl[..., 3] != 1.0))
+        # Bezier extraction of unit weights leaves them 1 only to rounding (1 - 1e-16): such
+        # cells are polynomial, and are evaluated so (with weights exactly 1)
+        self.rational = bool(np.any(np.abs(self.ctrl[..., 3] - 1.0) > WEIGHT_ONE_TOL))
+        if not self.rational:
+            # dividing out the weight also removes the extraction's rounding that the
+            # coordinates share with it
+            self.ctrl[..., :3] /= self.ctrl[..., 3:]
+            self.ctrl[..., 3] = 1.0
         # coordinates that vary: polynomial cells (all weights 1) skip w
         self.nc = 4 if self.rational else 3
+        # Polynomial cells are evaluated relative to their first control point: the derivative
+        # bases sum to zero only up to rounding, and that rounding would otherwise be multiplied
+        # by the coordinates' distance from the origin (the rational form cancels it through W).
+        rel = self.ctrl[..., :self.nc].copy()
+        self._origin = np.zeros((len(self.ctrl), self.nc))
+        if not self.rational:
+            self._origin = self.ctrl[:, 0, 0, :3].copy()
+            rel -= self._origin[:, None, None, :]
         # per cell, the ((q+1)*nc) x (p+1) matrix of the contraction along a: [j*nc + c, i]
-        self._cj = np.ascontiguousarray(
-            self.ctrl[..., :self.nc].transpose(0, 1, 3, 2).reshape(len(self.ctrl), -1, self.p + 1))
+        self._cj = np.ascontiguousarray(rel.transpose(0, 1, 3, 2).reshape(len(self.ctrl), -1, self.p + 1))
 
     def __len__(self) -> int:
         return len(self.ctrl)
 
     def evaluate(self, idx: np.ndarray, a: np.ndarray, b: np.ndarray):
         """Run by run of equal cell index: the contraction along a is one BLAS product per
-        run, the one along b a short sum over contiguous rows."""
+        run and derivative order, the one along b a short sum over contiguous rows."""
         n = len(a)
-        p1, q1, nc = self.p + 1, self.q + 1, self.nc
-        bs = np.ascontiguousarray(bernstein(self.p, a).transpose(2, 1, 0))   # (p+1, 3, n)
-        bt = np.ascontiguousarray(bernstein(self.q, b).transpose(1, 2, 0))   # (3, q+1, n)
+        q1, nc = self.q + 1, self.nc
+        bs = bernstein_rows(self.p, a)                  # (3, p+1, n)
+        bt = bernstein_rows(self.q, b)                  # (3, q+1, n)
         cuts = np.flatnonzero(idx[1:] != idx[:-1]) + 1
         starts = np.concatenate([[0], cuts]).tolist()
         ends = np.concatenate([cuts, [n]]).tolist()
@@ -71,37 +87,47 @@ class BezierCells:
         tmp = np.empty((nc, n))
         for s0, e0 in zip(starts, ends):
             m = e0 - s0
-            # T[j, c, d, point]: contraction along a for derivative order d
-            T = (self._cj[idx[s0]] @ bs[:, :, s0:e0].reshape(p1, -1)).reshape(q1, nc, 3, m)
+            cj = self._cj[idx[s0]]
+            # T[d][j, c, point]: contraction along a for derivative order d
+            T = [(cj @ bs[d, :, s0:e0]).reshape(q1, nc, m) for d in range(3)]
             t = tmp[:, :m]
             for k, (ds, dt) in enumerate(DERIVS):
                 o = out[k, :nc, s0:e0]
                 w = bt[dt, :, s0:e0]
-                np.multiply(w[0], T[0, :, ds], out=o)
+                Td = T[ds]
+                np.multiply(w[0], Td[0], out=o)
                 for j in range(1, q1):
-                    np.multiply(w[j], T[j, :, ds], out=t)
+                    np.multiply(w[j], Td[j], out=t)
                     o += t
+            out[0, :nc, s0:e0] += self._origin[idx[s0]][:, None]
         return out, None, None
 
     def evaluate_tensor(self, cell: int, a: np.ndarray, b: np.ndarray, wa: float = 1.0,
-                        wb: float = 1.0) -> np.ndarray:
-        """One cell on the tensor grid a x b: homogeneous derivatives (6, 4, len(a), len(b)),
-        taken with respect to a / wa and b / wb (the cell's widths in its patch). Both
-        contractions are BLAS products, so grids evaluate far faster than scattered points."""
-        q1 = self.q + 1
+                        wb: float = 1.0, out: np.ndarray | None = None) -> np.ndarray:
+        """One cell on the tensor grid a x b: derivatives (6, nc, len(a), len(b)) taken with
+        respect to a / wa and b / wb (the cell's widths in its patch); nc = 3 Euclidean
+        coordinates for polynomial cells, 4 homogeneous ones (w x, w y, w z, w) for rational.
+
+        Both contractions are BLAS products and the second one writes straight into ``out``
+        (any view of that shape whose rows are contiguous, e.g. a block of the patch's grid),
+        so a grid costs little more than writing its result."""
+        nc, p1, q1 = self.nc, self.p + 1, self.q + 1
+        na, nb = len(a), len(b)
         bs = bernstein(self.p, a)                        # (na, 3, p+1)
         bt = bernstein(self.q, b)                        # (nb, 3, q+1)
         bs[:, 1] /= wa
         bs[:, 2] /= wa * wa
         bt[:, 1] /= wb
         bt[:, 2] /= wb * wb
-        C = self.ctrl[cell]                              # (q+1, p+1, 4)
-        # along a: T[d, j, c, na]
-        T = np.einsum("jic,nai->ajcn", C, bs, optimize=True)
-        out = np.empty((6, 4, len(a), len(b)))
+        # along a, all three orders at once: T[d, c, i, j] = sum_k ctrl[j, k, c] bs[i, d, k]
+        T = (self._cj[cell] @ bs.reshape(-1, p1).T).reshape(q1, nc, na, 3)
+        T = np.ascontiguousarray(T.transpose(3, 1, 2, 0))            # (3, nc, na, q+1)
+        btT = np.ascontiguousarray(bt.transpose(1, 2, 0))             # (3, q+1, nb)
+        if out is None:
+            out = np.empty((6, nc, na, nb))
         for k, (ds, dt) in enumerate(DERIVS):
-            # (4 * na, q+1) @ (q+1, nb) -> (4, na, nb)
-            out[k] = (T[ds].reshape(q1, -1).T @ bt[:, dt, :].T).reshape(4, len(a), len(b))
+            np.matmul(T[ds], btT[dt], out=out[k])                     # (nc, na, nb)
+        out[0] += self._origin[cell][:, None, None]
         return out
 
 

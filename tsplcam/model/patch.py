@@ -74,7 +74,7 @@ class Patch:
         u = np.clip(u, 0.0, 1.0)
         v = np.clip(v, 0.0, 1.0)
         n = len(u)
-        out = np.empty((6, n, 3))
+        out = np.empty((6, 3, n))                          # coordinate-major
         ep_rows, ep_normals = [], []
         for start in range(0, n, CHUNK):
             stop = min(n, start + CHUNK)
@@ -82,11 +82,12 @@ class Patch:
             E = rational_from_homogeneous(H)                 # six (3, m), in cell order
             rows = start + order
             for k in range(6):
-                out[k, rows] = E[k].T
+                out[k][:, rows] = E[k]
             if ep is not None:
                 ep_rows.append(start + order[ep[0]])
                 ep_normals.append(ep[1])
-        P, Pu, Pv, Puu, Puv, Pvv = out
+        # (n, 3) views of the coordinate-major rows: no copy
+        P, Pu, Pv, Puu, Puv, Pvv = (x.T for x in out)
         normal_override = None
         if ep_rows:
             rows = np.concatenate(ep_rows)
@@ -120,21 +121,27 @@ class Patch:
                 J = _index_or_slice(np.nonzero(iv == cj)[0])
                 ni, nj = len(a), len(vs[J])
                 group = self.groups[self.cell_group[ci, cj]]
+                contiguous = isinstance(I, slice) and isinstance(J, slice)
+                rows = (I, J) if contiguous else np.ix_(np.arange(len(us))[I], np.arange(len(vs))[J])
+                block = (slice(None), slice(None)) + tuple(rows)
+                nrm = None
                 if isinstance(group, BezierCells):
                     wv = self.vbreaks[cj + 1] - self.vbreaks[cj]
-                    H = group.evaluate_tensor(self.cell_local[ci, cj], a,
-                                              (vs[J] - self.vbreaks[cj]) / wv, wu, wv).reshape(6, 4, -1)
-                    E = rational_from_homogeneous(H)
-                    nrm = None
+                    b = (vs[J] - self.vbreaks[cj]) / wv
+                    if not group.rational and contiguous:
+                        # polynomial cell: the BLAS product writes into the grid itself
+                        group.evaluate_tensor(self.cell_local[ci, cj], a, b, wu, wv, out=out[block])
+                        continue
+                    H = group.evaluate_tensor(self.cell_local[ci, cj], a, b, wu, wv)
+                    E = (rational_from_homogeneous(H.reshape(6, 4, -1)) if group.rational
+                         else H.reshape(6, 3, -1))
                 else:
                     U, V = np.meshgrid(us[I], vs[J], indexing="ij")
                     sp = self.evaluate(U.ravel(), V.ravel())
                     E = [x.T for x in (sp.P, sp.Pu, sp.Pv, sp.Puu, sp.Puv, sp.Pvv)]
                     nrm = sp.normal_override
-                rows = (I, J) if isinstance(I, slice) and isinstance(J, slice) else np.ix_(
-                    np.arange(len(us))[I], np.arange(len(vs))[J])
                 for k in range(6):
-                    out[k][(slice(None),) + tuple(rows)] = E[k].reshape(3, ni, nj)
+                    out[k][block[1:]] = E[k].reshape(3, ni, nj)
                 if nrm is not None:
                     if normal is None:
                         normal = np.full((len(us), len(vs), 3), np.nan)

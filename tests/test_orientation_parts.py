@@ -11,7 +11,7 @@ import unittest
 
 import numpy as np
 
-from tsplcam.errors import CollisionError
+from tsplcam.errors import CollisionError, InputError
 from tsplcam.model import samples
 from tsplcam.model.cage import cage_model
 from tsplcam.model.impeller import BLADES, R_OUT, impeller, impeller_mesh
@@ -79,6 +79,31 @@ class KeycapMold(PartCase, unittest.TestCase):
         cls.checker = CollisionChecker(cls.model, load_tool("ball1_keycap"), meshes=[("stock", V, T)],
                                        tolerance=0.005)
         cls.path = zigzag(cls.model, 0.5, lines=8, points=30)
+
+    def test_rotary_weight_lowers_rotary_motion(self):
+        """In the cavity the tilt follows the walls around, so C turns a lot: weighing the
+        rotary axis motion (rotary_weight 1) against the axis angle alone (the default 0)
+        lowers the C travel and the machining-time estimate, still collision-free."""
+        from tsplcam.post import load_machine
+        from tsplcam.verify.orientation import orientation_metrics
+        machine = load_machine("linuxcnc_xyzac_trt")
+        res = {}
+        for w in (None, 1.0):
+            out, rep = orient(self.path, checker=self.checker, strategy="smooth", machine=machine,
+                              rotary_weight=w)
+            self.assertEqual(int(self.checker.collides_exact(out.center, out.axis).sum()), 0)
+            res[w] = orientation_metrics(out, self.checker, machine)
+        self.assertEqual(rep.settings["rotary_weight"], 1.0)      # equal A and C speeds
+        angle_only, weighted = res[None], res[1.0]
+        self.assertLess(weighted.c_travel_deg, angle_only.c_travel_deg)
+        self.assertLess(weighted.time_s, angle_only.time_s)
+        for bad in ({"rotary_weight": -1.0}, {"smoothing_length": 0.0}, {"max_step": float("nan")}):
+            with self.assertRaises(InputError):
+                orient(self.path, checker=self.checker, strategy="smooth", machine=machine, **bad)
+        FIGURES.setdefault(self.name, {})["rotary_weight"] = {
+            "c_travel_deg": [angle_only.c_travel_deg, weighted.c_travel_deg],
+            "time_s": [angle_only.time_s, weighted.time_s]}
+        _save()
 
     def test_holder_hits_near_the_bottom(self):
         """On the cavity bottom near the walls a vertical axis puts the holder into the

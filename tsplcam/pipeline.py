@@ -105,7 +105,8 @@ def _cmd_path(args) -> int:
         from .post import load_machine
         machine = load_machine(args.machine)
     stock = read_triangles(args.stock) if args.stock else sample_stock(args.model)
-    oriented = orient_path(path, model, args.orientation, tool, machine, stock, args.holder_clearance)
+    oriented = orient_path(path, model, args.orientation, tool, machine, stock, args.holder_clearance,
+                           smoothing_length=args.smoothing_length, rotary_weight=args.rotary_weight)
     path = oriented.path
     if oriented.metrics is not None:
         extra["orientation"] = oriented.metrics.as_dict()
@@ -167,6 +168,13 @@ def add_path_command(subparsers) -> None:
                                                   "(the keycap_mold sample brings its block)")
     g.add_argument("--holder-clearance", type=float, default=0.3, metavar="MM",
                    help="distance kept between shank/holder and part (mm, default 0.3; the flutes only must not touch)")
+    g.add_argument("--smoothing-length", type=float, default=5.0, metavar="MM",
+                   help="smooth: a needed tilt is spread over about this length of path on each side "
+                        "(mm, default 5)")
+    g.add_argument("--rotary-weight", type=float, default=None, metavar="W",
+                   help="smooth, with --machine: weight of the rotary (C) axis motion against the change "
+                        "of the tool axis, scaled by the machine's tilt/rotary speeds (default 0: the "
+                        "axis angle only; 1 counts C like the tilt axis, which shortens mold cavities)")
     g = p.add_argument_group("posting (issue 8)")
     g.add_argument("--machine", metavar="NAME", help="machine (`python3 -m tsplcam machines`); also limits "
                                                      "the tool axes to its rotary range")

@@ -286,16 +286,6 @@ def _viterbi(cost_first: np.ndarray, trans: np.ndarray) -> np.ndarray:
     for i in range(n - 1, 0, -1):
         state[i - 1] = back[i, state[i]]
     return state
-    acc = cost_first.astype(float).copy()
-    for i in range(1, n):
-        tot = acc[:, None] + trans[i - 1]
-        back[i] = np.argmin(tot, axis=0)
-        acc = tot[back[i], np.arange(S)]
-    state = np.zeros(n, np.int64)
-    state[-1] = int(np.argmin(acc))
-    for i in range(n - 1, 0, -1):
-        state[i - 1] = back[i, state[i]]
-    return state
 
 
 def solve_joints(machine: Machine, tip, axis, *, tool_length=None, part_origin=None,

@@ -58,6 +58,12 @@ def axis_block_times(d: np.ndarray, t_min: np.ndarray, vmax: float, amax: float)
     return np.where(D > 0, t, 0.0)
 
 
+def hms(seconds: float) -> str:
+    """Seconds as h:mm:ss, the way machine displays show run times."""
+    s = int(round(seconds))
+    return f"{s // 3600:d}:{s // 60 % 60:02d}:{s % 60:02d}"
+
+
 @dataclass
 class TimeReport:
     """Estimated machining time of a posted program and the axis figures behind it."""
@@ -85,9 +91,6 @@ class TimeReport:
 
     def summary(self) -> str:
         """Lines to print for a job."""
-        def hms(s):
-            s = int(round(s))
-            return f"{s // 3600:d}:{s // 60 % 60:02d}:{s % 60:02d}"
         lines = [f"machining time {hms(self.total_s)} ({self.total_s:.1f} s: cutting {self.cut_s:.1f} s, "
                  f"air {self.air_s:.1f} s; length/feed alone {self.feed_only_s:.1f} s), {self.blocks} blocks"]
         for j, n in enumerate(self.axis_names):

@@ -205,6 +205,75 @@ class ToolPathCommand:
                 FreeCADGui.Selection.clearSelection()
 
 
+class ProgramCommand:
+    """Orient the tool and post the program of the selected tool path (or the only one)."""
+
+    def GetResources(self):
+        return {"Pixmap": icon("program"), "MenuText": "Post program",
+                "ToolTip": "Collision-free tool axes (smooth by default) and the machine program of the "
+                           "tool path; pick tool, machine and controller in its properties and recompute"}
+
+    def _paths(self):
+        from tsplcam.workbench.pathobject import is_path_object
+        sel = [o for o in FreeCADGui.Selection.getSelection() if is_path_object(o)]
+        if sel:
+            return sel
+        doc = FreeCAD.ActiveDocument
+        paths = [o for o in doc.Objects if is_path_object(o)] if doc else []
+        return paths if len(paths) == 1 else []
+
+    def IsActive(self):
+        return FreeCAD.ActiveDocument is not None and bool(self._paths())
+
+    def Activated(self):
+        from tsplcam.workbench.programobject import make_program
+        for path in self._paths():
+            obj = make_program(path)
+            if obj is not None:
+                FreeCADGui.Selection.clearSelection()
+                FreeCADGui.Selection.addSelection(obj)
+
+
+class SaveProgramCommand:
+    """Write the selected program's G-code to a file."""
+
+    def GetResources(self):
+        return {"Pixmap": icon("savegcode"), "MenuText": "Save G-code...",
+                "ToolTip": "Write the selected program to a file for the machine"}
+
+    def _programs(self):
+        from tsplcam.workbench.programobject import is_program_object
+        sel = [o for o in FreeCADGui.Selection.getSelection() if is_program_object(o)]
+        if sel:
+            return sel
+        doc = FreeCAD.ActiveDocument
+        progs = [o for o in doc.Objects if is_program_object(o)] if doc else []
+        return progs if len(progs) == 1 else []
+
+    def IsActive(self):
+        return FreeCAD.ActiveDocument is not None and bool(self._programs())
+
+    def Activated(self):
+        from PySide import QtGui
+        from tsplcam.workbench import messages
+        from tsplcam.workbench.programobject import export_program
+        for prog in self._programs():
+            name = prog.ProgramName or "program.nc"
+            suffix = os.path.splitext(name)[1] or ".nc"
+            start = os.path.join(os.path.expanduser("~"), name)
+            path, _ = QtGui.QFileDialog.getSaveFileName(
+                FreeCADGui.getMainWindow(), f"Save {prog.Label}", start,
+                f"Machine program (*{suffix});;All files (*)")
+            if not path:
+                continue
+            try:
+                export_program(prog, path)
+            except Exception as exc:
+                messages.exception("Save G-code", exc, f"writing {path}")
+            else:
+                messages.info(f"{prog.Label}: wrote {path}")
+
+
 class _ToggleCommand:
     """Switch a display layer of the selected models (all models when none is selected)."""
     PROPERTY = ""
@@ -260,6 +329,8 @@ COMMANDS = {
     "Tsplcam_PatchNeighbours": PatchNeighboursCommand,
     "Tsplcam_Plan": PlanCommand,
     "Tsplcam_ToolPath": ToolPathCommand,
+    "Tsplcam_Program": ProgramCommand,
+    "Tsplcam_SaveProgram": SaveProgramCommand,
     "Tsplcam_About": AboutCommand,
 }
 
@@ -277,6 +348,12 @@ def available() -> dict:
     from tsplcam.workbench.pathobject import toolpath_available
     if not toolpath_available():
         out.pop("Tsplcam_ToolPath")
+    try:
+        import tsplcam.orientation  # noqa: F401
+        import tsplcam.post  # noqa: F401,F811
+    except ImportError:
+        out.pop("Tsplcam_Program")
+        out.pop("Tsplcam_SaveProgram")
     return out
 
 

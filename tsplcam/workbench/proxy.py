@@ -145,3 +145,57 @@ class ViewProxy:
 
     def loads(self, state):
         return None
+
+
+class DrawnViewProxy(ViewProxy):
+    """A view provider that draws one Coin group from its object's stored result.
+
+    Subclasses set DATA_PROPS (object properties whose change redraws), VIEW_PROPS (view
+    properties whose change redraws), TITLE (for messages) and implement ``draw(obj,
+    group)``; drawing waits until a document has finished loading, and a failure to read
+    the stored result is reported, never raised into FreeCAD."""
+    DATA_PROPS: tuple = ()
+    VIEW_PROPS: tuple = ()
+    TITLE = "tsplcam"
+    root = None
+    group = None
+
+    def attach(self, vobj):
+        from pivy import coin
+        super().attach(vobj)
+        self.root = coin.SoSeparator()
+        self.group = coin.SoSeparator()
+        self.root.addChild(self.group)
+        vobj.addDisplayMode(self.root, self.DISPLAY_MODE)
+        self.rebuild()
+
+    def updateData(self, obj, prop):
+        if prop in self.DATA_PROPS:
+            self.rebuild()
+
+    def onChanged(self, vobj, prop):
+        if prop in self.VIEW_PROPS and self.group is not None:
+            self.rebuild()
+
+    def finishRestoring(self):
+        self.rebuild(after_restore=True)
+
+    def draw(self, obj, group) -> bool:
+        """Add the drawing of ``obj`` to ``group`` (empty); True when something was drawn."""
+        return False
+
+    def rebuild(self, after_restore: bool = False) -> bool:
+        if self.group is None:
+            return False
+        if not after_restore and self.restoring():
+            self.later(lambda: self.rebuild(after_restore=True))
+            return False
+        self.group.removeAllChildren()
+        obj = self.Object
+        try:
+            return bool(self.draw(obj, self.group))
+        except Exception as exc:
+            from . import messages
+            messages.exception(self.TITLE, exc, f"drawing {obj.Label}")
+            return False
+

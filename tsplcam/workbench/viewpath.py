@@ -8,11 +8,10 @@ stored ToolPath, never recomputed here.
 from __future__ import annotations
 
 import numpy as np
-from pivy import coin
 
-from . import coinutil, display, messages
+from . import coinutil, display
 from .pathobject import path_of
-from .proxy import ViewProxy, add_property
+from .proxy import DrawnViewProxy, add_property
 
 MOVE_STYLE = {      # Move value: (colour, width, pattern)
     0: ((0.05, 0.10, 0.45), 1.2, None),          # CUT
@@ -30,54 +29,25 @@ def ensure_view_properties(vobj) -> None:
         vobj.Show = "Ball centre"
 
 
-class ViewProviderToolPath(ViewProxy):
+class ViewProviderToolPath(DrawnViewProxy):
     ensure_view_properties = staticmethod(ensure_view_properties)
     DISPLAY_MODE = "Path"
     ICON = "toolpath"
     CHILD = "ProcessingList"
-    root = None
-    group = None
+    DATA_PROPS = ("PathFile",)
+    VIEW_PROPS = ("Show",)
+    TITLE = "Tool path"
 
-    def attach(self, vobj):
-        super().attach(vobj)
-        self.root = coin.SoSeparator()
-        self.group = coin.SoSeparator()
-        self.root.addChild(self.group)
-        vobj.addDisplayMode(self.root, "Path")
-        self.rebuild()
-
-    def updateData(self, obj, prop):
-        if prop in ("PathFile",):
-            self.rebuild()
-
-    def onChanged(self, vobj, prop):
-        if prop == "Show" and self.group is not None:
-            self.rebuild()
-
-    def finishRestoring(self):
-        self.rebuild(after_restore=True)
-
-    def rebuild(self, after_restore: bool = False) -> bool:
-        if self.group is None:
-            return False
-        if not after_restore and self.restoring():
-            self.later(lambda: self.rebuild(after_restore=True))
-            return False
-        self.group.removeAllChildren()
-        obj = self.Object
+    def draw(self, obj, group) -> bool:
         if not obj.PathFile:
             return False
-        try:
-            tp = path_of(obj)
-        except Exception as exc:
-            messages.exception("Tool path", exc, f"drawing {obj.Label}")
-            return False
+        tp = path_of(obj)
         pts = tp.center if getattr(self.ViewObject, "Show", "Ball centre") == "Ball centre" else tp.contact
         for move, lines in sorted(display.segments_by_move(pts, tp.move).items()):
             colour, width, pattern = MOVE_STYLE.get(move, MOVE_STYLE[0])
-            self.group.addChild(coinutil.polylines(lines, colour, width, pattern))
+            group.addChild(coinutil.polylines(lines, colour, width, pattern))
         if len(pts):
             size = float(np.linalg.norm(pts.max(axis=0) - pts.min(axis=0))) or 1.0
-            self.group.addChild(coinutil.spheres(pts[:1], 0.012 * size, (0.10, 0.75, 0.20)))
-            self.group.addChild(coinutil.spheres(pts[-1:], 0.012 * size, (0.0, 0.0, 0.0)))
+            group.addChild(coinutil.spheres(pts[:1], 0.012 * size, (0.10, 0.75, 0.20)))
+            group.addChild(coinutil.spheres(pts[-1:], 0.012 * size, (0.0, 0.0, 0.0)))
         return True

@@ -111,3 +111,37 @@ class ProgramObject(unittest.TestCase):
         self.assertEqual(len(self.doc.Objects), before)
         self.assertEqual(po.tool_for_radius(0.5), "ball1_keycap")
         self.assertIsNone(po.tool_for_radius(0.123))
+
+    def test_stock_is_part_of_the_collision_checks(self):
+        """The mold block as a Mesh object gives the same program as the sample's own block;
+        a lid over the cavity leaves no collision-free axis: an error naming the point and
+        patch, and no object."""
+        import Mesh
+        import Part
+        from tsplcam.model import samples
+        po = self.programobject
+        model_obj = self.importer.import_file(sample_path("keycap_mold"), self.doc)
+        plan = self.planobject.make_processing_list(model_obj)
+        path_obj = self.pathobject.make_tool_path(plan, scallop=0.1)
+        self.assertIsNotNone(path_obj, self.messages.recorded[-1:])
+        own = po.make_program(path_obj)                    # the sample brings its block
+        self.assertIsNotNone(own, self.messages.recorded[-1:])
+        V, T = samples.keycap_mold_stock()
+        block = self.doc.addObject("Mesh::Feature", "Block")
+        block.Mesh = Mesh.Mesh([[list(V[i]) for i in tri] for tri in T])
+        linked = po.make_program(path_obj, stock=block)
+        self.assertIsNotNone(linked, self.messages.recorded[-1:])
+        self.assertIs(linked.Stock, block)
+        self.assertEqual(po.program_text(linked), po.program_text(own))
+        np.testing.assert_array_equal(po.triangles_of(block)[1].shape, T.shape)
+
+        top = V[:, 2].max()
+        lid = self.doc.addObject("Part::Feature", "Lid")
+        lid.Shape = Part.makeBox(40, 40, 2, self.FreeCAD.Vector(-20, -20, top + 3))
+        before = len(self.doc.Objects)
+        self.assertIsNone(po.make_program(path_obj, stock=lid))
+        title, text, is_error = self.messages.recorded[-1]
+        self.assertTrue(is_error)
+        self.assertIn("patch", text)
+        self.assertIn("collision-free", text)
+        self.assertEqual(len(self.doc.Objects), before)

@@ -102,6 +102,9 @@ class TsplcamProgram(FeatureProxy):
                         "Controller syntax of the program (default: the machine's controller)"):
             obj.Dialect = dialect_names()
             obj.Dialect = CONTROLLER
+        add_property(obj, "App::PropertyLink", "Stock", g,
+                     "Stock, mold block or fixture (a Part or Mesh object) the tool must clear too; "
+                     "empty: the model alone (the keycap_mold sample brings its block)")
         add_property(obj, "App::PropertyLength", "HolderClearance", g,
                      "Distance kept between shank/holder and the part (the flutes only must not touch)", 0.3)
         add_property(obj, "App::PropertyLength", "SmoothingLength", g,
@@ -152,6 +155,10 @@ class TsplcamProgram(FeatureProxy):
         h.update(obj.ToolPath.InputsKey.encode())
         settings = self.settings(obj)
         h.update(json.dumps(settings, sort_keys=True).encode())
+        if obj.Stock is not None:
+            V, T = triangles_of(obj.Stock)
+            h.update(V.tobytes())
+            h.update(T.tobytes())
         for f in (obj.ToolFile, _machine_file(obj.Machine)):
             if f and os.path.isfile(f):
                 with open(f, "rb") as fh:
@@ -168,8 +175,9 @@ class TsplcamProgram(FeatureProxy):
     # -- computing ---------------------------------------------------------------------------------
     def compute(self, obj):
         tp_obj, model_obj = self._check_inputs(obj)
+        stock = triangles_of(obj.Stock) if obj.Stock is not None else None
         return compute_program(path_of(tp_obj), model_of(model_obj), model_obj.SourceFile,
-                               **self.settings(obj))
+                               stock=stock, **self.settings(obj))
 
     def execute(self, obj):
         self._check_inputs(obj)
@@ -236,11 +244,30 @@ def _file_stem(obj) -> str:
     return os.path.splitext(src)[0] or "program"
 
 
+def triangles_of(obj, tolerance: float = 0.01):
+    """Triangles (vertices (n,3), triangles (m,3)) of a Mesh object exactly, or of a Part
+    shape tessellated within ``tolerance`` mm, in the document's global placement."""
+    mesh = getattr(obj, "Mesh", None)
+    if mesh is not None and hasattr(mesh, "Topology"):
+        pts, tris = mesh.Topology
+    else:
+        shape = getattr(obj, "Shape", None)
+        if shape is None or shape.isNull() or not shape.Faces:
+            raise InputError("the stock must be a Part or Mesh object with faces", item=obj.Label)
+        pts, tris = shape.tessellate(tolerance)
+    V = np.array([[p.x, p.y, p.z] for p in pts], float).reshape(-1, 3)
+    T = np.array(tris, int).reshape(-1, 3)
+    if len(T) == 0:
+        raise InputError("the stock has no triangles", item=obj.Label)
+    return V, T
+
+
 def compute_program(toolpath, model, source_file: str, tool: str, orientation: str, machine: str,
                     dialect: str | None, holder_clearance: float, smoothing_length: float,
-                    rotary_weight: float):
+                    rotary_weight: float, stock=None):
     """(oriented ToolPath, PostResult, orientation metrics or None) as the command line makes
-    them; raises InputError, CollisionError or KinematicsError naming the place."""
+    them; ``stock`` (V, T) triangles, else the sample's mold block where the model is the
+    keycap_mold sample. Raises InputError, CollisionError or KinematicsError naming the place."""
     from ..orientation import load_tool
     from ..pipeline import orient_path, sample_stock
     from ..post import load_machine, post_program
@@ -250,7 +277,9 @@ def compute_program(toolpath, model, source_file: str, tool: str, orientation: s
         raise InputError(f"tool {cutter.name} has a ball of radius {cutter.ball_radius:g} mm, the path was "
                          f"made for {toolpath.tool_radius:g} mm: pick a matching tool or change the path's "
                          "ToolRadius")
-    oriented = orient_path(toolpath, model, orientation, cutter, mach, sample_stock(source_file),
+    if stock is None:
+        stock = sample_stock(source_file)
+    oriented = orient_path(toolpath, model, orientation, cutter, mach, stock,
                            holder_clearance, smoothing_length=smoothing_length, rotary_weight=rotary_weight)
     posted = post_program(oriented.path, mach, dialect)
     return oriented.path, posted, oriented.metrics
@@ -278,11 +307,14 @@ def export_program(obj, path: str) -> str:
 def make_program(path_obj, **settings):
     """A TsplcamProgram for the tool path ``path_obj``: oriented and posted first (seconds to a
     minute), added only on success; None after reporting why not (a collision or a pose
-    outside the machine's limits, named by point, patch and (u, v))."""
+    outside the machine's limits, named by point, patch and (u, v)). ``settings``: tool,
+    orientation, machine, dialect, holder_clearance, smoothing_length, rotary_weight, and
+    stock (a document object)."""
     doc = path_obj.Document
     radius = float(path_obj.ToolRadius.Value)
     s = dict(tool=tool_for_radius(radius), orientation="smooth", machine=DEFAULT_MACHINE, dialect=None,
              holder_clearance=0.3, smoothing_length=5.0, rotary_weight=0.0)
+    stock_obj = settings.pop("stock", None)
     s.update(settings)
     busy = _busy()
     try:
@@ -291,7 +323,8 @@ def make_program(path_obj, **settings):
                              "(tsplcam/orientation/TOOLS.md) or post with orientation 'normal'",
                              item=path_obj.Label)
         model_obj = path_obj.ProcessingList.Model
-        result = compute_program(path_of(path_obj), model_of(model_obj), model_obj.SourceFile, **s)
+        stock = triangles_of(stock_obj) if stock_obj is not None else None
+        result = compute_program(path_of(path_obj), model_of(model_obj), model_obj.SourceFile, stock=stock, **s)
     except Exception as exc:
         messages.exception(TITLE, exc, f"posting {path_obj.Label}")
         return None
@@ -303,6 +336,7 @@ def make_program(path_obj, **settings):
         TsplcamProgram(obj)
         obj.Label = f"{path_obj.Label} program"
         obj.ToolPath = path_obj
+        obj.Stock = stock_obj
         if s["tool"] in tool_names():
             obj.Tool = s["tool"]
         elif s["tool"]:

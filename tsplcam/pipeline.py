@@ -106,7 +106,8 @@ def _cmd_path(args) -> int:
         machine = load_machine(args.machine)
     stock = read_triangles(args.stock) if args.stock else sample_stock(args.model)
     oriented = orient_path(path, model, args.orientation, tool, machine, stock, args.holder_clearance,
-                           smoothing_length=args.smoothing_length, rotary_weight=args.rotary_weight)
+                           smoothing_length=args.smoothing_length, rotary_weight=args.rotary_weight,
+                           progress=_progress("orienting: poses checked / at most"))
     path = oriented.path
     if oriented.metrics is not None:
         extra["orientation"] = oriented.metrics.as_dict()
@@ -232,7 +233,8 @@ def run_job(s: JobSettings, log=print) -> dict:
         f"({time.perf_counter() - t:.2f} s)")
     figures["path"] = m.as_dict()
     t = time.perf_counter()
-    oriented = orient_path(path, model, s.orientation, tool, machine, sample_stock(s.model), s.holder_clearance)
+    oriented = orient_path(path, model, s.orientation, tool, machine, sample_stock(s.model), s.holder_clearance,
+                           progress=_progress("orienting: poses checked / at most"))
     if oriented.metrics is not None:
         log(f"tool axes ({s.orientation}): {oriented.metrics.summary()} ({time.perf_counter() - t:.2f} s)")
         figures["orientation"] = oriented.metrics.as_dict()

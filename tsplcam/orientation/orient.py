@@ -131,11 +131,12 @@ def _toward(a, b, t):
     return unit(w0[:, None] * a + w1[:, None] * b)
 
 
-def orient_closest(path, checker, preferred, limits: Limits, reach, feed, bisect: int = 6):
+def orient_closest(path, checker, preferred, limits: Limits, reach, feed, bisect: int = 6, tick=None):
     """shang2020: per point the admissible collision-free axis closest to ``preferred``."""
     n = len(path)
     C = path.center
     A, ok = candidate_axes(path.normal, feed, preferred, limits, reach)
+    tick = tick or (lambda m: None)
     pref = unit(np.broadcast_to(preferred, (n, 3)).copy())
     dev = angle(A, pref[:, None, :])
     order = np.argsort(np.where(ok, dev, np.inf), axis=1, kind="stable")
@@ -156,6 +157,7 @@ def orient_closest(path, checker, preferred, limits: Limits, reach, feed, bisect
             break
         free = ~checker.collides(C[idx], A[idx, col])
         chosen[idx[free]] = col[free]
+        tick(A.shape[1])
     missing = np.nonzero(chosen < 0)[0]
     if len(missing):
         i = int(missing[0])
@@ -318,11 +320,12 @@ def _relax(path, checker, axes, pref, feed, limits, reach, L, max_step, rounds=4
 
 def orient_smooth(path, checker, preferred, limits: Limits, reach, feed, smoothing_length: float,
                   max_step: float, window: int = 2, relax_rounds: int = 40, max_rounds: int = 200,
-                  wrot: float = 0.0):
+                  wrot: float = 0.0, tick=None):
     n = len(path)
     C = path.center
     A, ok = candidate_axes(path.normal, feed, preferred, limits, reach)
     m = A.shape[1]
+    tick = tick or (lambda m: None)
     pref = unit(np.broadcast_to(preferred, (n, 3)).copy())
     none = ~ok.any(axis=1)
     if none.any():
@@ -342,6 +345,7 @@ def orient_smooth(path, checker, preferred, limits: Limits, reach, feed, smoothi
     rounds = 0
     while True:
         rounds += 1
+        tick(m)
         states, broke = _viterbi(A, status <= 0, node_cost, ds, smoothing_length, max_step, free_step,
                                  phi, wrot)
         if states is None:
@@ -350,7 +354,7 @@ def orient_smooth(path, checker, preferred, limits: Limits, reach, feed, smoothi
             todo = [j for j in (i, i + 1) if not resolved[j]]
             if todo:
                 for j in todo:
-                    _resolve(checker, C, A, status, resolved, [j])
+                    _resolve(checker, C, A, status, resolved, [j], tick)
                 continue
             if not (status[i] == 0).any() or not (status[i + 1] == 0).any():
                 j = i if not (status[i] == 0).any() else i + 1
@@ -371,7 +375,7 @@ def orient_smooth(path, checker, preferred, limits: Limits, reach, feed, smoothi
         if len(bad) == 0:
             break
         near = np.unique(np.clip(bad[:, None] + np.arange(-window, window + 1)[None, :], 0, n - 1))
-        _resolve(checker, C, A, status, resolved, near[~resolved[near]])
+        _resolve(checker, C, A, status, resolved, near[~resolved[near]], tick)
         if rounds >= max_rounds:                                     # pragma: no cover
             raise CollisionError(f"orientation DP did not settle in {max_rounds} rounds")
     axes = A[np.arange(n), pick].copy()
@@ -396,16 +400,19 @@ def _rotary_weight(machine, rotary_weight: float | None) -> float:
     return float(rotary_weight * (vt / vr) ** 2) if vt and vr else float(rotary_weight)
 
 
-def _resolve(checker, C, A, status, resolved, idx):
-    """Check every still unknown candidate of the points ``idx``."""
+def _resolve(checker, C, A, status, resolved, idx, tick=None, chunk: int = 20000):
+    """Check every still unknown candidate of the points ``idx`` (``chunk`` poses at a time,
+    calling ``tick(m)`` after each for progress)."""
     idx = np.asarray(idx, int)
     if len(idx) == 0:
         return
     pi, ci = np.nonzero(status[idx] == -1)
-    if len(pi):
-        rows = idx[pi]
-        hit = checker.collides(C[rows], A[rows, ci])
-        status[rows, ci] = np.where(hit, 1, 0)
+    for s0 in range(0, len(pi), chunk):
+        rows, cols = idx[pi[s0:s0 + chunk]], ci[s0:s0 + chunk]
+        hit = checker.collides(C[rows], A[rows, cols])
+        status[rows, cols] = np.where(hit, 1, 0)
+        if tick is not None:
+            tick(A.shape[1])
     resolved[idx] = True
 
 
@@ -415,7 +422,8 @@ def orient(path, model=None, tool=None, strategy: str = "smooth", *, checker: Co
            stock=None, meshes=(), machine=None, preferred=Z_AXIS, fixed_axis=Z_AXIS,
            lead_max: float = 60.0, tilt_max: float = 60.0, resolution: float = 10.0,
            max_step: float = 10.0, smoothing_length: float = 5.0, tolerance: float = 0.005,
-           clearance: float = 0.0, max_tilt: float | None = None, rotary_weight: float | None = None):
+           clearance: float = 0.0, max_tilt: float | None = None, rotary_weight: float | None = None,
+           progress=None):
     """Tool axes for ``path`` (a ToolPath). Angles in degrees at this interface.
 
     ``model``, ``tool``: the surface model and :class:`Tool` (or give a prepared
@@ -429,6 +437,9 @@ def orient(path, model=None, tool=None, strategy: str = "smooth", *, checker: Co
     tool axis angle alone; needs a machine). It pays where the tilt follows walls around a
     cavity (the mold: C travel and machining time about a third lower on the test path);
     on the impeller it does not (C travel up to 20 % higher, time equal).
+    ``progress(done, total)``, when given, is called as collision checks accumulate: poses
+    checked so far against the most there can be (every candidate of every point); the last
+    call has done == total.
     Returns ``(path_with_axes, OrientationReport)``; raises CollisionError where no
     admissible collision-free axis exists (naming point, patch, (u, v) and the obstacle).
     """
@@ -460,13 +471,21 @@ def orient(path, model=None, tool=None, strategy: str = "smooth", *, checker: Co
     _check_ball(path, checker)
     feed = feed_directions(path.contact, path.normal)
     pref = unit(np.asarray(preferred, float).reshape(3))
+    worst = [len(path)]
+
+    def tick(m: int) -> None:
+        worst[0] = len(path) * m
+        if progress is not None:
+            progress(min(checker.checks - checks0, worst[0] - 1), worst[0])
     if strategy == "fixed":
         axes, info = orient_fixed(path, checker, fixed_axis, reach)
     elif strategy == "closest-z":
-        axes, info = orient_closest(path, checker, pref, limits, reach, feed)
+        axes, info = orient_closest(path, checker, pref, limits, reach, feed, tick=tick)
     else:
         axes, info = orient_smooth(path, checker, pref, limits, reach, feed, smoothing_length,
-                                   max_step * DEG, wrot=_rotary_weight(machine, rotary_weight))
+                                   max_step * DEG, wrot=_rotary_weight(machine, rotary_weight), tick=tick)
+    if progress is not None:
+        progress(worst[0], worst[0])
     out = path.with_axis(axes)
     steps = angle(axes[1:], axes[:-1]) / DEG if len(axes) > 1 else np.zeros(1)
     settings = dict(strategy=strategy, lead_max=lead_max, tilt_max=tilt_max, resolution=resolution,

@@ -14,6 +14,7 @@ limits, is an error (named by point, patch and (u, v)), never a program.
 """
 from __future__ import annotations
 
+import contextlib
 import hashlib
 import json
 import os
@@ -176,8 +177,9 @@ class TsplcamProgram(FeatureProxy):
     def compute(self, obj):
         tp_obj, model_obj = self._check_inputs(obj)
         stock = triangles_of(obj.Stock) if obj.Stock is not None else None
-        return compute_program(path_of(tp_obj), model_of(model_obj), model_obj.SourceFile,
-                               stock=stock, **self.settings(obj))
+        with progress_bar(f"tsplcam: tool axes of {obj.Label}") as progress:
+            return compute_program(path_of(tp_obj), model_of(model_obj), model_obj.SourceFile,
+                                   stock=stock, progress=progress, **self.settings(obj))
 
     def execute(self, obj):
         self._check_inputs(obj)
@@ -264,10 +266,11 @@ def triangles_of(obj, tolerance: float = 0.01):
 
 def compute_program(toolpath, model, source_file: str, tool: str, orientation: str, machine: str,
                     dialect: str | None, holder_clearance: float, smoothing_length: float,
-                    rotary_weight: float, stock=None):
+                    rotary_weight: float, stock=None, progress=None):
     """(oriented ToolPath, PostResult, orientation metrics or None) as the command line makes
     them; ``stock`` (V, T) triangles, else the sample's mold block where the model is the
-    keycap_mold sample. Raises InputError, CollisionError or KinematicsError naming the place."""
+    keycap_mold sample; ``progress(done, total)`` follows the collision checks. Raises
+    InputError, CollisionError or KinematicsError naming the place."""
     from ..orientation import load_tool
     from ..pipeline import orient_path, sample_stock
     from ..post import load_machine, post_program
@@ -280,9 +283,32 @@ def compute_program(toolpath, model, source_file: str, tool: str, orientation: s
     if stock is None:
         stock = sample_stock(source_file)
     oriented = orient_path(toolpath, model, orientation, cutter, mach, stock,
-                           holder_clearance, smoothing_length=smoothing_length, rotary_weight=rotary_weight)
+                           holder_clearance, smoothing_length=smoothing_length, rotary_weight=rotary_weight,
+                           progress=progress)
     posted = post_program(oriented.path, mach, dialect)
     return oriented.path, posted, oriented.metrics
+
+
+@contextlib.contextmanager
+def progress_bar(text: str, steps: int = 100):
+    """FreeCAD's progress bar (GUI only; headless None) as a ``progress(done, total)``
+    callback, stopped however the work ends."""
+    if not FreeCAD.GuiUp:
+        yield None
+        return
+    bar = FreeCAD.Base.ProgressIndicator()
+    bar.start(text, steps)
+    shown = [0]
+
+    def report(done: int, total: int) -> None:
+        target = min(steps, int(steps * done / max(total, 1)))
+        while shown[0] < target:
+            bar.next()
+            shown[0] += 1
+    try:
+        yield report
+    finally:
+        bar.stop()
 
 
 def is_program_object(obj) -> bool:
@@ -324,7 +350,9 @@ def make_program(path_obj, **settings):
                              item=path_obj.Label)
         model_obj = path_obj.ProcessingList.Model
         stock = triangles_of(stock_obj) if stock_obj is not None else None
-        result = compute_program(path_of(path_obj), model_of(model_obj), model_obj.SourceFile, stock=stock, **s)
+        with progress_bar(f"tsplcam: tool axes of {path_obj.Label}") as progress:
+            result = compute_program(path_of(path_obj), model_of(model_obj), model_obj.SourceFile,
+                                     stock=stock, progress=progress, **s)
     except Exception as exc:
         messages.exception(TITLE, exc, f"posting {path_obj.Label}")
         return None

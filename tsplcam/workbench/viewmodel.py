@@ -23,9 +23,9 @@ LAYERS = ("surface", "edges", "numbers", "extraordinary", "control", "adjacency"
 TOGGLES = {"ShowPatchEdges": "edges", "ShowPatchNumbers": "numbers",
            "ShowExtraordinary": "extraordinary", "ShowControlMesh": "control",
            "ShowAdjacency": "adjacency"}
-PROGRESS_PATCHES = 200
+PROGRESS_PATCHES = 200      # show a progress bar when tessellating more patches than this
 LABEL_LIFT = 0.01           # labels float this fraction of the model size above the surface
-LABEL_PULL = 0.04           # ... and are drawn this fraction nearer the viewer      # show a progress bar when tessellating more patches than this
+LABEL_PULL = 0.04           # ... and are drawn this fraction nearer the viewer
 
 
 def ensure_view_properties(vobj) -> None:

@@ -29,7 +29,11 @@ point, patch, (u, v) and what the tool hits.
   run; the loop ends when the chosen sequence is collision-free, which is then optimal for
   the true collision-free sets. Finally the discrete sequence is relaxed continuously
   (red-black Gauss-Seidel on J, each move kept only when it is admissible and
-  collision-free), which removes the candidate grid's quantisation.
+  collision-free), which removes the candidate grid's quantisation. With a machine and a
+  ``rotary_weight`` w > 0 each step also costs ``L * w (v_tilt / v_C)^2 dC^2 / ds``, dC the
+  turn of the rotary axis C (the azimuth about +Z, modulo 180 deg where the tilt may change
+  sign instead, free inside the post's 0.5 deg singular cone): where the tilt follows walls
+  around a cavity this trades a little axis angle for much less C travel.
 """
 from __future__ import annotations
 

@@ -248,7 +248,7 @@ def _file_stem(obj) -> str:
 
 def triangles_of(obj, tolerance: float = 0.01):
     """Triangles (vertices (n,3), triangles (m,3)) of a Mesh object exactly, or of a Part
-    shape tessellated within ``tolerance`` mm, in the document's global placement."""
+    shape tessellated within ``tolerance`` mm, with its placement."""
     mesh = getattr(obj, "Mesh", None)
     if mesh is not None and hasattr(mesh, "Topology"):
         pts, tris = mesh.Topology

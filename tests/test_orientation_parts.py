@@ -100,6 +100,8 @@ class KeycapMold(PartCase, unittest.TestCase):
         for bad in ({"rotary_weight": -1.0}, {"smoothing_length": 0.0}, {"max_step": float("nan")}):
             with self.assertRaises(InputError):
                 orient(self.path, checker=self.checker, strategy="smooth", machine=machine, **bad)
+        with self.assertRaises(InputError):
+            orient(self.path, checker=self.checker, strategy="smooth", rotary_weight=1.0)   # no machine
         FIGURES.setdefault(self.name, {})["rotary_weight"] = {
             "c_travel_deg": [angle_only.c_travel_deg, weighted.c_travel_deg],
             "time_s": [angle_only.time_s, weighted.time_s]}

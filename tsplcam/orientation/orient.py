@@ -393,13 +393,15 @@ def _rotary_weight(machine, rotary_weight: float | None) -> float:
     """Weight of the squared rotary-axis motion in J: the user's factor (default 0, the axis
     angle alone) times the machine's (tilt speed / rotary speed)^2, so that a factor 1 adds
     rotary joint motion in units of the tilt axis's time. Without a machine there is no
-    rotary axis and the weight is 0."""
+    rotary axis to weigh: a weight > 0 is refused."""
     if rotary_weight is None:
         rotary_weight = 0.0
     if rotary_weight < 0 or not np.isfinite(rotary_weight):
         raise InputError(f"rotary weight must be a number >= 0, not {rotary_weight}")
-    if machine is None or rotary_weight == 0.0:
-        return float(rotary_weight)
+    if rotary_weight == 0.0:
+        return 0.0
+    if machine is None:
+        raise InputError("a rotary weight needs a machine (--machine): it weighs that machine's rotary axis")
     vt, vr = machine.tilt.max_velocity, machine.rotary.max_velocity
     return float(rotary_weight * (vt / vr) ** 2) if vt and vr else float(rotary_weight)
 
@@ -455,6 +457,7 @@ def orient(path, model=None, tool=None, strategy: str = "smooth", *, checker: Co
                         ("candidate resolution", resolution)):
         if not (np.isfinite(value) and value > 0):
             raise InputError(f"{name} must be a number > 0, not {value:g}")
+    wrot = _rotary_weight(machine, rotary_weight) if strategy == "smooth" else 0.0
     if checker is None:
         if tool is None:
             raise InputError("orient needs a tool (or a prepared collision checker)")
@@ -487,14 +490,14 @@ def orient(path, model=None, tool=None, strategy: str = "smooth", *, checker: Co
         axes, info = orient_closest(path, checker, pref, limits, reach, feed, tick=tick)
     else:
         axes, info = orient_smooth(path, checker, pref, limits, reach, feed, smoothing_length,
-                                   max_step * DEG, wrot=_rotary_weight(machine, rotary_weight), tick=tick)
+                                   max_step * DEG, wrot=wrot, tick=tick)
     if progress is not None:
         progress(worst[0], worst[0])
     out = path.with_axis(axes)
     steps = angle(axes[1:], axes[:-1]) / DEG if len(axes) > 1 else np.zeros(1)
     settings = dict(strategy=strategy, lead_max=lead_max, tilt_max=tilt_max, resolution=resolution,
                     max_step=max_step, smoothing_length=smoothing_length,
-                    rotary_weight=_rotary_weight(machine, rotary_weight) if strategy == "smooth" else 0.0,
+                    rotary_weight=wrot,
                     tolerance=checker.tolerance,
                     clearance=checker.clearance, preferred=[float(x) for x in pref],
                     reach=reach.name if reach else "none", tool=tool.name)

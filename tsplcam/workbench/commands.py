@@ -27,6 +27,16 @@ def _selected_or_all_models():
     return sel or model_objects(FreeCAD.ActiveDocument)
 
 
+def _selected_or_only(is_kind) -> list:
+    """The selected objects of a kind, else the only one of the active document (else none)."""
+    sel = [o for o in FreeCADGui.Selection.getSelection() if is_kind(o)]
+    if sel:
+        return sel
+    doc = FreeCAD.ActiveDocument
+    found = [o for o in doc.Objects if is_kind(o)] if doc else []
+    return found if len(found) == 1 else []
+
+
 class AboutCommand:
     """Show the version of tsplcam and of the libraries it runs on."""
 
@@ -187,12 +197,7 @@ class ToolPathCommand:
 
     def _plans(self):
         from tsplcam.workbench.planobject import is_plan_object
-        sel = [o for o in FreeCADGui.Selection.getSelection() if is_plan_object(o)]
-        if sel:
-            return sel
-        doc = FreeCAD.ActiveDocument
-        plans = [o for o in doc.Objects if is_plan_object(o)] if doc else []
-        return plans if len(plans) == 1 else []
+        return _selected_or_only(is_plan_object)
 
     def IsActive(self):
         return FreeCAD.ActiveDocument is not None and bool(self._plans())
@@ -215,12 +220,7 @@ class ProgramCommand:
 
     def _paths(self):
         from tsplcam.workbench.pathobject import is_path_object
-        sel = [o for o in FreeCADGui.Selection.getSelection() if is_path_object(o)]
-        if sel:
-            return sel
-        doc = FreeCAD.ActiveDocument
-        paths = [o for o in doc.Objects if is_path_object(o)] if doc else []
-        return paths if len(paths) == 1 else []
+        return _selected_or_only(is_path_object)
 
     def IsActive(self):
         return FreeCAD.ActiveDocument is not None and bool(self._paths())
@@ -243,12 +243,7 @@ class SaveProgramCommand:
 
     def _programs(self):
         from tsplcam.workbench.programobject import is_program_object
-        sel = [o for o in FreeCADGui.Selection.getSelection() if is_program_object(o)]
-        if sel:
-            return sel
-        doc = FreeCAD.ActiveDocument
-        progs = [o for o in doc.Objects if is_program_object(o)] if doc else []
-        return progs if len(progs) == 1 else []
+        return _selected_or_only(is_program_object)
 
     def IsActive(self):
         return FreeCAD.ActiveDocument is not None and bool(self._programs())

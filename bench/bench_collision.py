@@ -25,15 +25,7 @@ from tsplcam.model.impeller import impeller, impeller_mesh  # noqa: E402
 from tsplcam.orientation import CollisionChecker, load_tool  # noqa: E402
 from tsplcam.orientation.candidates import Limits, candidate_axes, feed_directions  # noqa: E402
 from tsplcam.orientation.testpaths import zigzag  # noqa: E402
-
-
-def best_of(fn, repeat=3):
-    best, out = np.inf, None
-    for _ in range(repeat):
-        t = time.perf_counter()
-        out = fn()
-        best = min(best, time.perf_counter() - t)
-    return best, out
+from tsplcam.testing import best_of  # noqa: E402
 
 
 def poses(path, limit=20000, seed=0):

@@ -9,7 +9,6 @@ call) on the same surface, measured in the same run. The process is pinned to on
 """
 import os
 import sys
-import time
 
 # "on one core": pin the process (and the BLAS threads it starts) to a single CPU
 if hasattr(os, "sched_setaffinity"):
@@ -22,6 +21,7 @@ sys.path.insert(0, os.path.dirname(HERE))
 sys.path.append("/usr/lib/freecad-python3/lib")
 
 from tsplcam.model.bspline import bspline_patch  # noqa: E402
+from tsplcam.testing import best_of  # noqa: E402
 
 N = 1_000_000
 
@@ -36,23 +36,13 @@ def surface_data(rng):
     return poles, uk, vk, p
 
 
-def timed(fn, *args, repeat=5):
-    """Best of ``repeat`` runs (other processes only ever make a run slower)."""
-    best, out = float("inf"), None
-    for _ in range(repeat):
-        t0 = time.perf_counter()
-        out = fn(*args)
-        best = min(best, time.perf_counter() - t0)
-    return best, out
-
-
 def main():
     rng = np.random.default_rng(0)
     poles, uk, vk, p = surface_data(rng)
     patch = bspline_patch(poles, None, uk, vk, p, p)
     u, v = rng.random(N), rng.random(N)
     patch.evaluate(u[:1000], v[:1000])
-    t_bs, sp = timed(lambda: patch.evaluate(u, v))
+    t_bs, sp = best_of(lambda: patch.evaluate(u, v), 5)
     _ = sp.principal_curvatures
     rate_bs = N / t_bs
     print(f"tsplcam bicubic B-spline patch, {N} scattered points with 2nd derivatives: {t_bs:.3f} s "
@@ -60,7 +50,7 @@ def main():
     side = int(round(N ** 0.5))
     gu, gv = np.linspace(0, 1, side), np.linspace(0, 1, side)
     patch.evaluate_grid(gu[:10], gv[:10])
-    t_grid, spg = timed(lambda: patch.evaluate_grid(gu, gv))
+    t_grid, spg = best_of(lambda: patch.evaluate_grid(gu, gv), 5)
     rate_grid = side * side / t_grid
     print(f"tsplcam same patch, {side} x {side} grid (tessellation, iso-lines): {t_grid:.3f} s "
           f"= {rate_grid / 1e6:.2f} M points/s")
@@ -70,7 +60,7 @@ def main():
         cube = os.path.join(shared_dir(), "data", "external", "opensubdiv", "catmark_cube.obj")
         model = tsplcam.load(cube)
         pts = model.patches[0]
-        t_ep, _ = timed(lambda: pts.evaluate(u, v))
+        t_ep, _ = best_of(lambda: pts.evaluate(u, v), 5)
         print(f"tsplcam Catmull-Clark patch next to 4 extraordinary points: {N / t_ep / 1e6:.2f} M points/s")
     except Exception as exc:  # shared data absent
         print(f"(cube model skipped: {exc})")
@@ -103,8 +93,8 @@ def main():
         for a, b in zip(uu, vv):
             s.value(a, b)
 
-    t_occ, _ = timed(occt_loop)
-    t_val, _ = timed(occt_values)
+    t_occ, _ = best_of(occt_loop, 5)
+    t_val, _ = best_of(occt_values, 5)
     rate_occ, rate_val = m / t_occ, m / t_val
     ref = np.array([s.value(a, b) for a, b in zip(uu[:1000], vv[:1000])])
     err = np.abs(ref - sp.P[:1000]).max()

@@ -11,7 +11,6 @@ from __future__ import annotations
 import argparse
 import os
 import sys
-import time
 
 import numpy as np
 
@@ -21,15 +20,7 @@ from tsplcam.toolpath.cldata import cl_text  # noqa: E402
 from tsplcam.toolpath.commands import load_model  # noqa: E402
 from tsplcam.toolpath.zigzag import default_plan, zigzag_path  # noqa: E402
 from tsplcam.verify.scallop import measure  # noqa: E402
-
-
-def best_of(fn, repeat):
-    best, out = np.inf, None
-    for _ in range(repeat):
-        t = time.perf_counter()
-        out = fn()
-        best = min(best, time.perf_counter() - t)
-    return best, out
+from tsplcam.testing import best_of  # noqa: E402
 
 
 def main(argv=None) -> int:

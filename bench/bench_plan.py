@@ -12,7 +12,6 @@ from __future__ import annotations
 
 import os
 import sys
-import time
 
 import numpy as np
 from scipy.sparse.csgraph import connected_components
@@ -26,16 +25,7 @@ from tsplcam.plan.corners import Rules, choose_corners  # noqa: E402
 from tsplcam.plan.graph import PatchGraph, preferred_crossfeeds  # noqa: E402
 from tsplcam.plan.order import lkh_order  # noqa: E402
 from tsplcam.plan.steps import Pins  # noqa: E402
-
-
-def best_of(fn, repeat=3):
-    times = []
-    out = None
-    for _ in range(repeat):
-        t = time.perf_counter()
-        out = fn()
-        times.append(time.perf_counter() - t)
-    return min(times), out
+from tsplcam.testing import best_of  # noqa: E402
 
 
 def holey_grid(n=100, side=12, seed=4) -> Layout:

@@ -11,7 +11,6 @@ measured in the same run.
 import math
 import os
 import sys
-import time
 
 import numpy as np
 
@@ -21,17 +20,9 @@ sys.path.insert(0, os.path.dirname(HERE))
 from tsplcam.post import load_machine, post_program  # noqa: E402
 from tsplcam.post.kinematics import forward, inverse_orientation, linear_joints  # noqa: E402
 from tsplcam.post.synthetic import hemisphere_sweep  # noqa: E402
+from tsplcam.testing import best_of  # noqa: E402
 
 N = 200_000
-
-
-def timed(fn, repeat=3):
-    best, out = float("inf"), None
-    for _ in range(repeat):
-        t0 = time.perf_counter()
-        out = fn()
-        best = min(best, time.perf_counter() - t0)
-    return best, out
 
 
 def loop_reference(tips, axes, pivot_a, origin):
@@ -57,7 +48,7 @@ def main():
     tp = hemisphere_sweep(n=N, turns=80)
     print(f"post_program, {N} points:")
     for name in ("mikron_ucp600_heidenhain", "bc_head_table_sinumerik", "bc_head_head_fanuc", "linuxcnc_xyzac_trt"):
-        t, r = timed(lambda: post_program(tp, name), repeat=1)
+        t, r = best_of(lambda: post_program(tp, name), repeat=1)
         print(f"  {name:<26} {r.dialect:<10} {N / t:10.0f} points/s  ({len(r.motion)} blocks, "
               f"{len(r.text) / 1e6:.1f} MB, estimated {r.time.total_s:.0f} s of machining)")
     m = load_machine("mikron_ucp600_heidenhain")
@@ -68,9 +59,9 @@ def main():
         js = [np.column_stack([linear_joints(m, tips, tilt[:, b], rot[:, b]), tilt[:, b], rot[:, b]]) for b in range(2)]
         return js
 
-    t_vec, js = timed(vectorised)
+    t_vec, js = best_of(vectorised)
     n_loop = 20_000
-    t_loop, ref = timed(lambda: loop_reference(tips[:n_loop], axes[:n_loop], m.tilt.pivot, m.part_origin), repeat=1)
+    t_loop, ref = best_of(lambda: loop_reference(tips[:n_loop], axes[:n_loop], m.tilt.pivot, m.part_origin), repeat=1)
     t_loop *= N / n_loop
     # Same numbers: the loop's first solution against the vectorised one.
     ref0 = np.array(ref[0::2])

@@ -194,16 +194,21 @@ def _holder(items, path) -> list:
     return out
 
 
-def read_fctb(path: str, holder=None, name: str | None = None) -> Tool:
-    """A FreeCAD CAM ball-end tool bit (.fctb). The file has no holder: pass ``holder``
-    (HolderSegments) or the tool is checked without one (only flutes and shank)."""
+def _read_json(path: str, what: str):
+    """The JSON document in ``path``; bad JSON names the line, an unreadable file says why."""
     try:
         with open(path, encoding="utf-8") as f:
-            doc = json.load(f)
+            return json.load(f)
     except json.JSONDecodeError as e:
         raise InputError(f"not valid JSON: {e.msg}", path=path, line=e.lineno) from None
     except OSError as e:
-        raise InputError(f"cannot read the tool bit: {e.strerror}", path=path) from None
+        raise InputError(f"cannot read the {what}: {e.strerror}", path=path) from None
+
+
+def read_fctb(path: str, holder=None, name: str | None = None) -> Tool:
+    """A FreeCAD CAM ball-end tool bit (.fctb). The file has no holder: pass ``holder``
+    (HolderSegments) or the tool is checked without one (only flutes and shank)."""
+    doc = _read_json(path, "tool bit")
     if not isinstance(doc, dict):
         raise InputError("a tool bit file holds one JSON object", path=path)
     shape = str(doc.get("shape", ""))
@@ -234,14 +239,7 @@ def read_tool(path: str) -> Tool:
     """A ``tsplcam-tool`` JSON file (see TOOLS.md) or a FreeCAD ``.fctb`` tool bit."""
     if path.lower().endswith(".fctb"):
         return read_fctb(path)
-    try:
-        with open(path, encoding="utf-8") as f:
-            doc = json.load(f)
-    except json.JSONDecodeError as e:
-        raise InputError(f"not valid JSON: {e.msg}", path=path, line=e.lineno) from None
-    except OSError as e:
-        raise InputError(f"cannot read the tool file: {e.strerror}", path=path) from None
-    return tool_from_dict(doc, path)
+    return tool_from_dict(_read_json(path, "tool file"), path)
 
 
 def tool_from_dict(doc, path: str | None = None) -> Tool:

@@ -12,7 +12,7 @@ from scipy.spatial import Delaunay
 import tsplcam
 from tsplcam.errors import InputError
 from tsplcam.model.formats.tsm import block_offsets, read_tsm
-from tsplcam.testing import external
+from tsplcam.testing import edge_pair, external
 
 NAMES = ("simple", "mouse", "fan")
 
@@ -68,9 +68,7 @@ class ShippedFiles(unittest.TestCase):
             A, B = m.evaluate_faces(*rows[0]), m.evaluate_faces(*rows[1])
             self.assertLess(np.abs(A.P - B.P).max(), 1e-12 * scale, n)
             for link in m.layout().edge_links:
-                pa, pb = m.patches[link.a], m.patches[link.b]
-                sa = pa.evaluate(*pa.edge_params(link.ea, tau))
-                sb = pb.evaluate(*pb.edge_params(link.eb, 1 - tau if link.reversed else tau))
+                sa, sb = edge_pair(m, link, tau)
                 self.assertLess(np.abs(sa.P - sb.P).max(), 1e-12 * scale, n)
 
     def test_clamped_corners_interpolate_their_grips(self):

@@ -15,7 +15,7 @@ from tsplcam.model.eigen import scheme_for
 from tsplcam.model.formats.obj import read_obj
 from tsplcam.model.quadmesh import QuadMesh
 from tsplcam.model.samples import sample_path
-from tsplcam.testing import assert_finite_everywhere, external, ngon_prism
+from tsplcam.testing import assert_finite_everywhere, curvature_gap, edge_pair, external, ngon_prism
 
 
 
@@ -209,11 +209,7 @@ class Continuity(unittest.TestCase):
         for name, model in all_models():
             scale = np.abs(model.node_points).max()
             for link in model.layout().edge_links:
-                pa, pb = model.patches[link.a], model.patches[link.b]
-                ua, va = pa.edge_params(link.ea, tau)
-                tb = 1 - tau if link.reversed else tau
-                ub, vb = pb.edge_params(link.eb, tb)
-                sa, sb = pa.evaluate(ua, va), pb.evaluate(ub, vb)
+                sa, sb = edge_pair(model, link, tau)
                 self.assertLess(np.abs(sa.P - sb.P).max(), 1e-12 * scale, name)
                 angle = angle_between(sa.normal, sb.normal).max()
                 self.assertLess(angle, 1e-9, f"{name}: patches {link.a}/{link.b} normals {angle:.3g} rad")
@@ -289,15 +285,8 @@ class Continuity(unittest.TestCase):
         tau = np.linspace(0.2, 0.8, 13)
         for name, model in all_models():
             for link in model.layout().edge_links:
-                pa, pb = model.patches[link.a], model.patches[link.b]
-                ua, va = pa.edge_params(link.ea, tau)
-                ub, vb = pb.edge_params(link.eb, 1 - tau if link.reversed else tau)
-                sa, sb = pa.evaluate(ua, va), pb.evaluate(ub, vb)
-                sign = np.sign(np.einsum("ij,ij->i", sa.normal, sb.normal))[:, None]
-                ka = np.sort(np.column_stack(sa.principal_curvatures), axis=1)
-                kb = np.sort(np.column_stack(sb.principal_curvatures) * sign, axis=1)
-                scale = 1.0 + np.abs(ka).max()
-                self.assertLess(np.abs(ka - kb).max(), 1e-7 * scale, f"{name} {link}")
+                gap, scale = curvature_gap(*edge_pair(model, link, tau))
+                self.assertLess(gap, 1e-7 * scale, f"{name} {link}")
 
     def test_derivatives_match_finite_differences(self):
         rng = np.random.default_rng(5)

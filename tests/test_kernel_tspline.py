@@ -12,7 +12,8 @@ from tsplcam.model import samples
 from tsplcam.model.cage import cage_model
 from tsplcam.model.tmesh import TMesh, bspline_tmesh, from_lines, quad_tmesh
 from tsplcam.model.tspline import homogeneous_parts, knot_vectors, tspline_model
-from tsplcam.testing import assert_finite_everywhere, ngon_prism, require_freecad
+from tsplcam.testing import (assert_finite_everywhere, curvature_gap, edge_pair, ngon_prism,
+                              require_freecad)
 
 RNG_SEED = 20240611
 
@@ -492,10 +493,7 @@ class Continuity(unittest.TestCase):
         for name, model in self.models:
             scale = np.abs(model.node_points).max()
             for link in model.layout().edge_links:
-                pa, pb = model.patches[link.a], model.patches[link.b]
-                ua, va = pa.edge_params(link.ea, tau)
-                ub, vb = pb.edge_params(link.eb, 1 - tau if link.reversed else tau)
-                sa, sb = pa.evaluate(ua, va), pb.evaluate(ub, vb)
+                sa, sb = edge_pair(model, link, tau)
                 self.assertLess(np.abs(sa.P - sb.P).max(), 1e-12 * scale, name)
                 self.assertLess(angle_between(sa.normal, sb.normal).max(), 1e-9, name)
 
@@ -507,14 +505,8 @@ class Continuity(unittest.TestCase):
             if name in ("l-shape", "hole"):
                 continue
             for link in model.layout().edge_links:
-                pa, pb = model.patches[link.a], model.patches[link.b]
-                ua, va = pa.edge_params(link.ea, tau)
-                ub, vb = pb.edge_params(link.eb, 1 - tau if link.reversed else tau)
-                sa, sb = pa.evaluate(ua, va), pb.evaluate(ub, vb)
-                sign = np.sign(np.einsum("ij,ij->i", sa.normal, sb.normal))[:, None]
-                ka = np.sort(np.column_stack(sa.principal_curvatures), axis=1)
-                kb = np.sort(np.column_stack(sb.principal_curvatures) * sign, axis=1)
-                self.assertLess(np.abs(ka - kb).max(), 1e-7 * (1.0 + np.abs(ka).max()), f"{name} {link}")
+                gap, scale = curvature_gap(*edge_pair(model, link, tau))
+                self.assertLess(gap, 1e-7 * scale, f"{name} {link}")
 
     def test_adjacent_faces_meet(self):
         """Every interior T-mesh edge, sampled from the faces on both sides."""

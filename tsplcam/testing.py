@@ -130,6 +130,25 @@ def assert_finite_everywhere(test, named_models, samples: int = 17) -> None:
                 test.assertTrue(np.all(np.isfinite(arr)), f"{name} {p.name}")
 
 
+def edge_pair(model, link, tau):
+    """Both sides of a shared patch edge (a layout EdgeLink) evaluated at the same points:
+    (SurfacePoints of patch a, of patch b) at fractions ``tau`` along a's edge."""
+    pa, pb = model.patches[link.a], model.patches[link.b]
+    sa = pa.evaluate(*pa.edge_params(link.ea, tau))
+    sb = pb.evaluate(*pb.edge_params(link.eb, 1 - tau if link.reversed else tau))
+    return sa, sb
+
+
+def curvature_gap(sa, sb):
+    """(largest difference of the sorted principal curvatures of two evaluations of the same
+    points, 1 + largest |curvature|), with b's signs turned to a's normal."""
+    import numpy as np
+    sign = np.sign(np.einsum("ij,ij->i", sa.normal, sb.normal))[:, None]
+    ka = np.sort(np.column_stack(sa.principal_curvatures), axis=1)
+    kb = np.sort(np.column_stack(sb.principal_curvatures) * sign, axis=1)
+    return float(np.abs(ka - kb).max()), 1.0 + float(np.abs(ka).max())
+
+
 def best_of(fn, repeat: int = 3):
     """(seconds, result) of the fastest of ``repeat`` calls of ``fn()``: other processes only
     ever make a run slower. For the benchmarks in bench/."""

@@ -1,8 +1,10 @@
 """FreeCAD unit-test entry of tsplcam: ``freecadcmd -t TestTsplcam``.
 
-Loads every ``tests/test_*.py`` of this checkout by path, under module names prefixed
-``tsplcam_test_``, so no module called ``tests`` ever lands on FreeCAD's global
-``sys.path`` (other addons ship one). GUI tests live in ``tests/gui`` and run from
+Runs the test classes that need FreeCAD (marked ``@needs_freecad`` in ``tests/conftest.py``:
+document objects, OCCT comparisons); plain pytest runs all the others, so each test runs
+once. Test files ``tests/**/test_*.py`` are loaded by path under module names prefixed
+``tsplcam_test_``, so no module called ``tests`` lands on FreeCAD's global ``sys.path``
+(other addons ship one). GUI tests live in ``tests/gui`` and run from
 ``tests/gui/run_gui_tests.py`` under a real FreeCAD GUI, not here.
 """
 import glob
@@ -12,10 +14,11 @@ import sys
 import unittest
 
 _ROOT = os.path.dirname(os.path.abspath(__file__))
+_TESTS = os.path.join(_ROOT, "tests")
 
 
-def _load_file(path):
-    name = "tsplcam_test_" + os.path.splitext(os.path.basename(path))[0]
+def _load_file(path, prefix="tsplcam_test_"):
+    name = prefix + os.path.splitext(os.path.basename(path))[0]
     if name in sys.modules:
         return sys.modules[name]
     spec = importlib.util.spec_from_file_location(name, path)
@@ -25,14 +28,39 @@ def _load_file(path):
     return module
 
 
-def suite(pattern="test_*.py", folder="tests"):
-    """All tests of ``folder`` (relative to the checkout) as one unittest suite."""
-    if _ROOT not in sys.path:
-        sys.path.insert(0, _ROOT)
+def _flat(suite):
+    for t in suite:
+        if isinstance(t, unittest.TestSuite):
+            yield from _flat(t)
+        else:
+            yield t
+
+
+def test_files(folder="tests"):
+    """``folder``'s test files (relative to the checkout), subfolders included, gui excepted
+    unless ``folder`` is the gui folder itself."""
+    root = os.path.join(_ROOT, folder)
+    paths = sorted(glob.glob(os.path.join(root, "**", "test_*.py"), recursive=True))
+    gui = os.path.join(_TESTS, "gui") + os.sep
+    if not root.rstrip(os.sep).endswith(os.path.join("tests", "gui")):
+        paths = [p for p in paths if not p.startswith(gui)]
+    return paths
+
+
+def suite(folder="tests", only_freecad=True):
+    """The tests of ``folder`` as one unittest suite; with ``only_freecad`` just the classes
+    marked ``needs_freecad`` (the rest is pytest's)."""
+    for p in (_ROOT, _TESTS):
+        if p not in sys.path:
+            sys.path.insert(0, p)
     loader = unittest.defaultTestLoader
     result = unittest.TestSuite()
-    for path in sorted(glob.glob(os.path.join(_ROOT, folder, pattern))):
-        result.addTests(loader.loadTestsFromModule(_load_file(path)))
+    for path in test_files(folder):
+        tests = loader.loadTestsFromModule(_load_file(path))
+        if only_freecad:
+            tests = [t for t in _flat(tests) if getattr(type(t), "needs_freecad", False)
+                     or isinstance(t, unittest.loader._FailedTest)]
+        result.addTests(tests)
     return result
 
 

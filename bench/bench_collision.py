@@ -25,7 +25,7 @@ from tsplcam.model.impeller import impeller, impeller_mesh  # noqa: E402
 from tsplcam.orientation import CollisionChecker, load_tool  # noqa: E402
 from tsplcam.orientation.candidates import Limits, candidate_axes, feed_directions  # noqa: E402
 from tsplcam.orientation.testpaths import zigzag  # noqa: E402
-from tsplcam.testing import best_of  # noqa: E402
+from common import best_of  # noqa: E402
 
 
 def poses(path, limit=20000, seed=0):

@@ -21,7 +21,7 @@ sys.path.insert(0, os.path.dirname(HERE))
 sys.path.append("/usr/lib/freecad-python3/lib")
 
 from tsplcam.model.bspline import bspline_patch  # noqa: E402
-from tsplcam.testing import best_of  # noqa: E402
+from common import best_of  # noqa: E402
 
 N = 1_000_000
 
@@ -56,7 +56,7 @@ def main():
           f"= {rate_grid / 1e6:.2f} M points/s")
     try:
         import tsplcam
-        from tsplcam.testing import shared_dir
+        from common import shared_dir
         cube = os.path.join(shared_dir(), "data", "external", "opensubdiv", "catmark_cube.obj")
         model = tsplcam.load(cube)
         pts = model.patches[0]

@@ -20,7 +20,7 @@ from tsplcam.toolpath.cldata import cl_text  # noqa: E402
 from tsplcam.toolpath.commands import load_model  # noqa: E402
 from tsplcam.toolpath.zigzag import default_plan, zigzag_path  # noqa: E402
 from tsplcam.verify.scallop import measure  # noqa: E402
-from tsplcam.testing import best_of  # noqa: E402
+from common import best_of  # noqa: E402
 
 
 def main(argv=None) -> int:

@@ -25,7 +25,7 @@ from tsplcam.plan.corners import Rules, choose_corners  # noqa: E402
 from tsplcam.plan.graph import PatchGraph, preferred_crossfeeds  # noqa: E402
 from tsplcam.plan.order import lkh_order  # noqa: E402
 from tsplcam.plan.steps import Pins  # noqa: E402
-from tsplcam.testing import best_of  # noqa: E402
+from common import best_of  # noqa: E402
 
 
 def holey_grid(n=100, side=12, seed=4) -> Layout:

@@ -20,7 +20,7 @@ sys.path.insert(0, os.path.dirname(HERE))
 from tsplcam.post import load_machine, post_program  # noqa: E402
 from tsplcam.post.kinematics import forward, inverse_orientation, linear_joints  # noqa: E402
 from tsplcam.post.synthetic import hemisphere_sweep  # noqa: E402
-from tsplcam.testing import best_of  # noqa: E402
+from common import best_of  # noqa: E402
 
 N = 200_000
 

@@ -1,10 +1,12 @@
 #!/usr/bin/env bash
-# Set everything up, then run every test of tsplcam:
+# Set everything up, then run every test of tsplcam once:
 #   1. engine tests with plain /usr/bin/python3 -m pytest (no FreeCAD),
-#   2. all non-GUI tests under FreeCAD: freecadcmd -t TestTsplcam (OCCT comparisons run here),
+#   2. the tests that need FreeCAD (document objects, OCCT comparisons; marked @needs_freecad
+#      in tests/conftest.py): freecadcmd -t TestTsplcam,
 #   3. GUI tests in the real FreeCAD GUI under Xvfb (screenshots land in build/artifacts).
-# FreeCAD runs with an isolated user home (build/fchome) and HOME (build/home).
-# Exit status 0 only when all three pass; each runner's summary line is printed at the end.
+# 1 runs beside 2 and 3 (two cores). FreeCAD runs with an isolated user home (build/fchome)
+# and HOME (build/home). Exit status 0 only when all three pass; each runner's summary line is
+# printed at the end.
 set -uo pipefail
 REPO="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 bash "$REPO/scripts/install.sh" || exit 1
@@ -16,9 +18,10 @@ mkdir -p "$LOGS" "$TSPLCAM_ARTIFACTS" "$REPO/build/home"
 FC_ENV=(env HOME="$REPO/build/home" FREECAD_USER_HOME="$FREECAD_USER_HOME" QTWEBENGINE_DISABLE_SANDBOX=1)
 cd "$REPO"
 
-echo "== 1/3 engine tests: /usr/bin/python3 -m pytest"
-/usr/bin/python3 -m pytest -q -p no:cacheprovider tests 2>&1 | tee "$LOGS/pytest.log"
-rc_py=${PIPESTATUS[0]}
+SECONDS=0
+# 1 in the background, its output shown when it is done
+/usr/bin/python3 -m pytest -q -p no:cacheprovider tests > "$LOGS/pytest.log" 2>&1 &
+pid_py=$!
 
 echo "== 2/3 FreeCAD tests: freecadcmd -t TestTsplcam"
 ( cd "$REPO/build" && "${FC_ENV[@]}" freecadcmd -t TestTsplcam ) > "$LOGS/freecadcmd.log" 2>&1
@@ -38,10 +41,15 @@ grep -E "\.\.\. (ok|FAIL|ERROR|skipped)" "$LOGS/gui.log" || true
 if [ $rc_gui -ne 0 ]; then sed -n '/^======/,$p' "$LOGS/gui.log" | head -n 200; fi
 [ -f "$LOGS/gui.result" ] && grep -q "^OK" "$LOGS/gui.result" || rc_gui=1
 
+echo "== 1/3 engine tests: /usr/bin/python3 -m pytest"
+wait $pid_py
+rc_py=$?
+cat "$LOGS/pytest.log"
+
 echo
-echo "== summary"
+echo "== summary ($SECONDS s)"
 echo "pytest (engine):     $(tail -n 1 "$LOGS/pytest.log")"
-echo "freecadcmd (all):    $(grep -E "^Ran [0-9]+ tests?" "$LOGS/freecadcmd.log" | tail -n 1) $(grep -E "^(OK|FAILED)" "$LOGS/freecadcmd.log" | tail -n 1)"
+echo "freecadcmd (FreeCAD): $(grep -E "^Ran [0-9]+ tests?" "$LOGS/freecadcmd.log" | tail -n 1) $(grep -E "^(OK|FAILED)" "$LOGS/freecadcmd.log" | tail -n 1)"
 echo "freecad GUI (xvfb):  $(cat "$LOGS/gui.result" 2>/dev/null || echo 'no result: the GUI run did not finish')"
 echo "screenshots:         $TSPLCAM_ARTIFACTS"
 if [ $rc_py -eq 0 ] && [ $rc_fc -eq 0 ] && [ $rc_gui -eq 0 ]; then

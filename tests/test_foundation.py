@@ -6,7 +6,7 @@ import unittest
 import xml.etree.ElementTree as ET
 
 import tsplcam
-from tsplcam.testing import REPO_DIR
+from conftest import REPO_DIR, needs_freecad
 
 SYSTEM_PYTHON = "/usr/bin/python3"
 NS = {"p": "https://wiki.freecad.org/Package_Metadata"}
@@ -52,11 +52,11 @@ class PackageMetadata(unittest.TestCase):
         with open(os.path.join(REPO_DIR, "InitGui.py")) as f:
             self.assertIn("class TsplcamWorkbench", f.read())
 
+
+@needs_freecad
+class MetadataInFreeCAD(unittest.TestCase):
     def test_freecad_reads_the_metadata(self):
-        try:
-            import FreeCAD
-        except ImportError:
-            raise unittest.SkipTest("FreeCAD not importable")
+        import FreeCAD
         md = FreeCAD.Metadata(os.path.join(REPO_DIR, "package.xml"))
         self.assertEqual(md.Name, "tsplcam")
         self.assertEqual(md.Version, tsplcam.__version__)
@@ -88,9 +88,7 @@ class EngineSeparation(unittest.TestCase):
             if os.path.relpath(dirpath, pkg).split(os.sep)[0] == "workbench":
                 continue
             for fn in filenames:
-                # tsplcam/testing.py imports FreeCAD only when a test asks for it (to skip
-                # otherwise); the import check above shows importing it does not.
-                if fn.endswith(".py") and not (dirpath == pkg and fn == "testing.py"):
+                if fn.endswith(".py"):
                     with open(os.path.join(dirpath, fn)) as f:
                         for line in f:
                             s = line.strip()

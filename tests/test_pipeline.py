@@ -7,7 +7,7 @@ import unittest
 
 import numpy as np
 
-from tsplcam.testing import REPO_DIR
+from conftest import REPO_DIR
 
 PY = "/usr/bin/python3"
 

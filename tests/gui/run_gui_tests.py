@@ -19,7 +19,7 @@ def _main():
     if repo not in sys.path:
         sys.path.insert(0, repo)
     import TestTsplcam
-    suite = TestTsplcam.suite(folder=os.path.join("tests", "gui"))
+    suite = TestTsplcam.suite(folder=os.path.join("tests", "gui"), only_freecad=False)
     stream = sys.__stdout__  # not the Report view, which the tests read
     result = unittest.TextTestRunner(stream=stream, verbosity=2).run(suite)
     summary = (f"GUI tests: ran {result.testsRun}, failures {len(result.failures)}, "

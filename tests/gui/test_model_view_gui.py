@@ -15,7 +15,7 @@ import FreeCAD
 import FreeCADGui
 
 from tsplcam.model.samples import sample_path
-from tsplcam.testing import artifact_path
+from conftest import artifact_path
 from tsplcam.workbench import display, importer, messages
 from tsplcam.workbench.modelobject import model_objects, model_of, patch_of_element
 from tsplcam.workbench.testsupport import (colour_pixel_counts, errors_since, image_rgb,

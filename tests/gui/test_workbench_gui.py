@@ -5,7 +5,7 @@ import unittest
 import FreeCAD
 import FreeCADGui
 
-from tsplcam.testing import artifact_path
+from conftest import artifact_path
 from tsplcam.workbench.testsupport import errors_since, report_view_lines, report_view_mark, save_view
 
 

@@ -17,7 +17,7 @@ from tsplcam.model.cage import cage_model
 from tsplcam.model.impeller import BLADES, R_OUT, impeller, impeller_mesh
 from tsplcam.orientation import CollisionChecker, load_tool, orient
 from tsplcam.orientation.testpaths import zigzag
-from tsplcam.testing import artifact_path
+from conftest import artifact_path
 
 try:
     import fcl  # noqa: F401

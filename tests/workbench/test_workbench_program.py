@@ -15,12 +15,12 @@ import unittest
 import numpy as np
 
 from tsplcam.model.samples import sample_path
-from tsplcam.testing import require_freecad
+from conftest import REPO_DIR as ROOT, needs_freecad, require_freecad
 
-ROOT = os.path.dirname(os.path.dirname(os.path.realpath(__file__)))
 MACHINE = "mikron_ucp600_heidenhain"
 
 
+@needs_freecad
 class ProgramObject(unittest.TestCase):
     def setUp(self):
         self.FreeCAD = require_freecad()

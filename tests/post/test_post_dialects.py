@@ -13,7 +13,7 @@ from tsplcam.post import post_program
 from tsplcam.post import dialects, rs274
 from tsplcam.post.kinematics import angle_between, linear_joints
 from tsplcam.post.synthetic import helix, hemisphere_sweep, pole_pass
-from tsplcam.testing import REPO_DIR, artifact_path
+from conftest import REPO_DIR, artifact_path
 
 CASES = [  # machine, dialect, orientation
     ("mikron_ucp600_heidenhain", "heidenhain", "angles"),

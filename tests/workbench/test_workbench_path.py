@@ -13,9 +13,10 @@ import unittest
 import numpy as np
 
 from tsplcam.model.samples import sample_path
-from tsplcam.testing import require_freecad
+from conftest import needs_freecad, require_freecad
 
 
+@needs_freecad
 class ToolPathObject(unittest.TestCase):
     def setUp(self):
         self.FreeCAD = require_freecad()

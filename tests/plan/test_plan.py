@@ -25,7 +25,7 @@ from tsplcam.plan.graph import PatchGraph, preferred_crossfeeds
 from tsplcam.plan.listfile import complete_file
 from tsplcam.plan.order import open_tour, tsp_matrix
 from tsplcam.plan.steps import crossfeeds_for
-from tsplcam.testing import REPO_DIR
+from conftest import REPO_DIR
 
 UV = [(0, 0), (1, 0), (1, 1), (0, 1)]
 SYSTEM_PYTHON = "/usr/bin/python3"

@@ -9,7 +9,7 @@ import unittest
 from tsplcam.errors import InputError
 from tsplcam.post import list_machines, load_machine
 from tsplcam.post.machine import machine_from_dict, read_machine, shipped_dir
-from tsplcam.testing import REPO_DIR
+from conftest import REPO_DIR
 
 SYSTEM_PYTHON = "/usr/bin/python3"
 SHIPPED = ("mikron_ucp600_heidenhain", "bc_head_table_sinumerik", "linuxcnc_xyzac_trt", "bc_head_head_fanuc")

@@ -18,7 +18,7 @@ import numpy as np
 
 import tsplcam
 from tsplcam.model.samples import sample_path
-from tsplcam.testing import require_freecad
+from conftest import needs_freecad, require_freecad
 
 
 def grid_points(model, n=5):
@@ -27,6 +27,7 @@ def grid_points(model, n=5):
     return np.concatenate([p.evaluate(U.ravel(), V.ravel()).P for p in model.patches])
 
 
+@needs_freecad
 class ShapeModels(unittest.TestCase):
     def setUp(self):
         self.FreeCAD = require_freecad()

@@ -15,7 +15,7 @@ from tsplcam.model.eigen import scheme_for
 from tsplcam.model.formats.obj import read_obj
 from tsplcam.model.quadmesh import QuadMesh
 from tsplcam.model.samples import sample_path
-from tsplcam.testing import assert_finite_everywhere, curvature_gap, edge_pair, external, ngon_prism
+from conftest import assert_finite_everywhere, curvature_gap, edge_pair, external, ngon_prism
 
 
 

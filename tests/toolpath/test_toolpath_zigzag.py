@@ -13,7 +13,7 @@ from tsplcam.layout.layout import CORNER_UV
 from tsplcam.model.bspline import bspline_patch
 from tsplcam.model.samples import sample_path
 from tsplcam.plan.steps import ProcessingList, Step
-from tsplcam.testing import cylinder_patch, one_patch_model
+from conftest import cylinder_patch, one_patch_model
 from tsplcam.toolpath.baseline import baseline_path
 from tsplcam.toolpath.lines import LineFrame, Placer, Target, parity_for
 from tsplcam.toolpath.path import Move

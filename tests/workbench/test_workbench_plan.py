@@ -9,7 +9,7 @@ import unittest
 
 from tsplcam.layout.layout import CORNER_UV
 from tsplcam.model.samples import sample_path
-from tsplcam.testing import require_freecad
+from conftest import needs_freecad, require_freecad
 
 
 def assert_chained(case, model, plist):
@@ -25,6 +25,7 @@ def assert_chained(case, model, plist):
                              model.patches[s.patch].corner_nodes[s.start], (i, s))
 
 
+@needs_freecad
 class ProcessingListObject(unittest.TestCase):
     def setUp(self):
         self.FreeCAD = require_freecad()

@@ -6,7 +6,7 @@ import unittest
 import numpy as np
 
 from tsplcam.model.bspline import bspline_patch
-from tsplcam.testing import cylinder_patch, one_patch_model
+from conftest import cylinder_patch, one_patch_model
 from tsplcam.toolpath.path import Move, ToolPath
 from tsplcam.verify.metrics import compare_table, path_metrics
 from tsplcam.verify.scallop import Swept, measure, surface_grid

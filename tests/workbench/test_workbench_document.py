@@ -15,7 +15,7 @@ import numpy as np
 
 import tsplcam
 from tsplcam.model.samples import KEYCAP_SIZE, sample_path
-from tsplcam.testing import require_freecad
+from conftest import needs_freecad, require_freecad
 
 
 def grid_points(model, n=7):
@@ -24,6 +24,7 @@ def grid_points(model, n=7):
     return np.concatenate([p.evaluate(U.ravel(), V.ravel()).P for p in model.patches])
 
 
+@needs_freecad
 class _DocCase(unittest.TestCase):
     def setUp(self):
         self.FreeCAD = require_freecad()
@@ -154,7 +155,7 @@ class BadFiles(_DocCase):
         self.assertRefused(self._write("model.xyz", "1 2 3\n"))
 
     def test_truncated_iga(self):
-        from tsplcam.testing import external
+        from conftest import external
         with open(external("geopdes", "square_unstructured.iga")) as f:
             text = f.read()
         cut = text[: len(text) // 2]

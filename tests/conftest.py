@@ -1,4 +1,7 @@
-"""Helpers the test files share (they are loaded by path, so they cannot import each other).
+"""What the test files share: data locations, FreeCAD detection, test geometry and checks.
+
+pytest loads this file first; ``TestTsplcam`` (freecadcmd) and ``tests/gui/run_gui_tests.py``
+put ``tests/`` on ``sys.path`` so that test files, loaded by path, can ``from conftest import ...``.
 
 External test data lives beside the checkout in ``../shared/data/external``
 (or ``$TSPLCAM_SHARED/data/external``); tests that need it skip when it is absent.
@@ -6,7 +9,6 @@ External test data lives beside the checkout in ``../shared/data/external``
 from __future__ import annotations
 
 import os
-import time
 import unittest
 
 # realpath: under FreeCAD the checkout is reached through the Mod/tsplcam link
@@ -32,14 +34,31 @@ def artifact_path(name: str) -> str:
     return os.path.join(ARTIFACT_DIR, name)
 
 
-def require_freecad():
-    """Import FreeCAD or skip: engine tests under plain pytest skip the OCCT comparisons."""
+def freecad_importable() -> bool:
+    """True inside FreeCAD (freecadcmd or the GUI), where Part and OCCT are there too."""
     try:
         import FreeCAD  # noqa: F401
         import Part  # noqa: F401
     except ImportError:
+        return False
+    return True
+
+
+def require_freecad():
+    """The FreeCAD module, or skip the calling test (plain pytest has no FreeCAD)."""
+    if not freecad_importable():
         raise unittest.SkipTest("FreeCAD is not importable here (run under freecadcmd)")
+    import FreeCAD
     return FreeCAD
+
+
+def needs_freecad(cls):
+    """Class decorator: a TestCase that needs FreeCAD (document objects, OCCT comparisons).
+
+    ``freecadcmd -t TestTsplcam`` runs exactly the classes marked so; plain pytest skips
+    them. Every other test runs under pytest only, so each test runs once."""
+    cls.needs_freecad = True
+    return unittest.skipUnless(freecad_importable(), "needs FreeCAD: freecadcmd -t TestTsplcam runs it")(cls)
 
 
 # -- test geometry several test files share (they cannot import one another) -------------
@@ -47,8 +66,8 @@ def ngon_prism(n: int, seed: int = 0, noise: float = 0.05):
     """A closed quad cage (Cage): two caps of n quads around a centre of valence n, joined by
     2n side quads (rim vertices alternate valence 4 and 3); perturbed by ``noise``."""
     import numpy as np
-    from .model.cage import Cage
-    from .model.quadmesh import QuadMesh
+    from tsplcam.model.cage import Cage
+    from tsplcam.model.quadmesh import QuadMesh
     rng = np.random.default_rng(seed)
     pts = [[0, 0, 1.2], [0, 0, -1.2]]
     for z in (1.0, -1.0):
@@ -87,7 +106,7 @@ def cylinder_patch(R: float, H: float, beta: float = 0.6981317007977318, outward
     """Exact NURBS piece of a cylinder about z (a Patch): angle -beta..beta along u (default
     40 deg), z = 0..H along v; ``outward=False`` reverses u, so the normal points inward."""
     import numpy as np
-    from .model.bspline import bspline_patch
+    from tsplcam.model.bspline import bspline_patch
     az, wa = arc_poles(-beta, beta)
     poles = np.zeros((3, 2, 3))
     w = np.zeros((3, 2))
@@ -103,14 +122,14 @@ def cylinder_patch(R: float, H: float, beta: float = 0.6981317007977318, outward
 def plane_patch(W: float, H: float):
     """The rectangle [0, W] x [0, H] in z = 0 as a bilinear Patch."""
     import numpy as np
-    from .model.bspline import bspline_patch
+    from tsplcam.model.bspline import bspline_patch
     poles = np.array([[[0, 0, 0], [0, H, 0]], [[W, 0, 0], [W, H, 0]]], float)
     return bspline_patch(poles, None, [0, 0, 1, 1], [0, 0, 1, 1], 1, 1)
 
 
 def one_patch_model(patch, name: str = "test patch"):
     """A Model of a single patch (its corners are nodes 0..3)."""
-    from .model.model import Model
+    from tsplcam.model.model import Model
     patch.corner_nodes = [0, 1, 2, 3]
     corners = patch.evaluate([0, 1, 1, 0], [0, 0, 1, 1]).P
     return Model([patch], corners, [], "bspline", name=name)
@@ -147,15 +166,3 @@ def curvature_gap(sa, sb):
     ka = np.sort(np.column_stack(sa.principal_curvatures), axis=1)
     kb = np.sort(np.column_stack(sb.principal_curvatures) * sign, axis=1)
     return float(np.abs(ka - kb).max()), 1.0 + float(np.abs(ka).max())
-
-
-def best_of(fn, repeat: int = 3):
-    """(seconds, result) of the fastest of ``repeat`` calls of ``fn()``: other processes only
-    ever make a run slower. For the benchmarks in bench/."""
-    best, out = float("inf"), None
-    for _ in range(repeat):
-        t0 = time.perf_counter()
-        out = fn()
-        best = min(best, time.perf_counter() - t0)
-    return best, out
-

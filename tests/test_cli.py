@@ -12,7 +12,7 @@ from tsplcam.cli import main
 from tsplcam.model.samples import sample_path
 from tsplcam.plan import save
 from tsplcam.plan.steps import ProcessingList, Step
-from tsplcam.testing import REPO_DIR
+from conftest import REPO_DIR
 from tsplcam.toolpath.cldata import read_cl
 from tsplcam.toolpath.path import Move
 

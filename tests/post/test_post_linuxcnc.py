@@ -16,7 +16,7 @@ from tsplcam.post import post_program, rs274
 from tsplcam.post.dialects import linuxcnc
 from tsplcam.post.kinematics import angle_between, forward
 from tsplcam.post.synthetic import helix, hemisphere_sweep, pole_pass, two_passes_with_retract
-from tsplcam.testing import artifact_path
+from conftest import artifact_path
 
 PRINT_AXIS = np.sqrt(2) * 0.5e-4 * np.pi / 180 * 1.001     # axis error of 4-decimal angles
 

@@ -19,7 +19,7 @@ from tsplcam.errors import InputError
 from tsplcam.model.bezier_mesh import bezier_model
 from tsplcam.model.formats.iga import model_from_iga, read_iga
 from tsplcam.model.cells import SQUARE_MAPS
-from tsplcam.testing import external
+from conftest import external
 
 GEO = ("geopdes",)
 REFERENCE = {   # FORMATS.md: element 0 at (s, t) = (0, 0), (0.5, 0.5), (1, 1)

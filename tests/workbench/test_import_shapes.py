@@ -15,7 +15,7 @@ from tsplcam.errors import InputError
 from tsplcam.layout.layout import CORNER_UV
 from tsplcam.model.bspline import bspline_patch
 from tsplcam.model.compound import compound_model
-from tsplcam.testing import require_freecad
+from conftest import needs_freecad, require_freecad
 
 CUBIC = np.array([0, 0, 0, 0, 1, 1, 1, 1], float)
 
@@ -73,6 +73,7 @@ class CompoundEngine(unittest.TestCase):
         self.assertIn("collapsed", str(cm.exception))
 
 
+@needs_freecad
 class FreeCADShapes(unittest.TestCase):
     @classmethod
     def setUpClass(cls):

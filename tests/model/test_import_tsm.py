@@ -12,7 +12,7 @@ from scipy.spatial import Delaunay
 import tsplcam
 from tsplcam.errors import InputError
 from tsplcam.model.formats.tsm import block_offsets, read_tsm
-from tsplcam.testing import edge_pair, external
+from conftest import edge_pair, external
 
 NAMES = ("simple", "mouse", "fan")
 

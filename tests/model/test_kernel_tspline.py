@@ -12,8 +12,8 @@ from tsplcam.model import samples
 from tsplcam.model.cage import cage_model
 from tsplcam.model.tmesh import TMesh, bspline_tmesh, from_lines, quad_tmesh
 from tsplcam.model.tspline import homogeneous_parts, knot_vectors, tspline_model
-from tsplcam.testing import (assert_finite_everywhere, curvature_gap, edge_pair, ngon_prism,
-                              require_freecad)
+from conftest import (needs_freecad, assert_finite_everywhere, curvature_gap, edge_pair, ngon_prism,
+                      require_freecad)
 
 RNG_SEED = 20240611
 
@@ -238,6 +238,7 @@ def l_shape(seed=5) -> TMesh:
     return mesh
 
 
+@needs_freecad
 class AgainstOCCT(unittest.TestCase):
     """A T-mesh without T-junctions is the B-spline surface FreeCAD builds from the same data."""
 

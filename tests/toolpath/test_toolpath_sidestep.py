@@ -5,7 +5,7 @@ import unittest
 import numpy as np
 
 from tsplcam.model.bspline import bspline_patch
-from tsplcam.testing import arc_poles
+from conftest import arc_poles
 from tsplcam.toolpath.lines import LineFrame
 from tsplcam.toolpath.sidestep import (cusp_height, first_order_side_step, forward_step,
                                        parameter_step, side_step)

@@ -17,7 +17,7 @@ import numpy as np
 sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 
 from tsplcam.toolpath.cldata import cl_text  # noqa: E402
-from tsplcam.toolpath.commands import load_model  # noqa: E402
+from tsplcam import load_model  # noqa: E402
 from tsplcam.toolpath.zigzag import default_plan, zigzag_path  # noqa: E402
 from tsplcam.verify.scallop import measure  # noqa: E402
 from common import best_of  # noqa: E402

@@ -22,7 +22,7 @@ sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 
 from tsplcam.toolpath.baseline import baseline_path  # noqa: E402
 from tsplcam.toolpath.cldata import read_cl, write_cl  # noqa: E402
-from tsplcam.toolpath.commands import load_model  # noqa: E402
+from tsplcam import load_model  # noqa: E402
 from tsplcam.toolpath.zigzag import default_plan, zigzag_path  # noqa: E402
 from tsplcam.verify.metrics import compare_table, path_metrics  # noqa: E402
 from tsplcam.verify.scallop import measure  # noqa: E402

@@ -1,5 +1,7 @@
-"""``python3 -m tsplcam path``: exit 0 with CL data and a report, exit 2 with a clear message
-on bad input."""
+"""The command line: ``path`` exits 0 with CL data and a report; every command takes a model
+file or a shipped sample name; bad options, unknown names and unwritable outputs exit 2
+with one line naming the option and leave no file; the same command gives the same bytes
+under any PYTHONHASHSEED."""
 import contextlib
 import io
 import json
@@ -7,6 +9,7 @@ import os
 import subprocess
 import tempfile
 import unittest
+from concurrent.futures import ThreadPoolExecutor
 
 from tsplcam.cli import main
 from tsplcam.model.samples import sample_path
@@ -71,7 +74,7 @@ class PathCommand(unittest.TestCase):
         cases = [
             (["path", "keycap", "--tool-radius", "-1", "--scallop", "0.01"], "must be a positive number"),
             (["path", "keycap", "--tool-radius", "0.5"], "--scallop"),
-            (["path", "keycap", "--tool-radius", "0.5", "--scallop", "1"], "smaller than the tool radius"),
+            (["path", "keycap", "--tool-radius", "0.5", "--scallop", "1"], "must be smaller than the tool radius"),
             (["path", self.f("none.obj"), "--tool-radius", "0.5", "--scallop", "0.01"], "no such file"),
             (["path", "keycap_mold", "--tool-radius", "1", "--scallop", "0.01"], "concave radius of curvature"),
             (["path", "keycap", "--tool-radius", "0.5", "--scallop", "0.01", "--processing-list",
@@ -107,6 +110,181 @@ class PathCommand(unittest.TestCase):
         self.assertEqual(p.returncode, 2)
         self.assertIn("not a number", p.stderr)
 
+
+def system_python_env():
+    if not os.path.exists(SYSTEM_PYTHON):
+        raise unittest.SkipTest("no /usr/bin/python3")
+    env = {k: v for k, v in os.environ.items() if k not in ("PYTHONPATH",)}
+    env["PYTHONPATH"] = REPO_DIR
+    return env
+
+
+class Refusals(unittest.TestCase):
+    """Each bad option: exit code 2, one line on stderr naming the option, no file left
+    (the outputs of every case point into an empty folder)."""
+
+    def setUp(self):
+        self.tmp = tempfile.TemporaryDirectory()
+        self.addCleanup(self.tmp.cleanup)
+        self.out = os.path.join(self.tmp.name, "out")
+        os.mkdir(self.out)
+        self.afile = os.path.join(self.tmp.name, "a-file")
+        with open(self.afile, "w") as fh:
+            fh.write("not a folder\n")
+
+    def f(self, name):
+        return os.path.join(self.out, name)
+
+    def path_cmd(self, *extra, radius="0.5", scallop="0.05"):
+        return ["path", "keycap", "--tool-radius", radius, "--scallop", scallop, "--cl", self.f("k.cl"),
+                "--json", self.f("k.json"), *extra]
+
+    def cases(self):
+        smooth = ["--tool", "ball1_keycap", "--orientation", "smooth"]
+        mach = ["--machine", "linuxcnc_xyzac_trt", "--gcode", self.f("k.ngc")]
+        return [
+            (self.path_cmd(radius="-1"), "--tool-radius"),
+            (self.path_cmd(radius="0"), "--tool-radius"),
+            (self.path_cmd(radius="nan"), "--tool-radius"),
+            (self.path_cmd(radius="inf"), "--tool-radius"),
+            (self.path_cmd(scallop="-0.01"), "--scallop"),
+            (self.path_cmd(scallop="0"), "--scallop"),
+            (self.path_cmd(scallop="nan"), "--scallop"),
+            (self.path_cmd(scallop="0.5"), "--scallop"),               # not below the ball radius
+            (self.path_cmd("--chord-tol", "0"), "--chord-tol"),
+            (self.path_cmd("--chord-tol", "-inf"), "--chord-tol"),
+            (self.path_cmd("--max-step", "-1"), "--max-step"),
+            (self.path_cmd("--feed", "0"), "--feed"),
+            (self.path_cmd("--feed", "-1000"), "--feed"),
+            (self.path_cmd("--feed", "nan"), "--feed"),
+            (self.path_cmd("--clearance", "-5"), "--clearance"),
+            (self.path_cmd(*smooth, "--holder-clearance", "-0.1"), "--holder-clearance"),
+            (self.path_cmd(*smooth, "--smoothing-length", "0"), "--smoothing-length"),
+            (self.path_cmd(*smooth, *mach, "--rotary-weight", "inf"), "--rotary-weight"),
+            (self.path_cmd("--machine", "no_such_machine", "--gcode", self.f("k.ngc")), "--machine"),
+            (self.path_cmd("--tool", "no_such_tool"), "--tool"),
+            (self.path_cmd(*mach, "--dialect", "klingon"), "--dialect"),
+            (self.path_cmd("--orientation", "sideways"), "--orientation"),
+            (self.path_cmd("--orientation", "smooth"), "--orientation"),     # no tool for the collision checks
+            (self.path_cmd("--gcode", self.f("k.ngc")), "--gcode"),          # no machine
+            (self.path_cmd("--tool-radius", "0.7", *smooth), "--tool-radius"),  # not the tool's ball
+            (self.path_cmd(*smooth, "--stock", self.f("none.obj")), "--stock"),
+            (["path", "keycap", "--tool-radius", "0.5", "--scallop", "0.05", "--cl",
+              os.path.join(self.out, "missing", "k.cl")], "--cl"),
+            (["path", "keycap", "--tool-radius", "0.5", "--scallop", "0.05", "--json",
+              os.path.join(self.afile, "k.json")], "--json"),
+            (self.path_cmd(*mach[:2], "--gcode", self.out), "--gcode"),       # a folder
+            (self.path_cmd("--processing-list", self.f("none.json")), "processing list"),
+            (["path", self.f("none.obj"), "--tool-radius", "0.5", "--scallop", "0.05", "--cl", self.f("k.cl")],
+             "none.obj"),
+            (["job", "--out", os.path.join(self.afile, "job")], "--out"),
+            (["job", "--out", self.f("job"), "--scallop", "0"], "--scallop"),
+            (["job", "--out", self.f("job"), "--tool-radius", "-0.5"], "--tool-radius"),
+            (["job", "--out", self.f("job"), "--feed", "inf"], "--feed"),
+            (["job", "--out", self.f("job"), "--machine", "no_such_machine"], "--machine"),
+            (["job", "--out", self.f("job"), "--tool", "no_such_tool"], "--tool"),
+            (["job", "--out", self.f("job"), "--dialect", "klingon"], "--dialect"),
+            (["job", "--out", self.f("job"), "--holder-clearance", "nan"], "--holder-clearance"),
+            (["plan", "keycap", "--out", os.path.join(self.out, "missing", "list.json")], "--out"),
+        ]
+
+    def test_each_refusal_is_one_line_naming_the_option_and_leaves_no_file(self):
+        for argv, what in self.cases():
+            with self.subTest(argv=" ".join(argv[:1] + argv[5:] if argv[0] == "path" else argv)):
+                code, out, err = run(argv)
+                self.assertEqual(code, 2, err)
+                lines = err.strip("\n").split("\n")
+                self.assertEqual(len(lines), 1, err)
+                self.assertTrue(lines[0].startswith("error: "), err)
+                self.assertIn(what, lines[0])
+                self.assertNotIn("Traceback", err)
+                self.assertEqual(os.listdir(self.out), [], "a refused run left a file")
+
+    def test_a_refused_geometry_after_the_work_started_leaves_no_file(self):
+        """The mold cavity is tighter than a 1 mm ball: refused by patch and (u, v), no CL data,
+        no report, no program, no temporary file."""
+        code, out, err = run(["path", "keycap_mold", "--tool-radius", "1", "--scallop", "0.05", "--cl",
+                              self.f("m.cl"), "--json", self.f("m.json")])
+        self.assertEqual(code, 2)
+        self.assertIn("concave radius of curvature", err)
+        self.assertEqual(len(err.strip().split("\n")), 1, err)
+        self.assertEqual(os.listdir(self.out), [])
+
+    def test_refusals_as_a_user_runs_them(self):
+        """Two refusals through `python3 -m tsplcam` in its own process: the exit code and the
+        one line are what the shell sees."""
+        env = system_python_env()
+        for argv, what in [(["path", "keycap", "--tool-radius", "0.5", "--scallop", "-1"], "--scallop"),
+                           (["job", "--out", self.f("job"), "--machine", "nope"], "--machine")]:
+            p = subprocess.run([SYSTEM_PYTHON, "-m", "tsplcam", *argv], cwd=REPO_DIR, env=env,
+                               capture_output=True, text=True, timeout=300)
+            self.assertEqual(p.returncode, 2)
+            self.assertEqual(len(p.stderr.strip().split("\n")), 1, p.stderr)
+            self.assertIn(what, p.stderr)
+        self.assertEqual(os.listdir(self.out), [])
+
+
+class ModelArgument(unittest.TestCase):
+    def test_plan_takes_a_sample_name_like_path(self):
+        """`plan keycap --out list.json` reads the shipped sample: the same list as the sample's
+        file gives, and the same as the job's processing list."""
+        with tempfile.TemporaryDirectory() as tmp:
+            by_name, by_file = os.path.join(tmp, "a.json"), os.path.join(tmp, "b.json")
+            code, out, err = run(["plan", "keycap", "--out", by_name])
+            self.assertEqual(code, 0, err)
+            code, out, err = run(["plan", sample_path("keycap"), "--out", by_file])
+            self.assertEqual(code, 0, err)
+            with open(by_name, "rb") as a, open(by_file, "rb") as b:
+                self.assertEqual(a.read(), b.read())
+            self.assertEqual(sorted(os.listdir(tmp)), ["a.json", "b.json"])     # no temporary file left
+
+
+class Determinism(unittest.TestCase):
+    """The same command twice, under different PYTHONHASHSEED: the program, CL data,
+    processing list and report are the same bytes, apart from the report's timing block."""
+    JOB = ["job", "--out", "out", "--scallop", "0.2", "--chord-tol", "0.01", "--max-step", "2",
+           "--machine", "linuxcnc_xyzac_trt"]
+    PATH = ["path", "keycap", "--tool-radius", "0.5", "--scallop", "0.2", "--chord-tol", "0.01", "--tool",
+            "ball1_keycap", "--orientation", "closest-z", "--machine", "bc_head_table_sinumerik", "--gcode",
+            "out/k.mpf", "--cl", "out/k.cl", "--json", "out/k.json"]
+
+    def run_in(self, cwd, argv, seed):
+        """The same command line (the same relative file names) in its own folder."""
+        env = system_python_env()
+        env["PYTHONHASHSEED"] = str(seed)
+        os.makedirs(os.path.join(cwd, "out"))
+        return subprocess.run([SYSTEM_PYTHON, "-m", "tsplcam", *argv], cwd=cwd, env=env, capture_output=True,
+                              text=True, timeout=600)
+
+    def assert_same_files(self, a, b, names, report):
+        self.assertEqual(sorted(os.listdir(a)), names)
+        self.assertEqual(sorted(os.listdir(b)), names)
+        for name in names:
+            with open(os.path.join(a, name), "rb") as fa, open(os.path.join(b, name), "rb") as fb:
+                da, db = fa.read(), fb.read()
+            if name != report:
+                self.assertEqual(da, db, name)
+                continue
+            ra, rb = json.loads(da), json.loads(db)
+            ta, tb = ra.pop("timing"), rb.pop("timing")
+            self.assertEqual(set(ta), set(tb))
+            self.assertTrue(all(isinstance(v, float) and v >= 0 for v in ta.values()), ta)
+            # the run times live in the timing block only; the rest is the same, byte for byte
+            self.assertNotIn("seconds", json.dumps(ra))
+            self.assertEqual(json.dumps(ra, indent=2, sort_keys=True), json.dumps(rb, indent=2, sort_keys=True))
+
+    def test_job_and_path_bytes_do_not_depend_on_the_hash_seed(self):
+        with tempfile.TemporaryDirectory() as tmp:
+            runs = [(os.path.join(tmp, f"{argv[0]}{seed}"), argv, seed)
+                    for argv in (self.JOB, self.PATH) for seed in (0, 4242)]
+            with ThreadPoolExecutor(2) as pool:
+                results = list(pool.map(lambda r: self.run_in(*r), runs))
+            for r in results:
+                self.assertEqual(r.returncode, 0, r.stderr)
+            job_a, job_b, path_a, path_b = (os.path.join(cwd, "out") for cwd, _, _ in runs)
+            self.assert_same_files(job_a, job_b, ["keycap.cl", "keycap.ngc", "processing-list.json",
+                                                  "report.json"], "report.json")
+            self.assert_same_files(path_a, path_b, ["k.cl", "k.json", "k.mpf"], "k.json")
 
 if __name__ == "__main__":
     unittest.main()

@@ -1,4 +1,6 @@
-"""The whole job through the command line: path -> tool axes -> program, and the main job."""
+"""The whole job through the command line: path -> tool axes -> program, and the main job;
+the job, the `path` command and the program builder give the same program for the same
+settings."""
 import json
 import os
 import subprocess
@@ -61,7 +63,7 @@ class PathCommand(unittest.TestCase):
     def test_bad_arguments_exit_2_with_a_message(self):
         res = run("path", "keycap", "--tool-radius", "0.5", "--scallop", "0.05", "--gcode", "/tmp/x.ngc")
         self.assertEqual(res.returncode, 2)
-        self.assertIn("--gcode needs --machine", res.stderr)
+        self.assertIn("--gcode: needs --machine", res.stderr)
         res = run("path", "keycap", "--tool-radius", "0.5", "--scallop", "0.05", "--orientation", "smooth")
         self.assertEqual(res.returncode, 2)
         self.assertIn("needs a tool", res.stderr)
@@ -88,3 +90,40 @@ class MainJob(unittest.TestCase):
             self.assertTrue(program.startswith("0 BEGIN PGM"))
             self.assertIn("FUNCTION TCPM", program)
             self.assertIn("machining time", res.stdout)
+
+
+class OneProgramBuilder(unittest.TestCase):
+    """Fast settings (a coarse path on the keycap): the main job's program, the `path`
+    command's program and tsplcam.program.make_program's are the same bytes (the workbench's
+    program object is compared with the job in tests/workbench/test_workbench_program.py)."""
+
+    def test_job_path_command_and_builder_agree(self):
+        import contextlib
+        import io
+        from tsplcam.cli import main
+        from tsplcam.job import run_job
+        from tsplcam.program import load_model, make_path, make_program, processing_list
+        from tsplcam.settings import JobSettings
+        options = dict(scallop=0.2, chord_tol=0.01, max_step=2.0, feed=800.0, holder_clearance=0.25,
+                       smoothing_length=4.0, machine="bc_head_table_sinumerik", dialect="fanuc")
+        with tempfile.TemporaryDirectory() as tmp:
+            s = JobSettings(out=os.path.join(tmp, "job"), **options)
+            run_job(s, log=lambda *a: None, progress=lambda done, total: None)
+            with open(os.path.join(tmp, "job", "keycap.nc"), "rb") as fh:
+                job_program = fh.read()
+            argv = ["path", "keycap", "--tool-radius", "0.5", "--tool", "ball1_keycap", "--orientation", "smooth",
+                    "--gcode", os.path.join(tmp, "path.nc")]
+            for k, v in options.items():
+                argv += ["--" + k.replace("_", "-"), str(v)]
+            err = io.StringIO()
+            with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(err):
+                self.assertEqual(main(argv), 0, err.getvalue())
+            with open(os.path.join(tmp, "path.nc"), "rb") as fh:
+                self.assertEqual(fh.read(), job_program)
+        model = load_model("keycap")
+        path = make_path(model, processing_list(model, s), s)
+        program = make_program(path, model, s)
+        self.assertEqual(program.posted.text.encode("ascii"), job_program)
+        self.assertEqual(program.metrics.collisions, 0)
+        self.assertGreaterEqual(program.metrics.min_clearance, 0.25 - 1e-6)
+        self.assertIn("G43.4", program.posted.text)             # Fanuc's tool centre point control

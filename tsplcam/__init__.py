@@ -28,3 +28,16 @@ def load(path, **options):
     """
     from .model.formats import load as _load
     return _load(path, **options)
+
+
+def load_model(spec, **options):
+    """A model from a file, or from the name of a shipped sample (keycap, keycap_mold, head,
+    figure4, tjunction_mold) when no file of that name exists. Errors name the file and line."""
+    from .errors import InputError
+    from .model.samples import SAMPLES, sample_path
+    spec = os.fspath(spec)
+    if not os.path.exists(spec):
+        if spec in SAMPLES:
+            return load(sample_path(spec), **options)
+        raise InputError(f"no such file, nor a shipped sample ({', '.join(SAMPLES)})", path=spec)
+    return load(spec, **options)

@@ -1,6 +1,9 @@
 """Command line of the engine: ``python3 -m tsplcam <command> ...``; runs without FreeCAD.
 
-Exit codes: 0 success, 2 bad input or a geometric refusal (message on stderr, no traceback).
+Commands: ``info``, ``job`` and ``path`` (:mod:`tsplcam.job`), ``plan``
+(:mod:`tsplcam.plan.commands`), ``machines`` (:mod:`tsplcam.post.commands`).
+Exit codes: 0 success, 2 bad input or a geometric refusal: one line on stderr naming the
+option, file and line, or place on the part; no traceback, no file written.
 """
 from __future__ import annotations
 
@@ -30,18 +33,27 @@ def _cmd_info(args) -> int:
     return 0
 
 
+class Parser(argparse.ArgumentParser):
+    """argparse with a refusal on one line (usage is in --help), exit code 2."""
+
+    def error(self, message: str):
+        self.exit(2, f"error: {message} (see `{self.prog} --help`)\n")
+
+
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(prog="python3 -m tsplcam",
-                                     description="Five-axis finishing paths for T-spline mold surfaces.")
+    parser = Parser(prog="python3 -m tsplcam",
+                    description="Five-axis finishing paths for T-spline mold surfaces: model in, processing "
+                                "list, tool path, tool axes and machine program out. Lengths in mm, angles "
+                                "in degrees, feeds in mm/min.")
     parser.add_argument("--version", action="version", version=f"tsplcam {__version__}")
     sub = parser.add_subparsers(dest="command", required=True)
     p = sub.add_parser("info", help="print the version and the installed dependency versions")
     p.set_defaults(func=_cmd_info)
-    from .pipeline import add_job_command, add_path_command
+    from .job import add_job_command, add_path_command
     add_job_command(sub)
     from .plan.commands import register as register_plan
     register_plan(sub)
-    add_path_command(sub)         # the toolpath stage's options plus orientation and posting
+    add_path_command(sub)
     from .post.commands import register as register_post
     register_post(sub)
     return parser
@@ -53,5 +65,5 @@ def main(argv: list[str] | None = None) -> int:
     try:
         return args.func(args)
     except TsplcamError as exc:
-        print(f"error: {exc}", file=sys.stderr)
+        print("error: " + " ".join(str(exc).split()), file=sys.stderr)
         return 2

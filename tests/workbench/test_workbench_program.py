@@ -71,6 +71,15 @@ class ProgramObject(unittest.TestCase):
         self.assertAlmostEqual(obj.RotaryTravel, tilt + rot, delta=0.1)
         self.assertGreater(obj.RotaryTravel, 360.0)               # a float: no angle range clips it
 
+        # the main job with the same settings: the same program, through the same builder
+        from tsplcam.job import run_job
+        settings = obj.Proxy.settings(obj)
+        self.assertEqual((settings.tool, settings.tool_radius, settings.scallop), ("ball1_keycap", 0.5, 0.05))
+        settings.model, settings.out = "keycap", os.path.join(self.tmp, "job")
+        run_job(settings, log=lambda *a: None, progress=lambda done, total: None)
+        with open(os.path.join(self.tmp, "job", obj.ProgramName), encoding="ascii") as f:
+            self.assertEqual(text, f.read())
+
         # the stored axes are unit vectors on the tool side of the surface
         tp = obj.Proxy.oriented_path(obj)
         np.testing.assert_allclose(np.linalg.norm(tp.axis, axis=1), 1.0, atol=1e-12)

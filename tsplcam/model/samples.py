@@ -270,6 +270,17 @@ SAMPLES = {
     "tjunction_mold": tjunction_mold,
 }
 TSPLINE_SAMPLES = frozenset({"tjunction_mold"})       # shipped as native .tspl files
+# what a sample's part sits in: the block the tool must clear besides the surface itself
+SAMPLE_STOCKS = {"keycap_mold": keycap_mold_stock}
+
+
+def sample_stock(model: str):
+    """The stock (vertices (n,3), triangles (m,3)) a shipped sample brings, else None.
+    ``model`` is a sample name or a file of that sample (a copy keeps its name: a FreeCAD
+    document stores the model file under its own name)."""
+    name = os.path.basename(str(model)).split(".")[0]
+    make = SAMPLE_STOCKS.get(name)
+    return make() if make is not None else None
 
 
 def write_obj(cage: Cage, path: str, comment: str = "") -> None:

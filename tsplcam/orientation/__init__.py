@@ -16,3 +16,7 @@ from .candidates import Limits, Reach  # noqa: F401
 from .collision import CollisionChecker, tessellate_model  # noqa: F401
 from .orient import STRATEGIES, OrientationReport, orient  # noqa: F401
 from .tool import HolderSegment, Tool, load_tool, read_fctb, read_tool  # noqa: F401
+
+# what a user picks for the tool axes: the surface normal as the path has it (no tool
+# geometry, no collision checks), or one of the strategies above
+ORIENTATIONS = ("normal",) + tuple(STRATEGIES)

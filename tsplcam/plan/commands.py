@@ -7,8 +7,9 @@ Examples::
     python3 -m tsplcam plan --example keycap --complete edited.json --out list.json
     python3 -m tsplcam plan --example keycap --check list.json
 
-The layout comes from a model file (``tsplcam.load``; the preferred crossfeed then uses
-the surface's true edge lengths) or from a named example layout (``--example``).
+The layout comes from a model (a file or a shipped sample name, ``tsplcam.load_model``;
+the preferred crossfeed then uses the surface's true edge lengths) or from a named example
+layout (``--example``).
 """
 from __future__ import annotations
 
@@ -23,10 +24,10 @@ def _layout(args):
     if args.model and args.example:
         raise InputError("give a model file or --example, not both")
     if args.model:
-        from .. import load
+        from .. import load_model
         from .graph import model_edge_lengths
-        model = load(args.model)
-        return model.layout(), model_edge_lengths(model), os.path.basename(args.model)
+        model = load_model(args.model)
+        return model.layout(), model_edge_lengths(model), getattr(model, "name", "") or os.path.basename(args.model)
     if not args.example:
         raise InputError("give a model file or --example NAME (one of "
                          + ", ".join(EXAMPLES) + ")")
@@ -37,6 +38,9 @@ def _cmd_plan(args) -> int:
     from . import listfile
     from .solve import plan
     from .steps import Pins
+    if args.out:
+        from ..outfile import check_writable
+        check_writable(args.out, "processing list", item="--out")
     layout, edge_lengths, model = _layout(args)
     if args.check:
         plist = listfile.load(args.check, layout)
@@ -52,7 +56,7 @@ def _cmd_plan(args) -> int:
         plist = plan(layout, pins, model=model, **options)
     print(plist.table(layout))
     if args.out:
-        listfile.save(plist, args.out)
+        listfile.save(plist, args.out)      # whole or not at all
         print(f"wrote {args.out}")
     return 0
 
@@ -61,17 +65,24 @@ def register(subparsers) -> None:
     """Add the ``plan`` subcommand to the top-level parser's subparsers."""
     from ..layout.examples import EXAMPLES
     from .solve import EXACT_LIMIT
-    p = subparsers.add_parser("plan", help="plan the processing list: patch order, transit "
-                                           "corners, crossfeed (paper sections 3.2-3.4)")
-    p.add_argument("model", nargs="?", help="model file (e.g. a .obj quad cage)")
-    p.add_argument("--example", choices=sorted(EXAMPLES), help="plan a built-in layout")
-    p.add_argument("--out", help="write the processing list (JSON) here")
+    from ..model.samples import SAMPLES
+    p = subparsers.add_parser("plan", help="plan the processing list: the order of the patches, where each "
+                                           "zigzag starts and ends, and its crossfeed direction",
+                              description="Plan, complete or check a processing list: patch order, start and "
+                                          "finish corner and crossfeed direction of each patch's zigzag, chosen "
+                                          "so the tool passes from patch to patch without retracting wherever "
+                                          "the layout allows. Prints the list as a table.")
+    p.add_argument("model", nargs="?", metavar="MODEL",
+                   help="the part: a model file (.tspl, .tsm, .iga, or an .obj quad cage) or a shipped sample "
+                        f"({', '.join(SAMPLES)})")
+    p.add_argument("--example", choices=sorted(EXAMPLES), help="plan a built-in patch layout instead of a model")
+    p.add_argument("--out", metavar="FILE", help="write the processing list (JSON) to this file")
     p.add_argument("--complete", metavar="LIST",
-                   help="read an edited list, keep its pinned fields, solve the rest")
-    p.add_argument("--check", metavar="LIST", help="check a list against the layout and print it")
-    p.add_argument("--start-patch", type=int, help="pin the first patch")
-    p.add_argument("--finish-patch", type=int, help="pin the last patch")
-    p.add_argument("--exact-limit", type=int, default=EXACT_LIMIT,
-                   help="certify LKH's order exactly up to this many patches "
-                        f"(default {EXACT_LIMIT})")
+                   help="read an edited list, keep what it pins (order, corners, crossfeed), plan the rest")
+    p.add_argument("--check", metavar="LIST", help="check a list against the part's layout and print it")
+    p.add_argument("--start-patch", type=int, metavar="N", help="machine patch N first")
+    p.add_argument("--finish-patch", type=int, metavar="N", help="machine patch N last")
+    p.add_argument("--exact-limit", type=int, default=EXACT_LIMIT, metavar="N",
+                   help="up to this many patches the order is checked against an exact search (fewest "
+                        f"retractions, then fewest corner links; default {EXACT_LIMIT}, at most 16)")
     p.set_defaults(func=_cmd_plan)

@@ -88,8 +88,9 @@ def dumps(plist: ProcessingList) -> str:
 
 
 def save(plist: ProcessingList, path) -> None:
-    with open(path, "w", encoding="utf-8") as fh:
-        fh.write(dumps(plist))
+    """Write the list as JSON, whole or not at all."""
+    from ..outfile import write_text
+    write_text(path, dumps(plist), what="processing list")
 
 
 # -- reading -----------------------------------------------------------------------------

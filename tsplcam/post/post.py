@@ -68,9 +68,9 @@ class PostResult:
         return self.motion.joints
 
     def write(self, path: str) -> None:
-        """Write the program text (bytes exactly as ``text``, LF line ends)."""
-        with open(path, "w", encoding="ascii", newline="\n") as f:
-            f.write(self.text)
+        """Write the program text (bytes exactly as ``text``, LF line ends), whole or not at all."""
+        from ..outfile import write_text
+        write_text(path, self.text, encoding="ascii", what="program")
 
     def summary(self) -> str:
         """Lines to print for a job: kinematics figures and the time estimate."""

@@ -114,12 +114,8 @@ def cl_text(path: ToolPath, partno: str | None = None, approach: float = 5.0,
 
 def write_cl(path: ToolPath, filename, partno: str | None = None, approach: float = 5.0,
              comments: list[str] | None = None) -> None:
-    text = cl_text(path, partno, approach, comments)
-    try:
-        with open(filename, "w", encoding="ascii", newline="\n") as fh:
-            fh.write(text)
-    except OSError as exc:
-        raise InputError(f"cannot write the CL file: {exc.strerror}", path=str(filename)) from None
+    from ..outfile import write_text
+    write_text(filename, cl_text(path, partno, approach, comments), encoding="ascii", what="CL file")
 
 
 @dataclass

@@ -2,10 +2,11 @@
 
 Inputs are a linked TsplcamToolPath and the settings a CAM programmer picks when posting:
 tool, orientation strategy, machine, controller dialect, holder clearance, smoothing
-length and rotary weight. On recompute (only when an input changed: orientation with
-collision checks takes seconds to a minute) it runs the same engine stages as
-``python3 -m tsplcam path ... --orientation ... --machine ... --gcode`` (pipeline.orient_path
-and post.post_program), so the program is byte for byte what the command line writes.
+length and rotary weight. Its properties map one to one onto the options of
+:class:`tsplcam.settings.JobSettings` (:meth:`TsplcamProgram.settings`); on recompute (only
+when an input changed: orientation with collision checks takes seconds to a minute) it calls
+the engine's one program builder, :func:`tsplcam.program.make_program`, which the command
+line's ``path`` and ``job`` call too, so the program is byte for byte what they write.
 
 The G-code (``ProgramFile``) and the oriented path (``AxesFile``, .npz) are kept inside
 the .FCStd, so a reloaded document has both at once; ``export_program`` writes the G-code
@@ -26,6 +27,9 @@ import numpy as np
 import FreeCAD
 
 from ..errors import InputError
+from ..orientation import ORIENTATIONS
+from ..program import make_program as build_program, program_file_name
+from ..settings import PROGRAM_KEYS, JobSettings
 from . import messages
 from .modelobject import model_of
 from .pathobject import _busy, is_path_object, load_npz, path_of, save_npz
@@ -34,10 +38,15 @@ from .proxy import FeatureProxy, add_property, set_read_only
 from .transaction import in_transaction
 
 TITLE = "Program"
-ORIENTATIONS = ("smooth", "closest-z", "fixed", "normal")
 CONTROLLER = "machine's controller"
-EXTENSIONS = {"heidenhain": ".h", "sinumerik": ".mpf", "fanuc": ".nc", "linuxcnc": ".ngc"}
-DEFAULT_MACHINE = "mikron_ucp600_heidenhain"
+DEFAULTS = JobSettings()
+DEFAULT_MACHINE = DEFAULTS.machine
+# option of JobSettings -> the property that sets it, on the program or on its tool path
+# (errors name the property)
+PROPERTY_OF = {"tool": "Tool", "orientation": "Orientation", "machine": "Machine", "dialect": "Dialect",
+               "holder_clearance": "HolderClearance", "smoothing_length": "SmoothingLength",
+               "rotary_weight": "RotaryWeight", "stock": "Stock", "tool_radius": "ToolRadius",
+               "scallop": "Scallop", "chord_tol": "ChordTolerance", "feed": "Feed"}
 
 
 def tool_names() -> list[str]:
@@ -93,7 +102,7 @@ class TsplcamProgram(FeatureProxy):
                         "Tool axes: smooth (xu2013, collision-free), closest-z (shang2020), fixed +Z, "
                         "or the surface normal (no collision checks)"):
             obj.Orientation = list(ORIENTATIONS)
-            obj.Orientation = "smooth"
+            obj.Orientation = DEFAULTS.orientation
         if add_property(obj, "App::PropertyEnumeration", "Machine", g,
                         "Five-axis machine: kinematics, limits, axis speeds (python3 -m tsplcam machines)"):
             obj.Machine = machine_names()
@@ -107,12 +116,14 @@ class TsplcamProgram(FeatureProxy):
                      "Stock, mold block or fixture (a Part or Mesh object) the tool must clear too; "
                      "empty: the model alone (the keycap_mold sample brings its block)")
         add_property(obj, "App::PropertyLength", "HolderClearance", g,
-                     "Distance kept between shank/holder and the part (the flutes only must not touch)", 0.3)
+                     "Distance kept between shank/holder and the part (the flutes only must not touch)",
+                     DEFAULTS.holder_clearance)
         add_property(obj, "App::PropertyLength", "SmoothingLength", g,
-                     "Smooth: a needed tilt is spread over about this length of path on each side", 5.0)
+                     "Smooth: a needed tilt is spread over about this length of path on each side",
+                     DEFAULTS.smoothing_length)
         add_property(obj, "App::PropertyFloat", "RotaryWeight", g,
                      "Smooth: weight of the rotary (C) axis motion next to the change of the tool axis "
-                     "(0: the axis angle only; 1 shortens mold cavities)", 0.0)
+                     "(0: the axis angle only; 1 shortens mold cavities)", DEFAULTS.rotary_weight)
         add_property(obj, "App::PropertyFileIncluded", "ProgramFile", g,
                      "The posted program, kept inside the document", hidden=True)
         add_property(obj, "App::PropertyString", "ProgramName", g,
@@ -144,18 +155,18 @@ class TsplcamProgram(FeatureProxy):
         _enum(obj, "Machine", machine_names(), obj.Machine)
 
     # -- inputs -----------------------------------------------------------------------------------
-    def settings(self, obj) -> dict:
-        return dict(tool=obj.ToolFile or obj.Tool, orientation=obj.Orientation, machine=obj.Machine,
-                    dialect=None if obj.Dialect == CONTROLLER else obj.Dialect,
-                    holder_clearance=float(obj.HolderClearance.Value),
-                    smoothing_length=float(obj.SmoothingLength.Value),
-                    rotary_weight=float(obj.RotaryWeight))
+    def settings(self, obj) -> JobSettings:
+        """The job settings of this program: its own properties, and the ball radius, scallop,
+        chord tolerance and feed of its tool path (the linked Stock object goes to the builder
+        as triangles, not as a file). Checked; errors name the property."""
+        tp = obj.ToolPath
+        model = tp.ProcessingList.Model if tp is not None and tp.ProcessingList is not None else None
+        return settings_of(obj, tp, model)
 
     def inputs_key(self, obj) -> str:
         h = hashlib.sha1()
         h.update(obj.ToolPath.InputsKey.encode())
-        settings = self.settings(obj)
-        h.update(json.dumps(settings, sort_keys=True).encode())
+        h.update(json.dumps(self.settings(obj).to_dict(PROGRAM_KEYS), sort_keys=True).encode())
         if obj.Stock is not None:
             V, T = triangles_of(obj.Stock)
             h.update(V.tobytes())
@@ -178,8 +189,8 @@ class TsplcamProgram(FeatureProxy):
         tp_obj, model_obj = self._check_inputs(obj)
         stock = triangles_of(obj.Stock) if obj.Stock is not None else None
         with progress_bar(f"tsplcam: tool axes of {obj.Label}") as progress:
-            return compute_program(path_of(tp_obj), model_of(model_obj), model_obj.SourceFile,
-                                   stock=stock, progress=progress, **self.settings(obj))
+            return compute_program(path_of(tp_obj), model_of(model_obj), self.settings(obj),
+                                   stock=stock, progress=progress)
 
     def execute(self, obj):
         self._check_inputs(obj)
@@ -205,7 +216,7 @@ class TsplcamProgram(FeatureProxy):
         finally:
             shutil.rmtree(tmp, ignore_errors=True)
         obj.InputsKey = key
-        set_read_only(obj, "ProgramName", _file_stem(obj) + EXTENSIONS.get(posted.dialect, ".nc"))
+        set_read_only(obj, "ProgramName", program_file_name(_source_file(obj), posted.dialect))
         self._result, self._axes_file = oriented, obj.AxesFile
 
     def oriented_path(self, obj):
@@ -239,11 +250,34 @@ def _machine_file(name: str) -> str | None:
     return machine_files().get(name)
 
 
-def _file_stem(obj) -> str:
+def _source_file(obj) -> str:
     tp = obj.ToolPath
     model = tp.ProcessingList.Model if tp is not None else None
-    src = os.path.basename(model.SourceFile) if model is not None and model.SourceFile else "program"
-    return os.path.splitext(src)[0] or "program"
+    return model.SourceFile if model is not None and model.SourceFile else "program"
+
+
+def settings_of(program_obj, path_obj, model_obj, **changes) -> JobSettings:
+    """JobSettings from a program object's properties (or, with ``program_obj`` None, from
+    the defaults), the tool path object's ball radius, scallop, chord tolerance and feed,
+    and ``changes`` (option names); checked, errors naming the property."""
+    s = {}
+    if program_obj is not None:
+        p = program_obj
+        s = dict(tool=p.ToolFile or p.Tool or None, orientation=p.Orientation, machine=p.Machine,
+                 dialect=None if p.Dialect == CONTROLLER else p.Dialect,
+                 holder_clearance=float(p.HolderClearance.Value), smoothing_length=float(p.SmoothingLength.Value),
+                 rotary_weight=float(p.RotaryWeight))
+    if path_obj is not None:
+        s.update(tool_radius=float(path_obj.ToolRadius.Value), scallop=float(path_obj.Scallop.Value),
+                 chord_tol=float(path_obj.ChordTolerance.Value), feed=float(path_obj.Feed.getValueAs("mm/min")))
+    if model_obj is not None and model_obj.SourceFile:
+        s["model"] = model_obj.SourceFile
+    s.update(changes)
+    try:
+        settings = JobSettings(**s)
+    except TypeError as exc:            # an option JobSettings does not have
+        raise InputError(str(exc)) from None
+    return settings.check(lambda name: PROPERTY_OF.get(name, name))
 
 
 def triangles_of(obj, tolerance: float = 0.01):
@@ -264,29 +298,13 @@ def triangles_of(obj, tolerance: float = 0.01):
     return V, T
 
 
-def compute_program(toolpath, model, source_file: str, tool: str, orientation: str, machine: str,
-                    dialect: str | None, holder_clearance: float, smoothing_length: float,
-                    rotary_weight: float, stock=None, progress=None):
-    """(oriented ToolPath, PostResult, orientation metrics or None) as the command line makes
-    them; ``stock`` (V, T) triangles, else the sample's mold block where the model is the
-    keycap_mold sample; ``progress(done, total)`` follows the collision checks. Raises
-    InputError, CollisionError or KinematicsError naming the place."""
-    from ..orientation import load_tool
-    from ..pipeline import orient_path, sample_stock
-    from ..post import load_machine, post_program
-    mach = load_machine(machine)
-    cutter = load_tool(tool) if orientation != "normal" else None
-    if cutter is not None and abs(cutter.ball_radius - toolpath.tool_radius) > 1e-9:
-        raise InputError(f"tool {cutter.name} has a ball of radius {cutter.ball_radius:g} mm, the path was "
-                         f"made for {toolpath.tool_radius:g} mm: pick a matching tool or change the path's "
-                         "ToolRadius")
-    if stock is None:
-        stock = sample_stock(source_file)
-    oriented = orient_path(toolpath, model, orientation, cutter, mach, stock,
-                           holder_clearance, smoothing_length=smoothing_length, rotary_weight=rotary_weight,
-                           progress=progress)
-    posted = post_program(oriented.path, mach, dialect)
-    return oriented.path, posted, oriented.metrics
+def compute_program(toolpath, model, settings: JobSettings, stock=None, progress=None):
+    """(oriented ToolPath, PostResult, orientation metrics or None) from the engine's program
+    builder; ``stock`` (V, T) triangles of the linked Stock object, else the sample's mold
+    block where the model is the keycap_mold sample; ``progress(done, total)`` follows the
+    collision checks. Raises InputError, CollisionError or KinematicsError naming the place."""
+    program = build_program(toolpath, model, settings, stock=stock, progress=progress)
+    return program.path, program.posted, program.metrics
 
 
 @contextlib.contextmanager
@@ -334,25 +352,23 @@ def make_program(path_obj, **settings):
     """A TsplcamProgram for the tool path ``path_obj``: oriented and posted first (seconds to a
     minute), added only on success; None after reporting why not (a collision or a pose
     outside the machine's limits, named by point, patch and (u, v)). ``settings``: tool,
-    orientation, machine, dialect, holder_clearance, smoothing_length, rotary_weight, and
-    stock (a document object)."""
+    orientation, machine, dialect, holder_clearance, smoothing_length, rotary_weight (options
+    of JobSettings, defaults from it), and stock (a document object)."""
     doc = path_obj.Document
     radius = float(path_obj.ToolRadius.Value)
-    s = dict(tool=tool_for_radius(radius), orientation="smooth", machine=DEFAULT_MACHINE, dialect=None,
-             holder_clearance=0.3, smoothing_length=5.0, rotary_weight=0.0)
     stock_obj = settings.pop("stock", None)
-    s.update(settings)
     busy = _busy()
     try:
-        if s["tool"] is None and s["orientation"] != "normal":
+        settings.setdefault("tool", tool_for_radius(radius))
+        if settings["tool"] is None and settings.get("orientation", DEFAULTS.orientation) != "normal":
             raise InputError(f"no shipped tool has a ball of radius {radius:g} mm: add a tool file "
                              "(tsplcam/orientation/TOOLS.md) or post with orientation 'normal'",
                              item=path_obj.Label)
         model_obj = path_obj.ProcessingList.Model
+        s = settings_of(None, path_obj, model_obj, **settings)
         stock = triangles_of(stock_obj) if stock_obj is not None else None
         with progress_bar(f"tsplcam: tool axes of {path_obj.Label}") as progress:
-            result = compute_program(path_of(path_obj), model_of(model_obj), model_obj.SourceFile,
-                                     stock=stock, progress=progress, **s)
+            result = compute_program(path_of(path_obj), model_of(model_obj), s, stock=stock, progress=progress)
     except Exception as exc:
         messages.exception(TITLE, exc, f"posting {path_obj.Label}")
         return None
@@ -365,16 +381,16 @@ def make_program(path_obj, **settings):
         obj.Label = f"{path_obj.Label} program"
         obj.ToolPath = path_obj
         obj.Stock = stock_obj
-        if s["tool"] in tool_names():
-            obj.Tool = s["tool"]
-        elif s["tool"]:
-            obj.ToolFile = s["tool"]
-        obj.Orientation = s["orientation"]
-        obj.Machine = s["machine"]
-        obj.Dialect = s["dialect"] or CONTROLLER
-        obj.HolderClearance = s["holder_clearance"]
-        obj.SmoothingLength = s["smoothing_length"]
-        obj.RotaryWeight = s["rotary_weight"]
+        if s.tool in tool_names():
+            obj.Tool = s.tool
+        elif s.tool:
+            obj.ToolFile = s.tool
+        obj.Orientation = s.orientation
+        obj.Machine = s.machine
+        obj.Dialect = s.dialect or CONTROLLER
+        obj.HolderClearance = s.holder_clearance
+        obj.SmoothingLength = s.smoothing_length
+        obj.RotaryWeight = s.rotary_weight
         obj.Proxy.store(obj, result, obj.Proxy.inputs_key(obj))
         TsplcamProgram.update_info(obj, result)
         if FreeCAD.GuiUp:

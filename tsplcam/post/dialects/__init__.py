@@ -18,6 +18,13 @@ import numpy as np
 from ...errors import InputError
 
 NAMES = ("heidenhain", "sinumerik", "fanuc", "linuxcnc")
+# the file name extension each control expects for a program
+EXTENSIONS = {"heidenhain": ".h", "sinumerik": ".mpf", "fanuc": ".nc", "linuxcnc": ".ngc"}
+
+
+def extension(name: str) -> str:
+    """File name extension of a program in dialect ``name`` (.nc when unknown)."""
+    return EXTENSIONS.get(name, ".nc")
 
 
 def get(name: str):

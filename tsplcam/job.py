@@ -1,0 +1,349 @@
+"""The ``path`` and ``job`` commands: settings from the command line, the program from
+:mod:`tsplcam.program`, the files and the report.
+
+``python3 -m tsplcam path MODEL --tool-radius R --scallop H [...]``: one path with the
+files asked for (``--cl``, ``--gcode``, ``--json``), tool axes by ``--orientation``
+(default: the surface normal), a program when ``--machine`` and ``--gcode`` are given.
+
+``python3 -m tsplcam job [--out DIR] [...]``: model -> processing list -> path -> tool axes
+-> program with every default of :class:`tsplcam.settings.JobSettings` (the main job);
+writes the program, the CL data, ``processing-list.json`` and ``report.json`` into DIR.
+
+Both commands take the options of :class:`JobSettings`, generated from its fields. Every
+option is checked and every input read before the long work starts; the files are written
+at the end, all at once (:mod:`tsplcam.outfile`): a refused or failed run leaves no file.
+The report's figures depend only on the inputs; the run times are kept apart in its
+``timing`` block.
+"""
+from __future__ import annotations
+
+import argparse
+import contextlib
+import json
+import os
+import sys
+import time
+from dataclasses import fields
+
+from . import load_model
+from .errors import InputError
+from .outfile import check_folder, check_writable, write_texts
+from .program import (load_machine, load_stock, load_tool, make_baseline, make_path, make_program,
+                      processing_list, program_file_name, tool_radius)
+from .settings import GROUPS, JobSettings, choices_of, default_of, help_text
+
+# what differs between the two commands: the model is an argument of `path`, which also
+# needs the ball radius (or a tool) and the scallop and makes no tool axes or program unless
+# asked for
+COMMANDS = {
+    "path": dict(positional="model", required=("scallop",),
+                 defaults=dict(tool=None, machine=None, orientation="normal")),
+    "job": dict(positional=None, required=(), defaults={}),
+}
+NUMBER_KINDS = ("length", "length0", "feed", "factor")
+
+
+# -- options from the settings' fields ----------------------------------------------------------
+def _number(text: str) -> float:
+    try:
+        return float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
+
+
+def flags_of(f) -> tuple:
+    return f.metadata["flags"] or ("--" + f.name.replace("_", "-"),)
+
+
+def label_for(command: str):
+    """How the command line spells an option: ``tool_radius`` -> ``--tool-radius``."""
+    spec = COMMANDS[command]
+    by_name = {f.name: (f.metadata["metavar"] if f.name == spec["positional"] else flags_of(f)[0])
+               for f in fields(JobSettings)}
+    return lambda name: by_name.get(name, name)
+
+
+def add_options(parser, command: str) -> None:
+    """The options of ``command``, one per field of JobSettings that it takes."""
+    spec = COMMANDS[command]
+    names = set(JobSettings.option_names(command))
+    groups = {}
+    for f in fields(JobSettings):
+        if f.name not in names:
+            continue
+        md = f.metadata
+        default = spec["defaults"].get(f.name, default_of(f))
+        text = help_text(f)
+        if f.name == spec["positional"]:
+            parser.add_argument(f.name, metavar=md["metavar"], help=text)
+            continue
+        kw = dict(dest=f.name, default=argparse.SUPPRESS)
+        if md["kind"] == "flag":
+            kw["action"] = "store_false" if default else "store_true"
+        else:
+            kw.update(metavar=md["metavar"], type=_number if md["kind"] in NUMBER_KINDS else str)
+            if md["kind"] == "choice":
+                kw["choices"] = choices_of(f)
+                kw.pop("metavar") if md["metavar"] is None else None
+            if f.name in spec["required"]:
+                kw["required"] = True
+            elif default is not None and "default:" not in text:
+                shown = f"{default:g}" if isinstance(default, float) else str(default)
+                unit = text.endswith(("(mm)", "(mm/min)"))
+                text = text[:-1] + f", default {shown})" if unit else text + f" (default {shown})"
+        if md["group"] not in groups:
+            groups[md["group"]] = parser.add_argument_group(GROUPS[md["group"]])
+        groups[md["group"]].add_argument(*flags_of(f), help=text, **kw)
+
+
+def settings_from_args(args, command: str) -> JobSettings:
+    """JobSettings of the parsed arguments over the command's defaults, checked; errors name
+    the option as the command line spells it."""
+    names = set(JobSettings.option_names(command))
+    given = {k: v for k, v in vars(args).items() if k in names}
+    with named_options(command):
+        return JobSettings(**{**COMMANDS[command]["defaults"], **given}).check(label_for(command))
+
+
+@contextlib.contextmanager
+def named_options(command: str):
+    """Errors about an option (InputError.item a field name) name it as the command line does."""
+    label = label_for(command)
+    try:
+        yield label
+    except InputError as exc:
+        if exc.item is None or label(exc.item) == exc.item:
+            raise
+        raise InputError(exc.message, path=exc.path, line=exc.line, item=label(exc.item)) from None
+
+
+def _progress(what: str):
+    """A progress callback printing 'what k/n' on stderr (the report stays on stdout)."""
+    def report(done: int, total: int) -> None:
+        print(f"\r{what} {done}/{total}", end="\n" if done == total else "", file=sys.stderr, flush=True)
+    return report
+
+
+def json_text(doc: dict) -> str:
+    """A report as JSON text: sorted keys, numpy numbers as plain ones, LF line ends."""
+    def plain(x):
+        import numpy as np
+        if isinstance(x, np.integer):
+            return int(x)
+        if isinstance(x, np.floating):
+            return float(x)
+        if isinstance(x, np.ndarray):
+            return x.tolist()
+        return str(x)
+    return json.dumps(doc, indent=2, sort_keys=True, default=plain) + "\n"
+
+
+def _check_outputs(outputs: list, label) -> None:
+    """Refuse an output whose folder is missing or not writable, and one file given twice."""
+    seen = {}
+    for name, filename, what in outputs:
+        if not filename:
+            continue
+        check_writable(filename, what, item=label(name))
+        key = os.path.realpath(filename)
+        if key in seen:
+            raise InputError(f"the same file as {label(seen[key])}", path=filename, item=label(name))
+        seen[key] = name
+
+
+# -- the path command -------------------------------------------------------------------------
+def _cmd_path(args) -> int:
+    s = settings_from_args(args, "path")
+    t0 = time.perf_counter()
+    with named_options("path") as label:
+        _check_outputs([("gcode", s.gcode, "program"), ("cl", s.cl, "CL file"), ("report", s.report, "report"),
+                        ("baseline_cl", s.baseline_cl, "CL file")], label)
+        model = load_model(s.model)
+        plist = processing_list(model, s)
+        radius = tool_radius(s, load_tool(s))
+        load_machine(s)
+        stock = load_stock(s) if s.orientation != "normal" else None
+        timing = {}
+        path = make_path(model, plist, s, radius)
+        path.info["model"] = os.path.basename(s.model)
+        timing["path_s"] = path.info["seconds"]
+        baseline = None
+        if s.baseline or s.baseline_cl:
+            baseline = make_baseline(model, plist, s, radius)
+            baseline.info["model"] = os.path.basename(s.model)
+            timing["baseline_s"] = baseline.info["seconds"]
+        verification = None
+        if s.verify:
+            from .verify.scallop import measure
+            t = time.perf_counter()
+            verification = measure(path, model, progress=_progress("measuring scallop, patch"))
+            timing["verify_s"] = time.perf_counter() - t
+        program = make_program(path, model, s, stock=stock, progress=_progress("orienting: poses checked / at most"),
+                               post=bool(s.gcode))
+        timing.update(program.seconds)
+        files = []
+        if s.cl:
+            files.append((s.cl, cl_text(program.path), "CL file", "ascii"))
+        if baseline is not None and s.baseline_cl:
+            files.append((s.baseline_cl, cl_text(baseline), "CL file", "ascii"))
+        if s.report:
+            timing["total_s"] = time.perf_counter() - t0
+            doc = path_figures(program, verification, baseline)
+            doc["timing"] = timing
+            files.append((s.report, json_text(doc), "report"))
+        if program.posted is not None:
+            files.append((s.gcode, program.posted.text, "program", "ascii"))
+        written = write_texts(files)
+    print(path_report(program.path, verification, baseline))
+    if program.report is not None:
+        print(program.report.summary())
+        print(program.metrics.summary())
+    if program.posted is not None:
+        print(program.posted.summary())
+    for f in written:
+        print(f"wrote {f}")
+    print(f"time taken {time.perf_counter() - t0:.2f} s")
+    return 0
+
+
+def cl_text(path) -> str:
+    from .toolpath.cldata import cl_text as text
+    return text(path)
+
+
+def _summary(path) -> dict:
+    """Figures of a path; its run times go to the report's timing block."""
+    from .verify.metrics import path_metrics
+    patches = [{k: v for k, v in d.items() if k != "seconds"} for d in path.info.get("patches", [])]
+    return {"metrics": path_metrics(path).as_dict(), "patches": patches, "settings": path.info.get("settings", {})}
+
+
+def path_figures(program, verification=None, baseline=None) -> dict:
+    """The ``path --json`` report (without its timing block)."""
+    doc = {"path": _summary(program.path)}
+    if verification is not None:
+        doc["verification"] = verification.as_dict()
+    if program.metrics is not None:
+        doc["orientation"] = program.metrics.as_dict()
+    if program.posted is not None:
+        doc["machining_time_s"] = program.posted.time.total_s
+    if baseline is not None:
+        doc["baseline"] = _summary(baseline)
+    return doc
+
+
+def path_report(path, verification=None, baseline=None) -> str:
+    """The text the path command prints."""
+    from .verify.metrics import compare_table, path_metrics
+    s = path.info["settings"]
+    out = [f"{path.info.get('model', '')}: ball radius {s['tool_radius']:g} mm, scallop {s['scallop']:g} mm, "
+           f"chord tolerance {s['chord_tol']:g} mm"]
+    rows = [("step", "patch", "crossfeed", "start", "finish", "lines", "scallop used", "points", "cut mm")]
+    for d in path.info["patches"]:
+        rows.append((str(d["step"]), str(d["patch"]), d["crossfeed"], d["start"], d["finish"], str(d["lines"]),
+                     f"{d['scallop_used']:.5g}", str(d["points"]), f"{d['cut_length']:.1f}"))
+    w = [max(len(r[k]) for r in rows) for k in range(len(rows[0]))]
+    out += ["  " + "  ".join(c.rjust(wk) for c, wk in zip(r, w)) for r in rows]
+    m = path_metrics(path)
+    out.append(f"{m.points} points, {m.lines} lines, length {m.length:.1f} mm (cut {m.cut_length:.1f}, "
+               f"link {m.link_length:.1f}, air {m.air_length:.1f}), {m.retractions} retractions; "
+               f"generated in {path.info['seconds']:.2f} s")
+    if verification is not None:
+        v = verification
+        out.append(f"measured on {v.samples} surface samples + {v.ridges} ridges: largest scallop "
+                   f"{v.max_scallop:.5f} mm at patch {v.max_at[0]} (u, v) = ({v.max_at[1]:.4f}, {v.max_at[2]:.4f}); "
+                   f"cusp mean {v.cusp_mean:.5f} mm; mean material {v.mean_material:.5f} mm; gouge at points "
+                   f"{v.gouge_points:.2e} mm, on chords {v.gouge_chords:.2e} mm, in the air {v.gouge_air:.2e} mm")
+    if baseline is not None:
+        out.append("T-spline path against the compound-NURBS baseline (each face on its own):")
+        out.append(compare_table({"T-spline": m, "baseline": path_metrics(baseline)}))
+    return "\n".join(out)
+
+
+# -- the job ----------------------------------------------------------------------------------
+def run_job(s: JobSettings, log=print, progress=None) -> dict:
+    """Model -> processing list -> path -> tool axes -> program, with a report; the files go
+    into ``s.out`` (made when missing), all written at the end. Returns the report."""
+    from .plan.listfile import dumps as list_text
+    from .verify.metrics import path_metrics
+    s.check()
+    if not s.machine:
+        raise InputError("the job makes a machine program: give a machine", item="machine")
+    check_folder(s.out, item="out")
+    timing = {}
+    t_all = t = time.perf_counter()
+    model = load_model(s.model)
+    timing["model_s"] = time.perf_counter() - t
+    log(f"model {s.model}: {len(model.patches)} patches, "
+        f"{sum(not e.boundary for e in model.extraordinary)} extraordinary points ({timing['model_s']:.2f} s)")
+    t = time.perf_counter()
+    plist = processing_list(model, s)
+    timing["plan_s"] = time.perf_counter() - t
+    log(f"processing list: {len(plist.steps)} steps, {plist.retractions} retractions, "
+        f"{plist.corner_links} corner links ({timing['plan_s']:.2f} s)")
+    tool = load_tool(s)
+    radius = tool_radius(s, tool)
+    load_machine(s)
+    stock = load_stock(s)
+    t = time.perf_counter()
+    path = make_path(model, plist, s, radius)
+    timing["path_s"] = time.perf_counter() - t
+    m = path_metrics(path)
+    log(f"path: {m.lines} lines, {m.points} points, {m.length:.1f} mm, {m.retractions} retractions "
+        f"({timing['path_s']:.2f} s)")
+    program = make_program(path, model, s, stock=stock,
+                           progress=progress or _progress("orienting: poses checked / at most"))
+    timing.update(program.seconds)
+    if program.metrics is not None:
+        log(f"tool axes ({s.orientation}): {program.metrics.summary()} ({timing['orientation_s']:.2f} s)")
+    post = program.posted
+    log(post.summary())
+    figures = {"settings": s.to_dict(JobSettings.option_names("job")), "path": m.as_dict(),
+               "machining_time_s": post.time.total_s}
+    if program.metrics is not None:
+        figures["orientation"] = program.metrics.as_dict()
+    name = program_file_name(s.model, post.dialect)
+    cl_name = os.path.splitext(name)[0] + ".cl"
+    timing["total_s"] = time.perf_counter() - t_all
+    figures["timing"] = timing
+    os.makedirs(s.out, exist_ok=True)
+    write_texts([(os.path.join(s.out, name), post.text, "program", "ascii"),
+                 (os.path.join(s.out, cl_name), cl_text(program.path), "CL file", "ascii"),
+                 (os.path.join(s.out, "processing-list.json"), list_text(plist), "processing list"),
+                 (os.path.join(s.out, "report.json"), json_text(figures), "report")])
+    log(f"wrote {os.path.join(s.out, name)}, {os.path.join(s.out, cl_name)}, processing-list.json and "
+        f"report.json in {s.out} ({timing['total_s']:.1f} s in all)")
+    return figures
+
+
+def _cmd_job(args) -> int:
+    from . import __version__
+    s = settings_from_args(args, "job")
+    print(f"tsplcam {__version__}: {s.model}, tool {s.tool}, scallop {s.scallop:g} mm, "
+          f"{s.orientation} tool axes, {s.machine}")
+    with named_options("job"):
+        run_job(s)
+    return 0
+
+
+# -- registering ------------------------------------------------------------------------------
+def add_path_command(subparsers) -> None:
+    p = subparsers.add_parser("path", help="finishing path over the whole part without retractions; "
+                                           "CL data, tool axes and G-code on request",
+                              description="A ball-end finishing path over every patch of the part, "
+                                          "patch after patch in the processing list's order. Lengths in mm, "
+                                          "feeds in mm/min. Exit code 0, or 2 with one line naming the "
+                                          "option, file or place on bad input or a refused geometry.")
+    add_options(p, "path")
+    p.set_defaults(func=_cmd_path)
+
+
+def add_job_command(subparsers) -> None:
+    p = subparsers.add_parser("job", help="the whole job, model to machine program (default: keycap, 1 mm "
+                                          "ball, 0.005 mm scallop, smooth collision-free axes, Heidenhain)",
+                              description="Model, processing list, path, tool axes and machine program in "
+                                          "one run; writes the program, CL data, processing-list.json and "
+                                          "report.json into --out. Lengths in mm, feeds in mm/min. Exit "
+                                          "code 0, or 2 with one line naming the option, file or place.")
+    add_options(p, "job")
+    p.set_defaults(func=_cmd_job)

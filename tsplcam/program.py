@@ -1,0 +1,176 @@
+"""From settings to a machine program: the one place where the stages are put together.
+
+    model ──> processing list ──> path ──> tool axes ──> machine program
+    load_model  processing_list   make_path    make_program (orientation, post)
+
+The command line (``path`` and ``job``, :mod:`tsplcam.job`), batch runs and the workbench's
+program object all call these functions with a :class:`tsplcam.settings.JobSettings`, so
+the same settings give the same program bytes wherever they come from.
+"""
+from __future__ import annotations
+
+import contextlib
+import os
+import time
+from dataclasses import dataclass, field
+
+from . import load_model
+from .errors import InputError
+from .settings import PATH_KEYS, JobSettings
+
+__all__ = ["Program", "load_model", "load_stock", "load_tool", "make_baseline", "make_path", "make_program",
+           "processing_list", "program_file_name", "tool_radius"]
+
+
+def processing_list(model, settings: JobSettings):
+    """The list of ``settings.processing_list`` checked against the model's layout, or the
+    planner's list when there is none."""
+    if settings.processing_list:
+        from .plan import load as load_list
+        return load_list(settings.processing_list, model.layout())
+    from .toolpath.zigzag import default_plan
+    return default_plan(model)
+
+
+@contextlib.contextmanager
+def _option(name: str):
+    """An InputError raised while reading what option ``name`` gives names that option."""
+    try:
+        yield
+    except InputError as exc:
+        if exc.item is not None:
+            raise
+        raise InputError(exc.message, path=exc.path, line=exc.line, item=name) from None
+
+
+def load_tool(settings: JobSettings):
+    """The cutter of ``settings.tool`` (None when no tool is given), its ball radius checked
+    against ``settings.tool_radius`` when both are given."""
+    if not settings.tool:
+        return None
+    from .orientation import load_tool as load
+    with _option("tool"):
+        tool = load(settings.tool)
+    if settings.tool_radius is not None and abs(tool.ball_radius - settings.tool_radius) > 1e-9:
+        raise InputError(f"{settings.tool_radius:g} mm differs from the ball radius {tool.ball_radius:g} mm "
+                         f"of tool {tool.name!r}", item="tool_radius")
+    return tool
+
+
+def tool_radius(settings: JobSettings, tool=None) -> float:
+    """The ball radius the path is made for: ``settings.tool_radius``, else the tool's."""
+    if settings.tool_radius is not None:
+        return float(settings.tool_radius)
+    tool = tool or load_tool(settings)
+    if tool is None:
+        raise InputError("give the ball radius or a tool", item="tool_radius")
+    return float(tool.ball_radius)
+
+
+def load_machine(settings: JobSettings):
+    """The Machine of ``settings.machine``, or None."""
+    if not settings.machine:
+        return None
+    from .post import load_machine as load
+    with _option("machine"):
+        return load(settings.machine)
+
+
+def load_stock(settings: JobSettings):
+    """The stock triangles (vertices (n,3), triangles (m,3)): the OBJ file of
+    ``settings.stock``, else the block a shipped sample brings, else None."""
+    if settings.stock:
+        from .model.formats.mesh import read_triangles
+        with _option("stock"):
+            return read_triangles(settings.stock)
+    from .model.samples import sample_stock
+    return sample_stock(settings.model)
+
+
+def make_path(model, plist, settings: JobSettings, radius: float | None = None):
+    """The finishing path (ToolPath) of ``model`` in the order of ``plist``: one zigzag per
+    patch, linked at shared corners, tool axes along the surface normals."""
+    from .toolpath import zigzag_path
+    radius = tool_radius(settings) if radius is None else radius
+    return zigzag_path(model, plist, radius, **_path_options(settings, radius))
+
+
+def make_baseline(model, plist, settings: JobSettings, radius: float):
+    """The comparison path: each face of the model machined on its own (compound NURBS),
+    retracting between faces, in the order of ``plist``."""
+    from .toolpath.baseline import baseline_path
+    return baseline_path(model, radius, order=plist.order, **_path_options(settings, radius))
+
+
+def _path_options(settings: JobSettings, radius: float) -> dict:
+    """The path generator's keyword options, checked (scallop and chord tolerance below the
+    ball radius)."""
+    settings.path_settings(radius).check()
+    return settings.to_dict(PATH_KEYS)
+
+
+@dataclass
+class Program:
+    """A path with its tool axes, and the machine program when it was posted.
+
+    ``report``: what the orientation did (None for surface-normal axes); ``metrics``: the
+    axes measured again with the same collision checker (collisions, clearance, axis steps,
+    rotary travel); ``posted``: the PostResult (program text, motion, time estimate);
+    ``seconds``: run time of each step (orientation, post)."""
+    path: object
+    report: object = None
+    metrics: object = None
+    posted: object = None
+    seconds: dict = field(default_factory=dict)
+
+
+def make_program(path, model, settings: JobSettings, stock=None, progress=None, post: bool = True) -> Program:
+    """Tool axes and machine program of ``path`` (a ToolPath of ``model``) by ``settings``
+    (its ``tool``, ``orientation``, ``holder_clearance``, ``smoothing_length``,
+    ``rotary_weight``, ``machine`` and ``dialect``).
+
+    ``stock``: (V, T) triangles the tool must clear besides the model (default:
+    :func:`load_stock`); ``progress(done, total)`` follows the collision checks; ``post``:
+    False stops before the machine program. Raises InputError, CollisionError or
+    KinematicsError naming the place; a path that collides is never returned."""
+    machine = load_machine(settings)
+    t = time.perf_counter()
+    if settings.orientation != "normal":
+        tool = load_tool(settings)
+        if tool is None:
+            raise InputError(f"orientation '{settings.orientation}' needs a tool with its shank and holder",
+                             item="tool")
+        if abs(tool.ball_radius - path.tool_radius) > 1e-9:
+            raise InputError(f"tool {tool.name} has a ball of radius {tool.ball_radius:g} mm, the path was "
+                             f"made for {path.tool_radius:g} mm: pick a matching tool or make the path for "
+                             "that radius", item="tool")
+        program = _orient(path, model, settings, tool, machine,
+                          load_stock(settings) if stock is None else stock, progress)
+    else:
+        program = Program(path)
+    program.seconds["orientation_s"] = time.perf_counter() - t
+    if post and machine is not None:
+        from .post import post_program
+        t = time.perf_counter()
+        program.posted = post_program(program.path, machine, settings.dialect)
+        program.seconds["post_s"] = time.perf_counter() - t
+    return program
+
+
+def _orient(path, model, settings: JobSettings, tool, machine, stock, progress) -> Program:
+    """Tool axes by the orientation strategy, checked again with the same collision checker."""
+    from .orientation import CollisionChecker, orient
+    from .verify.orientation import orientation_metrics
+    meshes = [] if stock is None else [("stock", stock[0], stock[1])]
+    checker = CollisionChecker(model, tool, meshes=meshes, clearance=settings.holder_clearance)
+    oriented, report = orient(path, model, tool, settings.orientation, checker=checker, machine=machine,
+                              smoothing_length=settings.smoothing_length, rotary_weight=settings.rotary_weight,
+                              progress=progress)
+    return Program(oriented, report, orientation_metrics(oriented, checker, machine))
+
+
+def program_file_name(model: str, dialect: str) -> str:
+    """The program's file name: the model's name with the controller's extension (keycap.h)."""
+    from .post.dialects import extension
+    stem = os.path.splitext(os.path.basename(str(model)))[0] or "program"
+    return stem + extension(dialect)

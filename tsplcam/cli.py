@@ -49,11 +49,11 @@ def build_parser() -> argparse.ArgumentParser:
     sub = parser.add_subparsers(dest="command", required=True)
     p = sub.add_parser("info", help="print the version and the installed dependency versions")
     p.set_defaults(func=_cmd_info)
-    from .job import add_job_command, add_path_command
-    add_job_command(sub)
+    from .job import register
+    register(sub, "job")
     from .plan.commands import register as register_plan
     register_plan(sub)
-    add_path_command(sub)
+    register(sub, "path")
     from .post.commands import register as register_post
     register_post(sub)
     return parser

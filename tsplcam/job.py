@@ -37,8 +37,20 @@ from .settings import GROUPS, JobSettings, choices_of, default_of, help_text
 # asked for
 COMMANDS = {
     "path": dict(positional="model", required=("scallop",),
-                 defaults=dict(tool=None, machine=None, orientation="normal")),
-    "job": dict(positional=None, required=(), defaults={}),
+                 defaults=dict(tool=None, machine=None, orientation="normal"),
+                 help="finishing path over the whole part without retractions; CL data, tool axes and G-code "
+                      "on request",
+                 description="A ball-end finishing path over every patch of the part, patch after patch in "
+                             "the processing list's order. Lengths in mm, feeds in mm/min. Exit code 0, or 2 "
+                             "with one line naming the option, file or place on bad input or a refused "
+                             "geometry."),
+    "job": dict(positional=None, required=(), defaults={},
+                help="the whole job, model to machine program (default: keycap, 1 mm ball, 0.005 mm scallop, "
+                     "smooth collision-free axes, Heidenhain)",
+                description="Model, processing list, path, tool axes and machine program in one run; writes "
+                            "the program, CL data, processing-list.json and report.json into --out. Lengths in "
+                            "mm, feeds in mm/min. Exit code 0, or 2 with one line naming the option, file or "
+                            "place."),
 }
 NUMBER_KINDS = ("length", "length0", "feed", "factor")
 
@@ -327,23 +339,9 @@ def _cmd_job(args) -> int:
 
 
 # -- registering ------------------------------------------------------------------------------
-def add_path_command(subparsers) -> None:
-    p = subparsers.add_parser("path", help="finishing path over the whole part without retractions; "
-                                           "CL data, tool axes and G-code on request",
-                              description="A ball-end finishing path over every patch of the part, "
-                                          "patch after patch in the processing list's order. Lengths in mm, "
-                                          "feeds in mm/min. Exit code 0, or 2 with one line naming the "
-                                          "option, file or place on bad input or a refused geometry.")
-    add_options(p, "path")
-    p.set_defaults(func=_cmd_path)
-
-
-def add_job_command(subparsers) -> None:
-    p = subparsers.add_parser("job", help="the whole job, model to machine program (default: keycap, 1 mm "
-                                          "ball, 0.005 mm scallop, smooth collision-free axes, Heidenhain)",
-                              description="Model, processing list, path, tool axes and machine program in "
-                                          "one run; writes the program, CL data, processing-list.json and "
-                                          "report.json into --out. Lengths in mm, feeds in mm/min. Exit "
-                                          "code 0, or 2 with one line naming the option, file or place.")
-    add_options(p, "job")
-    p.set_defaults(func=_cmd_job)
+def register(subparsers, command: str) -> None:
+    """Add ``command`` (``path`` or ``job``) to the tsplcam command line."""
+    spec = COMMANDS[command]
+    p = subparsers.add_parser(command, help=spec["help"], description=spec["description"])
+    add_options(p, command)
+    p.set_defaults(func={"path": _cmd_path, "job": _cmd_job}[command])

@@ -146,9 +146,9 @@ def make_program(path, model, settings: JobSettings, stock=None, progress=None, 
                              "that radius", item="tool")
         program = _orient(path, model, settings, tool, machine,
                           load_stock(settings) if stock is None else stock, progress)
+        program.seconds["orientation_s"] = time.perf_counter() - t
     else:
         program = Program(path)
-    program.seconds["orientation_s"] = time.perf_counter() - t
     if post and machine is not None:
         from .post import post_program
         t = time.perf_counter()

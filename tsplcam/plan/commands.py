@@ -73,8 +73,7 @@ def register(subparsers) -> None:
                                           "so the tool passes from patch to patch without retracting wherever "
                                           "the layout allows. Prints the list as a table.")
     p.add_argument("model", nargs="?", metavar="MODEL",
-                   help="the part: a model file (.tspl, .tsm, .iga, or an .obj quad cage) or a shipped sample "
-                        f"({', '.join(SAMPLES)})")
+                   help=f"the part: a model file or a shipped sample ({', '.join(SAMPLES)})")
     p.add_argument("--example", choices=sorted(EXAMPLES), help="plan a built-in patch layout instead of a model")
     p.add_argument("--out", metavar="FILE", help="write the processing list (JSON) to this file")
     p.add_argument("--complete", metavar="LIST",

@@ -342,9 +342,8 @@ def program_text(obj) -> str:
 
 def export_program(obj, path: str) -> str:
     """Write the program's G-code to ``path`` (bytes as posted); returns ``path``."""
-    text = program_text(obj)
-    with open(path, "w", encoding="ascii", newline="\n") as f:
-        f.write(text)
+    from ..outfile import write_text
+    write_text(path, program_text(obj), encoding="ascii", what="program")
     return path
 
 

@@ -174,7 +174,7 @@ class Refusals(unittest.TestCase):
             (["path", "keycap", "--tool-radius", "0.5", "--scallop", "0.05", "--json",
               os.path.join(self.afile, "k.json")], "--json"),
             (self.path_cmd(*mach[:2], "--gcode", self.out), "--gcode"),       # a folder
-            (self.path_cmd("--processing-list", self.f("none.json")), "processing list"),
+            (self.path_cmd("--processing-list", self.f("none.json")), "--processing-list"),
             (["path", self.f("none.obj"), "--tool-radius", "0.5", "--scallop", "0.05", "--cl", self.f("k.cl")],
              "none.obj"),
             (["job", "--out", os.path.join(self.afile, "job")], "--out"),

@@ -22,16 +22,6 @@ __all__ = ["Program", "load_model", "load_stock", "load_tool", "make_baseline", 
            "processing_list", "program_file_name", "tool_radius"]
 
 
-def processing_list(model, settings: JobSettings):
-    """The list of ``settings.processing_list`` checked against the model's layout, or the
-    planner's list when there is none."""
-    if settings.processing_list:
-        from .plan import load as load_list
-        return load_list(settings.processing_list, model.layout())
-    from .toolpath.zigzag import default_plan
-    return default_plan(model)
-
-
 @contextlib.contextmanager
 def _option(name: str):
     """An InputError raised while reading what option ``name`` gives names that option."""
@@ -41,6 +31,17 @@ def _option(name: str):
         if exc.item is not None:
             raise
         raise InputError(exc.message, path=exc.path, line=exc.line, item=name) from None
+
+
+def processing_list(model, settings: JobSettings):
+    """The list of ``settings.processing_list`` checked against the model's layout, or the
+    planner's list when there is none."""
+    if settings.processing_list:
+        from .plan import load as load_list
+        with _option("processing_list"):
+            return load_list(settings.processing_list, model.layout())
+    from .toolpath.zigzag import default_plan
+    return default_plan(model)
 
 
 def load_tool(settings: JobSettings):

@@ -13,13 +13,12 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..layout.layout import CORNER_UV
 from .basis import BSPLINE_TO_BEZIER
 from .cells import SQUARE_MAPS, BezierCells, EigenCells, LevelCells
 from .decompose import decompose
 from .eigen import NotSelfSimilar, scheme_for
 from .model import ExtraordinaryPoint, FaceMap, Model, link_patches
-from .patch import Patch
+from .patch import CORNER_UV, Patch
 from .quadmesh import QuadMesh
 
 

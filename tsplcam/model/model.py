@@ -14,7 +14,7 @@ import numpy as np
 from ..errors import InputError
 from .cells import SQUARE_MAPS, _chain
 from .diffgeom import SurfacePoints
-from .patch import EdgeNeighbour, Patch
+from .patch import CORNER_UV, EDGE_CORNERS, EdgeNeighbour, Patch
 
 
 @dataclass
@@ -95,23 +95,17 @@ class Model:
 
     # -- topology -------------------------------------------------------------------------
     def layout(self):
-        """The patch adjacency graph (tsplcam.layout.Layout)."""
-        from ..layout.layout import EdgeLink, Layout
-        links = []
-        for p in self.patches:
-            for e, nb in enumerate(p.neighbours):
-                if nb is not None and (p.index, e) < (nb.patch, nb.edge):
-                    links.append(EdgeLink(p.index, e, nb.patch, nb.edge, nb.reversed))
-        corner_nodes = np.array([p.corner_nodes for p in self.patches])
-        return Layout(corner_nodes, self.node_points, links,
-                      frozenset(x.node for x in self.extraordinary if not x.boundary),
-                      [p.name for p in self.patches])
+        """The patch adjacency graph, ``tsplcam.layout.layout.Layout.from_model(self)``.
+
+        Deprecated: the layout stage builds it from the model (imports flow down the
+        pipeline); kept until every caller uses ``Layout.from_model``."""
+        from ..layout.layout import Layout
+        return Layout.from_model(self)
 
     def edge_transform(self, patch: int, edge: int) -> np.ndarray:
         """Affine map (2 x 3) from this patch's (u, v) to the neighbour's across ``edge``,
         continuing the parametrisation in knot units (shang2020 section 2.2: adjacent
         patches' parameters differ by a translation and a rotation)."""
-        from ..layout.layout import CORNER_UV, EDGE_CORNERS
         a = self.patches[patch]
         nb = a.neighbours[edge]
         if nb is None:

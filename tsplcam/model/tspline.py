@@ -46,14 +46,13 @@ from functools import cmp_to_key
 import numpy as np
 
 from ..errors import InputError
-from ..layout.layout import CORNER_UV
 from .basis import bernstein
 from .cage import _map_index
 from .cells import BezierCells, EigenCells, LevelCells, _chain
 from .diffgeom import SurfacePoints
 from .eigen import NotSelfSimilar, scheme_for
 from .model import ExtraordinaryPoint, Model, link_patches
-from .patch import Patch
+from .patch import CORNER_UV, Patch
 from .quadmesh import QuadMesh
 from .tmesh import TMesh
 

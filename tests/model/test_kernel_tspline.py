@@ -12,7 +12,8 @@ from tsplcam.layout.layout import Layout
 from tsplcam.model import samples
 from tsplcam.model.cage import cage_model
 from tsplcam.model.tmesh import TMesh, bspline_tmesh, from_lines, quad_tmesh
-from tsplcam.model.tspline import homogeneous_parts, knot_vectors, tspline_model
+from tsplcam.model.knots import knot_vectors
+from tsplcam.model.tspline import homogeneous_parts, tspline_model
 from conftest import (needs_freecad, assert_finite_everywhere, curvature_gap, edge_pair, ngon_prism,
                       require_freecad)
 

@@ -17,7 +17,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import InputError
-from .cells import BezierCells
+from .cells import SQUARE_MAPS, BezierCells
 from .diffgeom import SurfacePoints, rational_from_homogeneous
 
 CORNER_UV = np.array([[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]])
@@ -26,6 +26,15 @@ CORNER_NAMES = ("lower-left", "lower-right", "upper-right", "upper-left")
 EDGE_NAMES = ("bottom", "right", "top", "left")
 
 CHUNK = 1 << 17
+
+
+def rotation_map(rotation: int) -> int:
+    """Index of the ``cells.SQUARE_MAPS`` entry that takes corner m of the unit square to
+    corner (m + rotation) % 4."""
+    for idx, (A, o) in enumerate(SQUARE_MAPS):
+        if all(np.allclose(A @ CORNER_UV[m] + o, CORNER_UV[(m + rotation) % 4]) for m in range(4)):
+            return idx
+    raise AssertionError(rotation)
 
 
 @dataclass(frozen=True)

@@ -292,7 +292,7 @@ def tjunction_mold():
     """A mold pocket floor with a rib: a clamped T-mesh with T-junctions and non-uniform knot
     intervals (60 x 40 mm, floor 8 mm below the rim, rib 2 mm high along x = 30 mm)."""
     from .tmesh import from_lines
-    from .tspline import knot_vectors
+    from .knots import knot_vectors
     sx, sy, depth = TJUNCTION_MOLD_SIZE
     # knot lines finer toward the rib; repeated end values: zero outer intervals (clamped)
     X = np.array([0.0, 0.0, 7.0, 15.0, 21.0, 25.0, 28.0, 30.0, 32.0, 35.0, 39.0, 45.0, 53.0, 60.0, 60.0])

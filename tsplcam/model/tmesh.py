@@ -30,7 +30,7 @@ lines (samples, tests, B-spline surfaces: ``bspline_tmesh``).
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from functools import cached_property
+from functools import cached_property, cmp_to_key
 
 import numpy as np
 
@@ -187,17 +187,66 @@ class TMesh:
                      self.face_lines, self.vertex_lines, self.name, self.vertex_labels, self.face_labels)
 
 
-def _lex_lt(a: complex, b: complex, tol: float) -> bool:
-    """a < b for knot positions (value, order): values first (with tolerance), then order."""
-    if a.real < b.real - tol:
-        return True
-    if a.real > b.real + tol:
-        return False
-    return a.imag < b.imag - 1e-7
+class Lex:
+    """Comparisons of knot positions value + i*order: values with the tolerance ``tol``, ties
+    broken by the order part (see the module docstring)."""
 
+    def __init__(self, tol: float):
+        self.tol = tol
 
-def lex_eq(a: complex, b: complex, tol: float) -> bool:
-    return abs(a.real - b.real) <= tol and abs(a.imag - b.imag) <= 1e-7
+    def cmp(self, a: complex, b: complex) -> int:
+        if a.real < b.real - self.tol:
+            return -1
+        if a.real > b.real + self.tol:
+            return 1
+        if a.imag < b.imag - 1e-7:
+            return -1
+        if a.imag > b.imag + 1e-7:
+            return 1
+        return 0
+
+    def lt(self, a, b) -> bool:
+        """``cmp(a, b) < 0``, written out (the walks call it most)."""
+        if a.real < b.real - self.tol:
+            return True
+        if a.real > b.real + self.tol:
+            return False
+        return a.imag < b.imag - 1e-7
+
+    def eq(self, a, b) -> bool:
+        """``cmp(a, b) == 0``, written out."""
+        return not (a.real < b.real - self.tol or a.real > b.real + self.tol
+                    or a.imag < b.imag - 1e-7 or a.imag > b.imag + 1e-7)
+
+    def key(self):
+        """A sort key: ``sorted(values, key=lex.key())``."""
+        return cmp_to_key(self.cmp)
+
+    def unique(self, values) -> list:
+        """The values sorted, each run of equal ones kept once (its first)."""
+        values = list(values)
+        if len(values) == 2:                         # most faces: no chords, as sorted() would do
+            a, b = values
+            c = self.cmp(b, a)
+            return [b, a] if c < 0 else [a] if c == 0 else [a, b]
+        out = []
+        for v in sorted(values, key=cmp_to_key(self.cmp)):
+            if not out or not self.eq(out[-1], v):
+                out.append(v)
+        return out
+
+    def index(self, sorted_values, v) -> int:
+        lo, hi = 0, len(sorted_values)
+        while lo < hi:
+            mid = (lo + hi) // 2
+            c = self.cmp(sorted_values[mid], v)
+            if c == 0:
+                return mid
+            if c < 0:
+                lo = mid + 1
+            else:
+                hi = mid
+        raise KeyError(v)
 
 
 class Topology:

@@ -474,59 +474,44 @@ def from_lines(X, Y, hsegs, vsegs, points, weights=None, holes=None, name=None) 
     """
     X = np.asarray(X, float)
     Y = np.asarray(Y, float)
-    hs = {}
-    for j, i0, i1 in hsegs:
-        i0, i1 = sorted((int(i0), int(i1)))
-        hs.setdefault(int(j), []).append((i0, i1))
-    vs = {}
-    for i, j0, j1 in vsegs:
-        j0, j1 = sorted((int(j0), int(j1)))
-        vs.setdefault(int(i), []).append((j0, j1))
+    # lines[0]: rows j -> [(i0, i1)], lines[1]: columns i -> [(j0, j1)]; position t on line k
+    # is the grid node (t, k) of a row, (k, t) of a column
+    lines = ({}, {})
+    for axis, segs in ((0, hsegs), (1, vsegs)):
+        for k, t0, t1 in segs:
+            t0, t1 = sorted((int(t0), int(t1)))
+            lines[axis].setdefault(int(k), []).append((t0, t1))
 
-    def on_h(i, j):
-        return any(a <= i <= b for a, b in hs.get(j, ()))
+    def node(axis, k, t):
+        return (t, k) if axis == 0 else (k, t)
 
-    def on_v(i, j):
-        return any(a <= j <= b for a, b in vs.get(i, ()))
+    def on(axis, k, t):
+        return any(a <= t <= b for a, b in lines[axis].get(k, ()))
 
     nodes = set()
-    for j, segs in hs.items():
-        for a, b in segs:
-            for i in range(a, b + 1):
-                if on_v(i, j):
-                    nodes.add((i, j))
-    for i, segs in vs.items():
-        for a, b in segs:
-            for j in range(a, b + 1):
-                if on_h(i, j):
-                    nodes.add((i, j))
-    for j, segs in hs.items():
-        for a, b in segs:
-            for i in (a, b):
-                if (i, j) not in nodes:
-                    raise InputError(f"horizontal segment on row {j} ends at column {i}, where no vertical "
-                                     f"segment passes (a T-mesh's lines end on other lines)")
-    for i, segs in vs.items():
-        for a, b in segs:
-            for j in (a, b):
-                if (i, j) not in nodes:
-                    raise InputError(f"vertical segment on column {i} ends at row {j}, where no horizontal "
-                                     f"segment passes (a T-mesh's lines end on other lines)")
+    for axis in (0, 1):
+        for k, segs in lines[axis].items():
+            for a, b in segs:
+                nodes.update(node(axis, k, t) for t in range(a, b + 1) if on(1 - axis, t, k))
+    names = (("horizontal", "row", "column", "vertical"), ("vertical", "column", "row", "horizontal"))
+    for axis in (0, 1):
+        kind, line, across, other = names[axis]
+        for k, segs in lines[axis].items():
+            for a, b in segs:
+                for t in (a, b):
+                    if node(axis, k, t) not in nodes:
+                        raise InputError(f"{kind} segment on {line} {k} ends at {across} {t}, where no "
+                                         f"{other} segment passes (a T-mesh's lines end on other lines)")
     nodes = sorted(nodes, key=lambda ij: (ij[1], ij[0]))
     vid = {ij: k for k, ij in enumerate(nodes)}
     nbr = {ij: [None] * 4 for ij in nodes}
-    for j, segs in hs.items():
-        for a, b in segs:
-            row = [i for i in range(a, b + 1) if (i, j) in vid]
-            for p, q in zip(row[:-1], row[1:]):
-                nbr[(p, j)][0] = (q, j)
-                nbr[(q, j)][2] = (p, j)
-    for i, segs in vs.items():
-        for a, b in segs:
-            col = [j for j in range(a, b + 1) if (i, j) in vid]
-            for p, q in zip(col[:-1], col[1:]):
-                nbr[(i, p)][1] = (i, q)
-                nbr[(i, q)][3] = (i, p)
+    for axis in (0, 1):                       # neighbours along +x / +y (axis) and back (axis + 2)
+        for k, segs in lines[axis].items():
+            for a, b in segs:
+                run = [node(axis, k, t) for t in range(a, b + 1) if node(axis, k, t) in vid]
+                for p, q in zip(run[:-1], run[1:]):
+                    nbr[p][axis] = q
+                    nbr[q][axis + 2] = p
     used, faces, corners, intervals = set(), [], [], []
     for u in nodes:
         for d0 in range(4):

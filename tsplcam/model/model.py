@@ -35,7 +35,39 @@ class ExtraordinaryPoint:
 
 
 class Model:
-    """Patches of one surface; ``units`` is always mm inside tsplcam."""
+    """Patches of one surface; ``units`` is always mm inside tsplcam.
+
+    The last five attributes belong to some kinds of model only (None on the others); the
+    reader or builder of that kind sets them.
+    """
+
+    patches: list[Patch]
+    #: (n, 3) position of every node (a patch corner shared by the patches meeting there)
+    node_points: np.ndarray
+    #: extraordinary points among the nodes (valence other than 4 inside, above 2 on the boundary)
+    extraordinary: list[ExtraordinaryPoint]
+    #: how the surface is defined: "catmull-clark", "t-spline", "bezier", "bspline", ...
+    kind: str
+    #: the file the model was read from, for messages
+    source: str | None
+    #: cages: where each cage face lies in its patch (``evaluate_faces``)
+    face_map: FaceMap | None
+    #: the control mesh (cage or T-mesh) when there is one
+    control: object
+    name: str
+    units: str
+    #: cages and Bezier meshes: the control-mesh vertex (cage vertex, merged element corner) of
+    #: every node
+    node_vertex: np.ndarray | None
+    #: Bezier meshes (``bezier_mesh``): per element or piece of one, where it sits in which
+    #: patch (``ElementPlace``)
+    elements: list | None
+    #: Bezier meshes: what the recovery of the mesh found (``bezier_mesh.MeshInfo``)
+    mesh_info: object | None
+    #: ``.iga`` files: the file's content (``formats.iga.IgaFile``)
+    iga: object | None
+    #: CAD imports (the workbench's STEP/IGES reader): the face each patch was made from
+    faces: list | None
 
     def __init__(self, patches: list[Patch], node_points: np.ndarray,
                  extraordinary: list[ExtraordinaryPoint], kind: str, source: str | None = None,
@@ -46,9 +78,14 @@ class Model:
         self.kind = kind
         self.source = source
         self.face_map = face_map
-        self.control = control          # the control mesh (cage or T-mesh) when there is one
+        self.control = control
         self.name = name or (source.rsplit("/", 1)[-1] if source else kind)
         self.units = "mm"
+        self.node_vertex = None
+        self.elements = None
+        self.mesh_info = None
+        self.iga = None
+        self.faces = None
 
     def __repr__(self) -> str:
         return (f"<Model {self.name!r}: {len(self.patches)} patches, "

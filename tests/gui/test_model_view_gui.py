@@ -210,7 +210,7 @@ def tiled_figure4(tx, ty):
 
 class LargeModel(_GuiCase):
     def test_hundreds_of_patches_with_progress(self):
-        from tsplcam.model.samples import write_obj
+        from tsplcam.model.formats.obj import write_obj
         from tsplcam.workbench import viewmodel
         path = os.path.join(self.tmp, "tiles.obj")
         write_obj(tiled_figure4(6, 6), path, "figure-4 tiles")

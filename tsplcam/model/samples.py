@@ -26,6 +26,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .cage import Cage
+from .formats.obj import write_obj
 from .quadmesh import QuadMesh
 
 SAMPLE_DIR = os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), "data", "samples")
@@ -326,18 +327,6 @@ SAMPLES = {
     "tjunction_mold": tjunction_mold,
 }
 TSPLINE_SAMPLES = frozenset({"tjunction_mold"})       # shipped as native .tspl files
-
-
-def write_obj(cage: Cage, path: str, comment: str = "") -> None:
-    """A cage as an OBJ file (mm), with OpenSubdiv's boundary tag."""
-    tag = {"edge-only": 2, "edge-and-corner": 1}[cage.mesh.boundary_rule]
-    with open(path, "w") as fh:
-        fh.write(f"# tsplcam sample: {comment}\n# units: mm\n")
-        for p in cage.points:
-            fh.write("v {:.10g} {:.10g} {:.10g}\n".format(*p))
-        for f in cage.mesh.faces:
-            fh.write("f {} {} {} {}\n".format(*(f + 1)))
-        fh.write(f"t interpolateboundary 1/0/0 {tag}\n")
 
 
 def sample_path(name: str) -> str:

@@ -15,7 +15,7 @@ import numpy as np
 
 from .basis import BSPLINE_TO_BEZIER
 from .cells import BezierCells, EigenCells, LevelCells
-from .decompose import decompose
+from .decompose import QuadDecomposition, decompose
 from .eigen import NotSelfSimilar, scheme_for
 from .model import ExtraordinaryPoint, FaceMap, Model, link_patches
 from .patch import CORNER_UV, Patch, rotation_map
@@ -69,7 +69,8 @@ def cage_model(cage: Cage, name: str | None = None) -> Model:
             level += 1
     return _finish(mesh, dec, patches, cage, name)
 
-def _build_patches(mesh: QuadMesh, H0: np.ndarray, dec, level: int) -> list[Patch]:
+
+def _build_patches(mesh: QuadMesh, H0: np.ndarray, dec: QuadDecomposition, level: int) -> list[Patch]:
     emesh, He = mesh, H0
     for _ in range(level):
         emesh, R, _ = emesh.refine()
@@ -119,7 +120,8 @@ def _build_patches(mesh: QuadMesh, H0: np.ndarray, dec, level: int) -> list[Patc
     return patches
 
 
-def _finish(mesh: QuadMesh, dec, patches: list[Patch], cage: Cage, name: str | None) -> Model:
+def _finish(mesh: QuadMesh, dec: QuadDecomposition, patches: list[Patch], cage: Cage,
+            name: str | None) -> Model:
     link_patches(patches, dec.links)
     node_vertex = sorted({int(v) for reg in dec.regions for v in reg.corners})
     node_of = {v: n for n, v in enumerate(node_vertex)}

@@ -13,7 +13,9 @@ to start a line from) is cut by seeding a line at one of its vertices, and all i
 again, so every closed or periodic part still becomes four-sided patches.
 
 ``decompose_tmesh`` is the algorithm; ``decompose`` gives a quad cage's patches as
-rectangles of faces (``cage.py``).
+rectangles of faces (``cage.py``). Bezier extractions (``bezier_mesh.py``) follow the same
+rule but carry no knot intervals until their patches are known (they are solved per patch
+afterwards), so that module groups its elements on the mesh's topology alone.
 """
 from __future__ import annotations
 
@@ -409,6 +411,7 @@ class FaceRegion:
 
 @dataclass
 class QuadDecomposition:
+    """A quad cage's patches (region r is patch r) and their whole-edge neighbours."""
     regions: list[FaceRegion]
     face_region: np.ndarray                  # (F,) region of each face
     links: list                              # ((region, edge), (region, edge), reversed)

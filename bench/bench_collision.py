@@ -21,7 +21,8 @@ sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 
 from tsplcam.model import samples  # noqa: E402
 from tsplcam.model.cage import cage_model  # noqa: E402
-from tsplcam.model.impeller import impeller, impeller_mesh  # noqa: E402
+from tsplcam.model.impeller import impeller  # noqa: E402
+from tsplcam.orientation.obstacles import impeller_mesh  # noqa: E402
 from tsplcam.orientation import CollisionChecker, load_tool  # noqa: E402
 from tsplcam.orientation.candidates import Limits, candidate_axes, feed_directions  # noqa: E402
 from tsplcam.orientation.testpaths import zigzag  # noqa: E402

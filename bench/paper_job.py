@@ -20,6 +20,7 @@ import time
 
 sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 
+from tsplcam.layout.layout import Layout  # noqa: E402
 from tsplcam.toolpath.baseline import baseline_path  # noqa: E402
 from tsplcam.toolpath.cldata import read_cl, write_cl  # noqa: E402
 from tsplcam import load_model  # noqa: E402
@@ -43,7 +44,7 @@ def main(argv=None) -> int:
     t = time.perf_counter()
     plist = default_plan(model)
     t_plan = time.perf_counter() - t
-    print(plist.table(model.layout()))
+    print(plist.table(Layout.from_model(model)))
     times, path = [], None
     for _ in range(max(1, args.repeat)):
         t = time.perf_counter()

@@ -14,6 +14,7 @@ import numpy as np
 import FreeCAD
 import FreeCADGui
 
+from tsplcam.layout.layout import Layout
 from tsplcam.model.samples import sample_path
 from conftest import artifact_path
 from tsplcam.workbench import display, importer, messages
@@ -180,7 +181,7 @@ class Figure4Adjacency(_GuiCase):
                         if isinstance(node.getChild(c), coin.SoDrawStyle):
                             style = node.getChild(c)
             sets.append((path.getTail().numVertices.getNum(), style.linePattern.getValue()))
-        layout = model_of(obj).layout()
+        layout = Layout.from_model(model_of(obj))
         d = display.adjacency(model_of(obj), layout)
         self.assertIn((len(layout.edge_links), 0xFFFF), sets)
         self.assertIn((len(d.corner), 0x0F0F), sets)
@@ -190,7 +191,6 @@ class Figure4Adjacency(_GuiCase):
 def tiled_figure4(tx, ty):
     """A cage with the figure-4 edge rotation repeated on a tx x ty grid of 4 x 3 tiles:
     4 extraordinary points per tile, a few hundred patches."""
-    from tsplcam.layout.layout import Layout
     from tsplcam.model.samples import layout_cage
     nx, ny = 4 * tx, 3 * ty
     nid = lambda i, j: j * (nx + 1) + i    # noqa: E731
@@ -210,7 +210,7 @@ def tiled_figure4(tx, ty):
 
 class LargeModel(_GuiCase):
     def test_hundreds_of_patches_with_progress(self):
-        from tsplcam.model.samples import write_obj
+        from tsplcam.model.formats.obj import write_obj
         from tsplcam.workbench import viewmodel
         path = os.path.join(self.tmp, "tiles.obj")
         write_obj(tiled_figure4(6, 6), path, "figure-4 tiles")

@@ -10,6 +10,7 @@ import numpy as np
 from scipy.spatial import Delaunay
 
 import tsplcam
+from tsplcam.layout.layout import Layout
 from tsplcam.errors import InputError
 from tsplcam.model.formats.tsm import block_offsets, read_tsm
 from conftest import edge_pair, external
@@ -67,7 +68,7 @@ class ShippedFiles(unittest.TestCase):
             self.assertGreaterEqual(count, 3, n)
             A, B = m.evaluate_faces(*rows[0]), m.evaluate_faces(*rows[1])
             self.assertLess(np.abs(A.P - B.P).max(), 1e-12 * scale, n)
-            for link in m.layout().edge_links:
+            for link in Layout.from_model(m).edge_links:
                 sa, sb = edge_pair(m, link, tau)
                 self.assertLess(np.abs(sa.P - sb.P).max(), 1e-12 * scale, n)
 

@@ -9,7 +9,7 @@ from scipy.spatial import cKDTree
 
 import tsplcam
 from tsplcam.errors import InputError
-from tsplcam.layout.layout import CORNER_UV
+from tsplcam.layout.layout import CORNER_UV, Layout
 from tsplcam.model.cage import Cage, cage_model
 from tsplcam.model.eigen import scheme_for
 from tsplcam.model.formats.obj import read_obj
@@ -208,7 +208,7 @@ class Continuity(unittest.TestCase):
         tau = np.linspace(0, 1, 41)
         for name, model in all_models():
             scale = np.abs(model.node_points).max()
-            for link in model.layout().edge_links:
+            for link in Layout.from_model(model).edge_links:
                 sa, sb = edge_pair(model, link, tau)
                 self.assertLess(np.abs(sa.P - sb.P).max(), 1e-12 * scale, name)
                 angle = angle_between(sa.normal, sb.normal).max()
@@ -220,7 +220,7 @@ class Continuity(unittest.TestCase):
         extraordinary corners, where no parametrisation is C1)."""
         tau = np.linspace(0.1, 0.9, 9)
         for name, model in all_models():
-            for link in model.layout().edge_links:
+            for link in Layout.from_model(model).edge_links:
                 for a, ea, b, eb in ((link.a, link.ea, link.b, link.eb), (link.b, link.eb, link.a, link.ea)):
                     pa, pb = model.patches[a], model.patches[b]
                     T = model.edge_transform(a, ea)
@@ -244,7 +244,7 @@ class Continuity(unittest.TestCase):
         links (no shared edge) are exactly the layout's corner links."""
         models = all_models() + [(n, tsplcam.load(sample_path(n))) for n in ("keycap", "figure4")]
         for name, model in models:
-            layout = model.layout()
+            layout = Layout.from_model(model)
             valence = {ep.node: ep.valence for ep in model.extraordinary if not ep.boundary}
             scale = np.abs(model.node_points).max()
             corner_only = set()
@@ -284,7 +284,7 @@ class Continuity(unittest.TestCase):
     def test_curvature_continuous_across_edges_away_from_extraordinary_points(self):
         tau = np.linspace(0.2, 0.8, 13)
         for name, model in all_models():
-            for link in model.layout().edge_links:
+            for link in Layout.from_model(model).edge_links:
                 gap, scale = curvature_gap(*edge_pair(model, link, tau))
                 self.assertLess(gap, 1e-7 * scale, f"{name} {link}")
 
@@ -347,7 +347,7 @@ class FaceCoordinates(unittest.TestCase):
     def test_patch_counts(self):
         cube = tsplcam.load(external("opensubdiv", "catmark_cube.obj"))
         self.assertEqual((len(cube.patches), len(cube.extraordinary)), (6, 8))
-        layout = cube.layout()
+        layout = Layout.from_model(cube)
         self.assertEqual(len(layout.edge_links), 12)
         for p in range(6):
             kinds = layout.neighbours(p)

@@ -8,10 +8,12 @@ import numpy as np
 from scipy.interpolate import BSpline
 
 from tsplcam.errors import InputError
+from tsplcam.layout.layout import Layout
 from tsplcam.model import samples
 from tsplcam.model.cage import cage_model
 from tsplcam.model.tmesh import TMesh, bspline_tmesh, from_lines, quad_tmesh
-from tsplcam.model.tspline import homogeneous_parts, knot_vectors, tspline_model
+from tsplcam.model.knots import knot_vectors
+from tsplcam.model.tspline import homogeneous_parts, tspline_model
 from conftest import (needs_freecad, assert_finite_everywhere, curvature_gap, edge_pair, ngon_prism,
                       require_freecad)
 
@@ -484,16 +486,16 @@ class Continuity(unittest.TestCase):
         counts = {name: len(m.patches) for name, m in self.models}
         self.assertEqual(counts, {"t-junctions": 1, "t-junctions-general": 1, "l-shape": 3, "hole": 8,
                                   "head-split": 6})
-        self.assertEqual(len(dict(self.models)["hole"].layout().edge_links), 8)
+        self.assertEqual(len(Layout.from_model(dict(self.models)["hole"]).edge_links), 8)
         head = dict(self.models)["head-split"]
-        self.assertEqual(len(head.layout().edge_links), 12)
+        self.assertEqual(len(Layout.from_model(head).edge_links), 12)
         self.assertEqual(len(head.extraordinary), 8)
 
     def test_shared_patch_edges_agree(self):
         tau = np.linspace(0, 1, 41)
         for name, model in self.models:
             scale = np.abs(model.node_points).max()
-            for link in model.layout().edge_links:
+            for link in Layout.from_model(model).edge_links:
                 sa, sb = edge_pair(model, link, tau)
                 self.assertLess(np.abs(sa.P - sb.P).max(), 1e-12 * scale, name)
                 self.assertLess(angle_between(sa.normal, sb.normal).max(), 1e-9, name)
@@ -505,7 +507,7 @@ class Continuity(unittest.TestCase):
         for name, model in self.models:
             if name in ("l-shape", "hole"):
                 continue
-            for link in model.layout().edge_links:
+            for link in Layout.from_model(model).edge_links:
                 gap, scale = curvature_gap(*edge_pair(model, link, tau))
                 self.assertLess(gap, 1e-7 * scale, f"{name} {link}")
 

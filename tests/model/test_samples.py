@@ -5,6 +5,7 @@ import unittest
 import numpy as np
 
 import tsplcam
+from tsplcam.layout.layout import Layout
 from tsplcam.layout import examples
 from tsplcam.model import samples
 
@@ -39,7 +40,7 @@ class ShippedSamples(unittest.TestCase):
         np.testing.assert_allclose(hi - lo, [14.4, 14.4, 6.8], atol=2e-3)
         self.assertEqual(len(model.patches), 5)
         self.assertEqual(sorted(e.valence for e in model.extraordinary if not e.boundary), [3, 3, 3, 3])
-        self.assertEqual(neighbour_signature(model.layout()), neighbour_signature(examples.keycap()))
+        self.assertEqual(neighbour_signature(Layout.from_model(model)), neighbour_signature(examples.keycap()))
         # dished top: the centre of the top lies below the top's highest points
         top = max(model.patches, key=lambda p: p.evaluate(0.5, 0.5).P[0, 2])
         self.assertLess(top.evaluate(0.5, 0.5).P[0, 2], hi[2] - 0.3)
@@ -59,10 +60,10 @@ class ShippedSamples(unittest.TestCase):
     def test_head_and_figure4_layouts(self):
         head = tsplcam.load(samples.sample_path("head"))
         self.assertEqual((len(head.patches), len(head.extraordinary)), (6, 8))
-        self.assertEqual(neighbour_signature(head.layout()), neighbour_signature(examples.head()))
+        self.assertEqual(neighbour_signature(Layout.from_model(head)), neighbour_signature(examples.head()))
         fig4 = tsplcam.load(samples.sample_path("figure4"))
         self.assertEqual(len(fig4.patches), 12)
-        layout = fig4.layout()
+        layout = Layout.from_model(fig4)
         self.assertEqual(neighbour_signature(layout), neighbour_signature(examples.figure4()))
         kinds = [layout.link_kind(a, b) for a in range(12) for b in range(a + 1, 12)]
         self.assertGreater(kinds.count("corner"), 0)

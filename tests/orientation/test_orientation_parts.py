@@ -14,7 +14,8 @@ import numpy as np
 from tsplcam.errors import CollisionError, InputError
 from tsplcam.model import samples
 from tsplcam.model.cage import cage_model
-from tsplcam.model.impeller import BLADES, R_OUT, impeller, impeller_mesh
+from tsplcam.model.impeller import BLADES, R_OUT, impeller
+from tsplcam.orientation.obstacles import impeller_mesh
 from tsplcam.orientation import CollisionChecker, load_tool, orient
 from tsplcam.orientation.testpaths import zigzag
 from conftest import artifact_path

@@ -730,7 +730,7 @@ class KernelModels(unittest.TestCase):
             with open(path, "w") as f:
                 f.write(text)
             model = tsplcam.load(path)
-            lay = model.layout()
+            lay = Layout.from_model(model)
             self.assertEqual(lay.n_patches, hand.n_patches)
             self.assertEqual(sorted(ref_extraordinary(lay).values()),
                              sorted(ref_extraordinary(hand).values()))

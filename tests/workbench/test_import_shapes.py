@@ -12,7 +12,7 @@ import unittest
 import numpy as np
 
 from tsplcam.errors import InputError
-from tsplcam.layout.layout import CORNER_UV
+from tsplcam.layout.layout import CORNER_UV, Layout
 from tsplcam.model.bspline import bspline_patch
 from tsplcam.model.compound import compound_model
 from conftest import needs_freecad, require_freecad
@@ -44,7 +44,7 @@ class CompoundEngine(unittest.TestCase):
                 P = P[::-1]
             patches.append(bspline_patch(P, None, knots, knots, 3, 3, index=k, name=f"Face{k + 1}"))
         m = compound_model(patches)
-        lay = m.layout()
+        lay = Layout.from_model(m)
         self.assertEqual(len(lay.edge_links), 4)
         self.assertEqual(len(m.node_points), 9)
         self.assertEqual(m.extraordinary, [])        # the centre has four patches
@@ -63,7 +63,7 @@ class CompoundEngine(unittest.TestCase):
         a = bspline_patch(grid_poles(0, 2, 0, 1), None, knots, knots, 3, 3, index=0, name="Face1")
         b = bspline_patch(grid_poles(0, 1, 1, 2), None, knots, knots, 3, 3, index=1, name="Face2")
         m = compound_model([a, b])
-        self.assertEqual(m.layout().edge_links, [])     # b's bottom is half of a's top
+        self.assertEqual(Layout.from_model(m).edge_links, [])     # b's bottom is half of a's top
         P = np.zeros((4, 4, 3))
         P[..., 0] = np.linspace(0, 1, 4)[:, None] * np.linspace(0, 1, 4)[None, :]   # u=0 collapses
         P[..., 1] = np.linspace(0, 1, 4)[None, :]
@@ -119,7 +119,7 @@ class FreeCADShapes(unittest.TestCase):
         m = model_from_step(path)
         shape = Part.read(path)
         self.assertEqual(len(m.patches), 6)
-        self.assertEqual(len(m.layout().edge_links), 12)
+        self.assertEqual(len(Layout.from_model(m).edge_links), 12)
         self.assertEqual(len(m.node_points), 8)
         self.assertEqual(sorted((ep.valence, ep.boundary) for ep in m.extraordinary), [(3, False)] * 8)
         worst = self.agreement(m, shape.Faces)
@@ -158,7 +158,7 @@ class FreeCADShapes(unittest.TestCase):
             m = model_from_step(path)
             shape = Part.read(path)
             self.assertEqual(len(m.patches), 4, ext)
-            self.assertEqual(len(m.layout().edge_links), 4, ext)
+            self.assertEqual(len(Layout.from_model(m).edge_links), 4, ext)
             self.assertEqual(len(m.node_points), 9, ext)
             self.assertEqual(m.extraordinary, [], ext)
             worst = self.agreement(m, shape.Faces)
@@ -167,7 +167,7 @@ class FreeCADShapes(unittest.TestCase):
             # the reversed face keeps its own (face) normal, down; its links are mirrored
             self.assertEqual([p.evaluate([0.5], [0.5]).normal[0, 2] > 0.5 for p in m.patches],
                              [True, False, True, True])
-            self.assertEqual(sorted((l.a, l.b, l.reversed) for l in m.layout().edge_links),
+            self.assertEqual(sorted((l.a, l.b, l.reversed) for l in Layout.from_model(m).edge_links),
                              [(0, 1, False), (0, 3, True), (1, 2, False), (2, 3, True)])
 
     def test_document_body_with_placement(self):
@@ -181,7 +181,7 @@ class FreeCADShapes(unittest.TestCase):
             obj.Placement = FreeCAD.Placement(FreeCAD.Vector(5, -3, 2), FreeCAD.Rotation(FreeCAD.Vector(1, 1, 0), 40))
             doc.recompute()
             m = model_from_shape(obj.Shape, obj.Label)
-            self.assertEqual(len(m.layout().edge_links), 4)
+            self.assertEqual(len(Layout.from_model(m).edge_links), 4)
             worst = 0.0
             for p, src, face in zip(m.patches, m.faces, obj.Shape.Faces):
                 u = np.linspace(0, 1, 7)

@@ -12,6 +12,7 @@ import numpy as np
 
 import tsplcam
 from tsplcam.layout import examples
+from tsplcam.layout.layout import Layout
 from tsplcam.model.samples import sample_path
 from tsplcam.workbench import display
 
@@ -41,7 +42,7 @@ class Tessellation(unittest.TestCase):
     def test_neighbours_share_their_boundary_polylines(self):
         """Patch a's edge and patch b's edge are one curve: the drawn boundaries meet."""
         size = display.model_size(self.model)
-        links = self.model.layout().edge_links
+        links = Layout.from_model(self.model).edge_links
         self.assertEqual(len(links), 8)
         for link in links:
             ea = self.meshes[link.a].boundary()[link.ea]
@@ -93,7 +94,7 @@ class AdjacencyGraph(unittest.TestCase):
     @classmethod
     def setUpClass(cls):
         cls.model = tsplcam.load(sample_path("figure4"))
-        cls.layout = cls.model.layout()
+        cls.layout = Layout.from_model(cls.model)
         cls.drawing = display.adjacency(cls.model, cls.layout)
 
     def test_links_by_brute_force(self):
@@ -176,7 +177,7 @@ class PlanDrawing(unittest.TestCase):
         from tsplcam.layout.layout import CORNER_UV
         from tsplcam.plan import plan
         model = tsplcam.load(sample_path("figure4"))
-        plist = plan(model.layout())
+        plist = plan(Layout.from_model(model))
         size = display.model_size(model)
         lift = 0.006 * size
         d = display.plan_drawing(model, plist, lift)
@@ -194,7 +195,7 @@ class PlanDrawing(unittest.TestCase):
     def test_retraction_arcs_rise_above_the_surface(self):
         from tsplcam.plan import plan
         model = tsplcam.load(sample_path("keycap"))
-        plist = plan(model.layout())
+        plist = plan(Layout.from_model(model))
         plist.steps[2].retract_before = True
         d = display.plan_drawing(model, plist)
         self.assertEqual(len(d.retractions), 1)

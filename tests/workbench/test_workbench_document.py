@@ -87,7 +87,8 @@ class ModelObject(_DocCase):
         self.assertFalse([x for x in doc.Objects if "Invalid" in x.State])
 
     def test_registered_with_freecad_import(self):
-        for ext in ("obj", "tsm", "iga", "tspl"):
+        from tsplcam.model.formats import surface_readers
+        for ext in (e.lstrip(".") for r in surface_readers() for e in r.extensions):
             self.assertIn("tsplcam.workbench.importer", self.FreeCAD.getImportType(ext), ext)
         # FreeCAD's own dispatch (File > Import without the GUI) reaches insert()
         self.FreeCAD.loadFile(sample_path("keycap"), self.doc.Name, "tsplcam.workbench.importer")

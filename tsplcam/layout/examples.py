@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..model.samples import bump, figure4_arrangement
 from .layout import Layout
 
 
@@ -47,50 +48,16 @@ def head() -> Layout:
     return Layout.from_quads(quads, pts, extraordinary=range(8), names=names)
 
 
-def _bump(x, y):
-    """A smooth mold-like height (mm) so the flat layouts have a 3D shape."""
-    return 8.0 * np.exp(-((x - 40.0) ** 2 + (y - 30.0) ** 2) / 800.0)
-
-
 def figure4() -> Layout:
-    """12 patches after the paper's figure 4: a 4 x 3 grid with one edge rotated.
-
-    The two middle-left quads of the middle row share the edge b-e; re-splitting their
-    hexagon a-b-c-d-e-f along c-f instead makes b and e valence 3 and c and f valence 5
-    (all four extraordinary), the other interior nodes stay regular (valence 4)::
-
-        y=60  15 ---- 16 ---- 17 ---- 18 ---- 19
-               |   8  |   9   e  10   |  11   |        e = node 12, pulled up
-        y=40  10 ---- f ------------- d ---- 14        f = node 11, d = node 13
-               |   6  | \\      1      |   7   |
-               |      |   \\______    |       |        patch 1 = f c d e
-               |      |   0      \\___ c       |        patch 0 = a b c f
-        y=20   5 ---- a ---- b ------------- 9        a = 6, b = 7 (pulled down), c = 8
-               |   2  |   3  |   4    |   5   |
-        y=0    0 ---- 1 ---- 2 ------ 3 ---- 4
-              x=0    20     40       60     80
+    """12 patches after the paper's figure 4 (:func:`tsplcam.model.samples.figure4_arrangement`:
+    a 4 x 3 grid with one edge rotated; b, c, e, f extraordinary).
 
     Patch 0 (the rotated quad a-b-c-f) is boundary linked with 1, 3, 4 and 6 (blue in
     the paper), corner linked only with 2, 5, 7, 8 and 9 (green), and unlinked with 10
     and 11 (gray). z follows a smooth bump.
     """
-    nid = lambda i, j: 5 * j + i  # noqa: E731
-    xy = {nid(i, j): (20.0 * i, 20.0 * j) for j in range(4) for i in range(5)}
-    a, b, c, d, e, f = nid(1, 1), nid(2, 1), nid(3, 1), nid(3, 2), nid(2, 2), nid(1, 2)
-    xy[b] = (40.0, 14.0)
-    xy[e] = (40.0, 46.0)
-    pts = np.array([(x, y, _bump(x, y)) for _, (x, y) in sorted(xy.items())])
-
-    def q(i, j):
-        return (nid(i, j), nid(i + 1, j), nid(i + 1, j + 1), nid(i, j + 1))
-
-    quads = [(a, b, c, f), (f, c, d, e),
-             q(0, 0), q(1, 0), q(2, 0), q(3, 0), q(0, 1), q(3, 1), q(0, 2), q(1, 2), q(2, 2),
-             q(3, 2)]
-    names = ["rotated a-b-c-f", "rotated f-c-d-e"] + [
-        f"grid {i},{j}" for i, j in ((0, 0), (1, 0), (2, 0), (3, 0), (0, 1), (3, 1), (0, 2),
-                                     (1, 2), (2, 2), (3, 2))]
-    return Layout.from_quads(quads, pts, extraordinary=(b, e, c, f), names=names)
+    a = figure4_arrangement()
+    return Layout.from_quads(a.corner_nodes, a.node_points, extraordinary=a.extraordinary, names=a.names)
 
 
 def _grid_quads(cells, stride):
@@ -99,7 +66,7 @@ def _grid_quads(cells, stride):
 
 
 def _grid_points(nx, ny, size=20.0):
-    return np.array([(size * i, size * j, _bump(size * i, size * j))
+    return np.array([(size * i, size * j, bump(size * i, size * j))
                      for j in range(ny + 1) for i in range(nx + 1)])
 
 

@@ -1,9 +1,8 @@
 """Patch adjacency of a model: which patches share a whole edge, which only a corner.
 
-Conventions (shang2020 section 3.2): every patch has (u, v) on the unit square.
-Corner k sits at ``CORNER_UV[k]``: 0 = (0,0) lower left, 1 = (1,0) lower right,
-2 = (1,1) upper right, 3 = (0,1) upper left. Edge k runs from corner k to corner k+1:
-0 = bottom (v=0), 1 = right (u=1), 2 = top (v=1), 3 = left (u=0).
+Conventions (shang2020 section 3.2): every patch has (u, v) on the unit square, with the
+corner and edge numbering of :mod:`tsplcam.model.patch` (re-exported here): corner 0 =
+(0,0) lower left, counter-clockwise; edge k runs from corner k to corner k+1.
 
 Every patch corner is a *node* (a point of the model shared by the patches meeting there);
 two patch corners are the same point in space exactly when they are the same node.
@@ -14,10 +13,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-CORNER_UV = np.array([[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]])
-EDGE_CORNERS = ((0, 1), (1, 2), (2, 3), (3, 0))
-CORNER_NAMES = ("lower-left", "lower-right", "upper-right", "upper-left")
-EDGE_NAMES = ("bottom", "right", "top", "left")
+from ..model.patch import CORNER_NAMES, CORNER_UV, EDGE_CORNERS, EDGE_NAMES  # noqa: F401
 
 
 @dataclass(frozen=True)
@@ -94,6 +90,21 @@ class Layout:
                     (pa, ea, fa), (pb, eb, fb) = uses[i], uses[j]
                     links.append(EdgeLink(pa, ea, pb, eb, reversed=(fa != fb)))
         return cls(quads, pts, links, frozenset(extraordinary), names)
+
+    @classmethod
+    def from_model(cls, model) -> "Layout":
+        """The patch graph of a surface model (:class:`tsplcam.model.model.Model`): a boundary
+        link for every pair of patch edges the model made neighbours, the patches' corner
+        nodes, and as extraordinary nodes the model's extraordinary points inside the surface."""
+        links = []
+        for p in model.patches:
+            for e, nb in enumerate(p.neighbours):
+                if nb is not None and (p.index, e) < (nb.patch, nb.edge):
+                    links.append(EdgeLink(p.index, e, nb.patch, nb.edge, nb.reversed))
+        corner_nodes = np.array([p.corner_nodes for p in model.patches])
+        return cls(corner_nodes, model.node_points, links,
+                   frozenset(x.node for x in model.extraordinary if not x.boundary),
+                   [p.name for p in model.patches])
 
     # -- queries -------------------------------------------------------------------------
     def edge_links_between(self, a: int, b: int) -> list[EdgeLink]:

@@ -46,6 +46,7 @@ from scipy.spatial import cKDTree
 from ..errors import InputError
 from .basis import bernstein, to_bernstein
 from .cells import BezierCells
+from .components import components, groups, merge_points
 from .diffgeom import rational_from_homogeneous
 from .model import ExtraordinaryPoint, Model
 from .patch import EdgeNeighbour, Patch
@@ -108,30 +109,6 @@ class MeshInfo:
     ratio_rms: float = 0.0                     # rms log width-ratio misfit away from EPs (0 = C1)
 
 
-class _UF:
-    def __init__(self, n: int):
-        self.parent = np.arange(n)
-
-    def find(self, x: int) -> int:
-        p = self.parent
-        root = x
-        while p[root] != root:
-            root = p[root]
-        while p[x] != root:
-            p[x], x = root, p[x]
-        return int(root)
-
-    def union(self, a: int, b: int) -> None:
-        ra, rb = self.find(a), self.find(b)
-        if ra != rb:
-            self.parent[max(ra, rb)] = min(ra, rb)
-
-    def copy(self) -> "_UF":
-        out = _UF(0)
-        out.parent = self.parent.copy()
-        return out
-
-
 # -- geometry helpers -------------------------------------------------------------------
 def _euclid(H: np.ndarray) -> np.ndarray:
     return H[..., :3] / H[..., 3:4]
@@ -183,21 +160,6 @@ def sub_net(Q: np.ndarray, box) -> np.ndarray:
     return np.einsum("ja,ib,abc->jic", _sub_matrix(q, t0, t1), _sub_matrix(p, s0, s1), Q)
 
 
-def _merge(points: np.ndarray, tol: float) -> tuple[np.ndarray, np.ndarray]:
-    """Cluster points closer than tol: (cluster id per point, cluster means)."""
-    tree = cKDTree(points)
-    pairs = tree.query_pairs(tol, output_type="ndarray")
-    uf = _UF(len(points))
-    for a, b in pairs:
-        uf.union(int(a), int(b))
-    roots = np.array([uf.find(i) for i in range(len(points))])
-    _, ids = np.unique(roots, return_inverse=True)
-    centres = np.zeros((ids.max() + 1, 3))
-    np.add.at(centres, ids, points)
-    centres /= np.bincount(ids)[:, None]
-    return ids, centres
-
-
 class _Elements:
     """Evaluation of pieces at their own (s, t), grouped by degree."""
 
@@ -242,7 +204,7 @@ class _Mesh:
         self.where = where                      # piece -> (text, line) for messages
         n = len(pieces)
         corners = np.array([[_euclid(side_control(p.ctrl, m)[0]) for m in range(4)] for p in pieces])
-        ids, self.vpos = _merge(corners.reshape(-1, 3), tol)
+        ids, self.vpos = merge_points(corners.reshape(-1, 3), tol)
         self.corners = ids.reshape(n, 4)
         for e in range(n):
             if len(set(self.corners[e].tolist())) < 4:
@@ -496,14 +458,10 @@ def _split(pieces: list[Piece], splits: dict, nets: list[np.ndarray]) -> list[Pi
 
 
 def _components(mesh: _Mesh, traced: set) -> list[list[int]]:
-    uf = _UF(len(mesh.pieces))
-    for key, users in mesh.seg_users.items():
-        if len(users) == 2 and key not in traced:
-            uf.union(users[0][0], users[1][0])
-    groups: dict[int, list[int]] = {}
-    for e in range(len(mesh.pieces)):
-        groups.setdefault(uf.find(e), []).append(e)
-    return sorted(groups.values(), key=lambda g: min(mesh.pieces[e].element for e in g))
+    joined = [(users[0][0], users[1][0]) for key, users in mesh.seg_users.items()
+              if len(users) == 2 and key not in traced]
+    parts = groups(components(len(mesh.pieces), joined))
+    return sorted(parts, key=lambda g: min(mesh.pieces[e].element for e in g))
 
 
 @dataclass
@@ -551,19 +509,20 @@ def _frames(mesh: _Mesh, comp: list[int], traced: set) -> dict:
     return side_dir
 
 
-def _region(mesh: _Mesh, comp: list[int], traced: set, inst: list, uf_inst: _UF) -> _Region:
+def _region(mesh: _Mesh, comp: list[int], traced: set, inst: list, joined: list) -> _Region:
     side_dir = _frames(mesh, comp, traced)
-    uf_u, uf_v = uf_inst.copy(), uf_inst.copy()
+    along_u, along_v = list(joined), list(joined)       # points on one vertical / horizontal line
     for e in comp:
         for m in range(4):
             ids = inst[e][m]
-            uf = uf_u if side_dir[e][m] in (1, 3) else uf_v
-            for i in ids[1:]:
-                uf.union(ids[0], i)
+            pairs = along_u if side_dir[e][m] in (1, 3) else along_v
+            pairs.extend((ids[0], i) for i in ids[1:])
+    n = sum(len(ids) for sides in inst for ids in sides)
+    line_u, line_v = components(n, along_u), components(n, along_v)
     members = [i for e in comp for m in range(4) for i in inst[e][m]]
     ucls, vcls = {}, {}
-    uclass = {i: ucls.setdefault(uf_u.find(i), len(ucls)) for i in members}
-    vclass = {i: vcls.setdefault(uf_v.find(i), len(vcls)) for i in members}
+    uclass = {i: ucls.setdefault(line_u[i], len(ucls)) for i in members}
+    vclass = {i: vcls.setdefault(line_v[i], len(vcls)) for i in members}
     box, outer = {}, [set(), set(), set(), set()]
     for e in comp:
         cls = [None] * 4
@@ -616,18 +575,16 @@ def _instances(mesh: _Mesh, traced: set):
             sides.append([corner[m]] + list(range(n, n + mid)) + [corner[(m + 1) % 4]])
             n += mid
         inst.append(sides)
-    uf = _UF(n)
+    joined = []
     for key, users in mesh.seg_users.items():
         if len(users) != 2 or key in traced:
             continue
         (e, m, k), (f, mf, kf) = users
         if mesh.reversed_pair(users[0], users[1]):
-            uf.union(inst[e][m][k], inst[f][mf][kf + 1])
-            uf.union(inst[e][m][k + 1], inst[f][mf][kf])
+            joined += [(inst[e][m][k], inst[f][mf][kf + 1]), (inst[e][m][k + 1], inst[f][mf][kf])]
         else:
-            uf.union(inst[e][m][k], inst[f][mf][kf])
-            uf.union(inst[e][m][k + 1], inst[f][mf][kf + 1])
-    return inst, uf
+            joined += [(inst[e][m][k], inst[f][mf][kf]), (inst[e][m][k + 1], inst[f][mf][kf + 1])]
+    return inst, joined
 
 
 # -- patch parameters -------------------------------------------------------------------
@@ -729,18 +686,15 @@ def _scales(regions, lines, cross_rows, d, wt) -> np.ndarray:
         wsum[r, 1] = sum(xv[reg.box[e][3]] - xv[reg.box[e][2]] for e in reg.pieces)
         count[r] = len(reg.pieces)
     s0 = (count[:, None] / wsum).reshape(-1)
-    same = _UF(2 * npatch)                 # (patch, axis) nodes with one extent
-    parts = _UF(npatch)
-    rows = []
+    same, joined, rows = [], [], []        # (patch, axis) nodes with one extent; joined patches
     for i, (ra, ea, ma, rb, eb, mb) in cross_rows:
         wa, axa = _width(regions[ra], lines[ra], ea, ma)
         wb, axb = _width(regions[rb], lines[rb], eb, mb)
-        same.union(2 * ra + 1 - axa, 2 * rb + 1 - axb)
-        parts.union(ra, rb)
+        same.append((2 * ra + 1 - axa, 2 * rb + 1 - axb))
+        joined.append((ra, rb))
         rows.append((2 * ra + axa, wa, 2 * rb + axb, wb, d[i], wt[i]))
-    roots = sorted({same.find(k) for k in range(2 * npatch)})
-    col = np.array([roots.index(same.find(k)) for k in range(2 * npatch)])
-    n = len(roots)
+    col = components(2 * npatch, same)
+    n = int(col.max()) + 1
     soft, rhs = [], []
     for ka, wa, kb, wb, (da, db), w in rows:
         row = np.zeros(n)
@@ -754,11 +708,11 @@ def _scales(regions, lines, cross_rows, d, wt) -> np.ndarray:
         row[col[k]] = lam / s0[k]
         soft.append(row)
         rhs.append(lam)
-    groups = sorted({parts.find(r) for r in range(npatch)})
-    A = np.zeros((len(groups), n))
-    b = np.zeros(len(groups))
+    part = components(npatch, joined)
+    A = np.zeros((int(part.max()) + 1, n))
+    b = np.zeros(len(A))
     for r in range(npatch):
-        g = groups.index(parts.find(r))
+        g = part[r]
         A[g, col[2 * r]] += wsum[r, 0]
         A[g, col[2 * r + 1]] += wsum[r, 1]
         b[g] += 2 * count[r]
@@ -845,11 +799,11 @@ def bezier_model(nets, source: str | None = None, labels=None, kind: str = "bezi
             info.splits += len(splits)
             continue
         comps = _components(mesh, traced)
-        inst, uf_inst = _instances(mesh, traced)
+        inst, joined = _instances(mesh, traced)
         regions, bad = [], None
         for comp in comps:
             try:
-                regions.append(_region(mesh, comp, traced, inst, uf_inst))
+                regions.append(_region(mesh, comp, traced, inst, joined))
             except _NotRectangle:
                 bad = comp
                 break
@@ -872,7 +826,7 @@ def bezier_model(nets, source: str | None = None, labels=None, kind: str = "bezi
 def _drop_duplicates(pieces: list[Piece], tol: float):
     """Elements with the same four corners and centre as an earlier one are dropped."""
     corners = np.array([[_euclid(side_control(p.ctrl, m)[0]) for m in range(4)] for p in pieces])
-    ids, _ = _merge(corners.reshape(-1, 3), tol)
+    ids, _ = merge_points(corners.reshape(-1, 3), tol)
     ids = ids.reshape(len(pieces), 4)
     centre = []
     for p in pieces:

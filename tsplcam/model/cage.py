@@ -13,13 +13,12 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..layout.layout import CORNER_UV
 from .basis import BSPLINE_TO_BEZIER
-from .cells import SQUARE_MAPS, BezierCells, EigenCells, LevelCells
-from .decompose import decompose
+from .cells import BezierCells, EigenCells, LevelCells
+from .decompose import QuadDecomposition, decompose
 from .eigen import NotSelfSimilar, scheme_for
 from .model import ExtraordinaryPoint, FaceMap, Model, link_patches
-from .patch import Patch
+from .patch import CORNER_UV, Patch, rotation_map
 from .quadmesh import QuadMesh
 
 
@@ -34,14 +33,6 @@ class Cage:
     def homogeneous(self) -> np.ndarray:
         w = np.ones(len(self.points)) if self.weights is None else np.asarray(self.weights, float)
         return np.column_stack([self.points * w[:, None], w])
-
-
-def _map_index(rotation: int) -> int:
-    """SQUARE_MAPS entry taking corner m of the unit square to corner (m + rotation) % 4."""
-    for idx, (A, o) in enumerate(SQUARE_MAPS):
-        if all(np.allclose(A @ CORNER_UV[m] + o, CORNER_UV[(m + rotation) % 4]) for m in range(4)):
-            return idx
-    raise AssertionError(rotation)
 
 
 def _children(items, level: int):
@@ -78,7 +69,8 @@ def cage_model(cage: Cage, name: str | None = None) -> Model:
             level += 1
     return _finish(mesh, dec, patches, cage, name)
 
-def _build_patches(mesh: QuadMesh, H0: np.ndarray, dec, level: int) -> list[Patch]:
+
+def _build_patches(mesh: QuadMesh, H0: np.ndarray, dec: QuadDecomposition, level: int) -> list[Patch]:
     emesh, He = mesh, H0
     for _ in range(level):
         emesh, R, _ = emesh.refine()
@@ -113,7 +105,7 @@ def _build_patches(mesh: QuadMesh, H0: np.ndarray, dec, level: int) -> list[Patc
             local[ci, cj] = len(lst[1])
             group[ci, cj] = -2 - list(eig).index(id(scheme))
             lst[1].append(data)
-            lst[2].append(_map_index((re - k) % 4))
+            lst[2].append(rotation_map((re - k) % 4))
         groups, gid = [], {}
         if bez:
             gid[-1] = len(groups)
@@ -128,7 +120,8 @@ def _build_patches(mesh: QuadMesh, H0: np.ndarray, dec, level: int) -> list[Patc
     return patches
 
 
-def _finish(mesh: QuadMesh, dec, patches: list[Patch], cage: Cage, name: str | None) -> Model:
+def _finish(mesh: QuadMesh, dec: QuadDecomposition, patches: list[Patch], cage: Cage,
+            name: str | None) -> Model:
     link_patches(patches, dec.links)
     node_vertex = sorted({int(v) for reg in dec.regions for v in reg.corners})
     node_of = {v: n for n, v in enumerate(node_vertex)}
@@ -150,7 +143,7 @@ def _finish(mesh: QuadMesh, dec, patches: list[Patch], cage: Cage, name: str | N
     for reg in dec.regions:
         for f, c, rot in zip(reg.faces, reg.cell, reg.rot):
             fmap_cell[f] = c
-            fmap_map[f] = _map_index((-int(rot)) % 4)     # face corner c -> cell corner c - rot
+            fmap_map[f] = rotation_map((-int(rot)) % 4)     # face corner c -> cell corner c - rot
             fmap_size[f] = reg.size
     model = Model(patches, node_points, eps, "catmull-clark", mesh.source,
                   FaceMap(fmap_patch, fmap_cell, fmap_map, fmap_size), control=cage, name=name)

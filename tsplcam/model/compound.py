@@ -14,6 +14,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from ..errors import InputError
+from .components import merge_points
 from .model import ExtraordinaryPoint, Model
 from .patch import EdgeNeighbour, Patch
 
@@ -50,25 +51,8 @@ def compound_model(patches: list[Patch], source: str | None = None, name: str | 
         patches[b].neighbours[eb] = EdgeNeighbour(a, ea, rev)
     # nodes: corners merged within tol
     corners = S[:, :, 0, :].reshape(-1, 3)             # corner k = start of edge k
-    tree = cKDTree(corners)
-    parent = np.arange(len(corners))
-
-    def find(x):
-        while parent[x] != x:
-            parent[x] = parent[parent[x]]
-            x = parent[x]
-        return x
-
-    for i, j in tree.query_pairs(tol):
-        ri, rj = find(i), find(j)
-        if ri != rj:
-            parent[max(ri, rj)] = min(ri, rj)
-    roots = np.array([find(i) for i in range(len(corners))])
-    _, node = np.unique(roots, return_inverse=True)
+    node, node_points = merge_points(corners, tol)
     node = node.reshape(len(patches), 4)
-    node_points = np.zeros((node.max() + 1, 3))
-    np.add.at(node_points, node.reshape(-1), corners)
-    node_points /= np.bincount(node.reshape(-1))[:, None]
     for p, nn in zip(patches, node):
         p.corner_nodes = nn.copy()
     eps = []

@@ -72,28 +72,21 @@ class SurfacePoints:
         return c / np.where(length > 0.0, length, 1.0)
 
     @cached_property
-    def E(self) -> np.ndarray:
-        return _dot(self.Pu, self.Pu)
+    def first_form(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """First fundamental form (E, F, G) = (S_u.S_u, S_u.S_v, S_v.S_v)."""
+        return _dot(self.Pu, self.Pu), _dot(self.Pu, self.Pv), _dot(self.Pv, self.Pv)
 
     @cached_property
-    def F(self) -> np.ndarray:
-        return _dot(self.Pu, self.Pv)
+    def second_form(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Second fundamental form (L, M, N) = (n.S_uu, n.S_uv, n.S_vv)."""
+        return _dot(self.normal, self.Puu), _dot(self.normal, self.Puv), _dot(self.normal, self.Pvv)
 
-    @cached_property
-    def G(self) -> np.ndarray:
-        return _dot(self.Pv, self.Pv)
-
-    @cached_property
-    def L(self) -> np.ndarray:
-        return _dot(self.normal, self.Puu)
-
-    @cached_property
-    def M(self) -> np.ndarray:
-        return _dot(self.normal, self.Puv)
-
-    @cached_property
-    def N(self) -> np.ndarray:
-        return _dot(self.normal, self.Pvv)
+    E = property(lambda self: self.first_form[0])
+    F = property(lambda self: self.first_form[1])
+    G = property(lambda self: self.first_form[2])
+    L = property(lambda self: self.second_form[0])
+    M = property(lambda self: self.second_form[1])
+    N = property(lambda self: self.second_form[2])
 
     @cached_property
     def metric_det(self) -> np.ndarray:

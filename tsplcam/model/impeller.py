@@ -1,6 +1,7 @@
 """A turbine-impeller-like test part after xu2013 (section 7: a 108 mm cryogenic
 turboexpander impeller): a hub with nine twisted blades, the passage between two
-neighbouring blades as three B-spline patches, and the rest of the part as a collision mesh.
+neighbouring blades as three B-spline patches (the rest of the part, as obstacles for the
+collision check, is ``tsplcam.orientation.obstacles.impeller_mesh``).
 
 Geometry (mm, cylindrical r, theta, z about the Z axis, which is the C axis of the machine):
 
@@ -13,9 +14,9 @@ Geometry (mm, cylindrical r, theta, z about the Z axis, which is the C axis of t
 * the passage of one pitch (40 deg) between blade 0's pressure side and blade 1's suction
   side is one cubic B-spline surface across (wall, root fillet, floor, root fillet, wall),
   split at knots into three patches (wall 0, floor, wall 1) that share their edges;
-* ``impeller_mesh`` adds the other eight passages (the same surface turned by the pitch),
-  the blade tips and ends, and the hub nose, so the collision check sees neighbouring
-  blades and hub.
+* ``tsplcam.orientation.obstacles.impeller_mesh`` adds the other eight passages (the same
+  surface turned by the pitch), the blade tips and ends, and the hub nose, so the
+  collision check sees neighbouring blades and hub.
 
 At the blade roots a vertical tool's shank and holder run into the overhanging blade and
 its neighbour, so only tilted axes reach (the tests show it with fcl).
@@ -26,6 +27,7 @@ import numpy as np
 
 from .bspline import bspline_patch
 from .model import Model, link_patches
+from .patch import CORNER_UV
 
 BLADES = 9
 R_IN, R_OUT = 22.0, 54.0
@@ -197,83 +199,7 @@ def impeller() -> Model:
         nodes.append(p)
         return len(nodes) - 1
 
-    from ..layout.layout import CORNER_UV
     for p in patches:
         p.corner_nodes = np.array([node(p.evaluate(*CORNER_UV[k]).P[0]) for k in range(4)])
         corners.append(p.corner_nodes)
     return Model(patches, np.array(nodes), [], "bspline", name="impeller passage")
-
-
-def _grid(f, nu, nv):
-    """Triangles of a (nu x nv) grid of points f(u, v) -> (..., 3)."""
-    u = np.linspace(0, 1, nu)
-    v = np.linspace(0, 1, nv)
-    U, V = np.meshgrid(u, v, indexing="ij")
-    P = f(U, V).reshape(-1, 3)
-    i, j = np.meshgrid(np.arange(nu - 1), np.arange(nv - 1), indexing="ij")
-    a = (i * nv + j).ravel()
-    b = a + nv
-    T = np.concatenate([np.column_stack([a, b, b + 1]), np.column_stack([a, b + 1, a + 1])])
-    return P, T
-
-
-def _rot(P, ang):
-    c, s = np.cos(ang), np.sin(ang)
-    Q = P.copy()
-    Q[..., 0] = c * P[..., 0] - s * P[..., 1]
-    Q[..., 1] = s * P[..., 0] + c * P[..., 1]
-    return Q
-
-
-def impeller_mesh(model: Model | None = None, tolerance: float = 0.01, include_passage: bool = False):
-    """Obstacles around the machined passage, as (name, vertices, triangles) meshes: the
-    other eight passages (turned copies of the passage surface, tessellated within
-    ``tolerance``), the blade tips and ends (leading and trailing edges), and the hub nose (the hub surface
-    continued to the axis).
-    ``include_passage`` adds the machined passage itself (for pictures)."""
-    from ..orientation.collision import tessellate_model
-    model = model or impeller()
-    tm = tessellate_model(model, tolerance)
-    out = []
-    for k in range(BLADES):
-        if k == 0 and not include_passage:
-            continue
-        out.append((f"passage {k}", _rot(tm.vertices, k * PITCH), tm.triangles.copy()))
-    # passage borders: v = 0 (blade 0 tip side) and v = 1 (blade 1 tip side) curves
-    nu = 161
-    us = np.linspace(0, 1, nu)
-    tip0 = model.patches[0].evaluate(us, np.zeros(nu)).P           # blade 0 pressure side tip
-    tip1 = model.patches[2].evaluate(us, np.ones(nu)).P            # blade 1 suction side tip
-    # blade 1's pressure side is passage 1's tip0; its tip face joins tip1 (passage 0) to it
-    for k in range(BLADES):
-        a = _rot(tip1, k * PITCH)
-        b = _rot(tip0, (k + 1) * PITCH)
-        V = np.vstack([a, b])
-        i = np.arange(nu - 1)
-        T = np.concatenate([np.column_stack([i, i + 1, nu + i + 1]), np.column_stack([i, nu + i + 1, nu + i])])
-        out.append((f"blade {k + 1} tip", V, T))
-        # blade ends: faces between the two sides at u = 0 and u = 1, from hub to tip
-        for end, name in ((0, "leading edge"), (nu - 1, "trailing edge")):
-            m = 24
-            vv = np.linspace(0, 1, m)
-            s1 = _rot(model.patches[2].evaluate(np.full(m, us[end]), vv).P, k * PITCH)
-            s0 = _rot(model.patches[0].evaluate(np.full(m, us[end]), 1 - vv).P, (k + 1) * PITCH)
-            V = np.vstack([s1, s0])
-            j = np.arange(m - 1)
-            T = np.concatenate([np.column_stack([j, j + 1, m + j + 1]), np.column_stack([j, m + j + 1, m + j])])
-            out.append((f"blade {k + 1} {name}", V, T))
-    # hub nose: the hub surface of revolution continued inside the exducer, r from R_IN to 0
-    ang = np.linspace(0, 2 * np.pi, 181)[:-1]
-    rr = np.linspace(R_IN, 0.0, 23)[:-1]
-    V = np.vstack([np.column_stack([r * np.cos(ang), r * np.sin(ang), np.full(len(ang), hub_z(r))])
-                   for r in rr] + [[[0.0, 0.0, float(hub_z(0.0))]]])
-    na = len(ang)
-    i = np.arange(na)
-    T = []
-    for k in range(len(rr) - 1):
-        a, b = k * na + i, k * na + (i + 1) % na
-        T += [np.column_stack([a, b, b + na]), np.column_stack([a, b + na, a + na])]
-    last = (len(rr) - 1) * na
-    T.append(np.column_stack([last + i, last + (i + 1) % na, np.full(na, len(V) - 1)]))
-    out.append(("hub nose", V, np.concatenate(T)))
-    return out

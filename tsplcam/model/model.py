@@ -14,7 +14,7 @@ import numpy as np
 from ..errors import InputError
 from .cells import SQUARE_MAPS, _chain
 from .diffgeom import SurfacePoints
-from .patch import EdgeNeighbour, Patch
+from .patch import CORNER_UV, EDGE_CORNERS, EdgeNeighbour, Patch
 
 
 @dataclass
@@ -35,7 +35,39 @@ class ExtraordinaryPoint:
 
 
 class Model:
-    """Patches of one surface; ``units`` is always mm inside tsplcam."""
+    """Patches of one surface; ``units`` is always mm inside tsplcam.
+
+    The last five attributes belong to some kinds of model only (None on the others); the
+    reader or builder of that kind sets them.
+    """
+
+    patches: list[Patch]
+    #: (n, 3) position of every node (a patch corner shared by the patches meeting there)
+    node_points: np.ndarray
+    #: extraordinary points among the nodes (valence other than 4 inside, above 2 on the boundary)
+    extraordinary: list[ExtraordinaryPoint]
+    #: how the surface is defined: "catmull-clark", "t-spline", "bezier", "bspline", ...
+    kind: str
+    #: the file the model was read from, for messages
+    source: str | None
+    #: cages: where each cage face lies in its patch (``evaluate_faces``)
+    face_map: FaceMap | None
+    #: the control mesh (cage or T-mesh) when there is one
+    control: object
+    name: str
+    units: str
+    #: cages and Bezier meshes: the control-mesh vertex (cage vertex, merged element corner) of
+    #: every node
+    node_vertex: np.ndarray | None
+    #: Bezier meshes (``bezier_mesh``): per element or piece of one, where it sits in which
+    #: patch (``ElementPlace``)
+    elements: list | None
+    #: Bezier meshes: what the recovery of the mesh found (``bezier_mesh.MeshInfo``)
+    mesh_info: object | None
+    #: ``.iga`` files: the file's content (``formats.iga.IgaFile``)
+    iga: object | None
+    #: CAD imports (the workbench's STEP/IGES reader): the face each patch was made from
+    faces: list | None
 
     def __init__(self, patches: list[Patch], node_points: np.ndarray,
                  extraordinary: list[ExtraordinaryPoint], kind: str, source: str | None = None,
@@ -46,9 +78,14 @@ class Model:
         self.kind = kind
         self.source = source
         self.face_map = face_map
-        self.control = control          # the control mesh (cage or T-mesh) when there is one
+        self.control = control
         self.name = name or (source.rsplit("/", 1)[-1] if source else kind)
         self.units = "mm"
+        self.node_vertex = None
+        self.elements = None
+        self.mesh_info = None
+        self.iga = None
+        self.faces = None
 
     def __repr__(self) -> str:
         return (f"<Model {self.name!r}: {len(self.patches)} patches, "
@@ -95,23 +132,17 @@ class Model:
 
     # -- topology -------------------------------------------------------------------------
     def layout(self):
-        """The patch adjacency graph (tsplcam.layout.Layout)."""
-        from ..layout.layout import EdgeLink, Layout
-        links = []
-        for p in self.patches:
-            for e, nb in enumerate(p.neighbours):
-                if nb is not None and (p.index, e) < (nb.patch, nb.edge):
-                    links.append(EdgeLink(p.index, e, nb.patch, nb.edge, nb.reversed))
-        corner_nodes = np.array([p.corner_nodes for p in self.patches])
-        return Layout(corner_nodes, self.node_points, links,
-                      frozenset(x.node for x in self.extraordinary if not x.boundary),
-                      [p.name for p in self.patches])
+        """The patch adjacency graph, ``tsplcam.layout.layout.Layout.from_model(self)``.
+
+        Deprecated: the layout stage builds it from the model (imports flow down the
+        pipeline); kept until every caller uses ``Layout.from_model``."""
+        from ..layout.layout import Layout
+        return Layout.from_model(self)
 
     def edge_transform(self, patch: int, edge: int) -> np.ndarray:
         """Affine map (2 x 3) from this patch's (u, v) to the neighbour's across ``edge``,
         continuing the parametrisation in knot units (shang2020 section 2.2: adjacent
         patches' parameters differ by a translation and a rotation)."""
-        from ..layout.layout import CORNER_UV, EDGE_CORNERS
         a = self.patches[patch]
         nb = a.neighbours[edge]
         if nb is None:

@@ -5,7 +5,10 @@ one cell evaluator group (Bezier or extraordinary, see ``cells.py``). Evaluation
 number of points is a handful of array calls: locate cells with ``searchsorted``, evaluate
 each group's points at once, convert homogeneous to Euclidean derivatives.
 
-Corner and edge numbering follow ``tsplcam.layout.layout`` (corner 0 = (0,0), edge 0 = v=0).
+Corners and edges of the unit square (shang2020 section 3.2), used by every later stage:
+corner k sits at ``CORNER_UV[k]``: 0 = (0,0) lower left, 1 = (1,0) lower right, 2 = (1,1)
+upper right, 3 = (0,1) upper left. Edge k runs from corner k to corner k+1: 0 = bottom
+(v=0), 1 = right (u=1), 2 = top (v=1), 3 = left (u=0).
 """
 from __future__ import annotations
 
@@ -14,10 +17,24 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import InputError
-from .cells import BezierCells
+from .cells import SQUARE_MAPS, BezierCells
 from .diffgeom import SurfacePoints, rational_from_homogeneous
 
+CORNER_UV = np.array([[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]])
+EDGE_CORNERS = ((0, 1), (1, 2), (2, 3), (3, 0))
+CORNER_NAMES = ("lower-left", "lower-right", "upper-right", "upper-left")
+EDGE_NAMES = ("bottom", "right", "top", "left")
+
 CHUNK = 1 << 17
+
+
+def rotation_map(rotation: int) -> int:
+    """Index of the ``cells.SQUARE_MAPS`` entry that takes corner m of the unit square to
+    corner (m + rotation) % 4."""
+    for idx, (A, o) in enumerate(SQUARE_MAPS):
+        if all(np.allclose(A @ CORNER_UV[m] + o, CORNER_UV[(m + rotation) % 4]) for m in range(4)):
+            return idx
+    raise AssertionError(rotation)
 
 
 @dataclass(frozen=True)
@@ -193,12 +210,10 @@ class Patch:
         return order, H, ep
 
     def corner_point(self, k: int) -> np.ndarray:
-        from ..layout.layout import CORNER_UV
         return self.evaluate(*CORNER_UV[k]).P[0]
 
     def edge_params(self, edge: int, tau: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(u, v) along edge ``edge`` at fraction tau from its first corner to its second."""
-        from ..layout.layout import CORNER_UV, EDGE_CORNERS
         c0, c1 = EDGE_CORNERS[edge]
         tau = np.asarray(tau, float)
         uv = CORNER_UV[c0][None, :] * (1 - tau)[:, None] + CORNER_UV[c1][None, :] * tau[:, None]

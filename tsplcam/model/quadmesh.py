@@ -102,21 +102,13 @@ class QuadMesh:
     def _next_around(self, f: int, k: int):
         """The face after (f, corner k) around the vertex, turning across edge (v, prev)."""
         quad = self.faces[f]
-        v, prev = int(quad[k]), int(quad[(k + 3) % 4])
-        hit = self.edges.get((v, prev))
-        if hit is None:
-            return None
-        g, kk = hit
-        return g, kk
+        return self.edges.get((int(quad[k]), int(quad[(k + 3) % 4])))
 
     def _prev_around(self, f: int, k: int):
+        """The face before (f, corner k) around the vertex, turning across edge (v, next)."""
         quad = self.faces[f]
-        v, nxt = int(quad[k]), int(quad[(k + 1) % 4])
-        hit = self.edges.get((nxt, v))
-        if hit is None:
-            return None
-        g, kk = hit
-        return g, (kk + 1) % 4
+        hit = self.edges.get((int(quad[(k + 1) % 4]), int(quad[k])))
+        return None if hit is None else (hit[0], (hit[1] + 1) % 4)
 
     def _build_fans(self):
         incident = [[] for _ in range(self.n_vertices)]

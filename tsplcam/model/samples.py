@@ -9,7 +9,7 @@
 * ``head``: a closed head-like model after the paper's figure 2: 6 patches, 8
   extraordinary points.
 * ``figure4``: a surface with the 12-patch layout of the paper's figure 4
-  (``tsplcam.layout.examples.figure4``), including corner-connected patches.
+  (``figure4_arrangement``), including corner-connected patches.
 * ``tjunction_mold``: a T-spline (not a cage): the floor of a 60 x 40 mm mold pocket, 8 mm
   deep, with a rib across it. Knot lines are refined around the rib only, so the T-mesh has
   T-junctions and non-uniform knot intervals; the boundary is clamped. Shipped as a native
@@ -21,10 +21,12 @@ the cage scales the surface and a measured box can be hit exactly.
 from __future__ import annotations
 
 import os
+from dataclasses import dataclass
 
 import numpy as np
 
 from .cage import Cage
+from .formats.obj import write_obj
 from .quadmesh import QuadMesh
 
 SAMPLE_DIR = os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), "data", "samples")
@@ -173,8 +175,64 @@ def head(n: int = 3) -> Cage:
     return Cage(QuadMesh(np.array(faces), len(P), "edge-only"), P)
 
 
+@dataclass
+class Arrangement:
+    """Patches given by their corner nodes: ``corner_nodes`` (n, 4) node ids, corners 0..3
+    counter-clockwise from the lower left (seen from the tool side), ``node_points`` (m, 3)
+    in mm, the ``extraordinary`` nodes and the patches' ``names``."""
+    corner_nodes: np.ndarray
+    node_points: np.ndarray
+    extraordinary: tuple = ()
+    names: list | None = None
+
+
+def bump(x, y):
+    """A smooth mold-like height (mm) so that flat arrangements have a 3D shape."""
+    return 8.0 * np.exp(-((x - 40.0) ** 2 + (y - 30.0) ** 2) / 800.0)
+
+
+def figure4_arrangement() -> Arrangement:
+    """12 patches after shang2020 figure 4: a 4 x 3 grid with one edge rotated.
+
+    The two middle-left quads of the middle row share the edge b-e; re-splitting their
+    hexagon a-b-c-d-e-f along c-f instead makes b and e valence 3 and c and f valence 5
+    (all four extraordinary), the other interior nodes stay regular (valence 4)::
+
+        y=60  15 ---- 16 ---- 17 ---- 18 ---- 19
+               |   8  |   9   e  10   |  11   |        e = node 12, pulled up
+        y=40  10 ---- f ------------- d ---- 14        f = node 11, d = node 13
+               |   6  | \\      1      |   7   |
+               |      |   \\______    |       |        patch 1 = f c d e
+               |      |   0      \\___ c       |        patch 0 = a b c f
+        y=20   5 ---- a ---- b ------------- 9        a = 6, b = 7 (pulled down), c = 8
+               |   2  |   3  |   4    |   5   |
+        y=0    0 ---- 1 ---- 2 ------ 3 ---- 4
+              x=0    20     40       60     80
+
+    z follows :func:`bump`.
+    """
+    nid = lambda i, j: 5 * j + i  # noqa: E731
+    xy = {nid(i, j): (20.0 * i, 20.0 * j) for j in range(4) for i in range(5)}
+    a, b, c, d, e, f = nid(1, 1), nid(2, 1), nid(3, 1), nid(3, 2), nid(2, 2), nid(1, 2)
+    xy[b] = (40.0, 14.0)
+    xy[e] = (40.0, 46.0)
+    pts = np.array([(x, y, bump(x, y)) for _, (x, y) in sorted(xy.items())])
+
+    def q(i, j):
+        return (nid(i, j), nid(i + 1, j), nid(i + 1, j + 1), nid(i, j + 1))
+
+    quads = [(a, b, c, f), (f, c, d, e),
+             q(0, 0), q(1, 0), q(2, 0), q(3, 0), q(0, 1), q(3, 1), q(0, 2), q(1, 2), q(2, 2),
+             q(3, 2)]
+    names = ["rotated a-b-c-f", "rotated f-c-d-e"] + [
+        f"grid {i},{j}" for i, j in ((0, 0), (1, 0), (2, 0), (3, 0), (0, 1), (3, 1), (0, 2),
+                                     (1, 2), (2, 2), (3, 2))]
+    return Arrangement(np.array(quads), pts, (b, e, c, f), names)
+
+
 def layout_cage(layout, k: int = 2, height=None, boundary_rule: str = "edge-and-corner") -> Cage:
-    """A cage whose patch layout is ``layout``: every layout patch becomes k x k faces
+    """A cage whose patch layout is ``layout`` (anything with ``corner_nodes`` and
+    ``node_points``: an :class:`Arrangement`, a ``tsplcam.layout.layout.Layout``): every patch becomes k x k faces
     between its corner nodes (bilinear), neighbours share their edge vertices, and z is
     ``height(x, y)`` when given. Open sheets get sharp boundary corners by default
     (OpenSubdiv's edge-and-corner rule): a single-face corner under the edge-only rule is
@@ -225,8 +283,7 @@ def layout_cage(layout, k: int = 2, height=None, boundary_rule: str = "edge-and-
 
 def figure4(k: int = 2) -> Cage:
     """A mold-like surface with the 12-patch layout of shang2020 figure 4."""
-    from ..layout.examples import _bump, figure4 as layout4
-    return layout_cage(layout4(), k, height=_bump)
+    return layout_cage(figure4_arrangement(), k, height=bump)
 
 
 TJUNCTION_MOLD_SIZE = (60.0, 40.0, 8.0)
@@ -236,7 +293,7 @@ def tjunction_mold():
     """A mold pocket floor with a rib: a clamped T-mesh with T-junctions and non-uniform knot
     intervals (60 x 40 mm, floor 8 mm below the rim, rib 2 mm high along x = 30 mm)."""
     from .tmesh import from_lines
-    from .tspline import knot_vectors
+    from .knots import knot_vectors
     sx, sy, depth = TJUNCTION_MOLD_SIZE
     # knot lines finer toward the rib; repeated end values: zero outer intervals (clamped)
     X = np.array([0.0, 0.0, 7.0, 15.0, 21.0, 25.0, 28.0, 30.0, 32.0, 35.0, 39.0, 45.0, 53.0, 60.0, 60.0])
@@ -281,18 +338,6 @@ def sample_stock(model: str):
     name = os.path.basename(str(model)).split(".")[0]
     make = SAMPLE_STOCKS.get(name)
     return make() if make is not None else None
-
-
-def write_obj(cage: Cage, path: str, comment: str = "") -> None:
-    """A cage as an OBJ file (mm), with OpenSubdiv's boundary tag."""
-    tag = {"edge-only": 2, "edge-and-corner": 1}[cage.mesh.boundary_rule]
-    with open(path, "w") as fh:
-        fh.write(f"# tsplcam sample: {comment}\n# units: mm\n")
-        for p in cage.points:
-            fh.write("v {:.10g} {:.10g} {:.10g}\n".format(*p))
-        for f in cage.mesh.faces:
-            fh.write("f {} {} {} {}\n".format(*(f + 1)))
-        fh.write(f"t interpolateboundary 1/0/0 {tag}\n")
 
 
 def sample_path(name: str) -> str:

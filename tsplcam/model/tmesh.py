@@ -30,7 +30,7 @@ lines (samples, tests, B-spline surfaces: ``bspline_tmesh``).
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from functools import cached_property
+from functools import cached_property, cmp_to_key
 
 import numpy as np
 
@@ -187,17 +187,66 @@ class TMesh:
                      self.face_lines, self.vertex_lines, self.name, self.vertex_labels, self.face_labels)
 
 
-def _lex_lt(a: complex, b: complex, tol: float) -> bool:
-    """a < b for knot positions (value, order): values first (with tolerance), then order."""
-    if a.real < b.real - tol:
-        return True
-    if a.real > b.real + tol:
-        return False
-    return a.imag < b.imag - 1e-7
+class Lex:
+    """Comparisons of knot positions value + i*order: values with the tolerance ``tol``, ties
+    broken by the order part (see the module docstring)."""
 
+    def __init__(self, tol: float):
+        self.tol = tol
 
-def lex_eq(a: complex, b: complex, tol: float) -> bool:
-    return abs(a.real - b.real) <= tol and abs(a.imag - b.imag) <= 1e-7
+    def cmp(self, a: complex, b: complex) -> int:
+        if a.real < b.real - self.tol:
+            return -1
+        if a.real > b.real + self.tol:
+            return 1
+        if a.imag < b.imag - 1e-7:
+            return -1
+        if a.imag > b.imag + 1e-7:
+            return 1
+        return 0
+
+    def lt(self, a, b) -> bool:
+        """``cmp(a, b) < 0``, written out (the walks call it most)."""
+        if a.real < b.real - self.tol:
+            return True
+        if a.real > b.real + self.tol:
+            return False
+        return a.imag < b.imag - 1e-7
+
+    def eq(self, a, b) -> bool:
+        """``cmp(a, b) == 0``, written out."""
+        return not (a.real < b.real - self.tol or a.real > b.real + self.tol
+                    or a.imag < b.imag - 1e-7 or a.imag > b.imag + 1e-7)
+
+    def key(self):
+        """A sort key: ``sorted(values, key=lex.key())``."""
+        return cmp_to_key(self.cmp)
+
+    def unique(self, values) -> list:
+        """The values sorted, each run of equal ones kept once (its first)."""
+        values = list(values)
+        if len(values) == 2:                         # most faces: no chords, as sorted() would do
+            a, b = values
+            c = self.cmp(b, a)
+            return [b, a] if c < 0 else [a] if c == 0 else [a, b]
+        out = []
+        for v in sorted(values, key=cmp_to_key(self.cmp)):
+            if not out or not self.eq(out[-1], v):
+                out.append(v)
+        return out
+
+    def index(self, sorted_values, v) -> int:
+        lo, hi = 0, len(sorted_values)
+        while lo < hi:
+            mid = (lo + hi) // 2
+            c = self.cmp(sorted_values[mid], v)
+            if c == 0:
+                return mid
+            if c < 0:
+                lo = mid + 1
+            else:
+                hi = mid
+        raise KeyError(v)
 
 
 class Topology:
@@ -425,59 +474,44 @@ def from_lines(X, Y, hsegs, vsegs, points, weights=None, holes=None, name=None) 
     """
     X = np.asarray(X, float)
     Y = np.asarray(Y, float)
-    hs = {}
-    for j, i0, i1 in hsegs:
-        i0, i1 = sorted((int(i0), int(i1)))
-        hs.setdefault(int(j), []).append((i0, i1))
-    vs = {}
-    for i, j0, j1 in vsegs:
-        j0, j1 = sorted((int(j0), int(j1)))
-        vs.setdefault(int(i), []).append((j0, j1))
+    # lines[0]: rows j -> [(i0, i1)], lines[1]: columns i -> [(j0, j1)]; position t on line k
+    # is the grid node (t, k) of a row, (k, t) of a column
+    lines = ({}, {})
+    for axis, segs in ((0, hsegs), (1, vsegs)):
+        for k, t0, t1 in segs:
+            t0, t1 = sorted((int(t0), int(t1)))
+            lines[axis].setdefault(int(k), []).append((t0, t1))
 
-    def on_h(i, j):
-        return any(a <= i <= b for a, b in hs.get(j, ()))
+    def node(axis, k, t):
+        return (t, k) if axis == 0 else (k, t)
 
-    def on_v(i, j):
-        return any(a <= j <= b for a, b in vs.get(i, ()))
+    def on(axis, k, t):
+        return any(a <= t <= b for a, b in lines[axis].get(k, ()))
 
     nodes = set()
-    for j, segs in hs.items():
-        for a, b in segs:
-            for i in range(a, b + 1):
-                if on_v(i, j):
-                    nodes.add((i, j))
-    for i, segs in vs.items():
-        for a, b in segs:
-            for j in range(a, b + 1):
-                if on_h(i, j):
-                    nodes.add((i, j))
-    for j, segs in hs.items():
-        for a, b in segs:
-            for i in (a, b):
-                if (i, j) not in nodes:
-                    raise InputError(f"horizontal segment on row {j} ends at column {i}, where no vertical "
-                                     f"segment passes (a T-mesh's lines end on other lines)")
-    for i, segs in vs.items():
-        for a, b in segs:
-            for j in (a, b):
-                if (i, j) not in nodes:
-                    raise InputError(f"vertical segment on column {i} ends at row {j}, where no horizontal "
-                                     f"segment passes (a T-mesh's lines end on other lines)")
+    for axis in (0, 1):
+        for k, segs in lines[axis].items():
+            for a, b in segs:
+                nodes.update(node(axis, k, t) for t in range(a, b + 1) if on(1 - axis, t, k))
+    names = (("horizontal", "row", "column", "vertical"), ("vertical", "column", "row", "horizontal"))
+    for axis in (0, 1):
+        kind, line, across, other = names[axis]
+        for k, segs in lines[axis].items():
+            for a, b in segs:
+                for t in (a, b):
+                    if node(axis, k, t) not in nodes:
+                        raise InputError(f"{kind} segment on {line} {k} ends at {across} {t}, where no "
+                                         f"{other} segment passes (a T-mesh's lines end on other lines)")
     nodes = sorted(nodes, key=lambda ij: (ij[1], ij[0]))
     vid = {ij: k for k, ij in enumerate(nodes)}
     nbr = {ij: [None] * 4 for ij in nodes}
-    for j, segs in hs.items():
-        for a, b in segs:
-            row = [i for i in range(a, b + 1) if (i, j) in vid]
-            for p, q in zip(row[:-1], row[1:]):
-                nbr[(p, j)][0] = (q, j)
-                nbr[(q, j)][2] = (p, j)
-    for i, segs in vs.items():
-        for a, b in segs:
-            col = [j for j in range(a, b + 1) if (i, j) in vid]
-            for p, q in zip(col[:-1], col[1:]):
-                nbr[(i, p)][1] = (i, q)
-                nbr[(i, q)][3] = (i, p)
+    for axis in (0, 1):                       # neighbours along +x / +y (axis) and back (axis + 2)
+        for k, segs in lines[axis].items():
+            for a, b in segs:
+                run = [node(axis, k, t) for t in range(a, b + 1) if node(axis, k, t) in vid]
+                for p, q in zip(run[:-1], run[1:]):
+                    nbr[p][axis] = q
+                    nbr[q][axis + 2] = p
     used, faces, corners, intervals = set(), [], [], []
     for u in nodes:
         for d0 in range(4):

@@ -16,6 +16,7 @@ scallop are the same; what changes is the linking):
 """
 from __future__ import annotations
 
+from ..layout.layout import Layout
 from .path import ToolPath
 from .zigzag import PathSettings, PathStep, build_path, default_plan
 
@@ -23,7 +24,7 @@ from .zigzag import PathSettings, PathStep, build_path, default_plan
 def baseline_steps(model, order=None) -> list[PathStep]:
     """One free-parity step per patch, in ``order`` (default: the planner's order)."""
     from ..plan.graph import model_edge_lengths, preferred_crossfeeds
-    layout = model.layout()
+    layout = Layout.from_model(model)
     preferred = preferred_crossfeeds(layout, model_edge_lengths(model))
     if order is None:
         order = default_plan(model).order

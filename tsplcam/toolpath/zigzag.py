@@ -24,7 +24,7 @@ from dataclasses import asdict, dataclass
 import numpy as np
 
 from ..errors import InputError
-from ..layout.layout import CORNER_NAMES
+from ..layout.layout import CORNER_NAMES, Layout
 from .chord import place_points
 from .lines import LineFrame, LinePlacement, Placer, Target, check_patch_reachable, parity_for
 from .path import Move, ToolPath
@@ -274,7 +274,7 @@ def default_plan(model):
     """The planner's processing list for ``model`` (what ``tsplcam path`` uses without a list)."""
     from ..plan import plan
     from ..plan.graph import model_edge_lengths
-    return plan(model.layout(), edge_lengths=model_edge_lengths(model), model=getattr(model, "name", ""))
+    return plan(Layout.from_model(model), edge_lengths=model_edge_lengths(model), model=getattr(model, "name", ""))
 
 
 def zigzag_path(model, plist=None, tool_radius: float = 0.5, scallop: float = 0.005,

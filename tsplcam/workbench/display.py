@@ -18,7 +18,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..layout.layout import CORNER_UV, EDGE_CORNERS
+from ..layout.layout import CORNER_UV, EDGE_CORNERS, Layout
 
 # A distinct palette (sRGB 0..1) with well separated hues; red is kept out of it on
 # purpose: it marks extraordinary points. The first five (the keycap's) are 40 degrees
@@ -203,7 +203,7 @@ def adjacency(model, layout=None, lift: float | None = None, samples: int = 9) -
     """Patch graph of shang2020 section 3.2 / figure 4 drawn on the model: every boundary
     link runs centre -> shared edge midpoint -> centre, every corner link centre -> shared
     corner -> centre, each half along a straight line of its patch's (u, v)."""
-    layout = layout or model.layout()
+    layout = layout or Layout.from_model(model)
     if lift is None:
         lift = 0.004 * model_size(model)
     centre = np.array([0.5, 0.5])

@@ -1,8 +1,8 @@
 """FreeCAD importer for tsplcam models (File > Open / File > Import, and the workbench).
 
 FreeCAD's importer protocol: module functions ``open(filename)`` (new document) and
-``insert(filename, docname)`` (into a document), registered for .obj .tsm .iga .tspl in
-Init.py. Both read the file with the engine first and create a ``TsplcamModel`` only when
+``insert(filename, docname)`` (into a document), registered in Init.py for every surface
+reader of the engine's registry (``tsplcam.model.formats.READERS``). Both read the file with the engine first and create a ``TsplcamModel`` only when
 that succeeded; a bad file gives one message naming the file and line (Report view, and a
 message box in the GUI), never a traceback dialog, never a half-built object.
 """

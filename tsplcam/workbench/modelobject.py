@@ -5,8 +5,8 @@ App::PropertyFileIncluded) with its ``Format``, and rebuilds the engine ``Model`
 on demand: lazily, once, cached in the proxy and never pickled. Saving and reloading the
 .FCStd therefore gives back the same model, evaluated by the same reader.
 
-Sources: the engine's readers (``tsplcam.load``: .obj cages, .iga, .tsm, .tspl, whatever
-``tsplcam.model.formats`` reads), and CAD shapes (.step/.iges files, or a Part object's
+Sources: the engine's readers (``tsplcam.load``: every surface reader of the registry
+``tsplcam.model.formats.READERS``), and CAD shapes (.step/.iges files, or a Part object's
 shape kept as .brep) through ``tsplcam.workbench.shapes.model_from_shape`` when that
 module is present.
 """
@@ -20,21 +20,24 @@ import FreeCAD
 
 import tsplcam
 from ..errors import InputError
+from ..model.formats import reader_for, surface_readers
 from .proxy import FeatureProxy, add_property, set_read_only
 
 # formats FreeCAD reads as shapes; the engine gets them through shapes.model_from_shape
 SHAPE_FORMATS = {"step": (".step", ".stp"), "iges": (".iges", ".igs"), "brep": (".brep", ".brp")}
-# formats the engine may read (tsplcam.model.formats decides which it really does)
-ENGINE_FORMATS = {"obj": (".obj",), "iga": (".iga",), "tsm": (".tsm",), "tspl": (".tspl",)}
-FORMAT_NAMES = {"obj": "subdivision cage (OBJ)", "iga": "T-spline Bezier extraction (IGA)",
-                "tsm": "T-Splines T-mesh (TSM)", "tspl": "tsplcam native (TSPL)",
-                "step": "STEP", "iges": "IGES", "brep": "OpenCASCADE BRep"}
+SHAPE_NAMES = {"step": "STEP", "iges": "IGES", "brep": "OpenCASCADE BRep"}
+# formats the engine reads into surface models: the registry of tsplcam.model.formats
+ENGINE_FORMATS = {r.name: r.extensions for r in surface_readers()}
+FORMAT_NAMES = {**{r.name: r.description for r in surface_readers()}, **SHAPE_NAMES}
 
 
 def format_of(path: str) -> str:
     """Format name from a file's extension ('obj', 'iga', 'step', ...)."""
+    reader = reader_for(path)
+    if reader is not None:
+        return reader.name
     ext = os.path.splitext(path)[1].lower()
-    for name, exts in {**ENGINE_FORMATS, **SHAPE_FORMATS}.items():
+    for name, exts in SHAPE_FORMATS.items():
         if ext in exts:
             return name
     return ext.lstrip(".")
@@ -49,42 +52,9 @@ def shapes_module():
     return shapes if hasattr(shapes, "model_from_shape") else None
 
 
-_engine_formats_cache: tuple[str, ...] | None = None
-
-
 def engine_formats() -> tuple[str, ...]:
-    """The formats of ENGINE_FORMATS that ``tsplcam.load`` reads in this checkout.
-
-    Asks the formats package for its list when it has one (``EXTENSIONS`` or
-    ``READERS``), otherwise tries each extension on an empty file: a reader that exists
-    complains about the content, not about the file type."""
-    global _engine_formats_cache
-    if _engine_formats_cache is not None:
-        return _engine_formats_cache
-    from ..model import formats
-    known = getattr(formats, "EXTENSIONS", None) or getattr(formats, "READERS", None)
-    found = []
-    if known:
-        exts = {str(e).lower() if str(e).startswith(".") else "." + str(e).lower() for e in known}
-        found = [name for name, es in ENGINE_FORMATS.items() if exts & set(es)]
-    else:
-        tmp = tempfile.mkdtemp(prefix="tsplcam-probe-")
-        try:
-            for name, es in ENGINE_FORMATS.items():
-                path = os.path.join(tmp, "probe" + es[0])
-                open(path, "w").close()
-                try:
-                    formats.load(path)
-                    found.append(name)
-                except InputError as exc:
-                    if "unknown model file type" not in exc.message:
-                        found.append(name)
-                except Exception:
-                    found.append(name)
-        finally:
-            shutil.rmtree(tmp, ignore_errors=True)
-    _engine_formats_cache = tuple(found)
-    return _engine_formats_cache
+    """The formats ``tsplcam.load`` reads into surface models."""
+    return tuple(ENGINE_FORMATS)
 
 
 def readable_formats() -> list[str]:

@@ -14,6 +14,7 @@ import hashlib
 import FreeCAD
 
 from ..errors import InputError
+from ..layout.layout import Layout
 from . import messages
 from .transaction import in_transaction
 from .modelobject import is_model_object, model_of
@@ -26,14 +27,14 @@ def plan_model(model, pins=None):
     """A fresh processing list for ``model`` (the planner with the surface's edge lengths)."""
     from ..plan import plan
     from ..plan.graph import model_edge_lengths
-    return plan(model.layout(), pins, edge_lengths=model_edge_lengths(model), model=model.name)
+    return plan(Layout.from_model(model), pins, edge_lengths=model_edge_lengths(model), model=model.name)
 
 
 def replan(model, plist):
     """Keep what ``plist`` pins, solve the rest (``tsplcam plan --complete``)."""
     from ..plan import complete
     from ..plan.graph import model_edge_lengths
-    out = complete(plist, model.layout(), edge_lengths=model_edge_lengths(model))
+    out = complete(plist, Layout.from_model(model), edge_lengths=model_edge_lengths(model))
     out.model = plist.model or model.name
     return out
 
@@ -83,7 +84,7 @@ class TsplcamProcessingList(FeatureProxy):
         key = self._cache_key(obj)
         if self._plist is None or self._key != key:
             from ..plan import loads
-            self._plist = loads(obj.ListText, model_of(obj.Model).layout(), path=obj.Label)
+            self._plist = loads(obj.ListText, Layout.from_model(model_of(obj.Model)), path=obj.Label)
             self._key = key
         return self._plist
 
@@ -123,7 +124,7 @@ def make_processing_list(model_obj, plist=None):
             plist = plan_model(model)
         else:
             from ..plan.listfile import check
-            check(plist, model.layout())
+            check(plist, Layout.from_model(model))
     except Exception as exc:
         messages.exception(TITLE, exc, f"planning {model_obj.Label}")
         return None

@@ -17,6 +17,7 @@ import FreeCADGui
 from PySide import QtCore, QtGui
 
 from ..errors import InputError
+from ..layout.layout import Layout
 from . import messages
 from .modelobject import model_of
 from .planobject import plan_of, replan
@@ -55,7 +56,7 @@ class ProcessingListPanel:
     def __init__(self, obj):
         self.obj = obj
         self.model = model_of(obj.Model)
-        self.layout = self.model.layout()
+        self.layout = Layout.from_model(self.model)
         self.plist = copy.deepcopy(plan_of(obj))
         self.valid = True
         self.form = self._build()

@@ -14,6 +14,7 @@ import numpy as np
 import FreeCAD
 from pivy import coin
 
+from ..layout.layout import Layout
 from . import coinutil, display, messages
 from .modelobject import PATCH_ELEMENT, model_of, patch_of_element
 from .proxy import ViewProxy, add_property
@@ -213,7 +214,7 @@ class ViewProviderTsplcamModel(ViewProxy):
         offset.factor = 1.0
         offset.units = 1.0
         sep.addChild(offset)
-        layout = model.layout()
+        layout = Layout.from_model(model)
         focus = int(getattr(self.ViewObject, "NeighboursOf", -1))
         if 0 <= focus < layout.n_patches:
             colours = display.relation_colours(layout, focus)

@@ -5,6 +5,7 @@ Reads ``v``, ``f v[/vt[/vn]]`` (1-based, negative indices relative), and the tag
 when absent, as in OpenSubdiv's regression harness). Crease, corner, hole and hierarchical
 edit tags, and boundary rule 0 (none) are refused with the line that carries them rather
 than evaluated wrongly. ``vt``, ``vn``, ``g``, ``o``, ``s``, ``usemtl`` are ignored.
+``write_obj`` writes a cage so (the shipped samples).
 """
 from __future__ import annotations
 
@@ -77,3 +78,15 @@ def _tag(tok, path, ln, rule):
         raise InputError(f"'{name}' tags are not supported yet: tsplcam refuses sharp features "
                          f"rather than evaluating them wrongly", path=path, line=ln)
     raise InputError(f"tag '{name}' is not supported", path=path, line=ln)
+
+
+def write_obj(cage: Cage, path: str, comment: str = "") -> None:
+    """A cage as an OBJ file (mm), with OpenSubdiv's boundary tag."""
+    tag = {rule: value for value, rule in _RULES.items()}[cage.mesh.boundary_rule]
+    with open(path, "w") as fh:
+        fh.write(f"# tsplcam sample: {comment}\n# units: mm\n")
+        for p in cage.points:
+            fh.write("v {:.10g} {:.10g} {:.10g}\n".format(*p))
+        for f in cage.mesh.faces:
+            fh.write("f {} {} {} {}\n".format(*(f + 1)))
+        fh.write(f"t interpolateboundary 1/0/0 {tag}\n")

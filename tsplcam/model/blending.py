@@ -1,0 +1,105 @@
+"""T-spline blending functions: cubic B-spline pieces on five local knots, and where on the
+T-mesh each function is non-zero.
+
+The surface of a T-mesh is S = sum w_i B_i P_i / sum w_i B_i with B_i(s, t) = N[s_i](s)
+N[t_i](t) (Sederberg et al. 2003); the knot vectors s_i, t_i come from ``knots.py``. Each
+function is spread over the faces its support covers by a walk over faces from its vertex,
+in the vertex's frame; a cubic piece of it on a cell is turned into Bernstein coefficients
+exactly (sampled at four interior points of the cell).
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from .basis import bernstein
+from .knots import LocalKnots
+from .twalk import Walker, compose, rot
+
+_NODES = np.array([1.0, 3.0, 5.0, 7.0]) / 8.0
+_TO_BERNSTEIN = np.linalg.inv(bernstein(3, _NODES, 0)[:, 0, :])     # values at nodes -> coefficients
+
+
+def basis5(knots: np.ndarray, x: np.ndarray) -> np.ndarray:
+    """N[k0..k4](x) for knot rows (..., 5) and points x (...), Cox-de Boor with 0/0 = 0."""
+    k = knots
+    N = [((k[..., i] <= x) & (x < k[..., i + 1])).astype(float) for i in range(4)]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        for p in range(1, 4):
+            nxt = []
+            for i in range(4 - p):
+                d1 = k[..., i + p] - k[..., i]
+                d2 = k[..., i + p + 1] - k[..., i + 1]
+                a = np.where(d1 > 0, (x - k[..., i]) / d1, 0.0)
+                b = np.where(d2 > 0, (k[..., i + p + 1] - x) / d2, 0.0)
+                nxt.append(a * N[i] + b * N[i + 1])
+            N = nxt
+    return N[0]
+
+
+def bezier_1d(knots: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
+    """Bernstein coefficients (k, c, 4) of functions with knot rows (k, 5) on intervals
+    [lo, hi] (c,)."""
+    x = lo[:, None] + (hi - lo)[:, None] * _NODES[None, :]                 # (c, 4)
+    vals = basis5(knots[:, None, None, :], x[None, :, :])                # (k, c, 4)
+    return vals @ _TO_BERNSTEIN.T
+
+
+def supports(walker: Walker, knots: LocalKnots, ep_interval: dict, ep_faces: dict) -> list[list]:
+    """For every face, the vertices whose blending functions are non-zero on it, with the
+    map from the face's frame to the vertex's frame: ``out[f]`` = [(vertex, map), ...].
+
+    ``ep_interval``: the extraordinary vertices, ``ep_faces``: the faces around them (their
+    functions may reach a face by two ways; that is refused elsewhere)."""
+    mesh, topo, lex = walker.mesh, walker.topo, walker.lex
+    contrib = [[] for _ in range(topo.nf)]
+    eps = set(ep_interval)
+    for A in range(mesh.n_vertices):
+        s5, t5 = knots.s[A], knots.t[A]
+        if s5[4].real - s5[0].real <= walker.tol or t5[4].real - t5[0].real <= walker.tol:
+            continue                      # identically zero
+        starts = []
+        for (f, i), a in zip(topo.fan[A], topo.fan_angle[A]):
+            q = (a - topo.out_dir(f, i)) % 4
+            px, py = rot(q, *topo.pos[f][i])
+            starts.append((f, (q, -px, -py)))
+            if A in eps:
+                break
+
+        def inside(f, m):
+            x0, x1, y0, y1 = walker.face_rect(f, m)
+            return lex.lt(x0, s5[4]) and lex.lt(s5[0], x1) and lex.lt(y0, t5[4]) and lex.lt(t5[0], y1)
+
+        visited = {}
+        queue = []
+        for f, m in starts:
+            if f not in visited and inside(f, m):
+                visited[f] = m
+                queue.append(f)
+        while queue:
+            f = queue.pop()
+            m = visited[f]
+            contrib[f].append((A, m))
+            loop = mesh.faces[f]
+            nl = len(loop)
+            for j in range(nl):
+                a, b = int(loop[j]), int(loop[(j + 1) % nl])
+                if a in eps or b in eps:
+                    continue
+                hit = walker.cross_map(f, j)
+                if hit is None:
+                    continue
+                g, mg = hit
+                mm = compose(m, mg)
+                if not inside(g, mm):
+                    continue
+                old = visited.get(g)
+                if old is None:
+                    visited[g] = mm
+                    queue.append(g)
+                elif not walker.same_map(old, mm):
+                    if A in eps or g in ep_faces:
+                        continue
+                    raise mesh.error(f"the blending function of {mesh.vertex_name(A)} wraps onto itself "
+                                     f"at {mesh.face_name(g)} (its support goes around an extraordinary "
+                                     f"point or a closed loop of faces)")
+    return contrib

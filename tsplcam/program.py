@@ -38,8 +38,9 @@ def processing_list(model, settings: JobSettings):
     planner's list when there is none."""
     if settings.processing_list:
         from .plan import load as load_list
+        from .layout.layout import Layout
         with _option("processing_list"):
-            return load_list(settings.processing_list, model.layout())
+            return load_list(settings.processing_list, Layout.from_model(model))
     from .toolpath.zigzag import default_plan
     return default_plan(model)
 
@@ -81,9 +82,13 @@ def load_stock(settings: JobSettings):
     """The stock triangles (vertices (n,3), triangles (m,3)): the OBJ file of
     ``settings.stock``, else the block a shipped sample brings, else None."""
     if settings.stock:
-        from .model.formats.mesh import read_triangles
+        from .errors import InputError
+        from .model.formats import reader_for
         with _option("stock"):
-            return read_triangles(settings.stock)
+            reader = reader_for(settings.stock, surface=False)
+            if reader is None:
+                raise InputError("a stock mesh is read from an OBJ file (.obj)", path=settings.stock)
+            return reader.read(settings.stock)
     from .model.samples import sample_stock
     return sample_stock(settings.model)
 

@@ -131,14 +131,6 @@ class Model:
         return SurfacePoints(H[0], H[1], H[2], H[3], H[4], H[5], s, t, None, normal)
 
     # -- topology -------------------------------------------------------------------------
-    def layout(self):
-        """The patch adjacency graph, ``tsplcam.layout.layout.Layout.from_model(self)``.
-
-        Deprecated: the layout stage builds it from the model (imports flow down the
-        pipeline); kept until every caller uses ``Layout.from_model``."""
-        from ..layout.layout import Layout
-        return Layout.from_model(self)
-
     def edge_transform(self, patch: int, edge: int) -> np.ndarray:
         """Affine map (2 x 3) from this patch's (u, v) to the neighbour's across ``edge``,
         continuing the parametrisation in knot units (shang2020 section 2.2: adjacent

@@ -27,7 +27,8 @@ def _layout(args):
         from .. import load_model
         from .graph import model_edge_lengths
         model = load_model(args.model)
-        return model.layout(), model_edge_lengths(model), getattr(model, "name", "") or os.path.basename(args.model)
+        from ..layout.layout import Layout
+        return Layout.from_model(model), model_edge_lengths(model), getattr(model, "name", "") or os.path.basename(args.model)
     if not args.example:
         raise InputError("give a model file or --example NAME (one of "
                          + ", ".join(EXAMPLES) + ")")

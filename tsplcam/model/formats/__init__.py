@@ -53,11 +53,18 @@ def _read_tspl(path, **options):
     return native_model(path, **options)
 
 
+def _read_mesh(path, **options):
+    from .mesh import read_triangles
+    return read_triangles(path, **options)
+
+
 READERS: tuple[Reader, ...] = (
     Reader("obj", (".obj",), "subdivision cage (OBJ)", _read_obj),
     Reader("iga", (".iga",), "T-spline Bezier extraction (IGA)", _read_iga),
     Reader("tsm", (".tsm",), "T-Splines T-mesh (TSM)", _read_tsm),
     Reader("tspl", (".tspl",), "tsplcam native (TSPL)", _read_tspl),
+    # stock, mold blocks and fixtures: (vertices, triangles), not a surface model
+    Reader("mesh", (".obj",), "triangle mesh for stock and fixtures (OBJ)", _read_mesh, surface=False),
 )
 
 

@@ -1,0 +1,78 @@
+"""Fuzzing the tool readers: ``tsplcam-tool`` JSON files and FreeCAD ``.fctb`` tool bits.
+
+Every mutated shipped tool either loads with all lengths finite and positive or is refused
+with InputError naming the file and the key (or the line), within a time limit. Long run:
+``TSPLCAM_FUZZ_EXAMPLES=20000 /usr/bin/python3 -m pytest -q -p no:cacheprovider -k fuzz tests``.
+"""
+from __future__ import annotations
+
+import os
+import tempfile
+import unittest
+
+from hypothesis import given
+from hypothesis import strategies as st
+
+from conftest import assert_fields_finite, fuzz_ops, fuzz_read, fuzz_seeds, fuzz_settings, mutate
+from tsplcam.errors import InputError
+from tsplcam.orientation.tool import read_fctb, read_tool
+
+TOOLS = fuzz_seeds(["tools/ball1_keycap.json", "tools/ball5_impeller.json",
+                    "tools/ball6_freecad_holder.json"])
+BITS = fuzz_seeds(["tools/ball6_freecad.fctb"])
+
+
+class FuzzTool(unittest.TestCase):
+
+    def check(self, tool):
+        if tool is not None:
+            assert_fields_finite(self, tool, tool.name)
+            for part in tool.parts():
+                self.assertTrue(0 <= part.r0 < 1e5 and 0 <= part.r1 < 1e5 and part.z0 < part.z1, part)
+
+    @fuzz_settings(50)
+    @given(st.integers(0, 1000), fuzz_ops())
+    def test_tool_file(self, index, ops):
+        name, data = TOOLS[index % len(TOOLS)]
+        # the holder file names its .fctb beside it
+        self.check(fuzz_read(self, read_tool, mutate(data, ops), name, companions=dict(BITS)))
+
+    @fuzz_settings(30)
+    @given(fuzz_ops())
+    def test_fctb(self, ops):
+        name, data = BITS[0]
+        self.check(fuzz_read(self, read_fctb, mutate(data, ops), name))
+
+    def refused(self, name, text, what, item=None):
+        with tempfile.TemporaryDirectory() as tmp:
+            path = os.path.join(tmp, name)
+            with open(path, "wb") as fh:
+                fh.write(text)
+            with self.assertRaises(InputError) as cm:
+                read_tool(path)
+        self.assertIn(what, str(cm.exception))
+        if item is not None:
+            self.assertEqual(cm.exception.item, item)
+        return cm.exception
+
+    def test_regressions(self):
+        """Non-UTF-8 (was UnicodeDecodeError), a missing key (was an error naming no key), a
+        length '1/0 in' (was ZeroDivisionError), a holder of infinite length (was accepted),
+        an 'fctb' that is not a file name (was TypeError)."""
+        name, data = TOOLS[0]
+        self.assertIn(b'"shank_length": 5.5', data)
+        self.refused(name, data.replace(b'"mm"', b'"\xb5m"'), "not UTF-8")
+        self.refused(name, data.replace(b'"shank_length": 5.5,', b""), "missing", item="shank_length")
+        self.refused(name, data.replace(b'"shank_length": 5.5', b'"shank_length": "1/0 in"'),
+                     "divides by zero", item="shank_length")
+        self.refused(name, data.replace(b'"length": 30.0', b'"length": 1e300'), "holder segment 2",
+                     item="holder[1]")
+        self.refused(name, data.replace(b'"shank_length": 5.5', b'"fctb": 7, "shank_length": 5.5'),
+                     "'fctb'", item="fctb")
+        bit_name, bit = BITS[0]
+        self.refused(bit_name, bit.replace(b'"Length": "40.0000 mm",', b""), "missing",
+                     item="parameter.Length")
+
+
+if __name__ == "__main__":
+    unittest.main()

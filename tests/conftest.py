@@ -199,7 +199,8 @@ def _fuzz_regexes():
     if _NUMBER is None:
         import re
         _NUMBER = re.compile(rb"(?<![A-Za-z_0-9.])-?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?")
-        _SCALAR = re.compile(rb'"(?:[^"\\\n]|\\.)*"|-?\d+(?:\.\d*)?(?:[eE][-+]?\d+)?|\btrue\b|\bfalse\b|\bnull\b')
+        _SCALAR = re.compile(rb'"(?:[^"\\\n]|\\.)*"|-?\d+(?:\.\d*)?(?:[eE][-+]?\d+)?'
+                             rb'|\btrue\b|\bfalse\b|\bnull\b')
     return _NUMBER, _SCALAR
 
 

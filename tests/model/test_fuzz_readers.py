@@ -201,7 +201,8 @@ class ReaderRegressions(unittest.TestCase):
 
     def test_native_deep_nesting(self):
         # was RecursionError from the JSON decoder
-        path = self.write("deep.tspl", b'{"format": "tsplcam-model",\n"x": ' + b"[" * 100000 + b"]" * 100000 + b"}")
+        deep = b"[" * 100000 + b"]" * 100000
+        path = self.write("deep.tspl", b'{"format": "tsplcam-model",\n"x": ' + deep + b"}")
         self.refused(native_model, path, "nested", line=2)
 
     def test_text_formats_count_lines_as_editors_do(self):

@@ -161,8 +161,8 @@ class Reading(unittest.TestCase):
         for pa, pb in zip(a.patches, b.patches):
             # the same numbers in both files: equal to 1e-12 of the unit square's size (not
             # bit for bit: nothing promises two evaluations round alike on every CPU)
-            np.testing.assert_allclose(pa.evaluate(U.ravel(), V.ravel()).P, pb.evaluate(U.ravel(), V.ravel()).P,
-                                       rtol=0, atol=1e-12)
+            np.testing.assert_allclose(pa.evaluate(U.ravel(), V.ravel()).P,
+                                       pb.evaluate(U.ravel(), V.ravel()).P, rtol=0, atol=1e-12)
 
     def test_model_evaluates_every_element_as_the_file_says(self):
         rng = np.random.default_rng(3)

@@ -67,8 +67,8 @@ class FuzzProcessingList(unittest.TestCase):
         lines = data.split(b"\n")
         k = next(i for i, ln in enumerate(lines) if b'"patch"' in ln)
         for value, what in ((b"9" * 5000, "5000 digits"), (b"NaN", "NaN"), (b"1e999", "overflows")):
-            text = b"\n".join(lines[:k] + [lines[k].replace(b'"patch": ', b'"patch": ' + value + b", \"x\": ", 1)]
-                              + lines[k + 1:])
+            bad = lines[k].replace(b'"patch": ', b'"patch": ' + value + b', "x": ', 1)
+            text = b"\n".join(lines[:k] + [bad] + lines[k + 1:])
             with tempfile.TemporaryDirectory() as tmp:
                 path = os.path.join(tmp, name)
                 with open(path, "wb") as fh:

@@ -281,7 +281,8 @@ def _read_set(lines: _Lines, tok, ln: int) -> IgaSet:
         for e, pos in zip(rest[0::2], rest[1::2]):
             pos = pos.upper()
             if pos not in SIDES:
-                raise lines.error(f"set {name}: side {excerpt(pos, 40)} is not LEFT, RIGHT, BOTTOM or TOP", ln)
+                raise lines.error(f"set {name}: side {excerpt(pos, 40)} is not LEFT, RIGHT, BOTTOM "
+                                  f"or TOP", ln)
             items.append((_int(lines, e, ln, f"set {name}"), pos))
         return IgaSet(kind, name, items, ln)
     raise lines.error(f"set kind {excerpt(tok[2], 40)} is not node, side or elem", ln)

@@ -61,7 +61,7 @@ def read_obj(path: str, boundary_rule: str | None = None) -> Cage:
         except ValueError:
             raise InputError(f"cannot read numbers in {excerpt(raw)}", path=path, line=ln)
     if not faces:
-        raise InputError("no faces (f lines)", path=path, line=len(text))
+        raise InputError("no faces (f lines)", path=path, line=max(1, len(text)))
     mesh = QuadMesh(np.array(faces), len(points), boundary_rule or rule or "edge-only", path,
                     np.array(lines))
     # the cage's own checks in their order (indices, then edges), then unused vertices here,

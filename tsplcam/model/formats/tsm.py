@@ -133,7 +133,8 @@ class _Reader:
                         key = "end-conditions"
                     if key != want:
                         raise self.err(f"the header must give {want!r} here (order: degree, cap-type, "
-                                       f"star-smoothness, units, end conditions); found {excerpt(tok[0], 40)}", ln)
+                                       f"star-smoothness, units, end conditions); found "
+                                       f"{excerpt(tok[0], 40)}", ln)
                     order.pop(0)
                     self._header(key, tok, ln)
                     continue
@@ -181,7 +182,8 @@ class _Reader:
             self.e.append((ln, int(tok[1]), float(tok[2])) if n > 1 else None)
         elif key == "v":
             if n > 1 and tok[2] not in DIRECTIONS:
-                raise self.err(f"vertex direction {excerpt(tok[2], 40)} is not one of NORTH, WEST, SOUTH, EAST", ln)
+                raise self.err(f"vertex direction {excerpt(tok[2], 40)} is not one of NORTH, WEST, SOUTH, "
+                               f"EAST", ln)
             self.v.append((ln, int(tok[1]), DIRECTIONS[tok[2]]) if n > 1 else None)
         elif key == "l":
             self.l.append((ln, *[int(x) for x in tok[1:8]]) if n > 1 else None)

@@ -17,6 +17,7 @@ from __future__ import annotations
 import json
 import math
 import re
+from contextlib import contextmanager
 
 import numpy as np
 
@@ -179,3 +180,16 @@ def split_lines(text: str) -> list:
     if lines and lines[-1] == "":
         lines.pop()
     return [ln[:-1] if ln.endswith("\r") else ln for ln in lines]
+
+
+@contextmanager
+def naming(path):
+    """Errors raised inside name ``path`` when they name no file: the kernel's errors about
+    a whole surface (a patch, an irregular vertex's scheme) do not know which file it came
+    from."""
+    try:
+        yield
+    except InputError as exc:
+        if exc.path is not None:
+            raise
+        raise InputError(exc.message, path=str(path), line=exc.line, item=exc.item) from exc

@@ -224,6 +224,17 @@ class ReaderRegressions(unittest.TestCase):
         exc = self.refused(tsm_model, path, "not supported")
         self.assertLess(len(str(exc)), 1000)
 
+    def test_degenerate_tangent_plane_names_this_file(self):
+        # the subdivision scheme of a kind of vertex is shared by every file; its error named
+        # the file that first built it, with no line (found by the long run)
+        tent = external("opensubdiv", "catmark_tent.obj")
+        obj_model(tent)                                   # builds the shared schemes
+        with open(tent, "rb") as fh:
+            data = mutate(fh.read(), [(2, 330, 0, 0), (1, 87, 0, 0)])    # a line doubled, one lost
+        path = self.write("tent.obj", data)
+        exc = self.refused(obj_model, path, "vertex 1", "degenerate tangent plane")
+        self.assertIsNotNone(exc.line)
+
     def test_obj_unused_vertex_and_missing_faces_name_lines(self):
         path = self.write("unused.obj", b"v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nv 5 5 5\nf 1 2 3 4\n")
         self.refused(obj_model, path, "vertex 5 is not used", line=5)

@@ -58,7 +58,8 @@ class FuzzTool(unittest.TestCase):
     def test_regressions(self):
         """Non-UTF-8 (was UnicodeDecodeError), a missing key (was an error naming no key), a
         length '1/0 in' (was ZeroDivisionError), a holder of infinite length (was accepted),
-        an 'fctb' that is not a file name (was TypeError)."""
+        an 'fctb' that is not a file name (was TypeError) or names no file (was an error
+        about the missing file, naming no key)."""
         name, data = TOOLS[0]
         self.assertIn(b'"shank_length": 5.5', data)
         self.refused(name, data.replace(b'"mm"', b'"\xb5m"'), "not UTF-8")
@@ -69,6 +70,8 @@ class FuzzTool(unittest.TestCase):
                      item="holder[1]")
         self.refused(name, data.replace(b'"shank_length": 5.5', b'"fctb": 7, "shank_length": 5.5'),
                      "'fctb'", item="fctb")
+        nowhere = b'"fctb": "nowhere.fctb", "shank_length": 5.5'
+        self.refused(name, data.replace(b'"shank_length": 5.5', nowhere), "not a file", item="fctb")
         bit_name, bit = BITS[0]
         self.refused(bit_name, bit.replace(b'"Length": "40.0000 mm",', b""), "missing",
                      item="parameter.Length")

@@ -61,6 +61,16 @@ class FuzzProcessingList(unittest.TestCase):
         self.assertEqual(cm.exception.line, k + 1)
         self.assertIn("not UTF-8", str(cm.exception))
 
+    def test_not_an_object_names_the_document(self):
+        name, data, layout = self.seeds[0]
+        with tempfile.TemporaryDirectory() as tmp:
+            path = os.path.join(tmp, name)
+            with open(path, "wb") as fh:
+                fh.write(b"[" + data + b"]")
+            with self.assertRaises(InputError) as cm:
+                load(path, layout)
+        self.assertEqual(cm.exception.item, "(document)")
+
     def test_json_numbers_python_would_misread(self):
         # a 5000-digit patch index was Python's ValueError from the JSON decoder
         name, data, layout = self.seeds[0]

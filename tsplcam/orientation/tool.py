@@ -255,6 +255,9 @@ def tool_from_dict(doc, path: str | None = None) -> Tool:
                              item="fctb")
         if path is not None and not os.path.isabs(fctb):
             fctb = os.path.join(os.path.dirname(path), fctb)
+        if not os.path.isfile(fctb):
+            raise InputError(f"'fctb' names {fctb!r}, which is not a file (a relative name is "
+                             f"read beside the tool file)", path=path, item="fctb")
         tool = read_fctb(fctb, holder, name)
         tool.source = path
         return tool

@@ -112,7 +112,7 @@ def _step_lines(text: str | None, count: int) -> list[int | None]:
 def from_dict(data, path=None, text=None, partial: bool = False) -> ProcessingList:
     """A processing list from parsed JSON; checks the form, not the model (see :func:`check`)."""
     if not isinstance(data, dict):
-        raise InputError("a processing list is a JSON object", path=path)
+        raise InputError("a processing list is a JSON object", path=path, item="(document)")
     if data.get("format") != FORMAT:
         raise InputError(f"'format' is {data.get('format')!r}, expected {FORMAT!r}",
                          path=path, item="format")

@@ -30,7 +30,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ...errors import InputError
-from ...inputfile import (coordinate_error, excerpt, first_coordinate_error, line_of,
+from ...inputfile import (coordinate_error, excerpt, first_coordinate_error, line_of, naming,
                           split_lines, weight_error)
 
 TYPES = ("plane", "surface")
@@ -299,7 +299,9 @@ def _check_set(lines: _Lines, s: IgaSet, n_nodes: int, n_elem: int) -> None:
 
 def iga_model(path: str, name: str | None = None):
     """The Model of an ``.iga`` file (see ``model_from_iga``)."""
-    return model_from_iga(read_iga(path), name)
+    iga = read_iga(path)
+    with naming(path):
+        return model_from_iga(iga, name)
 
 
 def model_from_iga(iga: IgaFile, name: str | None = None):

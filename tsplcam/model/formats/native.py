@@ -14,7 +14,7 @@ import os
 import numpy as np
 
 from ...errors import InputError
-from ...inputfile import first_coordinate_error, read_json, weight_error
+from ...inputfile import first_coordinate_error, naming, read_json, weight_error
 
 FORMAT = "tsplcam-model"
 VERSION = 1
@@ -242,8 +242,9 @@ def read_native(path):
 def native_model(path, **options):
     """The surface model of a native file."""
     kind, control, name = read_native(path)
-    if kind == "catmull-clark":
-        from ..cage import cage_model
-        return cage_model(control, name=name)
-    from ..tspline import tspline_model
-    return tspline_model(control, name=name)
+    with naming(path):
+        if kind == "catmull-clark":
+            from ..cage import cage_model
+            return cage_model(control, name=name)
+        from ..tspline import tspline_model
+        return tspline_model(control, name=name)

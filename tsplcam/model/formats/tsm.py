@@ -44,7 +44,7 @@ import os
 import numpy as np
 
 from ...errors import InputError
-from ...inputfile import COORDINATE_LIMIT, coordinate_error, excerpt, split_lines, weight_error
+from ...inputfile import COORDINATE_LIMIT, coordinate_error, excerpt, naming, split_lines, weight_error
 
 SKIPPED = {"100001uv", "100001uvr", "50000grip", "105sym", "105plane", "105a", "tol", "ver",
            "geom-tol", "behavior-version", "compat-version"}
@@ -509,4 +509,5 @@ def read_tsm(path):
 def tsm_model(path, **options):
     from ..tspline import tspline_model
     mesh = read_tsm(path)
-    return tspline_model(mesh, name=mesh.name)
+    with naming(path):
+        return tspline_model(mesh, name=mesh.name)

@@ -57,7 +57,7 @@ class FuzzTool(unittest.TestCase):
 
     def test_regressions(self):
         """Non-UTF-8 (was UnicodeDecodeError), a missing key (was an error naming no key), a
-        length '1/0 in' (was ZeroDivisionError), a holder of infinite length (was accepted),
+        length '1/0 in' (was ZeroDivisionError), a holder of huge or denormal length (was accepted),
         an 'fctb' that is not a file name (was TypeError) or names no file (was an error
         about the missing file, naming no key)."""
         name, data = TOOLS[0]
@@ -67,6 +67,9 @@ class FuzzTool(unittest.TestCase):
         self.refused(name, data.replace(b'"shank_length": 5.5', b'"shank_length": "1/0 in"'),
                      "divides by zero", item="shank_length")
         self.refused(name, data.replace(b'"length": 30.0', b'"length": 1e300'), "holder segment 2",
+                     item="holder[1]")
+        # a denormal length passed "> 0": a holder segment of zero height (long run)
+        self.refused(name, data.replace(b'"length": 30.0', b'"length": 1e-320'), "holder segment 2",
                      item="holder[1]")
         self.refused(name, data.replace(b'"shank_length": 5.5', b'"fctb": 7, "shank_length": 5.5'),
                      "'fctb'", item="fctb")

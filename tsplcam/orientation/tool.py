@@ -21,7 +21,9 @@ from ..inputfile import excerpt, read_json
 
 FORMAT = "tsplcam-tool"
 VERSION = 1
-MAX_LENGTH = 1e5          # mm: every length of a tool and its holder is below 100 m
+# mm: every length of a tool and its holder lies in [MIN_LENGTH, MAX_LENGTH): a micron to
+# 100 m (a length of 1e-320 passed "> 0" and left a holder segment of zero height)
+MIN_LENGTH, MAX_LENGTH = 1e-3, 1e5
 
 
 @dataclass(frozen=True)
@@ -71,8 +73,9 @@ class Tool:
         r, lf, ds, ls = self.ball_radius, self.flute_length, self.shank_diameter, self.shank_length
         for key, val in (("ball_radius", r), ("flute_length", lf), ("shank_diameter", ds),
                          ("shank_length", ls)):
-            if not (isinstance(val, (int, float)) and 0 < val < MAX_LENGTH):    # NaN fails
-                raise InputError(f"{key} must be a positive length in mm, not {val!r}", path=where,
+            if not (isinstance(val, (int, float)) and MIN_LENGTH <= val < MAX_LENGTH):  # NaN fails
+                raise InputError(f"{key} must be a length in mm in [{MIN_LENGTH:g}, {MAX_LENGTH:g}), "
+                                 f"not {val!r}", path=where,
                                  item=self.name)
         if lf < r:
             raise InputError(f"flute_length {lf:g} is shorter than the ball radius {r:g}", path=where,
@@ -81,9 +84,9 @@ class Tool:
             raise InputError(f"shank_length (stick-out) {ls:g} is shorter than flute_length {lf:g}",
                              path=where, item=self.name)
         for k, h in enumerate(self.holder):
-            if not all(0 < x < MAX_LENGTH for x in (h.length, h.diameter_bottom, h.diameter_top)):
-                raise InputError(f"holder segment {k + 1}: length and diameters must be positive "
-                                 f"lengths below {MAX_LENGTH:g} mm", path=where, item=f"holder[{k}]")
+            if not all(MIN_LENGTH <= x < MAX_LENGTH for x in (h.length, h.diameter_bottom, h.diameter_top)):
+                raise InputError(f"holder segment {k + 1}: length and diameters must be lengths in "
+                                 f"[{MIN_LENGTH:g}, {MAX_LENGTH:g}) mm", path=where, item=f"holder[{k}]")
 
     # --- geometry ---------------------------------------------------------------------
     @property

@@ -6,6 +6,7 @@ within a time limit. Long run:
 from __future__ import annotations
 
 import os
+import re
 import tempfile
 import unittest
 
@@ -37,7 +38,7 @@ class FuzzMachine(unittest.TestCase):
     def test_regressions(self):
         """A non-UTF-8 byte (was UnicodeDecodeError), a 5000-digit number (was ValueError),
         deep nesting (was RecursionError), an empty key (was an error naming no key), a travel
-        of 1e308 mm (was accepted)."""
+        of 1e308 mm and a velocity of 1e-320 (were accepted)."""
         name, data = SEEDS[0]
         lines = data.split(b"\n")
         k = next(i for i, ln in enumerate(lines) if b'"kind"' in ln)
@@ -53,12 +54,17 @@ class FuzzMachine(unittest.TestCase):
             if item:
                 self.assertEqual(exc.item, item, str(exc))
         m = next(i for i, ln in enumerate(lines) if b'"min"' in ln)
-        import re
         text = b"\n".join(lines[:m] + [re.sub(rb'"min": *-?[0-9.]+', b'"min": -1e308', lines[m], count=1)]
                           + lines[m + 1:])
         self.assertNotEqual(text, data)
         exc = self.refused(name, text, "beyond")
         self.assertTrue(exc.item.endswith(".min"), exc.item)
+        # a denormal velocity passed "> 0" and made every time estimate infinite
+        v = next(i for i, ln in enumerate(lines) if b'"max_velocity"' in ln)
+        text = b"\n".join(lines[:v] + [re.sub(rb'"max_velocity": *[0-9.e+]+', b'"max_velocity": 1e-320',
+                                               lines[v], count=1)] + lines[v + 1:])
+        exc = self.refused(name, text, "too small")
+        self.assertTrue(exc.item.endswith(".max_velocity"), exc.item)
 
     def refused(self, name, text, what):
         with tempfile.TemporaryDirectory() as tmp:

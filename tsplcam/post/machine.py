@@ -32,6 +32,9 @@ from ..inputfile import COORDINATE_LIMIT, read_json
 
 FORMAT = "tsplcam-machine"
 VERSION = 1
+# Smallest velocity (mm/min, deg/min) or acceleration (mm/s^2, deg/s^2) accepted: times are
+# divided by these, and a denormal 1e-320 would turn them into infinities.
+MIN_RATE = 1e-6
 KINDS = ("table-table", "head-table", "head-head")
 CONTROLLERS = ("heidenhain", "sinumerik", "fanuc", "linuxcnc")
 LINEAR_NAMES = ("X", "Y", "Z")
@@ -250,8 +253,9 @@ class _Reader:
         if abs(v) > COORDINATE_LIMIT:
             self.fail(full, f"{v:g} is beyond +-{COORDINATE_LIMIT:g} (mm, degrees or per minute): "
                             f"no machine has that")
-        if positive and v <= 0:
-            self.fail(full, f"must be > 0, not {v!r}")
+        if positive and not v >= MIN_RATE:
+            self.fail(full, f"must be >= {MIN_RATE:g}, not {v!r}" + (" (> 0 but too small to divide by)"
+                                                                    if v > 0 else ""))
         return float(v)
 
     def vec3(self, d, key, name, default=None):

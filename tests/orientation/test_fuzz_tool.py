@@ -78,6 +78,9 @@ class FuzzTool(unittest.TestCase):
         bit_name, bit = BITS[0]
         self.refused(bit_name, bit.replace(b'"Length": "40.0000 mm",', b""), "missing",
                      item="parameter.Length")
+        # inconsistent lengths in a bit without a name named neither key nor tool (long run)
+        unnamed = bit.replace(b'"6mm Ball End"', b'""').replace(b'"20.0000 mm"', b'"2.5 mm"')
+        self.refused(bit_name, unnamed, "shorter than the ball radius", item="flute_length")
 
 
 if __name__ == "__main__":

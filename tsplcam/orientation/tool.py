@@ -75,14 +75,13 @@ class Tool:
                          ("shank_length", ls)):
             if not (isinstance(val, (int, float)) and MIN_LENGTH <= val < MAX_LENGTH):  # NaN fails
                 raise InputError(f"{key} must be a length in mm in [{MIN_LENGTH:g}, {MAX_LENGTH:g}), "
-                                 f"not {val!r}", path=where,
-                                 item=self.name)
+                                 f"not {val!r}", path=where, item=key)
         if lf < r:
             raise InputError(f"flute_length {lf:g} is shorter than the ball radius {r:g}", path=where,
-                             item=self.name)
+                             item="flute_length")
         if ls < lf:
             raise InputError(f"shank_length (stick-out) {ls:g} is shorter than flute_length {lf:g}",
-                             path=where, item=self.name)
+                             path=where, item="shank_length")
         for k, h in enumerate(self.holder):
             if not all(MIN_LENGTH <= x < MAX_LENGTH for x in (h.length, h.diameter_bottom, h.diameter_top)):
                 raise InputError(f"holder segment {k + 1}: length and diameters must be lengths in "

@@ -431,3 +431,20 @@ def assert_fields_finite(test, obj, where: str = "") -> None:
         test.assertTrue(np.all(np.isfinite(obj)), f"{where} is not finite")
     elif isinstance(obj, float):
         test.assertTrue(math.isfinite(obj), f"{where} = {obj!r}")
+
+
+def read_refused(test, read, name: str, data: bytes, *fragments: str):
+    """Write ``data`` as ``name`` in a fresh folder and assert that ``read(path)`` raises
+    InputError naming that file, with each of ``fragments`` in its text; returns the error."""
+    import tempfile
+    from tsplcam.errors import InputError
+    with tempfile.TemporaryDirectory() as folder:
+        path = os.path.join(folder, name)
+        with open(path, "wb") as fh:
+            fh.write(data)
+        with test.assertRaises(InputError) as cm:
+            read(path)
+    test.assertEqual(cm.exception.path, path)
+    for f in fragments:
+        test.assertIn(f, str(cm.exception))
+    return cm.exception

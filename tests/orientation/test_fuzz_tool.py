@@ -6,15 +6,13 @@ with InputError naming the file and the key (or the line), within a time limit. 
 """
 from __future__ import annotations
 
-import os
-import tempfile
 import unittest
 
 from hypothesis import given
 from hypothesis import strategies as st
 
-from conftest import assert_fields_finite, fuzz_ops, fuzz_read, fuzz_seeds, fuzz_settings, mutate
-from tsplcam.errors import InputError
+from conftest import (assert_fields_finite, fuzz_ops, fuzz_read, fuzz_seeds, fuzz_settings, mutate,
+                      read_refused)
 from tsplcam.orientation.tool import read_fctb, read_tool
 
 TOOLS = fuzz_seeds(["tools/ball1_keycap.json", "tools/ball5_impeller.json",
@@ -44,16 +42,10 @@ class FuzzTool(unittest.TestCase):
         self.check(fuzz_read(self, read_fctb, mutate(data, ops), name))
 
     def refused(self, name, text, what, item=None):
-        with tempfile.TemporaryDirectory() as tmp:
-            path = os.path.join(tmp, name)
-            with open(path, "wb") as fh:
-                fh.write(text)
-            with self.assertRaises(InputError) as cm:
-                read_tool(path)
-        self.assertIn(what, str(cm.exception))
+        exc = read_refused(self, read_tool, name, text, what)
         if item is not None:
-            self.assertEqual(cm.exception.item, item)
-        return cm.exception
+            self.assertEqual(exc.item, item)
+        return exc
 
     def test_regressions(self):
         """Non-UTF-8 (was UnicodeDecodeError), a missing key (was an error naming no key), a

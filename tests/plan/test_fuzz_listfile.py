@@ -9,14 +9,12 @@ reads) and as a partial list (what the solver completes). Long run:
 from __future__ import annotations
 
 import os
-import tempfile
 import unittest
 
 from hypothesis import given
 from hypothesis import strategies as st
 
-from conftest import REPO_DIR, fuzz_ops, fuzz_read, fuzz_settings, mutate
-from tsplcam.errors import InputError
+from conftest import REPO_DIR, fuzz_ops, fuzz_read, fuzz_settings, mutate, read_refused
 from tsplcam.model.formats.obj import read_obj
 from tsplcam.model.cage import cage_model
 from tsplcam.plan import dumps, load, plan
@@ -52,24 +50,13 @@ class FuzzProcessingList(unittest.TestCase):
         lines = data.split(b"\n")
         k = next(i for i, ln in enumerate(lines) if b'"patch"' in ln)
         lines[k] = lines[k].replace(b'"u"', b'"\xe9"').replace(b'"v"', b'"\xe9"')
-        with tempfile.TemporaryDirectory() as tmp:
-            path = os.path.join(tmp, name)
-            with open(path, "wb") as fh:
-                fh.write(b"\n".join(lines))
-            with self.assertRaises(InputError) as cm:
-                load(path, layout)
-        self.assertEqual(cm.exception.line, k + 1)
-        self.assertIn("not UTF-8", str(cm.exception))
+        exc = read_refused(self, lambda p: load(p, layout), name, b"\n".join(lines), "not UTF-8")
+        self.assertEqual(exc.line, k + 1)
 
     def test_not_an_object_names_the_document(self):
         name, data, layout = self.seeds[0]
-        with tempfile.TemporaryDirectory() as tmp:
-            path = os.path.join(tmp, name)
-            with open(path, "wb") as fh:
-                fh.write(b"[" + data + b"]")
-            with self.assertRaises(InputError) as cm:
-                load(path, layout)
-        self.assertEqual(cm.exception.item, "(document)")
+        exc = read_refused(self, lambda p: load(p, layout), name, b"[" + data + b"]")
+        self.assertEqual(exc.item, "(document)")
 
     def test_json_numbers_python_would_misread(self):
         # a 5000-digit patch index was Python's ValueError from the JSON decoder
@@ -79,14 +66,8 @@ class FuzzProcessingList(unittest.TestCase):
         for value, what in ((b"9" * 5000, "5000 digits"), (b"NaN", "NaN"), (b"1e999", "overflows")):
             bad = lines[k].replace(b'"patch": ', b'"patch": ' + value + b', "x": ', 1)
             text = b"\n".join(lines[:k] + [bad] + lines[k + 1:])
-            with tempfile.TemporaryDirectory() as tmp:
-                path = os.path.join(tmp, name)
-                with open(path, "wb") as fh:
-                    fh.write(text)
-                with self.assertRaises(InputError) as cm:
-                    load(path, layout)
-            self.assertEqual(cm.exception.line, k + 1, str(cm.exception))
-            self.assertIn(what, str(cm.exception))
+            exc = read_refused(self, lambda p: load(p, layout), name, text, what)
+            self.assertEqual(exc.line, k + 1, str(exc))
 
 
 if __name__ == "__main__":

@@ -7,15 +7,13 @@ from __future__ import annotations
 
 import os
 import re
-import tempfile
 import unittest
 
 from hypothesis import given
 from hypothesis import strategies as st
 
 from conftest import REPO_DIR, assert_fields_finite, fuzz_ops, fuzz_read, fuzz_seeds, fuzz_settings, \
-    mutate
-from tsplcam.errors import InputError
+    mutate, read_refused
 from tsplcam.inputfile import COORDINATE_LIMIT
 from tsplcam.post.machine import read_machine
 
@@ -67,14 +65,7 @@ class FuzzMachine(unittest.TestCase):
         self.assertTrue(exc.item.endswith(".max_velocity"), exc.item)
 
     def refused(self, name, text, what):
-        with tempfile.TemporaryDirectory() as tmp:
-            path = os.path.join(tmp, name)
-            with open(path, "wb") as fh:
-                fh.write(text)
-            with self.assertRaises(InputError) as cm:
-                read_machine(path)
-        self.assertIn(what, str(cm.exception))
-        return cm.exception
+        return read_refused(self, read_machine, name, text, what)
 
 
 if __name__ == "__main__":

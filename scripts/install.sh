@@ -7,8 +7,9 @@
 # What it does:
 #  1. Debian packages: FreeCAD 0.20 (freecad-python3, freecad), numpy, scipy, pip, pytest,
 #     Xvfb + xauth for GUI tests, linuxcnc-uspace for LinuxCNC's own G-code interpreter (rs274).
-#  2. python-fcl and elkai into the system Python (/usr/bin/python3) that FreeCAD runs,
-#     pinned, with --no-deps so pip never replaces Debian's numpy.
+#  2. python-fcl and elkai, and for the tests hypothesis (with sortedcontainers, its one
+#     dependency), into the system Python (/usr/bin/python3) that FreeCAD runs, pinned,
+#     with --no-deps so pip never replaces Debian's numpy.
 #  3. Links this checkout as the workbench "tsplcam" into an isolated FreeCAD user home
 #     ($TSPLCAM_FC_HOME, default <repo>/build/fchome, used as FREECAD_USER_HOME); the user's real home only with --user.
 set -euo pipefail
@@ -17,7 +18,8 @@ REPO="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 PY=/usr/bin/python3
 APT_PACKAGES=(freecad-python3 freecad python3-numpy python3-scipy python3-pip python3-pytest
               xvfb xauth linuxcnc-uspace)
-PIP_PACKAGES=("python-fcl==0.7.0.11:fcl" "elkai==2.0.1:elkai")
+PIP_PACKAGES=("python-fcl==0.7.0.11:fcl" "elkai==2.0.1:elkai"
+              "sortedcontainers==2.4.0:sortedcontainers" "hypothesis==6.170.17:hypothesis")
 
 SUDO=""
 if [ "$(id -u)" -ne 0 ]; then SUDO="sudo"; fi
@@ -47,7 +49,7 @@ for spec in "${PIP_PACKAGES[@]}"; do
     $SUDO $PY -m pip install -q --break-system-packages --no-deps --root-user-action=ignore "$req"
   fi
 done
-$PY -c "import numpy, scipy, fcl, elkai" || { say "a Python dependency does not import"; exit 1; }
+$PY -c "import numpy, scipy, fcl, elkai, hypothesis" || { say "a Python dependency does not import"; exit 1; }
 
 # 3. Link the workbench -----------------------------------------------------------------
 link_into() {  # $1 = a FreeCAD Mod directory

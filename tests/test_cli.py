@@ -48,7 +48,7 @@ class PathCommand(unittest.TestCase):
         self.assertIn("0 retractions", out)
         self.assertIn("baseline", out)
         cl = read_cl(self.f("k.cl"))
-        self.assertEqual(cl.tool_radius, 0.5)
+        self.assertEqual(cl.tool_radius, 0.5)       # exact: --tool-radius 0.5, written and read back
         self.assertFalse(any(k in (Move.RETRACT, Move.RAPID) for k in cl.kind[1:-1]))
         with open(self.f("k.json")) as fh:
             doc = json.load(fh)

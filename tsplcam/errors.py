@@ -10,6 +10,11 @@ class TsplcamError(Exception):
     """Base of every deliberate tsplcam error."""
 
 
+#: An error message longer than this is cut in its middle (a value quoted from a corrupt
+#: file can be megabytes long); the start says what is wrong, the end often what is expected.
+MESSAGE_LIMIT = 600
+
+
 class InputError(TsplcamError):
     """A file, record or argument that cannot be used as given.
 
@@ -19,6 +24,12 @@ class InputError(TsplcamError):
 
     def __init__(self, message: str, path: str | None = None, line: int | None = None,
                  item: str | None = None):
+        if len(message) > MESSAGE_LIMIT:
+            cut = len(message) - MESSAGE_LIMIT
+            message = (message[:MESSAGE_LIMIT * 2 // 3] + f" [... {cut} characters ...] "
+                       + message[-(MESSAGE_LIMIT // 3):])
+        if item is not None and len(str(item)) > MESSAGE_LIMIT // 3:
+            item = str(item)[:MESSAGE_LIMIT // 3] + "..."
         self.message = message
         self.path = path
         self.line = line

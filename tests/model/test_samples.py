@@ -29,7 +29,9 @@ class ShippedSamples(unittest.TestCase):
                 for a, b in zip(shipped.control.faces, cage.faces):
                     np.testing.assert_array_equal(a, b)
                 for a, b in zip(shipped.control.intervals, cage.intervals):
-                    np.testing.assert_array_equal(a, b)
+                    # the generator computes the intervals on this machine, the file was
+                    # written on another: equal to 1e-12 of the largest
+                    np.testing.assert_allclose(a, b, rtol=0, atol=1e-12 * max(1.0, np.abs(b).max()))
                 self.assertEqual(shipped.control.corners, cage.corners)
                 continue
             np.testing.assert_array_equal(shipped.control.mesh.faces, cage.mesh.faces)

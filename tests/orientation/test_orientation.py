@@ -38,6 +38,7 @@ class ToolFiles(unittest.TestCase):
             for a, b in zip(parts, parts[1:]):                # stacked without gaps
                 self.assertAlmostEqual(a.z1, b.z0)
         t = load_tool("ball6_freecad_holder")
+        # exact by construction: decimal lengths in mm parsed from the file (and halved)
         self.assertEqual((t.ball_radius, t.flute_length, t.shank_diameter, t.shank_length), (3.0, 20.0, 6.0, 40.0))
         self.assertEqual(len(t.holder), 2)
 

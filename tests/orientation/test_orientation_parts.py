@@ -94,6 +94,7 @@ class KeycapMold(PartCase, unittest.TestCase):
                               rotary_weight=w)
             self.assertEqual(int(self.checker.collides_exact(out.center, out.axis).sum()), 0)
             res[w] = orientation_metrics(out, self.checker, machine)
+        # exact by construction: the default setting itself, reported back
         self.assertEqual(rep.settings["rotary_weight"], 1.0)      # equal A and C speeds
         angle_only, weighted = res[None], res[1.0]
         self.assertLess(weighted.c_travel_deg, angle_only.c_travel_deg)

@@ -50,7 +50,8 @@ class ShippedMachines(unittest.TestCase):
             self.assertIn(pin, m.linuxcnc)
         self.assertEqual(m.linuxcnc["kinematics"], "xyzac-trt-kins")
         # C about the rot-point line; A about rot-point + (0, y-offset, z-offset); pins' default
-        # (unconventional) directions turn the table by +value.
+        # (unconventional) directions turn the table by +value. Exact by construction: sums of
+        # the whole numbers the file gives.
         self.assertEqual(m.rotary.pivot, (0.0, 0.0, 0.0))
         self.assertEqual(m.tilt.pivot, (0.0, 20.0, 10.0))
         self.assertEqual((m.tilt.sign, m.rotary.sign), (1, 1))
@@ -60,6 +61,7 @@ class ShippedMachines(unittest.TestCase):
             raise unittest.SkipTest("LinuxCNC sim configs not installed")
         ini = ini_sections(LINUXCNC_SIM_INI)
         m = load_machine("linuxcnc_xyzac_trt")
+        # exact by construction: the same decimal literals in both files (x 60: whole numbers)
         for n in "XYZ":
             a = ini[f"AXIS_{n}"]
             self.assertEqual(m.linear[n].min, float(a["MIN_LIMIT"]))
@@ -78,7 +80,7 @@ class ShippedMachines(unittest.TestCase):
         for name in SHIPPED:
             m = load_machine(name)
             m2 = machine_from_dict(json.loads(m.to_json()), "<json>")
-            self.assertEqual(m2.to_dict(), m.to_dict())
+            self.assertEqual(m2.to_dict(), m.to_dict())    # exact: JSON writes repr, reads it back
             for a in ("tilt", "rotary"):
                 self.assertEqual(getattr(m2, a), getattr(m, a))
 
@@ -176,7 +178,7 @@ class MachinesCommand(unittest.TestCase):
         res = self.run_cli("machines", "show", "linuxcnc_xyzac_trt", "--json")
         self.assertEqual(res.returncode, 0, res.stderr)
         m = machine_from_dict(json.loads(res.stdout))
-        self.assertEqual(m.to_dict(), load_machine("linuxcnc_xyzac_trt").to_dict())
+        self.assertEqual(m.to_dict(), load_machine("linuxcnc_xyzac_trt").to_dict())   # repr round trip
         res = self.run_cli("machines", "show", "mikron_ucp600_heidenhain")
         self.assertEqual(res.returncode, 0, res.stderr)
         self.assertIn("A: table, about X", res.stdout)
@@ -195,7 +197,7 @@ class MachinesCommand(unittest.TestCase):
             res = self.run_cli("machines", env={"TSPLCAM_MACHINE_PATH": folder})
             self.assertIn("my_mill", res.stdout)
             res = self.run_cli("machines", "show", "my_mill", "--json", env={"TSPLCAM_MACHINE_PATH": folder})
-            self.assertEqual(json.loads(res.stdout)["rotary_axes"]["B"]["max"], 95.0)
+            self.assertEqual(json.loads(res.stdout)["rotary_axes"]["B"]["max"], 95.0)   # the literal, echoed
 
 
 if __name__ == "__main__":

@@ -57,6 +57,8 @@ class RoundTrip(unittest.TestCase):
         np.testing.assert_array_equal(cl.rapid[inner], p.move == Move.RAPID)
         np.testing.assert_array_equal(cl.patch[inner], np.where(p.line >= 0, p.patch, cl.patch[inner]))
         np.testing.assert_array_equal(cl.line[inner][p.line >= 0], p.line[p.line >= 0])
+        # exact by construction: the tool's radius 0.5 and whole-number feeds (mm/min) are
+        # written in full and read back
         self.assertEqual(cl.tool_radius, 0.5)
         self.assertEqual(cl.units, "MM")
         self.assertTrue(np.all(cl.feed[1:] == p.feed))
@@ -93,8 +95,8 @@ class Reader(unittest.TestCase):
         # three-number GOTO keeps the axis; FEDRAT without MMPM
         cl = parse_cl("CUTTER/6.0\nFEDRAT/500\nGOTO/1,2,3,0,0,1\nGOTO/4,5,6\nFINI\n")
         np.testing.assert_allclose(cl.axis[1], [0, 0, 1])
-        self.assertEqual(cl.tool_radius, 3.0)
-        self.assertEqual(cl.feed[1], 500.0)
+        self.assertEqual(cl.tool_radius, 3.0)       # exact: the literal 6.0 halved
+        self.assertEqual(cl.feed[1], 500.0)         # exact: the literal
 
     def test_errors_name_file_and_line(self):
         cases = [("CUTTER/1,0.5\nUNITS/INCHES\nGOTO/0,0,0\n", 2, "UNITS"),

@@ -71,6 +71,7 @@ class ToolPathObject(unittest.TestCase):
         doc.recompute()
         self.assertEqual(calls, [])                      # unchanged inputs: the stored path
         tp2 = self.pathobject.path_of(again)
+        # exact by construction: the stored arrays (np.savez, binary), not a recomputation
         np.testing.assert_array_equal(tp2.contact, tp.contact)
         np.testing.assert_array_equal(tp2.move, tp.move)
         again.Scallop = 0.1

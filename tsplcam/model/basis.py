@@ -124,6 +124,8 @@ def bspline_basis(knots: np.ndarray, p: int, x: np.ndarray, span: np.ndarray | N
     n = len(x)
     if span is None:
         m = len(knots) - p - 1
+        # x on a knot (or a rounding off it) takes the span to its right (or left): the basis
+        # is continuous there, so either span gives the same values up to rounding
         span = np.searchsorted(knots, x, side="right") - 1
         span = np.clip(span, p, m - 1)
     span = np.asarray(span, dtype=int)
@@ -138,6 +140,8 @@ def bspline_basis(knots: np.ndarray, p: int, x: np.ndarray, span: np.ndarray | N
         saved = np.zeros(n)
         for r in range(j):
             ndu[:, j, r] = right[:, r + 1] + left[:, j - r]
+            # exact by construction: right + left is (k_b - x) + (x - k_a); for a repeated knot
+            # k_a == k_b the two roundings are exact negatives and the sum is exactly 0
             with np.errstate(divide="ignore", invalid="ignore"):
                 temp = np.where(ndu[:, j, r] != 0.0, ndu[:, r, j - 1] / ndu[:, j, r], 0.0)
             ndu[:, r, j] = saved + right[:, r + 1] * temp

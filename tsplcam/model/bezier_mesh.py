@@ -155,7 +155,7 @@ def sub_net(Q: np.ndarray, box) -> np.ndarray:
     """Control net of the restriction of Bezier net Q [j, i] to (s0, s1, t0, t1) (exact)."""
     s0, s1, t0, t1 = box
     q, p = Q.shape[0] - 1, Q.shape[1] - 1
-    if (s0, s1, t0, t1) == (0.0, 1.0, 0.0, 1.0):
+    if (s0, s1, t0, t1) == (0.0, 1.0, 0.0, 1.0):   # exact, a shortcut: any other box is exact too
         return Q.copy()
     return np.einsum("ja,ib,abc->jic", _sub_matrix(q, t0, t1), _sub_matrix(p, s0, s1), Q)
 
@@ -779,7 +779,7 @@ def bezier_model(nets, source: str | None = None, labels=None, kind: str = "bezi
 
     def where(e):
         text, line = labels[pieces_now[e].element]
-        if pieces_now[e].box != (0.0, 1.0, 0.0, 1.0):
+        if pieces_now[e].box != (0.0, 1.0, 0.0, 1.0):   # exact: the default of an uncut piece
             text += " (part)"
         return text, source, line
 
@@ -857,6 +857,7 @@ def _build(mesh, regions, inst, traced, info, source, kind, name, pieces, nets, 
     # next to extraordinary points no parametrisation is C1: there the derivative ratios
     # only break ties, the rest of the surface sets the widths
     ep = np.array([k == "ep" for k in mesh.kind] + [False])
+    # one of two literals: ``wt != 1.0`` in _ratio_rms is exact by construction
     wt = np.array([EP_WEIGHT if ep[mesh.corners[[e, f]]].any() else 1.0
                    for _, (e, _, _), (f, _, _) in pairs])
     inner = {r: [] for r in range(len(regions))}

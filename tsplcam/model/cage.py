@@ -13,6 +13,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..errors import InputError
 from .basis import BSPLINE_TO_BEZIER
 from .cells import BezierCells, EigenCells, LevelCells
 from .decompose import QuadDecomposition, decompose
@@ -101,23 +102,40 @@ def _build_patches(mesh: QuadMesh, H0: np.ndarray, dec: QuadDecomposition, level
             k = corners[0]
             scheme, cfg = scheme_for(emesh, e, k)
             data = He[cfg]
-            lst = eig.setdefault(id(scheme), (scheme, [], []))
+            lst = eig.setdefault(id(scheme), (scheme, [], [], []))
             local[ci, cj] = len(lst[1])
             group[ci, cj] = -2 - list(eig).index(id(scheme))
             lst[1].append(data)
             lst[2].append(rotation_map((re - k) % 4))
+            lst[3].append((int(emesh.faces[e][k]), e))
         groups, gid = [], {}
         if bez:
             gid[-1] = len(groups)
             groups.append(BezierCells(np.array(bez)))
-        for n, (scheme, data, maps) in enumerate(eig.values()):
+        for n, (scheme, data, maps, where) in enumerate(eig.values()):
             gid[-2 - n] = len(groups)
             cls = LevelCells if scheme.defective else EigenCells
-            groups.append(cls(scheme, np.array(data), np.array(maps)))
+            try:
+                groups.append(cls(scheme, np.array(data), np.array(maps)))
+            except InputError:
+                _name_irregular_vertex(emesh, scheme, data, where)
+                raise
         group = np.vectorize(gid.get)(group)
         patches.append(Patch(r, np.linspace(0, 1, nu + 1), np.linspace(0, 1, nv + 1), group, local,
                              groups, knot_size=(nc, nr)))
     return patches
+
+
+def _name_irregular_vertex(mesh: QuadMesh, scheme, data, where) -> None:
+    """Raise the error of the first configuration whose limit normal fails, naming its
+    vertex, the file and a line of one of its faces (the shared scheme knows none of them).
+    Irregular vertices keep their cage index through refinement."""
+    for C0, (v, e) in zip(data, where):
+        try:
+            scheme.limit_normal(C0)
+        except InputError as exc:
+            raise InputError(f"{mesh.vertex_name(v)}: {exc.message}", path=mesh.source,
+                             line=mesh.face_line(e)) from None
 
 
 def _finish(mesh: QuadMesh, dec: QuadDecomposition, patches: list[Patch], cage: Cage,

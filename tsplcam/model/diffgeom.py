@@ -24,6 +24,8 @@ def rational_from_homogeneous(H: np.ndarray) -> tuple[np.ndarray, ...]:
     """
     B = H[:, :3]
     W = H[:, 3:4]
+    # exact test, and only a shortcut: weights that are 1 up to rounding take the rational
+    # branch below, which gives the same surface
     if not np.any(W[1:]) and np.all(W[0] == 1.0):         # polynomial: nothing to divide
         return B[0], B[1], B[2], B[3], B[4], B[5]
     w = W[0]

@@ -158,7 +158,10 @@ class SubdivisionScheme:
         n = np.cross(t1, t2)
         length = np.linalg.norm(n)
         if not length > 1e-12 * (np.linalg.norm(t1) * np.linalg.norm(t2) + 1e-300):
-            raise InputError(f"{self.label}: degenerate tangent plane at the irregular vertex")
+            # the scheme is shared by every vertex of its kind, in any file: name the kind only
+            # (the caller knows which vertex and file)
+            raise InputError(f"{self.label.split(' (')[0]}: degenerate tangent plane at the "
+                             f"irregular vertex")
         return n / length
 
 

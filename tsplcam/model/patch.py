@@ -176,6 +176,8 @@ class Patch:
         """Homogeneous derivatives (6, 4, m) of the points sorted by cell, the sorting order,
         and (rows in sorted order, exact normals) of points at irregular vertices."""
         nu, nv = self.shape
+        # a point on a cell break (or rounded off it) goes to either cell: the surface is
+        # continuous there, both give the same point up to rounding
         iu = np.clip(np.searchsorted(self.ubreaks, u, side="right") - 1, 0, nu - 1)
         iv = np.clip(np.searchsorted(self.vbreaks, v, side="right") - 1, 0, nv - 1)
         order = np.argsort(iu * nv + iv, kind="stable")

@@ -44,6 +44,10 @@ class QuadMesh:
         line = f" (line {int(self.face_lines[f])})" if self.face_lines is not None else ""
         return f"face {f + 1}{line}"
 
+    def face_line(self, f: int) -> int | None:
+        """The file line of face f, when the cage came from a file."""
+        return int(self.face_lines[f]) if self.face_lines is not None else None
+
     @staticmethod
     def vertex_name(v: int) -> str:
         return f"vertex {v + 1}"
@@ -63,16 +67,16 @@ class QuadMesh:
                 a, b = int(quad[k]), int(quad[(k + 1) % 4])
                 if a == b:
                     raise InputError(f"{self.face_name(f)} uses {self.vertex_name(a)} twice in a row",
-                                     path=self.source)
+                                     path=self.source, line=self.face_line(f))
                 if (a, b) in edges:
                     g = edges[(a, b)][0]
                     if g == f:
                         raise InputError(f"{self.face_name(f)} repeats the edge {a + 1}-{b + 1}",
-                                         path=self.source)
+                                         path=self.source, line=self.face_line(f))
                     raise InputError(
                         f"edge {a + 1}-{b + 1} is used in the same direction by {self.face_name(g)} and "
                         f"{self.face_name(f)}: the cage is non-manifold or not consistently oriented",
-                        path=self.source)
+                        path=self.source, line=self.face_line(f))
                 edges[(a, b)] = (f, k)
         self._edges = edges
 
@@ -144,9 +148,11 @@ class QuadMesh:
                 if len(order) > len(incident[v]):
                     break
             if len(order) != len(incident[v]):
+                f = incident[v][0][0]
                 raise InputError(
                     f"{self.vertex_name(v)} is non-manifold: its {len(incident[v])} faces do not form "
-                    f"one fan (e.g. two surfaces touch at this vertex)", path=self.source)
+                    f"one fan (e.g. two surfaces touch at this vertex; one of them is "
+                    f"{self.face_name(f)})", path=self.source, line=self.face_line(f))
             fans.append((order, boundary))
         self._fans = fans
 
@@ -175,7 +181,8 @@ class QuadMesh:
             raise InputError("the cage has no faces", path=self.source)
         if self.faces.min() < 0 or self.faces.max() >= self.n_vertices:
             f = int(np.nonzero((self.faces < 0).any(1) | (self.faces >= self.n_vertices).any(1))[0][0])
-            raise InputError(f"{self.face_name(f)} refers to a vertex that does not exist", path=self.source)
+            raise InputError(f"{self.face_name(f)} refers to a vertex that does not exist", path=self.source,
+                             line=self.face_line(f))
         if points is not None:
             bad = ~np.isfinite(points).all(axis=1)
             if bad.any():

@@ -35,6 +35,7 @@ from functools import cached_property, cmp_to_key
 import numpy as np
 
 from ..errors import InputError
+from ..inputfile import COORDINATE_LIMIT, WEIGHT_LIMIT, first_coordinate_error, weight_error
 
 
 @dataclass
@@ -73,8 +74,14 @@ class TMesh:
         line = f" (line {self.vertex_lines[v]})" if self.vertex_lines is not None else ""
         return f"vertex {v + 1}{line}"
 
-    def error(self, message: str) -> InputError:
-        return InputError(message, path=self.source)
+    def error(self, message: str, face: int | None = None, vertex: int | None = None) -> InputError:
+        """An InputError on the mesh's file, at the line of ``face`` or ``vertex`` when known."""
+        line = None
+        if face is not None and self.face_lines is not None:
+            line = self.face_lines[face]
+        elif vertex is not None and self.vertex_lines is not None:
+            line = self.vertex_lines[vertex]
+        return InputError(message, path=self.source, line=line)
 
     @property
     def n_vertices(self) -> int:
@@ -100,40 +107,47 @@ class TMesh:
             raise self.error("the T-mesh has no faces")
         if not (len(self.corners) == len(self.faces) == len(self.intervals)):
             raise self.error("faces, corners and knot intervals differ in number")
-        bad = ~np.isfinite(self.points).all(axis=1)
-        if bad.any():
-            v = int(np.nonzero(bad)[0][0])
-            raise self.error(f"{self.vertex_name(v)} has a coordinate that is not a number")
-        badw = ~np.isfinite(self.weights) | (self.weights <= 0)
+        bad = first_coordinate_error(self.points)
+        if bad is not None:
+            raise self.error(f"{self.vertex_name(bad[0])}: {bad[1]}", vertex=bad[0])
+        badw = ~((self.weights >= 1.0 / WEIGHT_LIMIT) & (self.weights <= WEIGHT_LIMIT))
         if badw.any():
             v = int(np.nonzero(badw)[0][0])
-            raise self.error(f"{self.vertex_name(v)} has weight {self.weights[v]:g}: weights must be "
-                             f"positive")
+            raise self.error(f"{self.vertex_name(v)}: {weight_error(self.weights[v])}", vertex=v)
         used = np.zeros(n, bool)
         for f, (loop, cs, d) in enumerate(zip(self.faces, self.corners, self.intervals)):
             name = self.face_name(f)
             if len(loop) < 4:
-                raise self.error(f"{name} has {len(loop)} vertices: a face needs at least four")
+                raise self.error(f"{name} has {len(loop)} vertices: a face needs at least four", f)
             if loop.min() < 0 or loop.max() >= n:
-                raise self.error(f"{name} refers to a vertex that does not exist")
+                raise self.error(f"{name} refers to a vertex that does not exist", f)
             if len(set(loop.tolist())) != len(loop):
-                raise self.error(f"{name} uses a vertex twice")
+                raise self.error(f"{name} uses a vertex twice", f)
             if len(cs) != 4 or len(set(cs)) != 4 or list(cs) != sorted(cs) or cs[0] < 0 or cs[-1] >= len(loop):
                 raise self.error(f"{name}: corners {list(cs)} must be four increasing positions in its "
-                                 f"loop of {len(loop)} vertices")
+                                 f"loop of {len(loop)} vertices", f)
             if len(d) != len(loop):
-                raise self.error(f"{name} has {len(d)} knot intervals for {len(loop)} edges")
-            if not np.all(np.isfinite(d)) or np.any(d < 0):
-                i = int(np.nonzero(~np.isfinite(d) | (d < 0))[0][0])
+                raise self.error(f"{name} has {len(d)} knot intervals for {len(loop)} edges", f)
+            bad_d = ~((d >= 0) & (d <= COORDINATE_LIMIT))          # NaN fails both
+            if bad_d.any():
+                i = int(np.nonzero(bad_d)[0][0])
                 raise self.error(f"{name}: knot interval {d[i]:g} of edge "
-                                 f"{loop[i] + 1}-{loop[(i + 1) % len(loop)] + 1} is not a number >= 0")
+                                 f"{loop[i] + 1}-{loop[(i + 1) % len(loop)] + 1} is not a number in "
+                                 f"[0, {COORDINATE_LIMIT:g}]", f)
             used[loop] = True
         if not used.all():
             v = int(np.nonzero(~used)[0][0])
             raise self.error(f"{self.vertex_name(v)} is not used by any face "
-                             f"({int((~used).sum())} unused vertices)")
+                             f"({int((~used).sum())} unused vertices)", vertex=v)
         scale = max(float(max(d.max() for d in self.intervals)), 1e-300)
         tol = 1e-9 * scale
+        for f, d in enumerate(self.intervals):
+            # an interval is zero (a clamped or collapsed edge) or a length: one below the
+            # tolerance the sides are compared with is neither, and would divide by ~0
+            tiny = (d > 0) & (d < tol)
+            if tiny.any():
+                raise self.error(f"{self.face_name(f)}: knot interval {d[np.argmax(tiny)]:g} is neither 0 "
+                                 f"nor a length (the largest is {scale:g}; below {tol:g} write 0)", f)
         edges = {}
         for f, loop in enumerate(self.faces):
             m = len(loop)
@@ -143,7 +157,7 @@ class TMesh:
                     g = edges[(a, b)][0]
                     raise self.error(f"edge {a + 1}-{b + 1} is used in the same direction by "
                                      f"{self.face_name(g)} and {self.face_name(f)}: the T-mesh is "
-                                     f"non-manifold or not consistently oriented")
+                                     f"non-manifold or not consistently oriented", f)
                 edges[(a, b)] = (f, i)
         for (a, b), (f, i) in edges.items():
             twin = edges.get((b, a))
@@ -152,12 +166,12 @@ class TMesh:
                 if abs(self.intervals[f][i] - self.intervals[g][j]) > tol:
                     raise self.error(f"edge {a + 1}-{b + 1} has knot interval {self.intervals[f][i]:g} in "
                                      f"{self.face_name(f)} but {self.intervals[g][j]:g} in "
-                                     f"{self.face_name(g)}")
+                                     f"{self.face_name(g)}", max(f, g))
         for f in range(len(self.faces)):
             s = self.side_sums(f)
             if abs(s[0] - s[2]) > tol or abs(s[1] - s[3]) > tol:
                 raise self.error(f"{self.face_name(f)}: knot intervals of opposite sides differ "
-                                 f"(bottom {s[0]:g}, top {s[2]:g}, right {s[1]:g}, left {s[3]:g})")
+                                 f"(bottom {s[0]:g}, top {s[2]:g}, right {s[1]:g}, left {s[3]:g})", f)
 
     def side_of(self, f: int) -> np.ndarray:
         """Side index (0..3) of every loop edge of face f."""
@@ -305,7 +319,7 @@ class Topology:
             if resid.max() > 1e-6:
                 f = int(np.argmax(resid) // 2)
                 raise mesh.error(f"{mesh.face_name(f)}: the zero knot intervals around this face "
-                                 f"cannot be arranged into a rectangle")
+                                 f"cannot be arranged into a rectangle", f)
             small = zero & (xi < 1e-3)
             if small.any():
                 a, b = keys[int(np.nonzero(small)[0][0])]
@@ -384,7 +398,7 @@ class Topology:
                     break
             if len(order) != len(inc):
                 raise mesh.error(f"{mesh.vertex_name(v)} is non-manifold: its {len(inc)} faces do not "
-                                 f"form one fan")
+                                 f"form one fan", vertex=v)
             angles, a = [], 0
             for f, i in order:
                 angles.append(a)

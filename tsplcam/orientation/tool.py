@@ -11,16 +11,19 @@ the ball centre and whose +z is the tool axis (tip -> spindle).
 """
 from __future__ import annotations
 
-import json
 import os
 import re
 from dataclasses import dataclass, field
 
 from .. import data_dir
 from ..errors import InputError
+from ..inputfile import excerpt, read_json
 
 FORMAT = "tsplcam-tool"
 VERSION = 1
+# mm: every length of a tool and its holder lies in [MIN_LENGTH, MAX_LENGTH): a micron to
+# 100 m (a length of 1e-320 passed "> 0" and left a holder segment of zero height)
+MIN_LENGTH, MAX_LENGTH = 1e-3, 1e5
 
 
 @dataclass(frozen=True)
@@ -70,19 +73,19 @@ class Tool:
         r, lf, ds, ls = self.ball_radius, self.flute_length, self.shank_diameter, self.shank_length
         for key, val in (("ball_radius", r), ("flute_length", lf), ("shank_diameter", ds),
                          ("shank_length", ls)):
-            if not (isinstance(val, (int, float)) and val > 0 and val < 1e5):
-                raise InputError(f"{key} must be a positive length in mm, not {val!r}", path=where,
-                                 item=self.name)
+            if not (isinstance(val, (int, float)) and MIN_LENGTH <= val < MAX_LENGTH):  # NaN fails
+                raise InputError(f"{key} must be a length in mm in [{MIN_LENGTH:g}, {MAX_LENGTH:g}), "
+                                 f"not {val!r}", path=where, item=key)
         if lf < r:
             raise InputError(f"flute_length {lf:g} is shorter than the ball radius {r:g}", path=where,
-                             item=self.name)
+                             item="flute_length")
         if ls < lf:
             raise InputError(f"shank_length (stick-out) {ls:g} is shorter than flute_length {lf:g}",
-                             path=where, item=self.name)
+                             path=where, item="shank_length")
         for k, h in enumerate(self.holder):
-            if not (h.length > 0 and h.diameter_bottom > 0 and h.diameter_top > 0):
-                raise InputError(f"holder segment {k + 1}: length and diameters must be positive",
-                                 path=where, item=self.name)
+            if not all(MIN_LENGTH <= x < MAX_LENGTH for x in (h.length, h.diameter_bottom, h.diameter_top)):
+                raise InputError(f"holder segment {k + 1}: length and diameters must be lengths in "
+                                 f"[{MIN_LENGTH:g}, {MAX_LENGTH:g}) mm", path=where, item=f"holder[{k}]")
 
     # --- geometry ---------------------------------------------------------------------
     @property
@@ -149,9 +152,11 @@ def parse_length(text, path: str | None = None, key: str | None = None) -> float
     m = re.fullmatch(r"\s*([-+]?(?:\d+(?:\.\d*)?|\.\d+)(?:[eE][-+]?\d+)?)(?:\s*/\s*(\d+(?:\.\d*)?))?\s*"
                      r"(mm|cm|m|in|inch|\"|um)?\s*", text)
     if not m:
-        raise InputError(f"cannot read the length {text!r}", path=path, item=key)
+        raise InputError(f"cannot read the length {excerpt(text)}", path=path, item=key)
     value = float(m.group(1))
     if m.group(2):
+        if float(m.group(2)) == 0.0:              # exact: only a literal zero divides by zero
+            raise InputError(f"the length {excerpt(text)} divides by zero", path=path, item=key)
         value /= float(m.group(2))
     return value * _UNITS[m.group(3) or "mm"]
 
@@ -159,7 +164,7 @@ def parse_length(text, path: str | None = None, key: str | None = None) -> float
 def _number(d: dict, key: str, path, required=True, default=None):
     if key not in d:
         if required:
-            raise InputError(f"missing key '{key}'", path=path)
+            raise InputError(f"missing key '{key}'", path=path, item=key)
         return default
     val = d[key]
     if isinstance(val, bool) or not isinstance(val, (int, float, str)):
@@ -194,35 +199,24 @@ def _holder(items, path) -> list:
     return out
 
 
-def _read_json(path: str, what: str):
-    """The JSON document in ``path``; bad JSON names the line, an unreadable file says why."""
-    try:
-        with open(path, encoding="utf-8") as f:
-            return json.load(f)
-    except json.JSONDecodeError as e:
-        raise InputError(f"not valid JSON: {e.msg}", path=path, line=e.lineno) from None
-    except OSError as e:
-        raise InputError(f"cannot read the {what}: {e.strerror}", path=path) from None
-
-
 def read_fctb(path: str, holder=None, name: str | None = None) -> Tool:
     """A FreeCAD CAM ball-end tool bit (.fctb). The file has no holder: pass ``holder``
     (HolderSegments) or the tool is checked without one (only flutes and shank)."""
-    doc = _read_json(path, "tool bit")
+    doc = read_json(path, "tool bit")[0]
     if not isinstance(doc, dict):
-        raise InputError("a tool bit file holds one JSON object", path=path)
+        raise InputError("a tool bit file holds one JSON object", path=path, item="(document)")
     shape = str(doc.get("shape", ""))
     if os.path.basename(shape).lower() not in ("ballend.fcstd", "ballend"):
         raise InputError(f"shape {shape!r} is not a ball end (ballend.fcstd): tsplcam finishes with "
                          "ball-end mills", path=path, item="shape")
     par = doc.get("parameter")
     if not isinstance(par, dict):
-        raise InputError("missing key 'parameter'", path=path)
+        raise InputError("missing key 'parameter'", path=path, item="parameter")
 
     def get(key, required=True):
         if key not in par:
             if required:
-                raise InputError(f"missing key 'parameter.{key}'", path=path)
+                raise InputError(f"missing key 'parameter.{key}'", path=path, item=f"parameter.{key}")
             return None
         return parse_length(par[key], path, f"parameter.{key}")
 
@@ -239,25 +233,33 @@ def read_tool(path: str) -> Tool:
     """A ``tsplcam-tool`` JSON file (see TOOLS.md) or a FreeCAD ``.fctb`` tool bit."""
     if path.lower().endswith(".fctb"):
         return read_fctb(path)
-    return tool_from_dict(_read_json(path, "tool file"), path)
+    return tool_from_dict(read_json(path, "tool file")[0], path)
 
 
 def tool_from_dict(doc, path: str | None = None) -> Tool:
     if not isinstance(doc, dict):
-        raise InputError("a tool file holds one JSON object", path=path)
+        raise InputError("a tool file holds one JSON object", path=path, item="(document)")
     if doc.get("format") != FORMAT:
-        raise InputError(f"'format' must be {FORMAT!r}, found {doc.get('format')!r}", path=path)
+        raise InputError(f"'format' must be {FORMAT!r}, found {doc.get('format')!r}", path=path,
+                         item="format")
     if doc.get("version") != VERSION:
         raise InputError(f"unsupported version {doc.get('version')!r} (this reader knows {VERSION})",
-                         path=path)
+                         path=path, item="version")
     if doc.get("units", "mm") != "mm":
-        raise InputError(f"'units' must be 'mm', found {doc.get('units')!r}", path=path)
+        raise InputError(f"'units' must be 'mm', found {doc.get('units')!r}", path=path,
+                         item="units")
     holder = _holder(doc.get("holder", []), path)
     name = str(doc.get("name", os.path.splitext(os.path.basename(path or "tool"))[0]))
     if "fctb" in doc:
         fctb = doc["fctb"]
+        if not isinstance(fctb, str) or not fctb.strip():
+            raise InputError(f"'fctb' must name a FreeCAD tool bit file, not {fctb!r}", path=path,
+                             item="fctb")
         if path is not None and not os.path.isabs(fctb):
             fctb = os.path.join(os.path.dirname(path), fctb)
+        if not os.path.isfile(fctb):
+            raise InputError(f"'fctb' names {fctb!r}, which is not a file (a relative name is "
+                             f"read beside the tool file)", path=path, item="fctb")
         tool = read_fctb(fctb, holder, name)
         tool.source = path
         return tool

@@ -41,6 +41,7 @@ from __future__ import annotations
 import json
 
 from ..errors import InputError
+from ..inputfile import loads_json, read_text
 from ..layout.layout import CORNER_NAMES
 from .graph import NONE, PatchGraph, layout_hash
 from .steps import CROSSFEEDS, LINKS, PIN_FIELDS, ProcessingList, Step, corner_index, \
@@ -112,7 +113,7 @@ def _step_lines(text: str | None, count: int) -> list[int | None]:
 def from_dict(data, path=None, text=None, partial: bool = False) -> ProcessingList:
     """A processing list from parsed JSON; checks the form, not the model (see :func:`check`)."""
     if not isinstance(data, dict):
-        raise InputError("a processing list is a JSON object", path=path)
+        raise InputError("a processing list is a JSON object", path=path, item="(document)")
     if data.get("format") != FORMAT:
         raise InputError(f"'format' is {data.get('format')!r}, expected {FORMAT!r}",
                          path=path, item="format")
@@ -264,23 +265,14 @@ def check(plist: ProcessingList, layout, path=None, partial: bool = False) -> Pr
 
 
 def loads(text: str, layout, path=None, partial: bool = False) -> ProcessingList:
-    try:
-        data = json.loads(text)
-    except json.JSONDecodeError as exc:
-        raise InputError(f"not valid JSON: {exc.msg} (column {exc.colno})", path=path,
-                         line=exc.lineno) from None
+    data = loads_json(text, path)
     plist = from_dict(data, path=path, text=text, partial=partial)
     return check(plist, layout, path=path, partial=partial)
 
 
 def load(path, layout, partial: bool = False) -> ProcessingList:
     """Read and check a processing list against the model's layout (what the path generator calls)."""
-    try:
-        with open(path, encoding="utf-8") as fh:
-            text = fh.read()
-    except OSError as exc:
-        raise InputError(f"cannot read the processing list: {exc.strerror}", path=str(path)) \
-            from None
+    text = read_text(path, "processing list")
     return loads(text, layout, path=str(path), partial=partial)
 
 

@@ -28,9 +28,13 @@ import numpy as np
 
 from .. import data_dir
 from ..errors import InputError
+from ..inputfile import COORDINATE_LIMIT, read_json
 
 FORMAT = "tsplcam-machine"
 VERSION = 1
+# Smallest velocity (mm/min, deg/min) or acceleration (mm/s^2, deg/s^2) accepted: times are
+# divided by these, and a denormal 1e-320 would turn them into infinities.
+MIN_RATE = 1e-6
 KINDS = ("table-table", "head-table", "head-head")
 CONTROLLERS = ("heidenhain", "sinumerik", "fanuc", "linuxcnc")
 LINEAR_NAMES = ("X", "Y", "Z")
@@ -228,6 +232,7 @@ class _Reader:
     def check_keys(self, d, key, allowed, required=()):
         for k in d:
             if k not in allowed and k != "comment":
+                k = k or '""'                       # an empty key still names itself
                 self.fail(f"{key}.{k}" if key else k,
                           f"unknown key (allowed: {', '.join(sorted(allowed))})")
         for k in required:
@@ -245,8 +250,12 @@ class _Reader:
             return None
         if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
             self.fail(full, f"must be a finite number, not {v!r}")
-        if positive and v <= 0:
-            self.fail(full, f"must be > 0, not {v!r}")
+        if abs(v) > COORDINATE_LIMIT:
+            self.fail(full, f"{v:g} is beyond +-{COORDINATE_LIMIT:g} (mm, degrees or per minute): "
+                            f"no machine has that")
+        if positive and not v >= MIN_RATE:
+            self.fail(full, f"must be >= {MIN_RATE:g}, not {v!r}" + (" (> 0 but too small to divide by)"
+                                                                    if v > 0 else ""))
         return float(v)
 
     def vec3(self, d, key, name, default=None):
@@ -258,8 +267,9 @@ class _Reader:
         v = d[name]
         if (not isinstance(v, list) or len(v) != 3
                 or not all(isinstance(x, (int, float)) and not isinstance(x, bool)
-                           and math.isfinite(x) for x in v)):
-            self.fail(full, f"must be a list of three finite numbers (mm), not {v!r}")
+                           and math.isfinite(x) and abs(x) <= COORDINATE_LIMIT for x in v)):
+            self.fail(full, f"must be a list of three finite numbers (mm) within "
+                            f"+-{COORDINATE_LIMIT:g}, not {v!r}")
         return tuple(float(x) for x in v)
 
     def choice(self, d, key, name, options, default=None):
@@ -406,16 +416,7 @@ POST_KEYS = {"dialect", "tool", "spindle", "coolant", "approach_distance", "appr
 
 def read_machine(path: str) -> Machine:
     """Read a machine file; errors name the file and the key (or the JSON line)."""
-    try:
-        with open(path, encoding="utf-8") as f:
-            text = f.read()
-    except OSError as exc:
-        raise InputError(f"cannot read machine file: {exc.strerror}", path=path) from None
-    try:
-        doc = json.loads(text)
-    except json.JSONDecodeError as exc:
-        raise InputError(f"not valid JSON: {exc.msg} (column {exc.colno})", path=path,
-                         line=exc.lineno) from None
+    doc, _ = read_json(path, "machine file")
     return machine_from_dict(doc, path)
 
 

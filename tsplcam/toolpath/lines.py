@@ -553,4 +553,4 @@ def parity_for(frame: LineFrame, finish: int | None) -> int | None:
                          f"{int(CORNER_UV[frame.start][0 if frame.crossfeed == 'u' else 1])}; "
                          f"crossfeed {frame.crossfeed} cannot reach it", item=frame.patch.name)
     # line k ends at t0 for odd k: the last line (n - 1) ends at 1 - t0 when n is odd
-    return 1 if ft != frame.t0 else 0
+    return 1 if ft != frame.t0 else 0          # exact: both are corner coordinates, 0.0 or 1.0

@@ -95,4 +95,6 @@ def load(path, **options):
         known = ", ".join(e for r in surface_readers() for e in r.extensions)
         ext = os.path.splitext(path)[1].lower()
         raise InputError(f"unknown model file type {ext!r} (tsplcam reads {known})", path=path)
-    return reader.read(path, **options)
+    from ...inputfile import naming
+    with naming(path):                   # the kernel's errors about a whole surface name the file
+        return reader.read(path, **options)

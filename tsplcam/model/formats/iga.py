@@ -30,10 +30,16 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ...errors import InputError
+from ...inputfile import (coordinate_error, excerpt, first_coordinate_error, line_of, naming,
+                          split_lines, weight_error)
 
 TYPES = ("plane", "surface")
 SIDES = {"LEFT": 3, "RIGHT": 1, "BOTTOM": 0, "TOP": 2}     # element side -> patch-style edge number
 _SPLIT = re.compile(r"[\s=]+")
+# Largest |extraction coefficient|: the Bernstein coefficients of B-spline blending functions
+# lie in [0, 1] (slightly outside next to extraordinary points); 1e3 leaves room and keeps the
+# Bezier weights, and every product the evaluation forms, far from overflow.
+EXTRACTION_LIMIT = 1e3
 
 
 @dataclass
@@ -80,7 +86,7 @@ class _Lines:
     def __init__(self, path: str, text: str):
         self.path = path
         self.items = []
-        for ln, raw in enumerate(text.splitlines(), start=1):
+        for ln, raw in enumerate(split_lines(text), start=1):
             s = raw.strip()
             if s and not s.startswith("#"):
                 self.items.append((ln, [t for t in _SPLIT.split(s) if t]))
@@ -107,7 +113,7 @@ def _int(lines: _Lines, tok: str, ln: int, what: str) -> int:
     try:
         return int(tok)
     except ValueError:
-        raise lines.error(f"{what}: {tok!r} is not an integer", ln)
+        raise lines.error(f"{what}: {excerpt(tok, 40)} is not an integer", ln)
 
 
 def _floats(lines: _Lines, toks, ln: int, what: str) -> np.ndarray:
@@ -115,7 +121,7 @@ def _floats(lines: _Lines, toks, ln: int, what: str) -> np.ndarray:
         vals = np.array([float(t) for t in toks])
     except ValueError:
         bad = next(t for t in toks if not _is_float(t))
-        raise lines.error(f"{what}: {bad!r} is not a number", ln)
+        raise lines.error(f"{what}: {excerpt(bad, 40)} is not a number", ln)
     if not np.all(np.isfinite(vals)):
         raise lines.error(f"{what}: a value is not a finite number", ln)
     return vals
@@ -137,7 +143,8 @@ def read_iga(path: str) -> IgaFile:
     except OSError as exc:
         raise InputError(f"cannot read: {exc.strerror}", path=path)
     if b"\0" in data[:4096]:
-        raise InputError("binary data, not an .iga text file", path=path)
+        raise InputError("binary data, not an .iga text file", path=path,
+                         line=line_of(data, data.index(b"\0")))
     lines = _Lines(path, data.decode("utf-8", errors="replace"))
     header: dict[str, tuple[object, int]] = {}
     points, weights, node_lines = [], [], []
@@ -153,7 +160,7 @@ def read_iga(path: str) -> IgaFile:
                 raise lines.error("'type' needs a value (plane or surface)", ln)
             kind = tok[1].lower()
             if kind not in TYPES:
-                raise lines.error(f"type {tok[1]!r} is not supported: tsplcam reads T-spline "
+                raise lines.error(f"type {excerpt(tok[1], 40)} is not supported: tsplcam reads T-spline "
                                   f"surfaces (type plane or surface)", ln)
             header["type"] = (kind, ln)
         elif tag in ("noden", "elemn"):
@@ -168,9 +175,9 @@ def read_iga(path: str) -> IgaFile:
             if len(tok) != 5:
                 raise lines.error(f"a node needs x y z w, found {len(tok) - 1} values", ln)
             vals = _floats(lines, tok[1:], ln, "node")
-            if vals[3] <= 0:
-                raise lines.error(f"node {len(points)} has weight {vals[3]:g}: weights must be "
-                                  f"positive", ln)
+            why = coordinate_error(vals[:3]) or weight_error(vals[3])
+            if why:
+                raise lines.error(f"node {len(points)}: {why}", ln)
             points.append(vals[:3])
             weights.append(vals[3])
             node_lines.append(ln)
@@ -184,7 +191,7 @@ def read_iga(path: str) -> IgaFile:
             while lines.peek_tag() is None and lines.pos < len(lines.items):
                 lines.next()
         else:
-            raise lines.error(f"unknown record {tok[0]!r}", ln)
+            raise lines.error(f"unknown record {excerpt(tok[0], 40)}", ln)
     _need_header(lines, header, None)
     n_nodes, ln_nodes = header["noden"]
     n_elem, ln_elem = header["elemn"]
@@ -206,6 +213,8 @@ def _need_header(lines: _Lines, header: dict, ln: int | None) -> None:
     for key, name in (("type", "type"), ("noden", "nodeN"), ("elemn", "elemN")):
         if key not in header:
             where = "before this record" if ln is not None else "in the file"
+            if ln is None:      # the header belongs before the first record (or on line 1)
+                ln = lines.items[0][0] if lines.items else 1
             raise lines.error(f"no '{name}' line {where}: the header is type, nodeN, elemN", ln)
 
 
@@ -247,6 +256,10 @@ def _read_element(lines: _Lines, tok, ln: int, n_nodes: int, index: int) -> IgaE
             raise lines.error(f"{what}: extraction row {a + 1} has {len(row)} coefficients, "
                               f"degree ({p}, {q}) needs {nb}", ln_row)
         C[a] = _floats(lines, row, ln_row, f"{what}, extraction row {a + 1}")
+        if np.abs(C[a]).max() > EXTRACTION_LIMIT:
+            raise lines.error(f"{what}, extraction row {a + 1}: coefficient "
+                              f"{C[a][np.argmax(np.abs(C[a]))]:g} is beyond +-{EXTRACTION_LIMIT:g} "
+                              f"(Bezier coefficients of blending functions are about 1)", ln_row)
     return IgaElement(p, q, nodes, C, ln)
 
 
@@ -268,10 +281,11 @@ def _read_set(lines: _Lines, tok, ln: int) -> IgaSet:
         for e, pos in zip(rest[0::2], rest[1::2]):
             pos = pos.upper()
             if pos not in SIDES:
-                raise lines.error(f"set {name}: side {pos!r} is not LEFT, RIGHT, BOTTOM or TOP", ln)
+                raise lines.error(f"set {name}: side {excerpt(pos, 40)} is not LEFT, RIGHT, BOTTOM "
+                                  f"or TOP", ln)
             items.append((_int(lines, e, ln, f"set {name}"), pos))
         return IgaSet(kind, name, items, ln)
-    raise lines.error(f"set kind {tok[2]!r} is not node, side or elem", ln)
+    raise lines.error(f"set kind {excerpt(tok[2], 40)} is not node, side or elem", ln)
 
 
 def _check_set(lines: _Lines, s: IgaSet, n_nodes: int, n_elem: int) -> None:
@@ -285,7 +299,9 @@ def _check_set(lines: _Lines, s: IgaSet, n_nodes: int, n_elem: int) -> None:
 
 def iga_model(path: str, name: str | None = None):
     """The Model of an ``.iga`` file (see ``model_from_iga``)."""
-    return model_from_iga(read_iga(path), name)
+    iga = read_iga(path)
+    with naming(path):
+        return model_from_iga(iga, name)
 
 
 def model_from_iga(iga: IgaFile, name: str | None = None):
@@ -303,6 +319,11 @@ def model_from_iga(iga: IgaFile, name: str | None = None):
         if not np.all(W > 0):
             raise InputError(f"element {e}: Bezier weight {W.min():.3g} <= 0, the rational "
                              f"surface is not defined everywhere", path=iga.path, line=el.line)
+        with np.errstate(over="ignore"):                  # an overflow is refused just below
+            bad = first_coordinate_error((Q[..., :3] / W[..., None]).reshape(-1, 3))
+        if bad is not None:
+            raise InputError(f"element {e}: Bezier control point {bad[0]}: {bad[1]}",
+                             path=iga.path, line=el.line)
         nets.append(Q)
         labels.append((f"element {e}", el.line))
     model = bezier_model(nets, iga.path, labels, kind=f"t-spline (iga, {iga.type})", name=name)

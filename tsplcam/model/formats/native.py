@@ -14,6 +14,7 @@ import os
 import numpy as np
 
 from ...errors import InputError
+from ...inputfile import first_coordinate_error, naming, read_json, weight_error
 
 FORMAT = "tsplcam-model"
 VERSION = 1
@@ -136,18 +137,7 @@ def read_native(path):
     from ..quadmesh import QuadMesh
     from ..tmesh import TMesh
     path = os.fspath(path)
-    try:
-        with open(path, "r", encoding="utf-8") as fh:
-            text = fh.read()
-    except UnicodeDecodeError as exc:
-        raise InputError(f"not a text file ({exc.reason} at byte {exc.start})", path=path)
-    except OSError as exc:
-        raise InputError(f"cannot read: {exc.strerror}", path=path)
-    try:
-        data = json.loads(text)
-    except json.JSONDecodeError as exc:
-        raise InputError(f"not valid JSON ({exc.msg}); the file may be truncated or corrupt",
-                         path=path, line=exc.lineno)
+    data, text = read_json(path, "model file")
     lines = _element_lines(text)
 
     def err(msg, key=None, k=None):
@@ -155,38 +145,42 @@ def read_native(path):
         return InputError(msg, path=path, line=ln)
 
     if not isinstance(data, dict) or data.get("format") != FORMAT:
-        raise InputError(f'not a tsplcam model file (needs "format": "{FORMAT}")', path=path)
+        raise InputError(f'not a tsplcam model file (needs "format": "{FORMAT}")', path=path,
+                         item="format")
     version = data.get("version")
     if not isinstance(version, int) or isinstance(version, bool):
-        raise InputError('"version" must be an integer', path=path)
+        raise InputError('"version" must be an integer', path=path, item="version")
     if version > VERSION:
         raise InputError(f"written by a newer tsplcam (file version {version}); this one reads version "
-                         f"{VERSION}", path=path)
+                         f"{VERSION}", path=path, item="version")
     if version < 1:
-        raise InputError(f"unknown file version {version}", path=path)
+        raise InputError(f"unknown file version {version}", path=path, item="version")
     units = data.get("units")
-    if units not in UNITS:
-        raise InputError(f'"units" must be one of {", ".join(UNITS)} (got {units!r})', path=path)
+    if not isinstance(units, str) or units not in UNITS:
+        raise InputError(f'"units" must be one of {", ".join(UNITS)} (got {units!r})', path=path,
+                         item="units")
     kind = data.get("kind")
     if kind not in KINDS:
-        raise InputError(f'"kind" must be one of {", ".join(KINDS)} (got {kind!r})', path=path)
+        raise InputError(f'"kind" must be one of {", ".join(KINDS)} (got {kind!r})', path=path,
+                         item="kind")
     name = data.get("name")
     if name is not None and not isinstance(name, str):
-        raise InputError('"name" must be a string', path=path)
+        raise InputError('"name" must be a string', path=path, item="name")
     boundary = data.get("boundary", T_SPLINE_BOUNDARY if kind == "t-spline" else "edge-only")
     allowed = (T_SPLINE_BOUNDARY,) if kind == "t-spline" else CAGE_BOUNDARIES
     if boundary not in allowed:
         raise InputError(f'"boundary" of a {kind} model must be {" or ".join(allowed)} (got {boundary!r})',
-                         path=path)
+                         path=path, item="boundary")
     unknown = set(data) - {"format", "version", "units", "kind", "name", "boundary", "vertices", "faces"}
     if unknown:
-        raise InputError(f"unknown keys {sorted(unknown)} (version {VERSION} files have none)", path=path)
+        raise InputError(f"unknown keys {sorted(unknown)} (version {VERSION} files have none)", path=path,
+                         item=repr(sorted(unknown)[0]))
     verts = data.get("vertices")
     faces = data.get("faces")
     if not isinstance(verts, list) or not verts:
-        raise InputError('"vertices" must be a non-empty list', path=path)
+        raise InputError('"vertices" must be a non-empty list', path=path, item="vertices")
     if not isinstance(faces, list) or not faces:
-        raise InputError('"faces" must be a non-empty list', path=path)
+        raise InputError('"faces" must be a non-empty list', path=path, item="faces")
     P = np.empty((len(verts), 3))
     W = np.ones(len(verts))
     for k, v in enumerate(verts):
@@ -197,6 +191,13 @@ def read_native(path):
         if len(v) == 4:
             W[k] = v[3]
     P *= UNITS[units]
+    bad = first_coordinate_error(P)
+    if bad is not None:
+        raise err(f"vertex {bad[0] + 1}: {bad[1]}", "vertices", bad[0])
+    for k, w in enumerate(W):
+        why = weight_error(w)
+        if why:
+            raise err(f"vertex {k + 1}: {why}", "vertices", k)
     vlines = lines.get("vertices")
     flines = lines.get("faces")
 
@@ -214,6 +215,7 @@ def read_native(path):
                           "faces", k)
             quads.append(f)
         mesh = QuadMesh(np.array(quads), len(P), boundary, path, np.array(flines) if flines else None)
+        # exact by construction: weights as written in the file (absent = 1.0)
         cage = Cage(mesh, P, None if np.all(W == 1.0) else W, {"interpolateboundary": boundary})
         mesh.validate(cage.homogeneous())
         return kind, cage, name
@@ -240,8 +242,9 @@ def read_native(path):
 def native_model(path, **options):
     """The surface model of a native file."""
     kind, control, name = read_native(path)
-    if kind == "catmull-clark":
-        from ..cage import cage_model
-        return cage_model(control, name=name)
-    from ..tspline import tspline_model
-    return tspline_model(control, name=name)
+    with naming(path):
+        if kind == "catmull-clark":
+            from ..cage import cage_model
+            return cage_model(control, name=name)
+        from ..tspline import tspline_model
+        return tspline_model(control, name=name)

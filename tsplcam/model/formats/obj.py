@@ -12,6 +12,7 @@ from __future__ import annotations
 import numpy as np
 
 from ...errors import InputError
+from ...inputfile import coordinate_error, excerpt, split_lines
 from ..cage import Cage
 from ..quadmesh import QuadMesh
 
@@ -19,11 +20,11 @@ _RULES = {1: "edge-and-corner", 2: "edge-only"}
 
 
 def read_obj(path: str, boundary_rule: str | None = None) -> Cage:
-    points, faces, lines = [], [], []
+    points, faces, lines, vlines = [], [], [], []
     rule = None
     try:
         with open(path, "r", encoding="utf-8", errors="replace") as fh:
-            text = fh.read().splitlines()
+            text = split_lines(fh.read())
     except OSError as exc:
         raise InputError(f"cannot read: {exc.strerror}", path=path)
     for ln, raw in enumerate(text, start=1):
@@ -36,7 +37,12 @@ def read_obj(path: str, boundary_rule: str | None = None) -> Cage:
             if kind == "v":
                 if len(tok) < 4:
                     raise InputError("a vertex needs three coordinates", path=path, line=ln)
-                points.append([float(x) for x in tok[1:4]])
+                xyz = [float(x) for x in tok[1:4]]
+                why = coordinate_error(xyz)
+                if why:
+                    raise InputError(f"vertex {len(points) + 1}: {why}", path=path, line=ln)
+                points.append(xyz)
+                vlines.append(ln)
             elif kind == "f":
                 idx = []
                 for t in tok[1:]:
@@ -52,13 +58,26 @@ def read_obj(path: str, boundary_rule: str | None = None) -> Cage:
             elif kind in ("vt", "vn", "vp", "g", "o", "s", "usemtl", "mtllib", "l"):
                 continue
             else:
-                raise InputError(f"unknown record {kind!r}", path=path, line=ln)
+                raise InputError(f"unknown record {excerpt(kind, 40)}", path=path, line=ln)
         except ValueError:
-            raise InputError(f"cannot read numbers in {raw.strip()!r}", path=path, line=ln)
+            raise InputError(f"cannot read numbers in {excerpt(raw)}", path=path, line=ln)
     if not faces:
-        raise InputError("no faces", path=path)
+        raise InputError("no faces (f lines)", path=path, line=max(1, len(text)))
     mesh = QuadMesh(np.array(faces), len(points), boundary_rule or rule or "edge-only", path,
                     np.array(lines))
+    # the cage's own checks in their order (indices, then edges), then unused vertices here,
+    # where their lines are known
+    for f, idx in enumerate(faces):
+        if not all(0 <= i < len(points) for i in idx):
+            raise InputError(f"{mesh.face_name(f)} refers to a vertex that does not exist (there "
+                             f"are {len(points)})", path=path, line=lines[f])
+    mesh.edges  # noqa: B018  (orientation and manifold edges)
+    used = np.zeros(len(points), bool)
+    used[np.array(faces).reshape(-1)] = True
+    if not used.all():
+        k = int(np.nonzero(~used)[0][0])
+        raise InputError(f"vertex {k + 1} is not used by any face ({int((~used).sum())} unused "
+                         f"vertices)", path=path, line=vlines[k])
     return Cage(mesh, np.array(points, dtype=float).reshape(-1, 3), None,
                 {"interpolateboundary": mesh.boundary_rule})
 

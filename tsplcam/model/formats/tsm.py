@@ -44,6 +44,7 @@ import os
 import numpy as np
 
 from ...errors import InputError
+from ...inputfile import COORDINATE_LIMIT, coordinate_error, excerpt, naming, split_lines, weight_error
 
 SKIPPED = {"100001uv", "100001uvr", "50000grip", "105sym", "105plane", "105a", "tol", "ver",
            "geom-tol", "behavior-version", "compat-version"}
@@ -110,7 +111,8 @@ class _Reader:
         except OSError as exc:
             raise self.err(f"cannot read: {exc.strerror}")
         text = raw.decode("latin-1")              # comments may be GBK; records are ASCII
-        lines = text.splitlines()
+        lines = split_lines(text)
+        self.n_lines = len(lines)
         first = next((k for k, l in enumerate(lines) if l.strip()), None)
         if first is None or not lines[first].split() or lines[first].split()[0] != "#TS0200":
             raise self.err("not a T-Splines T-mesh file (the first line must be #TS0200)", 1)
@@ -131,13 +133,14 @@ class _Reader:
                         key = "end-conditions"
                     if key != want:
                         raise self.err(f"the header must give {want!r} here (order: degree, cap-type, "
-                                       f"star-smoothness, units, end conditions); found {tok[0]!r}", ln)
+                                       f"star-smoothness, units, end conditions); found "
+                                       f"{excerpt(tok[0], 40)}", ln)
                     order.pop(0)
                     self._header(key, tok, ln)
                     continue
                 self._record(key, tok, ln)
             except (ValueError, IndexError):
-                raise self.err(f"cannot read the record {body.strip()!r}", ln)
+                raise self.err(f"cannot read the record {excerpt(body)}", ln)
         if order:
             raise self.err(f"the header ends before {order[0]!r}: the file is truncated", len(lines))
         if not any(g is not None for g in self.g):
@@ -158,12 +161,12 @@ class _Reader:
             if not value > 0:
                 raise self.err(f"units {tok[1]}: the unit length must be positive (metres)", ln)
             if name in UNIT_NAMES and abs(UNIT_NAMES[name] - value) > 1e-9 * value:
-                raise self.err(f"units {value:g} does not match the unit name {name!r}", ln)
+                raise self.err(f"units {value:g} does not match the unit name {excerpt(name, 40)}", ln)
             self.scale = value * 1000.0           # to mm
         elif key == "end-conditions":
             value = tok[1] if len(tok) > 1 else ""
             if tok[0] == "end-conditions" or value != "1":
-                raise self.err(f"end conditions {' '.join(tok[1:])!r} are not supported (only "
+                raise self.err(f"end conditions {excerpt(' '.join(tok[1:]), 40)} are not supported (only "
                                f"force-bezier-end-conditions 1)", ln)
 
     def _record(self, key, tok, ln):
@@ -173,10 +176,14 @@ class _Reader:
                 raise self.err(f"face flag {tok[2]} is not supported", ln)
             self.f.append((ln, int(tok[1])) if n > 1 else None)
         elif key == "e":
+            if n > 1 and not 0 <= float(tok[2]) <= COORDINATE_LIMIT:       # NaN fails too
+                raise self.err(f"edge {len(self.e)}: knot interval {tok[2]} is not a number in "
+                               f"[0, {COORDINATE_LIMIT:g}]", ln)
             self.e.append((ln, int(tok[1]), float(tok[2])) if n > 1 else None)
         elif key == "v":
             if n > 1 and tok[2] not in DIRECTIONS:
-                raise self.err(f"vertex direction {tok[2]!r} is not one of NORTH, WEST, SOUTH, EAST", ln)
+                raise self.err(f"vertex direction {excerpt(tok[2], 40)} is not one of NORTH, WEST, SOUTH, "
+                               f"EAST", ln)
             self.v.append((ln, int(tok[1]), DIRECTIONS[tok[2]]) if n > 1 else None)
         elif key == "l":
             self.l.append((ln, *[int(x) for x in tok[1:8]]) if n > 1 else None)
@@ -210,13 +217,16 @@ class _Reader:
                 return
             x, y, z = (float(t) for t in tok[1:4])
             w = float(tok[4]) if n > 4 else 1.0
+            why = coordinate_error([self.scale * x, self.scale * y, self.scale * z]) or weight_error(w)
+            if why:
+                raise self.err(f"control point {len(self.g)}: {why}", ln)
             self.g.append((ln, x, y, z, w))
         elif key == "star-knot-rule":
             self.header["star-knot-rule"] = (tok[1] if n > 1 else "", ln)
         elif key in SKIPPED:
             return
         else:
-            raise self.err(f"record {key!r} is not supported", ln)
+            raise self.err(f"record {excerpt(key, 40)} is not supported", ln)
 
     # -- the .tsm's own T-mesh ----------------------------------------------------------------------
     def link(self, i, ln):
@@ -284,7 +294,7 @@ class _Reader:
             face_lines.append(ln)
             face_ids.append(fi)
         if not loops:
-            raise self.err("no faces")
+            raise self.err("no faces (every face record is empty)", self.n_lines)
         used = sorted({v for loop in loops for v in loop})
         for vi, rec in enumerate(self.v):
             if rec is not None and vi not in set(used):
@@ -295,6 +305,7 @@ class _Reader:
                      corners, intervals, source=self.path,
                      face_lines=face_lines,
                      vertex_labels=[f"vertex {v} (line {self.v[v][0]})" for v in used],
+                     vertex_lines=[self.v[v][0] for v in used],
                      face_labels=[f"face {fi} (line {ln})" for fi, ln in zip(face_ids, face_lines)])
         mesh.validate()
         self.face_ids = face_ids
@@ -381,7 +392,7 @@ class _Reader:
         old = self.topology()
         topo = old.topology
         pos = self.grips(old)
-        P, labels = [], []
+        P, labels, vlines = [], [], []
         G = np.array([g[1:5] if g is not None else (np.nan,) * 4 for g in self.g], float)
         glines = [g[0] if g is not None else None for g in self.g]
         vid = {}                                           # (old vertex, ring-view position) -> new id
@@ -392,6 +403,7 @@ class _Reader:
                 g = pos[k][p]
                 vid[key] = len(P)
                 P.append(G[g])
+                vlines.append(glines[g])
                 if p == (0, 0):
                     labels.append(old.vertex_labels[k] + f", grip {g}")
                 else:
@@ -459,7 +471,8 @@ class _Reader:
                          self.v[self.old_ids[a]][0])
         P = np.array(P, float)
         mesh = TMesh(P[:, :3] * self.scale, P[:, 3], faces, corners, intervals, source=self.path,
-                     face_lines=face_lines, vertex_labels=labels, face_labels=face_labels,
+                     face_lines=face_lines, vertex_lines=vlines, vertex_labels=labels,
+                     face_labels=face_labels,
                      name=os.path.splitext(os.path.basename(self.path))[0])
         mesh.validate()
         used = {pos[k][p] for k, p in vid}
@@ -496,4 +509,5 @@ def read_tsm(path):
 def tsm_model(path, **options):
     from ..tspline import tspline_model
     mesh = read_tsm(path)
-    return tspline_model(mesh, name=mesh.name)
+    with naming(path):
+        return tspline_model(mesh, name=mesh.name)

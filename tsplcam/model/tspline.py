@@ -1,7 +1,7 @@
 """T-spline surfaces: blending functions by ray casting, Bezier extraction, patches.
 
 The surface of a T-mesh (``tmesh.py``) is S = sum w_i B_i P_i / sum w_i B_i
-(METHOD-NOTES section 1, Sederberg et al. 2003). Each blending function is
+(docs/method.md section 1.1, Sederberg et al. 2003). Each blending function is
 B_i(s, t) = N[s_i](s) N[t_i](t), cubic B-spline basis functions whose local knot vectors
 s_i, t_i (five knots each, the vertex in the middle) are read off the T-mesh by ray casting:
 from the vertex along +s, -s, +t, -t, the first two edges crossed give the knots.

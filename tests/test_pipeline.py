@@ -42,7 +42,7 @@ class PathCommand(unittest.TestCase):
             self.assertEqual(out.returncode, 0)
             self.assertEqual(out.errors, "")
             # every CL point (tip and axis) is one of the program's moves as LinuxCNC reads
-            # them, through the machine's forward kinematics (POST-NOTES 2.2)
+            # them, through the machine's forward kinematics (docs/post.md section 1)
             from scipy.spatial import cKDTree
             machine = load_machine("linuxcnc_xyzac_trt")
             joints = out.precise[:, [0, 1, 2, 3, 5]]
@@ -53,7 +53,7 @@ class PathCommand(unittest.TestCase):
             angle = np.arctan2(np.linalg.norm(np.cross(axes[idx], cldata.axis), axis=1),
                                np.einsum("ij,ij->i", axes[idx], cldata.axis))
             # near the pole of the A/C table (axis along C = +Z here) the post holds C and
-            # interpolates (POST-NOTES 2.7.3): there the axis may move by up to the cone
+            # interpolates (docs/post.md section 4): there the axis may move by up to the cone
             cone = np.radians(0.5)
             near_pole = np.arccos(np.clip(cldata.axis[:, 2], -1, 1)) < cone
             self.assertLess(angle[~near_pole].max(), 2e-6, "tool axis off (rad)")

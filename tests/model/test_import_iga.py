@@ -1,7 +1,7 @@
 """.iga T-spline Bezier extraction files: parsing, rational evaluation, recovery of the
 Bezier mesh (T-junctions, extraordinary points), patches and their parametrisation.
 
-References are independent of the kernel: FORMATS.md's measured values, closed forms
+References are independent of the kernel: the measured values of docs/formats.md 1.4, closed forms
 (circles, a global polynomial surface), a direct evaluation of the file's formula
 x = sum_k (sum_a C[a,k] w_a x_a) B_k / sum_k (sum_a C[a,k] w_a) B_k with Bernstein
 polynomials written out here, and finite differences.
@@ -23,14 +23,14 @@ from tsplcam.model.cells import SQUARE_MAPS
 from conftest import external
 
 GEO = ("geopdes",)
-REFERENCE = {   # FORMATS.md: element 0 at (s, t) = (0, 0), (0.5, 0.5), (1, 1)
+REFERENCE = {   # docs/formats.md 1.4: element 0 at (s, t) = (0, 0), (0.5, 0.5), (1, 1)
     "square_structured": [(0.5, 0, 0), (0.75, 0.25, 0), (1, 0.5, 0)],
     "arch_nurbs": [(1, 0, 0), (1.106218539469, 0.204708433964, 0), (1.162235376328, 0.460118386952, 0)],
     "arch_tsplines": [(0, 1.5, 0), (0.068263498853, 1.529727641518, 0), (0.140397559215, 1.556179544708, 0)],
     "square_unstructured": [(0, 0.253115394271, 0), (0.076747755958, 0.297053951316, 0),
                             (0.148234776667, 0.342325464839, 0)],
 }
-EPS = {5: (0.61298, 0.38119), 3: (0.28027, 0.73564)}     # FORMATS.md: valence -> (x, y)
+EPS = {5: (0.61298, 0.38119), 3: (0.28027, 0.73564)}     # docs/formats.md 1.4: valence -> (x, y)
 _CACHE = {}
 
 
@@ -318,7 +318,7 @@ def check_edges(testcase, m, tol=1e-12):
 
 
 class Lifted(unittest.TestCase):
-    """square_unstructured's operators with lifted control points (FORMATS.md): a curved
+    """square_unstructured's operators with lifted control points (docs/formats.md 1.4): a curved
     rational T-spline with the same two extraordinary points."""
 
     @classmethod

@@ -120,7 +120,7 @@ class ExtraordinaryPoints(unittest.TestCase):
         model = tsplcam.load(external("opensubdiv", "catmark_cube.obj"))
         self.assertEqual(len(model.patches), 6)
         self.assertEqual(sum(not e.boundary for e in model.extraordinary), 8)
-        # FORMATS.md: vertex 1 (0, -1.414214, 1) has limit (0, -0.707107, 0.5) and normal
+        # docs/formats.md 3.3: vertex 1 (0, -1.414214, 1) has limit (0, -0.707107, 0.5) and normal
         # (0, -0.816496, 0.577350)
         sp = model.evaluate_faces([0], [0.0], [0.0])
         np.testing.assert_allclose(sp.P[0], [0, -0.707107, 0.5], atol=5e-7)

@@ -1,10 +1,10 @@
 """Orientation on the test parts: the keycap mold half and the impeller.
 
-fcl shows the naive (vertical) axis collides where the issue says it must, every strategy's
-result is collision-free when checked again with the tool as fcl primitives, and smoothing
-lowers the largest angular step and the rotary travel against the per-point closest-to-Z
-rule (shang2020), as xu2013 reports for its impeller. The before/after figures go to
-build/artifacts/orientation_figures.json.
+fcl shows the naive (vertical) axis collides (the holder with the mold's walls, the tool with
+the impeller's overhanging blades), every strategy's result is collision-free when checked
+again with the tool as fcl primitives, and smoothing lowers the largest angular step and the
+rotary travel against the per-point closest-to-Z rule (shang2020), as xu2013 reports for its
+impeller. The before/after figures go to build/artifacts/orientation_figures.json.
 """
 import json
 import unittest

@@ -117,7 +117,7 @@ class RoundTrip(unittest.TestCase):
 
     def test_inverse_time_feeds(self):
         """Every G93 F is 1/t with t = max(length / feed, max over axes |dq| / v_max),
-        recomputed from the program text and the machine file (POST-NOTES 2.6)."""
+        recomputed from the program text and the machine file (docs/post.md section 3.4)."""
         tp = hemisphere_sweep(n=200)
         for machine, dialect in (("bc_head_table_sinumerik", "sinumerik"), ("bc_head_head_fanuc", "fanuc"),
                                  ("linuxcnc_xyzac_trt", "linuxcnc")):

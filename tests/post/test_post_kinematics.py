@@ -1,8 +1,8 @@
 """Machine kinematics of the post stage against independent references.
 
 References: LinuxCNC's own kinematics formulas (xyzac-trt, xyzbc-trt, 5axiskins, maxkins as
-transcribed in POST-NOTES 2.2.2 from src/emc/kinematics), the worked example of POST-NOTES
-2.2.3, and round trips forward(inverse(x)) on thousands of random poses.
+transcribed in docs/post.md section 2.2 from src/emc/kinematics), the worked example of
+docs/post.md section 2.3, and round trips forward(inverse(x)) on thousands of random poses.
 """
 import unittest
 
@@ -111,7 +111,7 @@ class RoundTrips(unittest.TestCase):
 
 
 class ExternalReferences(unittest.TestCase):
-    """POST-NOTES 2.2.3 worked example and LinuxCNC's trt/5axis/max kinematics formulas."""
+    """docs/post.md 2.3's worked example and LinuxCNC's trt/5axis/max kinematics formulas."""
 
     K = np.array([[0.25, 0.5, 0.829156]])
 
@@ -143,7 +143,7 @@ class ExternalReferences(unittest.TestCase):
 
     @staticmethod
     def trt_ac(p, A, C, xr, yr, zr, dy, dz, con):
-        """xyzacKinematicsInverse (trtfuncs.c), POST-NOTES 2.2.2."""
+        """xyzacKinematicsInverse (trtfuncs.c), docs/post.md section 2.2."""
         x, y, z = p[:, 0] - xr, p[:, 1] - yr, p[:, 2] - zr
         sA, cA, sC, cC = np.sin(A), np.cos(A), np.sin(C), np.cos(C)
         X = cC * x + con * sC * y + xr
@@ -153,7 +153,7 @@ class ExternalReferences(unittest.TestCase):
 
     @staticmethod
     def trt_bc(p, B, C, xr, yr, zr, dx, dz, con):
-        """xyzbcKinematicsInverse with the con-aware dpx/dpz of POST-NOTES 2.2.4 (= bookworm at con=-1)."""
+        """xyzbcKinematicsInverse with the con-aware dpx/dpz of docs/post.md 2.4 (= bookworm at con=-1)."""
         x, y, z = p[:, 0] - xr, p[:, 1] - yr, p[:, 2] - zr
         sB, cB, sC, cC = np.sin(B), np.cos(B), np.sin(C), np.cos(C)
         dpx = -cB * dx + con * sB * dz + dx
@@ -165,7 +165,7 @@ class ExternalReferences(unittest.TestCase):
 
     @staticmethod
     def trt_bc_bookworm(p, B, C, xr, yr, zr, dx, dz):
-        """Bookworm f1270d6ed7 xyzbc inverse (con = -1 only), POST-NOTES 2.2.2."""
+        """Bookworm f1270d6ed7 xyzbc inverse (con = -1 only), docs/post.md section 2.4."""
         x, y, z = p[:, 0] - xr, p[:, 1] - yr, p[:, 2] - zr
         sB, cB, sC, cC = np.sin(B), np.cos(B), np.sin(C), np.cos(C)
         dpx = -cB * dx - sB * dz + dx

@@ -89,7 +89,7 @@ class Rs274Interpreter(unittest.TestCase):
 
     def check_inverse_time(self, canon, moves, label):
         """In G93, rs274 turns F into a feed rate over the block: rate = F x XYZ length
-        (or x ABC length for a pure rotary move, POST-NOTES 2.2.5)."""
+        (or x ABC length for a pure rotary move, docs/post.md section 2.5)."""
         rates, rate = [], None
         for line in canon.splitlines():
             m = re.search(r"SET_FEED_RATE\(([-0-9.]+)\)", line)

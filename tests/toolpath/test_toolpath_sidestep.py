@@ -1,4 +1,4 @@
-"""Side-step, cusp and forward-step formulas (POST-NOTES "Formulas" 4.1, 4.2; METHOD-NOTES 3)
+"""Side-step, cusp and forward-step formulas (docs/method.md sections 3.2-3.4, 3.7)
 and the curvature sign convention, against closed forms written here from the geometry."""
 import unittest
 
@@ -70,7 +70,7 @@ class SignConvention(unittest.TestCase):
 class Formulas(unittest.TestCase):
 
     def test_post_notes_numbers(self):
-        # POST-NOTES 4.1: R=3, rho=8, h=0.02: exact 0.58915 convex, 0.87610 concave;
+        # docs/method.md 3.2: R=3, rho=8, h=0.02: exact 0.58915 convex, 0.87610 concave;
         # approximations 0.59084, 0.87636
         self.assertAlmostEqual(float(side_step(3.0, 0.02, -1 / 8)), 0.58915, places=5)
         self.assertAlmostEqual(float(side_step(3.0, 0.02, 1 / 8)), 0.87610, places=5)

@@ -113,7 +113,7 @@ class ClosedForms(unittest.TestCase):
             cusp = Rc * np.cos(dth / 2) - root - R if outward else R - (Rc * np.cos(dth / 2) + root)
             self.assertTrue(np.all(cusp <= h * (1 + 1e-9)), (outward, cusp.max() / h))
             self.assertGreater(cusp.mean(), 0.9 * h)
-            # every gap but the last is at least the exact side step (POST-NOTES 4.1) for the
+            # every gap but the last is at least the exact side step (docs/method.md 3.2) for the
             # bottom of the accept window (0.97 of the 0.995 h the generator aims under)
             from tsplcam.toolpath.sidestep import side_step
             g_lo = float(side_step(r, 0.97 * 0.995 * h, -sgn / R))

@@ -68,7 +68,7 @@ class FlatCusps(unittest.TestCase):
         # edges where the links between the lines cut the cusps down
         rep = measure(self.path, self.model, scallop=self.h, spacing=0.0371, region=(0, 1, 0.2, 0.8))
         self.assertAlmostEqual(rep.mean_material / ref, 1.0, delta=0.01)
-        self.assertAlmostEqual(ref / self.h, 1 / 3, delta=0.01)       # the h/3 of the issue
+        self.assertAlmostEqual(ref / self.h, 1 / 3, delta=0.01)       # a circular cusp's mean is about h/3
 
     def test_no_gouge_on_exact_path(self):
         self.assertLess(self.rep.gouge_points, 1e-12)

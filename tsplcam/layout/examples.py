@@ -2,8 +2,8 @@
 
 Built by hand with :meth:`Layout.from_quads` (corners 0..3 counter-clockwise seen from the
 tool side: lower-left, lower-right, upper-right, upper-left), with node positions in mm so
-each can later become a real sample surface. The lead checks that the real sample models
-(``tsplcam.model``) produce the same graphs.
+each can later become a real sample surface. tests/model/test_samples.py checks that the
+real sample models (``tsplcam.model``) produce the same graphs.
 
 ``EXAMPLES`` maps the names the command line accepts to the functions.
 """

@@ -1,6 +1,6 @@
 """Differential geometry of evaluated surface points, vectorised.
 
-Formulas (METHOD-NOTES section 1, which corrects shang2020 eq. (2)):
+Formulas (docs/method.md sections 1.4-1.5, which correct shang2020 eq. (2)):
   S = B/W, S_u = (B_u - W_u S)/W, S_uu = (B_uu - 2 W_u S_u - W_uu S)/W,
   S_uv = (B_uv - W_uv S - W_u S_v - W_v S_u)/W;
   n = S_u x S_v / |S_u x S_v|; E = S_u.S_u, F = S_u.S_v, G = S_v.S_v;
@@ -151,7 +151,7 @@ class SurfacePoints:
 
         ``along='v'``: lines of constant u (feed along v); the cross direction is
         S_u - (F/G) S_v and k = (L G^2 - 2 M F G + N F^2) / (G (E G - F^2))
-        (METHOD-NOTES section 3). ``along='u'``: lines of constant v, symmetric formula.
+        (docs/method.md section 3.3). ``along='u'``: lines of constant v, symmetric formula.
         """
         E, F, G, L, M, N = self.E, self.F, self.G, self.L, self.M, self.N
         det = self._safe_det()

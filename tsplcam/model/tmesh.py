@@ -1,7 +1,7 @@
 """T-meshes: control points with weights, faces with T-junctions, knot intervals on edges.
 
 A ``TMesh`` is the control structure of a T-spline (Sederberg et al. 2003, "T-splines and
-T-NURCCs"; shang2020 section 2.1; METHOD-NOTES section 1):
+T-NURCCs"; shang2020 section 2.1; docs/method.md section 1.1):
 
 * ``points`` (n, 3) in mm and ``weights`` (n,) > 0: one control point per vertex;
 * ``faces``: vertex loops, counter-clockwise seen from the side the normal points to. Every

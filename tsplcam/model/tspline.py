@@ -1,8 +1,8 @@
 """T-spline surfaces: the surface of a T-mesh as patches of Bezier (and extraordinary) cells.
 
-The surface of a T-mesh (``tmesh.py``) is S = sum w_i B_i P_i / sum w_i B_i (Sederberg et al.
-2003, "T-splines and T-NURCCs"). ``tspline_model`` builds it in steps, each in the module
-named for it:
+The surface of a T-mesh (``tmesh.py``) is S = sum w_i B_i P_i / sum w_i B_i
+(docs/method.md section 1.1; Sederberg et al. 2003, "T-splines and T-NURCCs").
+``tspline_model`` builds it in steps, each in the module named for it:
 
 1. ``knots.check_clamped``: boundaries need zero outer knot intervals;
 2. ``extraordinary.find_extraordinary``: the extraordinary points (T-NURCC rule) and the

@@ -9,7 +9,7 @@ inclination toward the feed direction ``f`` and the tilt its inclination sideway
 (``s = n x f``): ``lead = atan2(a.f, a.n)``, ``tilt = atan2(a.s, a.n)`` (the Sinumerik
 LEAD/TILT convention); a candidate is kept when both are within their limits.
 
-Rotary reach (POST-NOTES 2.2.3): for a machine whose C axis is +Z in the part frame the
+Rotary reach (docs/post.md section 1): for a machine whose C axis is +Z in the part frame the
 angle between the tool axis and +Z is the magnitude of the tilt axis value; with the two
 inverse solutions (tilt, C) and (-tilt, C + 180 deg) an axis is reachable when either
 solution is within the tilt limits (and the C limits when C is not endless). The machine

@@ -14,7 +14,7 @@ point, patch, (u, v) and what the tool hits.
   discrete candidate).
 * ``smooth``: xu2013 replaces the per-point choice by a smooth sequence picked from a cone of
   candidates per point. Here that choice is global and exact over the discrete candidates:
-  a Viterbi dynamic programme minimising, along the path (METHOD-NOTES 4),
+  a Viterbi dynamic programme minimising, along the path (docs/method.md section 4.4),
 
       J = sum_i  L * dtheta_i^2 / ds_i  +  sum_i  dev_i^2 * ds_i / L
 
@@ -197,7 +197,7 @@ def _spacing(path) -> np.ndarray:
     return np.maximum(ds, 1e-3)
 
 
-SINGULAR_CONE = 0.5 * DEG      # the post holds the rotary axis within this of +Z (POST-NOTES 2.7)
+SINGULAR_CONE = 0.5 * DEG      # the post holds the rotary axis within this of +Z (docs/post.md 4)
 
 
 def _azimuth(A: np.ndarray, reach) -> np.ndarray:

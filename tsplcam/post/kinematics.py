@@ -16,18 +16,19 @@ Chain (rigid rotations about the axis lines, ``R = rot(about, sign * (value - ze
 
 For every kind ``K = Rz(phi) R_tilt(theta) z`` with ``theta = e_t s_t (T - zero_t)``,
 ``phi = e_c s_c (C - zero_c)``, ``e = -1`` for a table axis, ``+1`` for a head axis. With ISO
-signs this is POST-NOTES 2.1 (A/C: ``K = (sin C sin A, -cos C sin A, cos A)``); with LinuxCNC's
-unconventional directions it is the table of POST-NOTES 2.2.3. Inverse: ``theta =
-atan2(hypot(Kx, Ky), Kz)``, ``phi = atan2(Kx, -Ky)`` (tilt about X) or ``atan2(Ky, Kx)``
-(about Y); the second solution is ``(-theta, phi + 180 deg)``.
+signs this is docs/post.md section 1 (A/C: ``K = (sin C sin A, -cos C sin A, cos A)``);
+with LinuxCNC's unconventional directions it is the table of docs/post.md section 2.3.
+Inverse: ``theta = atan2(hypot(Kx, Ky), Kz)``, ``phi = atan2(Kx, -Ky)`` (tilt about X) or
+``atan2(Ky, Kx)`` (about Y); the second solution is ``(-theta, phi + 180 deg)``.
 
 :func:`solve_joints` picks one solution per point: dynamic programming over the branches
 (and, for a C axis with a short range, its 360-degree representatives) minimising the
 rotary motion time, unwinding an endless C (no 360-degree swings), holding and
 interpolating the free angle inside a small cone around the singular pose (tool axis along
-C) as POST-NOTES 2.7 describes, and refusing (never clipping) a pose outside the limits.
+C) as docs/post.md section 4 describes, and refusing (never clipping) a pose outside the
+limits.
 :func:`linearise` inserts points where joint-space interpolation would take the tip off the
-programmed line (POST-NOTES 2.7(4)).
+programmed line (docs/post.md section 4).
 """
 from __future__ import annotations
 
@@ -505,7 +506,7 @@ def joint_deviation(machine: Machine, joints, tip, blocks, tool_length=None, par
 def linearise(machine: Machine, joints, tip, source, feed, tolerance: float, *, tool_length=None,
               part_origin=None, angle_decimals: int | None = None, max_rounds: int = 40):
     """Insert points until the joint-interpolated tip stays within ``tolerance`` (mm) of
-    every programmed feed segment (POST-NOTES 2.7(4)).
+    every programmed feed segment (docs/post.md section 4).
 
     ``feed[k]`` marks the block arriving at point k as a feed move (rapids are left alone).
     An inserted point lies on the segment; its rotary values are the joint midpoint (rounded

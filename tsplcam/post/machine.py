@@ -39,7 +39,7 @@ KINDS = ("table-table", "head-table", "head-head")
 CONTROLLERS = ("heidenhain", "sinumerik", "fanuc", "linuxcnc")
 LINEAR_NAMES = ("X", "Y", "Z")
 AXIS_INDEX = {"X": 0, "Y": 1, "Z": 2}
-# LinuxCNC trt kinematics modules (POST-NOTES 2.2.1-2.2.2) and the pins each one reads.
+# LinuxCNC trt kinematics modules (docs/post.md sections 2.1-2.2) and the pins each one reads.
 LINUXCNC_KINS = {
     "xyzac-trt-kins": ("x-rot-point", "y-rot-point", "z-rot-point", "y-offset", "z-offset",
                        "tool-offset", "conventional-directions"),
@@ -69,8 +69,8 @@ class RotaryAxis:
 
     The element it carries (table with the part, or spindle head) turns right-handed about
     ``about`` by ``sign * (value - zero)`` degrees. ISO/RS274 directions are ``sign = -1``
-    for a table axis and ``+1`` for a head axis (POST-NOTES 2.1); LinuxCNC's trt modules
-    without conventional directions turn the table by ``+value`` (``sign = +1``).
+    for a table axis and ``+1`` for a head axis (docs/post.md section 1); LinuxCNC's trt
+    modules without conventional directions turn the table by ``+value`` (``sign = +1``).
     ``pivot`` is a point of the axis line at home (all axes at zero), in machine coordinates
     for a table axis and relative to the spindle gauge point for a head axis (mm).
     ``min``/``max`` are None for an endless axis (``continuous``); its values are written
@@ -374,7 +374,7 @@ def machine_from_dict(doc: dict, path: str | None = None) -> Machine:
         r.fail(f"rotary_axes.{tilt.name}.continuous", "a tilt axis needs min and max")
 
     if lc is not None:
-        # Same numbers as the HAL pins (POST-NOTES 2.2.2): C turns about the line through the
+        # Same numbers as the HAL pins (docs/post.md 2.1): C turns about the line through the
         # rot-point, the tilt axis about the line through rot-point + (x|y)-offset + z-offset;
         # unconventional directions (pin 0) turn the table by +value.
         xr, yr, zr = lc["x-rot-point"], lc["y-rot-point"], lc["z-rot-point"]

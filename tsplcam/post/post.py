@@ -3,7 +3,7 @@
 :func:`post_program` solves the machine poses of the path (kinematics.solve_joints), adds
 the approach along the tool axis from a safe height and the retract, linearises for joint-
 space dialects, gives every feed block its time (path length over feed, or longer when an
-axis velocity limit says so; POST-NOTES 2.6), estimates the machining time
+axis velocity limit says so; docs/post.md section 3.4), estimates the machining time
 (timing.estimate) and lets the dialect write the text.
 """
 from __future__ import annotations

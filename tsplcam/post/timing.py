@@ -1,6 +1,6 @@
 """Machining-time estimate from the per-axis velocity and acceleration limits.
 
-Model (POST-NOTES 4.3): the program is a chain of straight blocks in joint space. Block k
+Model (docs/post.md section 5.3): the program is a chain of straight blocks in joint space. Block k
 moves axis j by ``d[k, j]`` and may not take less than ``t_min[k]`` (tip length over the
 programmed feed; 0 for rapids). Each axis runs a trapezoidal profile per block, capped at
 ``min(v_j, |d_kj| / t_min_k)``; an axis keeps its speed across a junction only when it keeps

@@ -10,8 +10,8 @@ overcut) or outside it (concave: material left). The points are placed so that
   the side-step target by the same amount, so chords cannot push a cusp over h),
 * the sideways deviation at most ``tol_in``, and no step is longer than ``max_step``.
 
-Placement (the paper is silent here, METHOD-NOTES 3): a density from the curvature
-(POST-NOTES 4.2, ``L = sqrt(8 tol / (|k| (1 - r k_f)))``) on dense samples, integrated and
+Placement (the paper is silent here, docs/method.md 3.7): a density from the curvature
+(``L = sqrt(8 tol / (|k| (1 - r k_f)))``) on dense samples, integrated and
 inverted for a first set of points; then every segment is measured at its middle against
 the real centre curve and split in two while it deviates more than allowed.
 """

@@ -1,5 +1,5 @@
 """Where the isoparametric lines of one patch go: side steps under a scallop limit and
-parity tuning (shang2020 section 3.5; METHOD-NOTES section 3).
+parity tuning (shang2020 section 3.5; docs/method.md sections 3.1-3.6).
 
 Every patch is machined in a *line frame* (s, t): lines are s = const and run along t;
 s = 0 is the start corner's side, s = 1 the far side. For crossfeed ``u`` (lines of
@@ -8,8 +8,8 @@ constant u), s is u or 1 - u and t is v; for crossfeed ``v`` the roles swap.
 Side step, in two stages:
 
 1. The paper's estimate: at samples of the current line, the exact side step for the
-   cross curvature (:func:`~tsplcam.toolpath.sidestep.side_step`, POST-NOTES 4.1), mapped
-   to the parameter with ``ds = g sqrt(G)/sqrt(EG - F^2)`` (METHOD-NOTES 3), minimum over the
+   cross curvature (:func:`~tsplcam.toolpath.sidestep.side_step`, docs/method.md 3.2), mapped
+   to the parameter with ``ds = g sqrt(G)/sqrt(EG - F^2)`` (docs/method.md 3.4), minimum over the
    samples. This is first order in the parameter and blind to how the metric changes
    between the lines.
 2. A correction on the real geometry (what this module adds): for a candidate next line
@@ -83,7 +83,7 @@ class FrameGeom:
 
     def cross_curvature(self) -> np.ndarray:
         """Normal curvature across a line s = const, i.e. along S_s - (F/G) S_t
-        (METHOD-NOTES 3): (L G^2 - 2 M F G + N F^2) / (G (E G - F^2))."""
+        (docs/method.md 3.3): (L G^2 - 2 M F G + N F^2) / (G (E G - F^2))."""
         with np.errstate(divide="ignore", invalid="ignore"):
             k = (self.L * self.G ** 2 - 2 * self.M * self.F * self.G + self.N * self.F ** 2) / (
                 self.G * self.det)
@@ -160,7 +160,7 @@ class LineFrame:
 
 def check_reachable(frame: LineFrame, geom: FrameGeom, r: float) -> None:
     """GeometryError when a concave curvature at the samples is 1/r or more: a ball of
-    radius r cannot touch there without cutting the surface around (METHOD-NOTES 3)."""
+    radius r cannot touch there without cutting the surface around (docs/method.md 3.2)."""
     k1 = geom.principal_max()
     bad = k1 * r >= 1.0 - 1e-9
     if bad.any():

@@ -1,11 +1,11 @@
 """Side step, cusp height and forward step of a ball-end mill, vectorised.
 
-Sign convention (METHOD-NOTES section 3, POST-NOTES "Formulas"): curvatures are normal
+Sign convention (docs/method.md sections 1.5 and 3.2): curvatures are normal
 curvatures with the surface normal pointing *to the tool side*; convex is negative
 (a sphere machined from outside, outward normal: k = -1/R), concave positive.
 
 * :func:`side_step` -- exact side step on a surface of constant cross curvature
-  (POST-NOTES 4.1). Both exact cases, convex and concave, reduce to one stable formula:
+  (docs/method.md 3.2). Both exact cases, convex and concave, reduce to one stable formula:
   in the triangle (centre of curvature, ball centre, cusp) the law of cosines gives
   ``sin^2(theta/4) = (2 r h - h^2) / (4 rho^2 (1 - r k)(1 - h k))``, ``g = rho theta``, i.e.
   ``g = 4 X asin(|k| X) / (|k| X)`` with ``X = sqrt((2 r h - h^2) / (4 (1 - r k)(1 - h k)))``.
@@ -13,10 +13,10 @@ curvatures with the surface normal pointing *to the tool side*; convex is negati
   is its first-order form.)
 * :func:`cusp_height` -- the inverse: the scallop left by two balls whose *centres* are a
   distance ``w`` apart on a surface of curvature k (exact on a circle).
-* :func:`parameter_step` -- METHOD-NOTES section 3 (replacing the paper's garbled eq. (6)):
+* :func:`parameter_step` -- docs/method.md 3.4 (replacing the paper's garbled eq. (6)):
   the distance between iso-lines s and s + ds is ``|S_s x S_t| / |S_t| ds``, so
   ``ds = g sqrt(G) / sqrt(E G - F^2)`` for lines of constant s (feed along t).
-* :func:`forward_step` -- POST-NOTES 4.2: the chord of the *ball-centre* path between two
+* :func:`forward_step` -- docs/method.md 3.7: the chord of the *ball-centre* path between two
   contact points a distance L apart sags ``L^2 |k_f| (1 - r k_f) / 8``; a lateral (geodesic)
   curvature k_g of the line adds ``L^2 |k_g| (1 - r k_f) / 8`` sideways.
 """
@@ -64,14 +64,14 @@ def cusp_height(r: float, w, k) -> np.ndarray:
 
 
 def first_order_side_step(r: float, h, k) -> np.ndarray:
-    """The paper's (and METHOD-NOTES') approximation ``sqrt(8 h r R / (R + s r))`` written
-    with the signed curvature: ``sqrt(8 h r / (1 - r k))``."""
+    """The paper's eq. (5), the first-order approximation ``sqrt(8 h r R / (R + s r))``
+    (docs/method.md 3.2), written with the signed curvature: ``sqrt(8 h r / (1 - r k))``."""
     return np.sqrt(8.0 * np.asarray(h, float) * r / (1.0 - r * np.asarray(k, float)))
 
 
 def parameter_step(g, E, F, G) -> np.ndarray:
     """Parameter step ``ds`` across lines of constant s for a side step g in space
-    (METHOD-NOTES section 3): ``g sqrt(G) / sqrt(E G - F^2)`` with E, F, G in (s, t)."""
+    (docs/method.md 3.4): ``g sqrt(G) / sqrt(E G - F^2)`` with E, F, G in (s, t)."""
     det = np.asarray(E) * np.asarray(G) - np.asarray(F) ** 2
     with np.errstate(divide="ignore", invalid="ignore"):
         return np.where(det > 0, np.asarray(g) * np.sqrt(np.asarray(G) / np.where(det > 0, det, 1.0)),
@@ -80,7 +80,7 @@ def parameter_step(g, E, F, G) -> np.ndarray:
 
 def forward_step(r: float, tol, k_f, k_g=0.0) -> np.ndarray:
     """Contact-point step L (mm) along a line whose ball-centre chord deviates at most ``tol``
-    (POST-NOTES 4.2): ``sqrt(8 tol / (kappa (1 - r k_f)))`` with kappa the larger of |k_f|
+    (docs/method.md 3.7): ``sqrt(8 tol / (kappa (1 - r k_f)))`` with kappa the larger of |k_f|
     and |k_g|; infinite on a straight flat line."""
     k_f = np.asarray(k_f, float)
     kappa = np.maximum(np.abs(k_f), np.abs(np.asarray(k_g, float)))

@@ -1,5 +1,5 @@
 """One finishing path over the whole model: isoparametric zigzags patch after patch, as the
-processing list says (shang2020 section 3.5; METHOD-NOTES section 3).
+processing list says (shang2020 section 3.5; docs/method.md section 3).
 
 For each step (patch, start corner, finish corner, crossfeed) of the processing list:
 

@@ -1,4 +1,4 @@
-"""Path figures (POST-NOTES 4.3, first rows): lengths by kind of move, retractions, points.
+"""Path figures (docs/post.md section 5.1): lengths by kind of move, retractions, points.
 
 A move is *air* when either of its ends is off the surface (patch -1: retract, rapid and
 the approach back down), *link* when it is a LINK between two surface points, *cut*

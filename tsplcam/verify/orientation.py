@@ -1,4 +1,4 @@
-"""Metrics of an oriented tool path (POST-NOTES 4.3): collisions, clearance, smoothness,
+"""Metrics of an oriented tool path (docs/post.md section 5.2): collisions, clearance, smoothness,
 rotary travel and machining time.
 
 * collisions: poses whose flutes, shank or holder touch the workpiece, asked of fcl with
@@ -12,7 +12,7 @@ rotary travel and machining time.
   total variation; per mm.
 * rotary travel for an A/C table machine: ``sum |dA| + |dC|`` with the machine poses of
   tsplcam.post (branch choice and C unwinding by its dynamic programme), or, without a
-  machine, with A = acos(Kz), C = atan2(Kx, -Ky) (ISO A/C, POST-NOTES 2.2.3) unwound.
+  machine, with A = acos(Kz), C = atan2(Kx, -Ky) (ISO A/C, docs/post.md section 1) unwound.
 * time: with a machine, tsplcam.post.timing.estimate (per-axis velocity and acceleration
   limits on the machine's joint moves, tip length over feed as each block's minimum);
   without one, the simple model ``t_i = max(L_i / F, |dA_i| / vA, |dC_i| / vC)``.
@@ -104,7 +104,7 @@ def min_clearance(checker, centers, axes, levels=(0.05, 0.1, 0.2, 0.5, 1.0, 2.0,
 
 
 def _simple_ac(axis):
-    """ISO A/C angles (deg) per POST-NOTES 2.2.3, C unwound, held through the pole."""
+    """ISO A/C angles (deg) (docs/post.md section 1), C unwound, held through the pole."""
     K = np.asarray(axis, float)
     A = np.degrees(np.arctan2(np.hypot(K[:, 0], K[:, 1]), K[:, 2]))
     C = np.degrees(np.arctan2(K[:, 0], -K[:, 1]))

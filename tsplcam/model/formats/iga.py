@@ -1,5 +1,5 @@
 """``.iga`` files: T-spline Bezier extraction as written by the Rhino T-splines plug-in
-(FORMATS.md section 1).
+(docs/formats.md section 1).
 
 Grammar (one record per line; blank lines and ``#`` lines are comments; CRLF is fine;
 tags are case-insensitive and ``=`` counts as a separator, as in MSolve's reader)::
@@ -14,8 +14,8 @@ tags are case-insensitive and ``=`` counts as a separator, as in MSolve's reader
 Row a of an element's operator C holds the Bernstein coefficients of global function
 idx_a; Bernstein index k = j (p+1) + i with i along s (s fastest). The element is the
 rational Bezier patch with homogeneous control points Q_k = sum_a C[a, k] w_a (x_a, 1)
-(FORMATS.md: rational evaluation is mandatory; the column sums of C are not 1 next to
-extraordinary points). LEFT/RIGHT/BOTTOM/TOP are s=0/s=1/t=0/t=1.
+(docs/formats.md section 1.2: rational evaluation is mandatory; the column sums of C are
+not 1 next to extraordinary points). LEFT/RIGHT/BOTTOM/TOP are s=0/s=1/t=0/t=1.
 
 ``volume`` and ``thickened_surface`` files are refused. Lines that start with a space are
 read like any other (GeoPDEs skips them as comments; no real file relies on that). Every

@@ -1,4 +1,4 @@
-"""Wavefront OBJ quad cages with OpenSubdiv's tag lines (FORMATS.md section 3).
+"""Wavefront OBJ quad cages with OpenSubdiv's tag lines (docs/formats.md section 3).
 
 Reads ``v``, ``f v[/vt[/vn]]`` (1-based, negative indices relative), and the tags
 ``t interpolateboundary 1/0/0 <0|1|2>`` (1 = edge-and-corner, 2 = edge-only, the default

@@ -1,4 +1,4 @@
-"""Autodesk T-Splines T-meshes (``.tsm``, ``#TS0200``; FORMATS.md section 2).
+"""Autodesk T-Splines T-meshes (``.tsm``, ``#TS0200``; docs/formats.md section 2).
 
 What the records mean (facts from the files and from GrapeTec's T-SPLINE reader,
 ``rhparser``/``rhspreader``; no code taken from it):

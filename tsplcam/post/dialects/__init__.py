@@ -139,7 +139,7 @@ def tcp_columns(job) -> tuple[list, list, bool]:
 def iso_motion(mo, words, inverse_time: bool, feed_decimals: int, first: str = "") -> list:
     """G0/G1 blocks of an ISO program: ``words[i]`` is block i's coordinates; ``first`` goes
     before the first block's words (e.g. Fanuc's G43.4 H1). Inverse time (G93, F on every
-    block, POST-NOTES 2.6) or modal F per minute; G94 restored at the end."""
+    block, docs/post.md section 3.4) or modal F per minute; G94 restored at the end."""
     out, mode, last_f = [], None, None
     for i in range(len(mo)):
         lead = first if i == 0 else ""

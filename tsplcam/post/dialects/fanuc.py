@@ -5,7 +5,7 @@
 always all three written, ``orientation = "vector"``), cancelled by ``G49``; retract with
 ``G53`` (machine coordinates); ``G93`` inverse-time feed (F = 1/min on every G1) when
 ``inverse_time`` is set, clamped to the control's range ``inverse_time_max`` (9999.999 on
-the Fanuc 16/18 manual) (POST-NOTES 2.3, 2.6). Comments are upper case in parentheses.
+the Fanuc 16/18 manual) (docs/post.md sections 3.3, 3.4). Comments are upper case in parentheses.
 """
 from __future__ import annotations
 

@@ -5,8 +5,8 @@ Program frame ``BEGIN PGM name MM`` / ``END PGM``, blank ``BLK FORM 0.1 / 0.2``,
 then ``FUNCTION TCPM F TCP AXIS POS PATHCTRL AXIS`` (``tcp = "FUNCTION TCPM"``, with
 ``REFPNT`` when set) or ``M128`` (``tcp = "M128"``) and the path as ``L X Y Z A C`` blocks
 (or ``LN X Y Z TX TY TZ`` with ``orientation = "vector"``), F as tool-point feed (no
-inverse time on the TNC), ``FMAX`` for rapids (POST-NOTES 2.4). Numbers follow the TNC input
-format: 4 decimals for positions and angles, up to 8 for vector components; every value
+inverse time on the TNC), ``FMAX`` for rapids (docs/post.md section 3.1). Numbers follow the
+TNC input format: 4 decimals for positions and angles, up to 8 for vector components; every value
 carries its sign.
 """
 from __future__ import annotations

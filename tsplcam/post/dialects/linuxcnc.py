@@ -1,11 +1,11 @@
 """LinuxCNC (rs274ngc) in joint coordinates for a trt table machine.
 
 The program commands machine axes X Y Z A C directly (identity kinematics, e.g. the
-``sparm=identityfirst`` default of the xyzac-trt sim; POST-NOTES 2.2.1): tsplcam's inverse
+``sparm=identityfirst`` default of the xyzac-trt sim; docs/post.md section 2.1): tsplcam's inverse
 kinematics is the same as ``xyzac-trt-kins`` with the pins of the machine file, the tool
 length comes from the tool table through ``G43``, and points are inserted where joint
 interpolation would leave the programmed line (linearisation). Inverse-time feed ``G93``
-(an F word on every G1, POST-NOTES 2.2.5) gives each block its time; ``G94`` otherwise,
+(an F word on every G1, docs/post.md section 2.5) gives each block its time; ``G94`` otherwise,
 with F in the joint-space units LinuxCNC uses. G54 and G92 are cleared because a
 joint-space program is only right with the part where the machine file puts it.
 """

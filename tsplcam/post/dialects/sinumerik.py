@@ -4,7 +4,7 @@ Retract with ``G0 SUPA Z.. D0`` (machine coordinates), tool change, rotaries pre
 then ``TRAORI``, ``ORIWKS`` and ``ORIAXES`` with machine angles (``orientation = "angles"``)
 or ``ORIVECT`` with the tool vector ``A3= B3= C3=`` pointing to the tool adapter
 (``orientation = "vector"``, always all three components), ``G93`` inverse-time feed (F is
-1/min, on every G1) when ``inverse_time`` is set, ``TRAFOOF`` at the end (POST-NOTES 2.5).
+1/min, on every G1) when ``inverse_time`` is set, ``TRAFOOF`` at the end (docs/post.md section 3.2).
 """
 from __future__ import annotations
 

@@ -13,14 +13,16 @@ chordal tolerance plus the requested clearance). So a pose the checker passes ke
 true tool at least ``clearance`` away from the true surface, and a reported collision is
 at most ``margin`` + the polygon excess (``polygon_tolerance``) from a real touch. The
 same parts also exist as fcl primitives (``fcl.Cylinder``, and ``fcl.Convex`` frustums):
-:meth:`CollisionChecker.collides_exact` uses them as the independent reference the tests
+:meth:`CollisionChecker.collides_primitives` uses them as the independent reference the tests
 compare against; the mesh form answers about four times faster (one BVH-BVH query per
 pose instead of one GJK traversal per part).
 
-Why no broad-phase manager: python-fcl's ``DynamicAABBTreeCollisionManager`` calls back
-into Python for every overlapping pair, so it cannot beat one ``fcl.collide`` per pose
-when the workpiece is a single BVH (every tool pose overlaps its box). Batches are
-therefore plain loops over poses with the transforms computed in numpy beforehand.
+Broad phase: :mod:`tsplcam.orientation.broadphase` decides most poses of a batch at once
+in numpy (a proof that the pose is free, or that it collides, from distance bounds to the
+mesh, empty balls per ball centre and samples of the mesh inside the tool); only the poses it
+cannot decide go to fcl, one ``fcl.collide`` per pose (python-fcl's broad-phase managers
+call back into Python for every overlapping pair, so they cannot beat that loop when the
+workpiece is a single BVH). ``broad_phase=False`` asks fcl for every pose (the reference).
 
 The ball: it touches the surface at the contact by construction, so it is left out of the
 per-axis checks (it does not depend on the axis). :meth:`ball_gouges` checks it once per
@@ -36,6 +38,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..errors import GeometryError, InputError
+from .broadphase import HIT, UNKNOWN, BroadPhase, Profile
 from .tool import Tool
 
 try:                                   # python-fcl is a dependency of this stage only
@@ -183,24 +186,33 @@ def _part_margin(name: str, margin: float, cutting_margin: float | None) -> floa
 
 
 def tool_mesh(tool: Tool, margin: float = 0.0, polygon_tolerance: float = 0.01,
-              cutting_margin: float | None = None):
+              cutting_margin: float | None = None, swing: float = 0.0):
     """Closed triangle mesh of the tool parts (tool frame: ball centre at the origin, axis +z),
     each radius grown by ``margin`` (the flutes by ``cutting_margin`` when given) and
-    circumscribed. Returns (V, T, part_of_triangle, names)."""
+    circumscribed. ``swing`` (rad) grows every part further, radially and at both ends, by
+    ``swing`` times its farthest distance from the ball centre: turning the axis by up to
+    ``swing`` about the ball centre keeps the part inside (a point at distance l moves at
+    most l swing), so a pose this tool passes is passed by every axis in that cone.
+    Returns (V, T, part_of_triangle, names)."""
     parts = tool.parts()
     V, T, owner = [], [], []
     names = [p.name for p in parts]
     for k, p in enumerate(parts):
         g = _part_margin(p.name, margin, cutting_margin)
         r0, r1 = p.r0 + g, p.r1 + g
+        z0, z1 = p.z0, p.z1
+        if swing > 0.0:
+            n = polygon_segments(max(r0, r1), polygon_tolerance)
+            d = swing * np.hypot(max(abs(z0), abs(z1)), max(r0, r1) / np.cos(np.pi / n))
+            r0, r1, z0, z1 = r0 + d, r1 + d, z0 - d, z1 + d
         n = polygon_segments(max(r0, r1), polygon_tolerance)
         a = np.arange(n) * 2 * np.pi / n
         s = 1.0 / np.cos(np.pi / n)                       # circumscribed: edge midpoints on the circle
         ring = np.column_stack([np.cos(a), np.sin(a)]) * s
         base = sum(len(v) for v in V)
-        bottom = np.column_stack([ring * r0, np.full(n, p.z0)])
-        top = np.column_stack([ring * r1, np.full(n, p.z1)])
-        V.append(np.vstack([bottom, top, [[0, 0, p.z0], [0, 0, p.z1]]]))
+        bottom = np.column_stack([ring * r0, np.full(n, z0)])
+        top = np.column_stack([ring * r1, np.full(n, z1)])
+        V.append(np.vstack([bottom, top, [[0, 0, z0], [0, 0, z1]]]))
         i = np.arange(n)
         j = (i + 1) % n
         tri = np.concatenate([np.column_stack([i, j, n + j]), np.column_stack([i, n + j, n + i]),
@@ -248,6 +260,9 @@ def axis_quaternions(axes: np.ndarray) -> np.ndarray:
     return q / np.linalg.norm(q, axis=1, keepdims=True)
 
 
+SWING = np.radians(1.0)        # cone of axes a pose decided by fcl certifies (see tool_mesh)
+
+
 def _bvh(V, T):
     m = fcl.BVHModel()
     m.beginModel(len(T), len(V))
@@ -278,12 +293,14 @@ class CollisionChecker:
     ``meshes``: extra (name, vertices, triangles) obstacles (stock, fixture, neighbouring
     blades); ``clearance``: distance the shank and holder must keep (mm);
     ``gouge_tolerance``: depth below which the ball is not reported as gouging
-    (must be at least twice ``tolerance``). Poses are given by ball centres and unit axes.
+    (must be at least twice ``tolerance``); ``broad_phase``: decide what the numpy broad
+    phase can prove before asking fcl (same answers, see the module doc). Poses are given by
+    ball centres and unit axes.
     """
 
     def __init__(self, model, tool: Tool, meshes=(), tolerance: float = 0.005,
                  clearance: float = 0.0, gouge_tolerance: float | None = None,
-                 polygon_tolerance: float = 0.01, patches=None):
+                 polygon_tolerance: float = 0.01, patches=None, broad_phase: bool = True):
         if fcl is None:
             raise GeometryError("python-fcl is not installed: tool orientation needs it "
                                 "(pip install python-fcl)")
@@ -322,6 +339,23 @@ class CollisionChecker:
         self._ball = fcl.CollisionObject(fcl.Sphere(tool.ball_radius - self.gouge_tolerance), fcl.Transform())
         self._req = fcl.CollisionRequest()
         self.checks = 0                    # poses checked so far (for reports and benchmarks)
+        self.fcl_checks = 0                # of those, asked of fcl
+        self.broad = BroadPhase(self.mesh.vertices, self.mesh.triangles, self.profile,
+                                tool.ball_radius - self.gouge_tolerance) if broad_phase else None
+
+    def profile(self, grow: float = 0.0) -> Profile:
+        """The tool above the ball centre as the fcl checks see it, grown by ``grow`` mm more
+        (as :meth:`_grown_tool`): per part its heights and its inscribed (grown) and
+        circumscribed (polygon corner) radii."""
+        rows = []
+        for p in self.tool.parts():
+            g = _part_margin(p.name, self.margin + grow, self.cutting_margin + grow)
+            r0, r1 = p.r0 + g, p.r1 + g
+            f = 1.0 / np.cos(np.pi / polygon_segments(max(r0, r1), self.polygon_tolerance))
+            rows.append((p.z0, p.z1, r0, r1, r0 * f, r1 * f))
+        z0, z1, ri0, ri1, ro0, ro1 = (np.array(c, float) for c in zip(*rows))
+        z1[-1] += grow
+        return Profile(z0, z1, ri0, ri1, ro0, ro1)
 
     @property
     def triangles(self) -> int:
@@ -342,29 +376,73 @@ class CollisionChecker:
             cache[grow] = fcl.CollisionObject(_bvh(V, T), fcl.Transform())
         return cache[grow]
 
-    def collides(self, centers, axes, grow: float = 0.0) -> np.ndarray:
-        """True where the pose (ball centre, axis) makes flutes, shank or holder touch the
-        workpiece (within the margin, plus ``grow`` mm). One BVH-BVH query per pose."""
-        C = np.asarray(centers, float).reshape(-1, 3)
-        A = np.asarray(axes, float).reshape(-1, 3)
-        C, A = np.broadcast_arrays(C, A) if len(C) != len(A) else (C, A)
-        Q = axis_quaternions(A)
+    def _decided(self, C, A, grow, ask):
+        """Broad-phase decisions, with ``ask(C, A)`` (fcl) for the poses it leaves open. At
+        zero growth those are first tried with the tool grown for a swing of ``SWING``: the
+        ones it passes are free and leave a cone of free axes at their centre (:meth:`swung`)."""
+        if self.broad is None:
+            return ask(C, A)
+        st = self.broad.decide(C, A, grow)
+        out = st == HIT
+        open_ = np.nonzero(st == UNKNOWN)[0]
+        if len(open_) and grow == 0.0:
+            free = ~self._fcl(C[open_], A[open_], self.swung())
+            self.broad.add_cones(C[open_[free]], A[open_[free]], SWING)
+            open_ = open_[~free]
+        if len(open_):
+            out[open_] = ask(C[open_], A[open_])
+        return out
+
+    def swung(self):
+        """The tool mesh grown for a swing of ``SWING`` (tool_mesh), as an fcl object."""
+        if getattr(self, "_swung", None) is None:
+            V, T, _, _ = tool_mesh(self.tool, self.margin, self.polygon_tolerance, self.cutting_margin, SWING)
+            self._swung = fcl.CollisionObject(_bvh(V, T), fcl.Transform())
+        return self._swung
+
+    def _fcl(self, C, A, obj) -> np.ndarray:
+        """One fcl BVH-BVH query per pose with the tool object ``obj``."""
+        Q = axis_quaternions(A).tolist()
         out = np.zeros(len(Q), bool)
-        obj, wp, req, collide = self._grown_tool(float(grow)), self._wp, self._req, fcl.collide
-        Res = fcl.CollisionResult
-        Ql = Q.tolist()
-        for k in range(len(Ql)):
-            obj.setQuatRotation(Ql[k])
+        wp, req, collide, Res = self._wp, self._req, fcl.collide, fcl.CollisionResult
+        for k in range(len(Q)):
+            obj.setQuatRotation(Q[k])
             obj.setTranslation(C[k])
             if collide(obj, wp, req, Res()):
                 out[k] = True
-        if grow == 0.0:
-            self.checks += len(Q)
+        self.fcl_checks += len(Q)
         return out
 
+    def collides(self, centers, axes, grow: float = 0.0) -> np.ndarray:
+        """True where the pose (ball centre, axis) makes flutes, shank or holder touch the
+        workpiece (within the margin, plus ``grow`` mm): the broad phase's proofs, else one
+        BVH-BVH fcl query per pose."""
+        C = np.asarray(centers, float).reshape(-1, 3)
+        A = np.asarray(axes, float).reshape(-1, 3)
+        C, A = (np.ascontiguousarray(x) for x in np.broadcast_arrays(C, A)) if len(C) != len(A) else (C, A)
+        out = self._decided(C, A, float(grow), lambda c, a: self.collides_fcl(c, a, grow))
+        if grow == 0.0:
+            self.checks += len(C)
+        return out
+
+    def collides_fcl(self, centers, axes, grow: float = 0.0) -> np.ndarray:
+        """:meth:`collides` asked of fcl alone: one BVH-BVH query per pose."""
+        C = np.asarray(centers, float).reshape(-1, 3)
+        A = np.asarray(axes, float).reshape(-1, 3)
+        C, A = np.broadcast_arrays(C, A) if len(C) != len(A) else (C, A)
+        return self._fcl(C, A, self._grown_tool(float(grow)))
+
     def collides_exact(self, centers, axes) -> np.ndarray:
-        """The same question asked of fcl primitives (``Cylinder``/``Convex``) part by part:
-        slower, the reference the mesh form is tested against."""
+        """The same question asked of fcl primitives (``Cylinder``/``Convex``) part by part,
+        the reference the mesh form is tested against; the broad phase's proofs hold for both
+        forms (its spheres cover the polygons, its hits lie inside the circles)."""
+        C = np.asarray(centers, float).reshape(-1, 3)
+        A = np.asarray(axes, float).reshape(-1, 3)
+        C, A = (np.ascontiguousarray(x) for x in np.broadcast_arrays(C, A)) if len(C) != len(A) else (C, A)
+        return self._decided(C, A, 0.0, self.collides_primitives)
+
+    def collides_primitives(self, centers, axes) -> np.ndarray:
+        """:meth:`collides_exact` asked of fcl alone."""
         C = np.asarray(centers, float).reshape(-1, 3)
         A = np.asarray(axes, float).reshape(-1, 3)
         C, A = np.broadcast_arrays(C, A) if len(C) != len(A) else (C, A)
@@ -381,11 +459,13 @@ class CollisionChecker:
 
     def ball_gouges(self, centers) -> np.ndarray:
         """True where the ball (shrunk by ``gouge_tolerance``) at the centre touches the
-        workpiece anywhere: the ball would cut into the part deeper than the tolerance."""
+        workpiece anywhere: the ball would cut into the part deeper than the tolerance.
+        The broad phase proves most balls clear; fcl answers for the rest."""
         C = np.asarray(centers, float).reshape(-1, 3)
         out = np.zeros(len(C), bool)
+        ask = np.ones(len(C), bool) if self.broad is None else ~self.broad.ball_free(C)
         obj, wp, req = self._ball, self._wp, self._req
-        for k in range(len(C)):
+        for k in np.nonzero(ask)[0]:
             obj.setTranslation(C[k])
             out[k] = fcl.collide(obj, wp, req, fcl.CollisionResult()) > 0
         return out

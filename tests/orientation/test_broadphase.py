@@ -102,7 +102,7 @@ class AgreesWithFcl(unittest.TestCase):
         rng = np.random.default_rng(7)
         C, A = random_poses(self.mold_path, 1500, rng)
         ch = self.mold
-        free = ~ch._fcl(C, A, ch.swung())
+        free = ~ch._fcl(C, A, "swung")
         C, A = C[free], A[free]
         v = rng.normal(size=A.shape)
         v -= np.einsum("ij,ij->i", v, A)[:, None] * A

@@ -8,36 +8,32 @@ poses go to fcl. Both answers are proofs, never estimates.
 
 **Free.** Every part is covered by spheres on the tool axis (a frustum slab of length l and
 largest circumscribed radius R lies in the sphere of radius sqrt(R^2 + l^2/4) about the
-slab's centre; one sphere per part first, halved where it does not decide), and every
-sphere is shown to miss the mesh with a lower bound of the distance from its centre to the
-mesh:
+slab's centre; one sphere per part first, halved where it does not decide), and every sphere
+is shown to miss the mesh with a lower bound of the distance from its centre to the mesh.
+The bound comes from samples of the mesh (the vertices, and points spread over triangles
+longer than ``e_cap``): if every sample lies at least d from x, every point of the mesh lies
+at least sqrt(d^2 - e^2/3) from x, e the longest edge of the (sub)triangles the samples span
+(the nearest mesh point w is a convex combination sum l_i v_i of a triangle's corners, and
+|x - w|^2 = sum l_i |x - v_i|^2 - sum_{i<j} l_i l_j |v_i - v_j|^2 >= d^2 - e^2/3). The bound
+is kept at the nodes of two grids (fine near the mesh, coarse over the tool's reach) and
+read at the eight nodes around x, less the distance to each (the distance to a set is
+1-Lipschitz). Spheres cover flat ends badly (a sphere round a thin slab bulges below it by
+nearly its radius), so poses whose flutes or holder face the surface closely stay unknown.
 
-* samples of the mesh (the vertices, and points spread over triangles longer than
-  ``e_cap``) in a cKDTree: if every sample lies at least d from x, every point of the mesh
-  lies at least sqrt(d^2 - e^2/3) from x, e the longest edge of the (sub)triangles the
-  samples span. (The nearest mesh point w is a convex combination sum l_i v_i of a
-  triangle's corners, and |x - w|^2 = sum l_i |x - v_i|^2 - sum_{i<j} l_i l_j |v_i - v_j|^2
-  >= d^2 - e^2/3.)
-* two grids of that bound (fine near the mesh, coarse over the tool's reach), read at the
-  nearest node less the distance to it (the distance to a set is 1-Lipschitz);
-* an *empty ball* per ball centre c: of the balls B(c + t n, t + r1) that grow along the
-  direction n away from the surface (n toward c from its nearest sample, r1 a little below
-  the ball radius), the largest up to ``T_MAX`` that holds no sample closer than the bound
-  allows, found by the shrinking-ball iteration (Ma, Bae, Choi, Cohen, Elber 2012, "3D
-  medial axis point approximation using nearest neighbors and the normal field"). It holds
-  the flutes and the shank over most of the surface, for every axis in the candidate cone.
-
-A free pose also leaves a *free cone* at its centre: turning the axis by an angle phi about
-the ball centre moves a sphere centre at height z by at most z phi, so every axis within
-phi = min_j (bound_j - radius_j) / z_j of it is free as well; later poses at the same centre
-inside a cone are free without further work (the smoothing's small moves).
+**Free cones.** Turning the axis by an angle phi about the ball centre moves a point at
+distance l from it by at most l phi. A pose cleared with that much to spare leaves a cone of
+free axes at its centre: from the spheres above (phi = min_j (bound_j - radius_j) / z_j), or
+from fcl with every part grown by phi times its farthest distance from the ball centre
+(:func:`~tsplcam.orientation.collision.tool_mesh`'s ``swing``). Later poses at the same
+centre inside a cone are free without further work: the smoothing's small moves.
 
 **Hit.** A sample of the mesh lies strictly inside a part's inscribed circular frustum (the
 polygon's inradius is the grown radius), and a point of the same connected piece of the mesh
 lies strictly outside the whole tool's circumscribed solid: the piece then crosses the
 tool's surface, so a mesh triangle meets a tool triangle, which is what fcl reports. The
-samples tried are the nearest ones to spheres that did not clear, and the *witnesses* of
-earlier hits near the same ball centre (a wall that stops one axis stops its neighbours).
+samples tried are the nearest samples of the grid nodes around spheres that did not clear,
+and the *witnesses* of earlier hits near the same ball centre (a wall that stops one axis
+stops its neighbours).
 
 The gouge check's ball B(c, r0) is proven clear when no sample lies within sqrt(r0^2 + e^2/3)
 of c, or the triangles of the few samples that do are measured exactly and lie beyond r0
@@ -59,9 +55,6 @@ FREE, HIT, UNKNOWN = 0, 1, -1
 EPS = 1e-6
 MAX_LEVEL = 7                 # finest sphere cover: 2^7 slabs per part
 SLAB_EXCESS = 0.005           # mm: a part's finest cover sticks out at most this much
-BALL_ITERATIONS = 12
-T_MAX = 6.0                   # mm: the empty balls grow at most this far along n
-BALL_SLACK = 0.015            # mm: the empty balls' base sphere is this much below r0
 BAND = 8                      # samples examined exactly around a gouge-check ball
 LEAFSIZE = 32
 FINE = (0.4, 250_000)         # fine grid: finest spacing (mm), most nodes
@@ -275,8 +268,8 @@ class BroadPhase:
 
     ``profile(grow)`` gives the tool as fcl sees it with ``grow`` mm more (the checker's
     margins already in); ``r0``: radius of the gouge check's ball; ``e_cap``: longest
-    sample spacing (mm) along the triangles (default: the mesh's own, the 99th percentile of
-    its triangles' longest edges; longer triangles get points inside)."""
+    sample spacing (mm) along the triangles (default: the median of the triangles' longest
+    edges; longer triangles get points inside)."""
 
     def __init__(self, vertices: np.ndarray, triangles: np.ndarray, profile, r0: float,
                  e_cap: float | None = None):
@@ -285,7 +278,7 @@ class BroadPhase:
         self.V, self.T = V, T
         if e_cap is None:
             edge = np.linalg.norm(V[T[:, [1, 2, 0]]] - V[T], axis=2).max(axis=1) if len(T) else np.ones(1)
-            e_cap = max(0.1, float(np.quantile(edge, 0.99)))
+            e_cap = max(0.1, float(np.quantile(edge, 0.5)))
         self.samples, tri_of, self.e = mesh_samples(V, T, e_cap)
         self.e2 = self.e * self.e / 3.0
         self.tree = cKDTree(self.samples, leafsize=LEAFSIZE)
@@ -325,15 +318,13 @@ class BroadPhase:
                                          10 * COARSE[0], COARSE[1])]
         self._covers: dict[float, SphereCover] = {}
         self.centres = CentreTable()
-        self._ball_o = np.zeros((0, 3))
-        self._ball_R = np.zeros(0)
         self._gouge = np.zeros(0, bool)
         self._cone_a = {}                         # per grow: (slots, CONES, 3) axes
         self._cone_c = {}                         # per grow: (slots, CONES) cos of the cone angle
         self._wit_cells = CentreTable()
         self._wit = np.zeros((0, WITNESSES), np.int64)
         self.stats = {"poses": 0, "free": 0, "hit": 0, "unknown": 0, "cone": 0, "witness": 0,
-                      "queries": 0, "balls": 0}
+                      "queries": 0}
 
     # --- distances ------------------------------------------------------------------------
     def lower_bound(self, x: np.ndarray):
@@ -384,55 +375,13 @@ class BroadPhase:
             out |= ok & (low >= R + EPS)
         return out
 
-    # --- per ball centre: empty ball, gouge check --------------------------------------------
-    def _shrinking_balls(self, C: np.ndarray):
-        """(centre, radius) of the largest empty ball B(c + t n, t + r1), t <= T_MAX,
-        r1 = r0 - BALL_SLACK, per centre c (radius -inf where none), and whether the gouge
-        check's ball B(c, r0) is clear of the mesh."""
-        r1 = self.r0 - BALL_SLACK
-        e2 = self.e2
-        _, j = self.nearest(C, np.full(len(C), np.inf))
-        n = C - self.samples[j]
-        ln = np.linalg.norm(n, axis=1)
-        n = n / np.where(ln > 0, ln, 1.0)[:, None]
-        t = np.full(len(C), T_MAX)
-        done = np.zeros(len(C), bool)
-        fail = ln <= 0
-        for _ in range(BALL_ITERATIONS):
-            act = np.nonzero(~done & ~fail)[0]
-            if len(act) == 0:
-                break
-            R = t[act] + r1 + EPS
-            ub = np.sqrt(R * R + e2)
-            d, jj = self.nearest(C[act] + t[act, None] * n[act], ub)
-            empty = ~(d < ub)
-            done[act[empty]] = True
-            inside = act[~empty]
-            if len(inside) == 0:
-                break
-            w = self.samples[jj[~empty]] - C[inside]
-            rs = r1 + 2 * EPS                      # the sample ends just outside the next ball
-            num = _dot(w, w) - rs * rs - e2
-            den = 2.0 * (_dot(w, n[inside]) + rs)
-            bad = (num < 0) | (den <= 0)
-            fail[inside[bad]] = True
-            good = inside[~bad]
-            t[good] = np.minimum(num[~bad] / den[~bad] * (1.0 - 1e-9) - 1e-9, t[good] * (1 - 1e-6))
-            fail[good[t[good] < 0]] = True
-        ok = done & ~fail
-        R = np.where(ok, t + r1, -np.inf)
-        gouge_free = self._clear_exact(C, np.full(len(C), self.r0))
-        return C + np.where(ok, t, 0.0)[:, None] * n, R, gouge_free
-
+    # --- per ball centre: gouge check, cones ----------------------------------------------------
     def _slots(self, C: np.ndarray) -> np.ndarray:
-        """Slots of the centres C, with empty balls and gouge verdicts for the new ones."""
+        """Slots of the centres C, with the gouge verdicts of the new ones."""
         slot, first = self.centres.slots(C)
         if len(first):
-            o, R, gf = self._shrinking_balls(np.asarray(C, float)[first])
-            self.stats["balls"] += len(first)
-            self._ball_o = np.concatenate([self._ball_o, o])
-            self._ball_R = np.concatenate([self._ball_R, R])
-            self._gouge = np.concatenate([self._gouge, gf])
+            Cn = np.asarray(C, float)[first]
+            self._gouge = np.concatenate([self._gouge, self._clear_exact(Cn, np.full(len(Cn), self.r0))])
             for g in self._cone_a:
                 self._grow_cones(g)
         return slot
@@ -520,6 +469,22 @@ class BroadPhase:
             if s not in row:
                 self._wit[c] = np.concatenate([[s], row[:-1]])
 
+    def part_lower_bounds(self, C: np.ndarray, A: np.ndarray, level: int = 3) -> np.ndarray:
+        """(poses, parts): lower bounds of each part's distance to the mesh (its spheres at
+        ``level``, each a bound at its centre less its radius; 0 where they touch)."""
+        C = np.asarray(C, float).reshape(-1, 3)
+        A = np.asarray(A, float).reshape(-1, 3)
+        cov = self._cover(0.0)
+        K = len(cov.prof.z0)
+        nseg = 2 ** level
+        pose = np.repeat(np.arange(len(C)), K * nseg)
+        part = np.tile(np.repeat(np.arange(K), nseg), len(C))
+        seg = np.tile(np.arange(nseg), len(C) * K)
+        zc, s, _ = cov.spheres(part, level, seg)
+        x = C[pose] + zc[:, None] * A[pose]
+        lb, _, _ = self.lower_bound(x)
+        return np.maximum(lb - s, 0.0).reshape(len(C), K, nseg).min(axis=2)
+
     def add_cones(self, C: np.ndarray, A: np.ndarray, phi: float, grow: float = 0.0):
         """Remember that every axis within ``phi`` of the axes A is free at the centres C."""
         if len(C) == 0:
@@ -573,7 +538,6 @@ class BroadPhase:
             self.stats["witness"] += int((~before & (status == HIT)).sum())
         todo = np.nonzero(status == UNKNOWN)[0]
         phi = np.full(n, np.inf)                 # free cone of each pose, from its spheres
-        bo, bR = self._ball_o[slot], self._ball_R[slot]
         K = len(prof.z0)
         unresolved = np.zeros(n, bool)
         pose = np.repeat(todo, K)
@@ -583,11 +547,8 @@ class BroadPhase:
         while len(pose):
             zc, s, rmax = cov.spheres(part, level, seg)
             x = C[pose] + zc[:, None] * A[pose]
-            bound = bR[pose] - np.linalg.norm(x - bo[pose], axis=1)      # from the empty ball
-            lb, jg, fine_in = self.lower_bound(x)
-            bound = np.maximum(bound, lb)
+            bound, jg, _ = self.lower_bound(x)
             cert = bound >= s + EPS
-            tight = fine_in & (s < self.grids[0].cap)      # the fine grid's bound is exact to its spacing
             split = np.zeros(len(pose), bool)
             rest = np.nonzero(~cert)[0]
             if len(rest):
@@ -597,18 +558,6 @@ class BroadPhase:
                 has = jr >= 0
                 found = self._hits(status, self.samples[jr[has]], jr[has], pose[rest[has]], C, A, prof)
                 self._remember(cell, found)
-                # outside the fine grid the bound is loose: ask the tree there
-                ask = rest[~tight[rest]]
-                if len(ask):
-                    ub = np.sqrt((s[ask] + EPS) ** 2 + self.e2)
-                    d, j = self.nearest(x[ask], ub)
-                    lbk = np.where(d < ub, np.sqrt(np.maximum(d * d - self.e2, 0.0)), s[ask] + EPS)
-                    bound[ask] = np.maximum(bound[ask], lbk)
-                    cert[ask] = bound[ask] >= s[ask] + EPS
-                    hit_ = ~cert[ask]
-                    found = self._hits(status, self.samples[j[hit_]], j[hit_], pose[ask[hit_]], C, A, prof)
-                    self._remember(cell, found)
-                rest = rest[~cert[rest]]
                 hopeless = bound[rest] < rmax[rest] + EPS      # no smaller sphere can clear
                 unresolved[pose[rest[hopeless]]] = True
                 split[rest[~hopeless]] = True

@@ -33,11 +33,14 @@ every gouge deeper than ``gouge_tolerance + tolerance``.
 """
 from __future__ import annotations
 
+import multiprocessing
+import weakref
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from ..errors import GeometryError, InputError
+from ..toolpath.parallel import worker_count
 from .broadphase import HIT, UNKNOWN, BroadPhase, Profile
 from .tool import Tool
 
@@ -169,6 +172,48 @@ def named_mesh(vertices, triangles, name: str) -> TriangleMesh:
     return TriangleMesh(V, T, np.zeros(len(T), int), [name], [None], 0.0)
 
 
+def split_long_triangles(mesh: TriangleMesh, e_max: float) -> TriangleMesh:
+    """The same surface with every triangle longer than ``e_max`` cut into k^2 triangles by a
+    uniform barycentric subdivision (k = ceil(edge / e_max)), owners kept: fcl's bounding
+    volumes then stay small near the tool (the two triangles of an 18 mm block face overlap
+    every tool pose above it and are tested against every tool triangle)."""
+    V, T = mesh.vertices, mesh.triangles
+    if len(T) == 0:
+        return mesh
+    edge = np.linalg.norm(V[T[:, [1, 2, 0]]] - V[T], axis=2).max(axis=1)
+    k = np.maximum(1, np.ceil(edge / e_max - 1e-9)).astype(int)
+    if k.max() == 1:
+        return mesh
+    Vs, Ts, Os = [V], [T[k == 1]], [mesh.owner[k == 1]]
+    nv = len(V)
+    for kk in np.unique(k[k > 1]):
+        sel = np.nonzero(k == kk)[0]
+        i, j = np.meshgrid(np.arange(kk + 1), np.arange(kk + 1), indexing="ij")
+        keep = i + j <= kk
+        i, j = i[keep], j[keep]
+        local = -np.ones((kk + 1, kk + 1), int)
+        local[i, j] = np.arange(len(i))
+        a, b = np.meshgrid(np.arange(kk), np.arange(kk), indexing="ij")
+        up = a + b <= kk - 1
+        down = a + b <= kk - 2
+        tri = np.concatenate([
+            np.column_stack([local[a[up], b[up]], local[a[up] + 1, b[up]], local[a[up], b[up] + 1]]),
+            np.column_stack([local[a[down] + 1, b[down]], local[a[down] + 1, b[down] + 1],
+                             local[a[down], b[down] + 1]])])
+        A, B, C = V[T[sel, 0]], V[T[sel, 1]], V[T[sel, 2]]
+        u, w = (i / kk)[None, :, None], (j / kk)[None, :, None]
+        P = A[:, None] + u * (B - A)[:, None] + w * (C - A)[:, None]
+        Vs.append(P.reshape(-1, 3))
+        Ts.append((tri[None] + (nv + len(i) * np.arange(len(sel)))[:, None, None]).reshape(-1, 3))
+        Os.append(np.repeat(mesh.owner[sel], len(tri)))
+        nv += len(sel) * len(i)
+    # the points along shared edges come out once per triangle: weld them (connectivity)
+    Vn, inv = np.unique(np.round(np.concatenate(Vs), 9), axis=0, return_inverse=True)
+    Vn = np.concatenate(Vs)[np.unique(inv, return_index=True)[1]]
+    return TriangleMesh(Vn, inv.reshape(-1)[np.concatenate(Ts)], np.concatenate(Os), mesh.owners,
+                        mesh.owner_patch, mesh.chordal_error)
+
+
 # --- tool shapes -----------------------------------------------------------------------------
 
 def polygon_segments(radius: float, excess: float) -> int:
@@ -261,6 +306,13 @@ def axis_quaternions(axes: np.ndarray) -> np.ndarray:
 
 
 SWING = np.radians(1.0)        # cone of axes a pose decided by fcl certifies (see tool_mesh)
+POOL_MIN = 400                 # fcl batches at least twice this long go to worker processes
+_POOL_CHECKER = None           # the checker forked workers inherit
+
+
+def _pool_fcl(job):
+    C, A, tool, grow = job
+    return _POOL_CHECKER._fcl_here(C, A, tool, grow)
 
 
 def _bvh(V, T):
@@ -316,12 +368,18 @@ class CollisionChecker:
         parts = []
         if model is not None:
             parts.append(tessellate_model(model, self.tolerance, patches))
+        e_max, e_cap = 2.0, None
+        if parts:                    # the tessellation's own spacing sets the samples' and the splits'
+            V0, T0 = parts[0].vertices, parts[0].triangles
+            edge = np.linalg.norm(V0[T0[:, [1, 2, 0]]] - V0[T0], axis=2).max(axis=1)
+            e_cap = max(0.1, float(np.quantile(edge, 0.99)))
+            e_max = max(e_max, 4.0 * float(np.median(edge)))
         for item in meshes:
             if isinstance(item, TriangleMesh):
-                parts.append(item)
+                parts.append(split_long_triangles(item, e_max))
             else:
                 name, V, T = item
-                parts.append(named_mesh(V, T, name))
+                parts.append(split_long_triangles(named_mesh(V, T, name), e_max))
         if not parts:
             raise InputError("nothing to check collisions against (no model and no meshes)")
         self.mesh = TriangleMesh.concat(parts)
@@ -341,7 +399,7 @@ class CollisionChecker:
         self.checks = 0                    # poses checked so far (for reports and benchmarks)
         self.fcl_checks = 0                # of those, asked of fcl
         self.broad = BroadPhase(self.mesh.vertices, self.mesh.triangles, self.profile,
-                                tool.ball_radius - self.gouge_tolerance) if broad_phase else None
+                                tool.ball_radius - self.gouge_tolerance, e_cap) if broad_phase else None
 
     def profile(self, grow: float = 0.0) -> Profile:
         """The tool above the ball centre as the fcl checks see it, grown by ``grow`` mm more
@@ -386,7 +444,7 @@ class CollisionChecker:
         out = st == HIT
         open_ = np.nonzero(st == UNKNOWN)[0]
         if len(open_) and grow == 0.0:
-            free = ~self._fcl(C[open_], A[open_], self.swung())
+            free = ~self._fcl(C[open_], A[open_], "swung")
             self.broad.add_cones(C[open_[free]], A[open_[free]], SWING)
             open_ = open_[~free]
         if len(open_):
@@ -400,8 +458,32 @@ class CollisionChecker:
             self._swung = fcl.CollisionObject(_bvh(V, T), fcl.Transform())
         return self._swung
 
-    def _fcl(self, C, A, obj) -> np.ndarray:
-        """One fcl BVH-BVH query per pose with the tool object ``obj``."""
+    def _fcl(self, C, A, tool="tool", grow: float = 0.0) -> np.ndarray:
+        """One fcl BVH-BVH query per pose with the tool mesh ``tool`` ('tool', grown by
+        ``grow``, or 'swung'); large batches are shared among forked worker processes (each
+        asks fcl the same question of the same objects)."""
+        self.fcl_checks += len(C)
+        workers = worker_count(None, len(C) // POOL_MIN) if len(C) >= 2 * POOL_MIN else 1
+        if workers > 1:
+            pool = self._pool(workers)
+            parts = np.array_split(np.arange(len(C)), 2 * workers)
+            got = pool.map(_pool_fcl, [(C[i], A[i], tool, grow) for i in parts])
+            return np.concatenate(got)
+        return self._fcl_here(C, A, tool, grow)
+
+    def _pool(self, workers: int):
+        """Forked workers that inherit this checker (its fcl objects built first)."""
+        pool = getattr(self, "_workers", None)
+        if pool is None:
+            global _POOL_CHECKER
+            self.swung()
+            _POOL_CHECKER = self
+            pool = self._workers = multiprocessing.get_context("fork").Pool(workers)
+            weakref.finalize(self, pool.terminate)
+        return pool
+
+    def _fcl_here(self, C, A, tool, grow) -> np.ndarray:
+        obj = self.swung() if tool == "swung" else self._grown_tool(float(grow))
         Q = axis_quaternions(A).tolist()
         out = np.zeros(len(Q), bool)
         wp, req, collide, Res = self._wp, self._req, fcl.collide, fcl.CollisionResult
@@ -410,7 +492,6 @@ class CollisionChecker:
             obj.setTranslation(C[k])
             if collide(obj, wp, req, Res()):
                 out[k] = True
-        self.fcl_checks += len(Q)
         return out
 
     def collides(self, centers, axes, grow: float = 0.0) -> np.ndarray:
@@ -430,7 +511,7 @@ class CollisionChecker:
         C = np.asarray(centers, float).reshape(-1, 3)
         A = np.asarray(axes, float).reshape(-1, 3)
         C, A = np.broadcast_arrays(C, A) if len(C) != len(A) else (C, A)
-        return self._fcl(C, A, self._grown_tool(float(grow)))
+        return self._fcl(C, A, "tool", float(grow))
 
     def collides_exact(self, centers, axes) -> np.ndarray:
         """The same question asked of fcl primitives (``Cylinder``/``Convex``) part by part,
@@ -473,19 +554,28 @@ class CollisionChecker:
     def clearance_of(self, centers, axes) -> np.ndarray:
         """Distance (mm) between the tool parts above the ball and the workpiece per pose
         (fcl.distance on the exact primitives; 0 where they touch). The tool is grown by the
-        margin, so the true distance is this plus ``margin``."""
+        margin, so the true distance is this plus ``margin``.
+
+        Parts are measured nearest first by the broad phase's lower bound of their distance,
+        and a part whose bound is already beyond the nearest measured is skipped: it cannot be
+        the smallest (the holder's long cylinder costs most and is seldom nearest).
+        """
         C = np.asarray(centers, float).reshape(-1, 3)
         A = np.asarray(axes, float).reshape(-1, 3)
         Q = axis_quaternions(A)
         out = np.empty(len(Q))
         req = fcl.DistanceRequest()
+        bound = (np.zeros((len(C), len(self._prims))) if self.broad is None
+                 else self.broad.part_lower_bounds(C, A))
         for k in range(len(Q)):
             best = np.inf
-            for _, obj, z in self._prims:
+            for j in np.argsort(bound[k], kind="stable"):
+                if bound[k, j] >= best:
+                    break
+                _, obj, z = self._prims[j]
                 obj.setQuatRotation(Q[k])
                 obj.setTranslation(C[k] + z * A[k])
-                res = fcl.DistanceResult()
-                d = fcl.distance(obj, self._wp, req, res)
+                d = fcl.distance(obj, self._wp, req, fcl.DistanceResult())
                 best = min(best, max(d, 0.0))
                 if best <= 0:
                     break

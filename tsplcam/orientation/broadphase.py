@@ -62,6 +62,7 @@ COARSE = (2.0, 150_000)       # coarse grid, over the tool's reach around the me
 CONES = 2                     # free cones kept per ball centre
 WITNESSES = 6                 # hit witnesses kept per cell of ball centres
 WITNESS_CELL = 1.0            # mm
+_CORNERS = np.array([(i, j, k) for i in (0, 1) for j in (0, 1) for k in (0, 1)], np.int64)
 DIRECTIONS = np.array([(i, j, k) for i in (-1, 0, 1) for j in (-1, 0, 1) for k in (-1, 0, 1)
                        if (i, j, k) != (0, 0, 0)], float)
 
@@ -213,24 +214,20 @@ class DistanceGrid:
 
     def __call__(self, x: np.ndarray):
         """(lower bound, sample index or -1, inside the grid) at points x: the best over the
-        eight nodes around x of the node's bound less the distance to it."""
+        eight nodes around x of the node's bound less the distance to it; the sample is the
+        nearest node's."""
         f = (x - self.origin) / self.h
         k0 = np.floor(f).astype(np.int64)
         ins = np.all((k0 >= 0) & (k0 < self.shape - 1), axis=1)
-        k0 = np.clip(k0, 0, self.shape - 2)
-        r = f - k0
-        base = k0 @ self.stride
-        lb = np.full(len(x), -np.inf)
-        idx = np.full(len(x), -1)
-        best = np.full(len(x), np.inf)
-        for c in ((0, 0, 0), (1, 0, 0), (0, 1, 0), (0, 0, 1), (1, 1, 0), (1, 0, 1), (0, 1, 1), (1, 1, 1)):
-            flat = base + int(np.dot(c, self.stride))
-            dist = self.h * np.linalg.norm(r - c, axis=1)
-            lb = np.maximum(lb, self.lb[flat] - dist)
-            near = dist < best
-            best = np.where(near, dist, best)
-            idx = np.where(near, self.idx[flat], idx)
-        return np.where(ins, lb, 0.0), np.where(ins, idx, -1), ins
+        k0 = np.minimum(np.maximum(k0, 0), self.shape - 2)
+        r = f - k0                                                    # (n, 3) in [0, 1)
+        flat = (k0 @ self.stride)[:, None] + _CORNERS @ self.stride   # (n, 8)
+        d = r[:, None, :] - _CORNERS[None]
+        dist = self.h * np.sqrt(d[..., 0] * d[..., 0] + d[..., 1] * d[..., 1] + d[..., 2] * d[..., 2])
+        lb = (self.lb[flat] - dist).max(axis=1)
+        near = flat[np.arange(len(x)), np.argmin(dist, axis=1)]
+        return np.where(ins, lb, 0.0), np.where(ins, self.idx[near], -1), ins
+
 
 class CentreTable:
     """Per ball centre: slots found by the centre's exact bytes (sorted keys, vectorised)."""
@@ -332,7 +329,8 @@ class BroadPhase:
         grid) at points x: the best bound of the two grids and the box of the mesh; the sample
         is the nearest one to x's nearest node in the fine grid, else in the coarse grid."""
         lo, hi = self.box
-        lb = np.linalg.norm(np.maximum(np.maximum(lo - x, x - hi), 0.0), axis=1)
+        o = np.maximum(np.maximum(lo - x, x - hi), 0.0)
+        lb = np.sqrt(o[:, 0] * o[:, 0] + o[:, 1] * o[:, 1] + o[:, 2] * o[:, 2])
         lbf, idx, ins = self.grids[0](x)
         lbc, idc, _ = self.grids[1](x)
         return np.maximum(lb, np.maximum(lbf, lbc)), np.where(idx >= 0, idx, idc), ins
@@ -520,7 +518,9 @@ class BroadPhase:
             return status
         cov = self._cover(grow)
         prof = cov.prof
+        known = self.centres.size
         slot = self._slots(C)
+        self.revisit = slot < known              # centres asked about in an earlier batch
         self._grow_cones(grow)
         cone_a, cone_c = self._cone_a[grow], self._cone_c[grow]
         # free cones of earlier free poses at the same centre

@@ -437,16 +437,18 @@ class CollisionChecker:
     def _decided(self, C, A, grow, ask):
         """Broad-phase decisions, with ``ask(C, A)`` (fcl) for the poses it leaves open. At
         zero growth those are first tried with the tool grown for a swing of ``SWING``: the
-        ones it passes are free and leave a cone of free axes at their centre (:meth:`swung`)."""
+        ones it passes are free and leave a cone of free axes at their centre (:meth:`swung`);
+        only at centres asked about before (a new centre's cone would serve nobody)."""
         if self.broad is None:
             return ask(C, A)
         st = self.broad.decide(C, A, grow)
         out = st == HIT
         open_ = np.nonzero(st == UNKNOWN)[0]
-        if len(open_) and grow == 0.0:
-            free = ~self._fcl(C[open_], A[open_], "swung")
-            self.broad.add_cones(C[open_[free]], A[open_[free]], SWING)
-            open_ = open_[~free]
+        again = open_[self.broad.revisit[open_]]
+        if len(again) and grow == 0.0:
+            free = ~self._fcl(C[again], A[again], "swung")
+            self.broad.add_cones(C[again[free]], A[again[free]], SWING)
+            open_ = np.setdiff1d(open_, again[free])
         if len(open_):
             out[open_] = ask(C[open_], A[open_])
         return out

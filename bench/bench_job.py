@@ -21,7 +21,8 @@ every core it is allowed (the path and fcl use both); the machine and its load a
    decided; the same for every candidate axis of every tenth path point.
 5. Path generation: seconds against points for scallops 0.05 .. 0.002 mm on the keycap
    (log-log slope: 1 is linear), one process against all cores (the same points).
-6. Peak memory of the five-keycap job (25 patches, ball 3 mm, scallop 0.005 mm).
+6. Peak memory of the five-keycap job (25 patches, the main job's ball 0.5 mm and scallop
+   0.005 mm; a 3 mm ball gouges the keycap's lower corners, so the whole job refuses it).
 """
 from __future__ import annotations
 
@@ -143,8 +144,9 @@ def long_tool(tmp: str) -> str:
     return path
 
 
-def five_keycaps(tmp: str, pitch: float = 19.05) -> str:
-    """The keycap's cage five times in a row, as an OBJ quad cage."""
+def five_keycaps(tmp: str, pitch: float = 40.0) -> str:
+    """The keycap's cage five times in a row, 40 mm apart (the holder clears the next one), as
+    an OBJ quad cage."""
     from tsplcam.model import samples
     c = samples.keycap()
     lines = []
@@ -192,13 +194,14 @@ def replay(model, meshes, calls, broad: bool):
     return time.perf_counter() - t0, ch
 
 
-def search_figures(name, scallop, machine_name, stock, fcl_calls=None):
+def search_figures(name, scallop, machine_name, stock, repeat, fcl_calls=None):
     model, path, meshes, calls = record_queries(name, scallop, machine_name, stock)
     poses = sum(len(c[0]) for c in calls)
-    t_bp, ch = replay(model, meshes, calls, True)
+    runs = [replay(model, meshes, calls, True) for _ in range(repeat)]
+    t_bp, ch = min(runs, key=lambda r: r[0])
     ref_calls = calls if fcl_calls is None else calls[:fcl_calls]
     ref_poses = sum(len(c[0]) for c in ref_calls)
-    t_fcl, _ = replay(model, meshes, ref_calls, False)
+    t_fcl = min(replay(model, meshes, ref_calls, False)[0] for _ in range(repeat))
     st = ch.broad.stats
     print(f"  {name}: {poses} poses asked in {len(calls)} batches by the smooth strategy")
     print(f"    broad phase + fcl   {poses / t_bp:10.0f} poses/s  ({t_bp:.2f} s; decided by the broad phase "
@@ -210,7 +213,7 @@ def search_figures(name, scallop, machine_name, stock, fcl_calls=None):
     return path, model, meshes
 
 
-def all_candidates(path, model, meshes, every=10):
+def all_candidates(path, model, meshes, repeat, every=10):
     from tsplcam.orientation import CollisionChecker, load_tool
     from tsplcam.orientation.candidates import DEG, Limits, candidate_axes, feed_directions
     feed = feed_directions(path.contact, path.normal)
@@ -220,11 +223,16 @@ def all_candidates(path, model, meshes, every=10):
     C, Ax = path.center[i], A[i, j]
     out = []
     for broad in (True, False):
-        ch = CollisionChecker(model, load_tool("ball1_keycap"), meshes=meshes, clearance=0.3, broad_phase=broad)
-        sel = slice(None) if broad else slice(0, min(len(C), 20000))
-        t0 = time.perf_counter()
-        ch.collides(C[sel], Ax[sel])
-        out.append((len(C[sel]) / (time.perf_counter() - t0), ch))
+        best = None
+        for _ in range(repeat):
+            ch = CollisionChecker(model, load_tool("ball1_keycap"), meshes=meshes, clearance=0.3, broad_phase=broad)
+            sel = slice(None) if broad else slice(0, min(len(C), 20000))
+            t0 = time.perf_counter()
+            ch.collides(C[sel], Ax[sel])
+            rate = len(C[sel]) / (time.perf_counter() - t0)
+            if best is None or rate > best[0]:
+                best = (rate, ch)
+        out.append(best)
     (r_bp, ch), (r_fcl, _) = out
     st = ch.broad.stats
     print(f"  every candidate axis of every {every}th point: {len(C)} poses; broad phase + fcl "
@@ -293,18 +301,17 @@ def main(argv=None) -> int:
                   f" x OpenCAMLib (target 5 s)")
 
     print("\n4. tool-axis search (collision decisions, broad phase against fcl alone, same queries)")
-    path, model, meshes = search_figures("keycap", 0.005, "mikron_ucp600_heidenhain", None)
-    all_candidates(path, model, meshes)
+    path, model, meshes = search_figures("keycap", 0.005, "mikron_ucp600_heidenhain", None, args.repeat)
+    all_candidates(path, model, meshes, args.repeat)
     if not args.quick:
-        search_figures("keycap_mold", 0.02, "linuxcnc_xyzac_trt", keycap_mold_stock(), fcl_calls=12)
+        search_figures("keycap_mold", 0.02, "linuxcnc_xyzac_trt", keycap_mold_stock(), 1, fcl_calls=12)
 
     print("\n5. path generation on the keycap (r 0.5 mm), cost against size")
     path_growth(args.repeat)
 
     if not args.quick:
-        print("\n6. five keycaps (25 patches), ball 3 mm (ball6_freecad_holder), scallop 0.005 mm")
-        r, own, worker = job(["--model", five_keycaps(tmp), "--tool", "ball6_freecad_holder", "--scallop", "0.005"],
-                             os.path.join(tmp, "five"))
+        print("\n6. five keycaps (25 patches), the main job's tool and scallop (ball 0.5 mm, 0.005 mm)")
+        r, own, worker = job(["--model", five_keycaps(tmp)], os.path.join(tmp, "five"))
         print(f"  {r['path']['points']} points in {r['seconds']:.1f} s ({r['path']['points'] / r['seconds']:.0f} "
               f"points/s); peak memory {own:.0f} MB in the job's process, {worker:.0f} MB in its largest "
               f"worker (forked: mostly shared pages); target 1500 MB")

@@ -404,11 +404,16 @@ class BroadPhase:
             cov = self._covers[grow] = SphereCover(self.profile(grow))
         return cov
 
-    def _inside(self, q, C, A, prof: Profile) -> np.ndarray:
-        """Points q strictly inside some part's inscribed frustum at poses (C, A)."""
+    @staticmethod
+    def _tool_frame(q, C, A):
+        """(height along the axis, squared distance from it) of points q at poses (C, A)."""
         w = q - C
         z = _dot(w, A)
-        rad2 = np.maximum(_dot(w, w) - z * z, 0.0)
+        return z, np.maximum(_dot(w, w) - z * z, 0.0)
+
+    def _inside(self, q, C, A, prof: Profile) -> np.ndarray:
+        """Points q strictly inside some part's inscribed frustum at poses (C, A)."""
+        z, rad2 = self._tool_frame(q, C, A)
         out = np.zeros(z.shape, bool)
         for k in range(len(prof.z0)):
             r = prof.rin(k, np.clip(z, prof.z0[k], prof.z1[k])) - EPS
@@ -417,9 +422,7 @@ class BroadPhase:
 
     def _outside(self, q, C, A, prof: Profile) -> np.ndarray:
         """Points q strictly outside every part's circumscribed frustum at poses (C, A)."""
-        w = q - C
-        z = _dot(w, A)
-        rad2 = np.maximum(_dot(w, w) - z * z, 0.0)
+        z, rad2 = self._tool_frame(q, C, A)
         out = np.ones(z.shape, bool)
         for k in range(len(prof.z0)):
             r = prof.rout(k, np.clip(z, prof.z0[k], prof.z1[k])) + EPS

@@ -276,23 +276,27 @@ def tool_primitives(tool: Tool, margin: float = 0.0, polygon_tolerance: float = 
     out = []
     for p in tool.parts():
         g = _part_margin(p.name, margin, cutting_margin)
-        r0, r1 = p.r0 + g, p.r1 + g
-        h = p.z1 - p.z0
-        if abs(r0 - r1) < 1e-12:
-            out.append((p.name, fcl.Cylinder(r0, h), 0.5 * (p.z0 + p.z1)))
-            continue
-        n = polygon_segments(max(r0, r1), polygon_tolerance)
-        a = np.arange(n) * 2 * np.pi / n
-        s = 1.0 / np.cos(np.pi / n)
-        ring = np.column_stack([np.cos(a), np.sin(a)]) * s
-        verts = np.vstack([np.column_stack([ring * r0, np.full(n, -0.5 * h)]),
-                           np.column_stack([ring * r1, np.full(n, 0.5 * h)])])
-        faces = [n] + list(range(n - 1, -1, -1)) + [n] + list(range(n, 2 * n))
-        for i in range(n):
-            j = (i + 1) % n
-            faces += [4, i, j, n + j, n + i]
-        out.append((p.name, fcl.Convex(verts, n + 2, np.array(faces, np.int32)), 0.5 * (p.z0 + p.z1)))
+        out.append((p.name, frustum_shape(p.r0 + g, p.r1 + g, p.z1 - p.z0, polygon_tolerance),
+                    0.5 * (p.z0 + p.z1)))
     return out
+
+
+def frustum_shape(r0: float, r1: float, h: float, polygon_tolerance: float = 0.01):
+    """An fcl shape centred on the origin along +z: ``fcl.Cylinder`` when r0 = r1, else the
+    ``fcl.Convex`` hull of two circumscribed polygons (radius r0 at -h/2, r1 at +h/2)."""
+    if abs(r0 - r1) < 1e-12:
+        return fcl.Cylinder(r0, h)
+    n = polygon_segments(max(r0, r1), polygon_tolerance)
+    a = np.arange(n) * 2 * np.pi / n
+    s = 1.0 / np.cos(np.pi / n)
+    ring = np.column_stack([np.cos(a), np.sin(a)]) * s
+    verts = np.vstack([np.column_stack([ring * r0, np.full(n, -0.5 * h)]),
+                       np.column_stack([ring * r1, np.full(n, 0.5 * h)])])
+    faces = [n] + list(range(n - 1, -1, -1)) + [n] + list(range(n, 2 * n))
+    for i in range(n):
+        j = (i + 1) % n
+        faces += [4, i, j, n + j, n + i]
+    return fcl.Convex(verts, n + 2, np.array(faces, np.int32))
 
 
 def axis_quaternions(axes: np.ndarray) -> np.ndarray:
@@ -558,9 +562,11 @@ class CollisionChecker:
         (fcl.distance on the exact primitives; 0 where they touch). The tool is grown by the
         margin, so the true distance is this plus ``margin``.
 
-        Parts are measured nearest first by the broad phase's lower bound of their distance,
-        and a part whose bound is already beyond the nearest measured is skipped: it cannot be
-        the smallest (the holder's long cylinder costs most and is seldom nearest).
+        Parts are measured nearest first by the broad phase's lower bound of their distance;
+        a part is skipped when that bound, or a collision query of the part grown by the
+        nearest distance measured so far (it contains every point within that distance), shows
+        it lies farther: it cannot be the smallest, and a distance query against the whole
+        workpiece costs a hundred collision queries (the holder's long cylinder most).
         """
         C = np.asarray(centers, float).reshape(-1, 3)
         A = np.asarray(axes, float).reshape(-1, 3)
@@ -569,12 +575,22 @@ class CollisionChecker:
         req = fcl.DistanceRequest()
         bound = (np.zeros((len(C), len(self._prims))) if self.broad is None
                  else self.broad.part_lower_bounds(C, A))
+        parts = [p for p in self.tool.parts()]
         for k in range(len(Q)):
             best = np.inf
             for j in np.argsort(bound[k], kind="stable"):
                 if bound[k, j] >= best:
                     break
                 _, obj, z = self._prims[j]
+                if np.isfinite(best):
+                    g = _part_margin(parts[j].name, self.margin, self.cutting_margin) + best
+                    grown = fcl.CollisionObject(frustum_shape(parts[j].r0 + g, parts[j].r1 + g,
+                                                              parts[j].z1 - parts[j].z0 + 2 * best,
+                                                              self.polygon_tolerance), fcl.Transform())
+                    grown.setQuatRotation(Q[k])
+                    grown.setTranslation(C[k] + z * A[k])
+                    if not fcl.collide(grown, self._wp, self._req, fcl.CollisionResult()):
+                        continue
                 obj.setQuatRotation(Q[k])
                 obj.setTranslation(C[k] + z * A[k])
                 d = fcl.distance(obj, self._wp, req, fcl.DistanceResult())

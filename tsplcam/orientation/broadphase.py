@@ -517,9 +517,12 @@ class BroadPhase:
         n = len(C)
         grow = float(grow)
         status = np.full(n, UNKNOWN, np.int8)
+        cov = self._cover(grow)
+        self.open_parts = np.ones((n, len(cov.prof.z0)), bool)
+        self.open_phi = np.zeros(n)
+        self.revisit = np.zeros(n, bool)
         if n == 0:
             return status
-        cov = self._cover(grow)
         prof = cov.prof
         known = self.centres.size
         slot = self._slots(C)
@@ -542,7 +545,7 @@ class BroadPhase:
         todo = np.nonzero(status == UNKNOWN)[0]
         phi = np.full(n, np.inf)                 # free cone of each pose, from its spheres
         K = len(prof.z0)
-        unresolved = np.zeros(n, bool)
+        unresolved = np.zeros((n, K), bool)      # parts the spheres could not clear
         pose = np.repeat(todo, K)
         part = np.tile(np.arange(K), len(todo))
         seg = np.zeros(len(pose), np.int64)
@@ -562,13 +565,13 @@ class BroadPhase:
                 found = self._hits(status, self.samples[jr[has]], jr[has], pose[rest[has]], C, A, prof)
                 self._remember(cell, found)
                 hopeless = bound[rest] < rmax[rest] + EPS      # no smaller sphere can clear
-                unresolved[pose[rest[hopeless]]] = True
+                unresolved[pose[rest[hopeless]], part[rest[hopeless]]] = True
                 split[rest[~hopeless]] = True
             ok = np.nonzero(cert)[0]
             np.minimum.at(phi, pose[ok], (bound[ok] - s[ok] - EPS) / zc[ok])
-            keep = split & (status[pose] != HIT) & ~unresolved[pose]
+            keep = split & (status[pose] != HIT) & ~unresolved[pose, part]
             last = keep & (level >= cov.max_level[part])
-            unresolved[pose[last]] = True
+            unresolved[pose[last], part[last]] = True
             keep &= ~last
             m = int(keep.sum())
             pose, part = np.repeat(pose[keep], 2), np.repeat(part[keep], 2)
@@ -576,8 +579,12 @@ class BroadPhase:
             level += 1
         free = np.zeros(n, bool)
         free[todo] = True
-        free &= (status != HIT) & ~unresolved
+        free &= (status != HIT) & ~unresolved.any(axis=1)
         status[free] = FREE
+        # what fcl still has to answer for the poses left open: their unresolved parts, and
+        # the cone the cleared parts leave free
+        self.open_parts = unresolved
+        self.open_phi = np.where(unresolved.any(axis=1), phi, np.inf)
         # remember the new free cones (replacing each centre's narrower one)
         fi = np.nonzero(free & (phi > 0))[0]
         if len(fi):

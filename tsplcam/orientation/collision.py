@@ -315,8 +315,7 @@ _POOL_CHECKER = None           # the checker forked workers inherit
 
 
 def _pool_fcl(job):
-    C, A, tool, grow = job
-    return _POOL_CHECKER._fcl_here(C, A, tool, grow)
+    return _POOL_CHECKER._fcl_here(*job)
 
 
 def _bvh(V, T):
@@ -407,7 +406,7 @@ class CollisionChecker:
 
     def profile(self, grow: float = 0.0) -> Profile:
         """The tool above the ball centre as the fcl checks see it, grown by ``grow`` mm more
-        (as :meth:`_grown_tool`): per part its heights and its inscribed (grown) and
+        (as :meth:`_tool_object`): per part its heights and its inscribed (grown) and
         circumscribed (polygon corner) radii."""
         rows = []
         for p in self.tool.parts():
@@ -424,80 +423,93 @@ class CollisionChecker:
         return len(self.mesh.triangles)
 
     # --- batches -----------------------------------------------------------------------
-    def _grown_tool(self, grow: float):
-        """The tool mesh object grown radially (and along its length) by ``grow`` mm more."""
-        if grow == 0.0:
-            return self._tool
-        cache = self.__dict__.setdefault("_grown", {})
-        if grow not in cache:
-            V, T, _, _ = tool_mesh(self.tool, self.margin + grow, self.polygon_tolerance,
-                                   self.cutting_margin + grow)
-            V = V.copy()
-            top = V[:, 2].max()
-            V[:, 2] = np.where(V[:, 2] >= top - 1e-12, V[:, 2] + grow, V[:, 2])
-            cache[grow] = fcl.CollisionObject(_bvh(V, T), fcl.Transform())
-        return cache[grow]
+    def _tool_object(self, tool: str = "tool", grow: float = 0.0, parts: int = -1):
+        """The fcl object of the tool mesh: 'tool' grown radially (and at its top) by
+        ``grow`` mm more, or 'swung' (grown for a swing of ``SWING``, see tool_mesh); only the
+        parts in the bit mask ``parts`` (-1: all). A pose collides when some part does, and a
+        part's triangles are the same in every subset, so asking only the parts the broad
+        phase could not clear gives the same answer."""
+        key = (tool, float(grow), int(parts))
+        cache = self.__dict__.setdefault("_tool_objects", {})
+        if key not in cache:
+            if tool == "swung":
+                V, T, own, _ = tool_mesh(self.tool, self.margin, self.polygon_tolerance, self.cutting_margin, SWING)
+            else:
+                V, T, own, _ = tool_mesh(self.tool, self.margin + grow, self.polygon_tolerance,
+                                         self.cutting_margin + grow)
+                if grow:
+                    V = V.copy()
+                    top = V[:, 2].max()
+                    V[:, 2] = np.where(V[:, 2] >= top - 1e-12, V[:, 2] + grow, V[:, 2])
+            keep = ((int(parts) >> own) & 1).astype(bool) if parts != -1 else np.ones(len(T), bool)
+            cache[key] = fcl.CollisionObject(_bvh(V, T[keep]), fcl.Transform())
+        return cache[key]
 
-    def _decided(self, C, A, grow, ask):
-        """Broad-phase decisions, with ``ask(C, A)`` (fcl) for the poses it leaves open. At
-        zero growth those are first tried with the tool grown for a swing of ``SWING``: the
-        ones it passes are free and leave a cone of free axes at their centre (:meth:`swung`);
-        only at centres asked about before (a new centre's cone would serve nobody)."""
+    def _decided(self, C, A, grow, ask=None):
+        """Broad-phase decisions, with fcl for the poses it leaves open: ``ask(C, A)``, or by
+        default the tool mesh reduced to the parts the broad phase could not clear. At zero
+        growth those are first tried with the tool grown for a swing of ``SWING``: the ones it
+        passes are free and leave a cone of free axes at their centre; only at centres asked
+        about before (a new centre's cone would serve nobody), and reduced to the open parts
+        where the cleared ones keep that swing to spare."""
         if self.broad is None:
-            return ask(C, A)
+            return ask(C, A) if ask is not None else self._fcl(C, A, "tool", grow)
         st = self.broad.decide(C, A, grow)
         out = st == HIT
         open_ = np.nonzero(st == UNKNOWN)[0]
+        bits = 1 << np.arange(self.broad.open_parts.shape[1])
+        mask = self.broad.open_parts @ bits
         again = open_[self.broad.revisit[open_]]
         if len(again) and grow == 0.0:
-            free = ~self._fcl(C[again], A[again], "swung")
+            sw = np.where(self.broad.open_phi[again] >= SWING, mask[again], -1)
+            free = ~self._fcl(C[again], A[again], "swung", 0.0, sw)
             self.broad.add_cones(C[again[free]], A[again[free]], SWING)
             open_ = np.setdiff1d(open_, again[free])
         if len(open_):
-            out[open_] = ask(C[open_], A[open_])
+            out[open_] = (ask(C[open_], A[open_]) if ask is not None
+                          else self._fcl(C[open_], A[open_], "tool", grow, mask[open_]))
         return out
 
     def swung(self):
         """The tool mesh grown for a swing of ``SWING`` (tool_mesh), as an fcl object."""
-        if getattr(self, "_swung", None) is None:
-            V, T, _, _ = tool_mesh(self.tool, self.margin, self.polygon_tolerance, self.cutting_margin, SWING)
-            self._swung = fcl.CollisionObject(_bvh(V, T), fcl.Transform())
-        return self._swung
+        return self._tool_object("swung")
 
-    def _fcl(self, C, A, tool="tool", grow: float = 0.0) -> np.ndarray:
-        """One fcl BVH-BVH query per pose with the tool mesh ``tool`` ('tool', grown by
-        ``grow``, or 'swung'); large batches are shared among forked worker processes (each
-        asks fcl the same question of the same objects)."""
+    def _fcl(self, C, A, tool="tool", grow: float = 0.0, parts=None) -> np.ndarray:
+        """One fcl BVH-BVH query per pose with the tool mesh ``tool`` ('tool' grown by
+        ``grow``, or 'swung'), each pose with its own part mask ``parts`` (default all);
+        large batches are shared among forked worker processes (each asks fcl the same
+        question of the same objects)."""
         self.fcl_checks += len(C)
+        parts = np.full(len(C), -1) if parts is None else np.asarray(parts)
         workers = worker_count(None, len(C) // POOL_MIN) if len(C) >= 2 * POOL_MIN else 1
         if workers > 1:
             pool = self._pool(workers)
-            parts = np.array_split(np.arange(len(C)), 2 * workers)
-            got = pool.map(_pool_fcl, [(C[i], A[i], tool, grow) for i in parts])
+            chunks = np.array_split(np.arange(len(C)), 2 * workers)
+            got = pool.map(_pool_fcl, [(C[i], A[i], tool, grow, parts[i]) for i in chunks])
             return np.concatenate(got)
-        return self._fcl_here(C, A, tool, grow)
+        return self._fcl_here(C, A, tool, grow, parts)
 
     def _pool(self, workers: int):
-        """Forked workers that inherit this checker (its fcl objects built first)."""
+        """Forked workers that inherit this checker."""
         pool = getattr(self, "_workers", None)
         if pool is None:
             global _POOL_CHECKER
-            self.swung()
             _POOL_CHECKER = self
             pool = self._workers = multiprocessing.get_context("fork").Pool(workers)
             weakref.finalize(self, pool.terminate)
         return pool
 
-    def _fcl_here(self, C, A, tool, grow) -> np.ndarray:
-        obj = self.swung() if tool == "swung" else self._grown_tool(float(grow))
+    def _fcl_here(self, C, A, tool, grow, parts) -> np.ndarray:
         Q = axis_quaternions(A).tolist()
         out = np.zeros(len(Q), bool)
         wp, req, collide, Res = self._wp, self._req, fcl.collide, fcl.CollisionResult
-        for k in range(len(Q)):
-            obj.setQuatRotation(Q[k])
-            obj.setTranslation(C[k])
-            if collide(obj, wp, req, Res()):
-                out[k] = True
+        for m in np.unique(parts):
+            obj = self._tool_object(tool, float(grow), int(m))
+            for k in np.nonzero(parts == m)[0]:
+                obj.setQuatRotation(Q[k])
+                obj.setTranslation(C[k])
+                if collide(obj, wp, req, Res()):
+                    out[k] = True
         return out
 
     def collides(self, centers, axes, grow: float = 0.0) -> np.ndarray:
@@ -507,7 +519,7 @@ class CollisionChecker:
         C = np.asarray(centers, float).reshape(-1, 3)
         A = np.asarray(axes, float).reshape(-1, 3)
         C, A = (np.ascontiguousarray(x) for x in np.broadcast_arrays(C, A)) if len(C) != len(A) else (C, A)
-        out = self._decided(C, A, float(grow), lambda c, a: self.collides_fcl(c, a, grow))
+        out = self._decided(C, A, float(grow))
         if grow == 0.0:
             self.checks += len(C)
         return out

@@ -3,6 +3,7 @@
 #
 #   bash scripts/install.sh            # packages + link into the isolated test home
 #   bash scripts/install.sh --user     # also link into the real ~/.local/share/FreeCAD/Mod
+#   bash scripts/install.sh --bench    # also the benchmarks' references (bench/requirements.txt)
 #
 # What it does:
 #  1. Debian packages: FreeCAD 0.20 (freecad-python3, freecad), numpy, scipy, pip, pytest,
@@ -65,7 +66,22 @@ link_into() {  # $1 = a FreeCAD Mod directory
 FC_HOME="${TSPLCAM_FC_HOME:-$REPO/build/fchome}"
 # FreeCAD 0.20 with FREECAD_USER_HOME=$FC_HOME uses $FC_HOME itself as the user data directory.
 link_into "$FC_HOME/Mod"
-if [ "${1:-}" = "--user" ]; then
-  link_into "$HOME/.local/share/FreeCAD/Mod"
-fi
+for arg in "$@"; do
+  case "$arg" in
+    --user) link_into "$HOME/.local/share/FreeCAD/Mod" ;;
+    --bench)
+      # 4. The benchmarks' references, pinned, never needed by the job itself ------------
+      while read -r req; do
+        req="${req%%#*}"; req="$(echo "$req" | tr -d '[:space:]')"
+        [ -z "$req" ] && continue
+        dist="${req%%==*}"; want="${req##*==}"
+        have="$($PY -c "import importlib.metadata as m; print(m.version('$dist'))" 2>/dev/null || true)"
+        if [ "$have" != "$want" ]; then
+          say "installing $req into $PY (bench only)"
+          $SUDO $PY -m pip install -q --break-system-packages --no-deps --root-user-action=ignore "$req"
+        fi
+      done < "$REPO/bench/requirements.txt"
+      ;;
+  esac
+done
 say "ready (FreeCAD test home: $FC_HOME)"

@@ -13,14 +13,16 @@ chordal tolerance plus the requested clearance). So a pose the checker passes ke
 true tool at least ``clearance`` away from the true surface, and a reported collision is
 at most ``margin`` + the polygon excess (``polygon_tolerance``) from a real touch. The
 same parts also exist as fcl primitives (``fcl.Cylinder``, and ``fcl.Convex`` frustums):
-:meth:`CollisionChecker.collides_exact` uses them as the independent reference the tests
+:meth:`CollisionChecker.collides_primitives` uses them as the independent reference the tests
 compare against; the mesh form answers about four times faster (one BVH-BVH query per
 pose instead of one GJK traversal per part).
 
-Why no broad-phase manager: python-fcl's ``DynamicAABBTreeCollisionManager`` calls back
-into Python for every overlapping pair, so it cannot beat one ``fcl.collide`` per pose
-when the workpiece is a single BVH (every tool pose overlaps its box). Batches are
-therefore plain loops over poses with the transforms computed in numpy beforehand.
+Broad phase: :mod:`tsplcam.orientation.broadphase` decides most poses of a batch at once
+in numpy (a proof that the pose is free, or that it collides, from distance bounds to the
+mesh, empty balls per ball centre and samples of the mesh inside the tool); only the poses it
+cannot decide go to fcl, one ``fcl.collide`` per pose (python-fcl's broad-phase managers
+call back into Python for every overlapping pair, so they cannot beat that loop when the
+workpiece is a single BVH). ``broad_phase=False`` asks fcl for every pose (the reference).
 
 The ball: it touches the surface at the contact by construction, so it is left out of the
 per-axis checks (it does not depend on the axis). :meth:`ball_gouges` checks it once per
@@ -31,11 +33,15 @@ every gouge deeper than ``gouge_tolerance + tolerance``.
 """
 from __future__ import annotations
 
+import multiprocessing
+import weakref
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from ..errors import GeometryError, InputError
+from ..toolpath.parallel import worker_count
+from .broadphase import HIT, UNKNOWN, BroadPhase, Profile
 from .tool import Tool
 
 try:                                   # python-fcl is a dependency of this stage only
@@ -166,6 +172,48 @@ def named_mesh(vertices, triangles, name: str) -> TriangleMesh:
     return TriangleMesh(V, T, np.zeros(len(T), int), [name], [None], 0.0)
 
 
+def split_long_triangles(mesh: TriangleMesh, e_max: float) -> TriangleMesh:
+    """The same surface with every triangle longer than ``e_max`` cut into k^2 triangles by a
+    uniform barycentric subdivision (k = ceil(edge / e_max)), owners kept: fcl's bounding
+    volumes then stay small near the tool (the two triangles of an 18 mm block face overlap
+    every tool pose above it and are tested against every tool triangle)."""
+    V, T = mesh.vertices, mesh.triangles
+    if len(T) == 0:
+        return mesh
+    edge = np.linalg.norm(V[T[:, [1, 2, 0]]] - V[T], axis=2).max(axis=1)
+    k = np.maximum(1, np.ceil(edge / e_max - 1e-9)).astype(int)
+    if k.max() == 1:
+        return mesh
+    Vs, Ts, Os = [V], [T[k == 1]], [mesh.owner[k == 1]]
+    nv = len(V)
+    for kk in np.unique(k[k > 1]):
+        sel = np.nonzero(k == kk)[0]
+        i, j = np.meshgrid(np.arange(kk + 1), np.arange(kk + 1), indexing="ij")
+        keep = i + j <= kk
+        i, j = i[keep], j[keep]
+        local = -np.ones((kk + 1, kk + 1), int)
+        local[i, j] = np.arange(len(i))
+        a, b = np.meshgrid(np.arange(kk), np.arange(kk), indexing="ij")
+        up = a + b <= kk - 1
+        down = a + b <= kk - 2
+        tri = np.concatenate([
+            np.column_stack([local[a[up], b[up]], local[a[up] + 1, b[up]], local[a[up], b[up] + 1]]),
+            np.column_stack([local[a[down] + 1, b[down]], local[a[down] + 1, b[down] + 1],
+                             local[a[down], b[down] + 1]])])
+        A, B, C = V[T[sel, 0]], V[T[sel, 1]], V[T[sel, 2]]
+        u, w = (i / kk)[None, :, None], (j / kk)[None, :, None]
+        P = A[:, None] + u * (B - A)[:, None] + w * (C - A)[:, None]
+        Vs.append(P.reshape(-1, 3))
+        Ts.append((tri[None] + (nv + len(i) * np.arange(len(sel)))[:, None, None]).reshape(-1, 3))
+        Os.append(np.repeat(mesh.owner[sel], len(tri)))
+        nv += len(sel) * len(i)
+    # the points along shared edges come out once per triangle: weld them (connectivity)
+    Vn, inv = np.unique(np.round(np.concatenate(Vs), 9), axis=0, return_inverse=True)
+    Vn = np.concatenate(Vs)[np.unique(inv, return_index=True)[1]]
+    return TriangleMesh(Vn, inv.reshape(-1)[np.concatenate(Ts)], np.concatenate(Os), mesh.owners,
+                        mesh.owner_patch, mesh.chordal_error)
+
+
 # --- tool shapes -----------------------------------------------------------------------------
 
 def polygon_segments(radius: float, excess: float) -> int:
@@ -183,24 +231,33 @@ def _part_margin(name: str, margin: float, cutting_margin: float | None) -> floa
 
 
 def tool_mesh(tool: Tool, margin: float = 0.0, polygon_tolerance: float = 0.01,
-              cutting_margin: float | None = None):
+              cutting_margin: float | None = None, swing: float = 0.0):
     """Closed triangle mesh of the tool parts (tool frame: ball centre at the origin, axis +z),
     each radius grown by ``margin`` (the flutes by ``cutting_margin`` when given) and
-    circumscribed. Returns (V, T, part_of_triangle, names)."""
+    circumscribed. ``swing`` (rad) grows every part further, radially and at both ends, by
+    ``swing`` times its farthest distance from the ball centre: turning the axis by up to
+    ``swing`` about the ball centre keeps the part inside (a point at distance l moves at
+    most l swing), so a pose this tool passes is passed by every axis in that cone.
+    Returns (V, T, part_of_triangle, names)."""
     parts = tool.parts()
     V, T, owner = [], [], []
     names = [p.name for p in parts]
     for k, p in enumerate(parts):
         g = _part_margin(p.name, margin, cutting_margin)
         r0, r1 = p.r0 + g, p.r1 + g
+        z0, z1 = p.z0, p.z1
+        if swing > 0.0:
+            n = polygon_segments(max(r0, r1), polygon_tolerance)
+            d = swing * np.hypot(max(abs(z0), abs(z1)), max(r0, r1) / np.cos(np.pi / n))
+            r0, r1, z0, z1 = r0 + d, r1 + d, z0 - d, z1 + d
         n = polygon_segments(max(r0, r1), polygon_tolerance)
         a = np.arange(n) * 2 * np.pi / n
         s = 1.0 / np.cos(np.pi / n)                       # circumscribed: edge midpoints on the circle
         ring = np.column_stack([np.cos(a), np.sin(a)]) * s
         base = sum(len(v) for v in V)
-        bottom = np.column_stack([ring * r0, np.full(n, p.z0)])
-        top = np.column_stack([ring * r1, np.full(n, p.z1)])
-        V.append(np.vstack([bottom, top, [[0, 0, p.z0], [0, 0, p.z1]]]))
+        bottom = np.column_stack([ring * r0, np.full(n, z0)])
+        top = np.column_stack([ring * r1, np.full(n, z1)])
+        V.append(np.vstack([bottom, top, [[0, 0, z0], [0, 0, z1]]]))
         i = np.arange(n)
         j = (i + 1) % n
         tri = np.concatenate([np.column_stack([i, j, n + j]), np.column_stack([i, n + j, n + i]),
@@ -219,23 +276,27 @@ def tool_primitives(tool: Tool, margin: float = 0.0, polygon_tolerance: float = 
     out = []
     for p in tool.parts():
         g = _part_margin(p.name, margin, cutting_margin)
-        r0, r1 = p.r0 + g, p.r1 + g
-        h = p.z1 - p.z0
-        if abs(r0 - r1) < 1e-12:
-            out.append((p.name, fcl.Cylinder(r0, h), 0.5 * (p.z0 + p.z1)))
-            continue
-        n = polygon_segments(max(r0, r1), polygon_tolerance)
-        a = np.arange(n) * 2 * np.pi / n
-        s = 1.0 / np.cos(np.pi / n)
-        ring = np.column_stack([np.cos(a), np.sin(a)]) * s
-        verts = np.vstack([np.column_stack([ring * r0, np.full(n, -0.5 * h)]),
-                           np.column_stack([ring * r1, np.full(n, 0.5 * h)])])
-        faces = [n] + list(range(n - 1, -1, -1)) + [n] + list(range(n, 2 * n))
-        for i in range(n):
-            j = (i + 1) % n
-            faces += [4, i, j, n + j, n + i]
-        out.append((p.name, fcl.Convex(verts, n + 2, np.array(faces, np.int32)), 0.5 * (p.z0 + p.z1)))
+        out.append((p.name, frustum_shape(p.r0 + g, p.r1 + g, p.z1 - p.z0, polygon_tolerance),
+                    0.5 * (p.z0 + p.z1)))
     return out
+
+
+def frustum_shape(r0: float, r1: float, h: float, polygon_tolerance: float = 0.01):
+    """An fcl shape centred on the origin along +z: ``fcl.Cylinder`` when r0 = r1, else the
+    ``fcl.Convex`` hull of two circumscribed polygons (radius r0 at -h/2, r1 at +h/2)."""
+    if abs(r0 - r1) < 1e-12:
+        return fcl.Cylinder(r0, h)
+    n = polygon_segments(max(r0, r1), polygon_tolerance)
+    a = np.arange(n) * 2 * np.pi / n
+    s = 1.0 / np.cos(np.pi / n)
+    ring = np.column_stack([np.cos(a), np.sin(a)]) * s
+    verts = np.vstack([np.column_stack([ring * r0, np.full(n, -0.5 * h)]),
+                       np.column_stack([ring * r1, np.full(n, 0.5 * h)])])
+    faces = [n] + list(range(n - 1, -1, -1)) + [n] + list(range(n, 2 * n))
+    for i in range(n):
+        j = (i + 1) % n
+        faces += [4, i, j, n + j, n + i]
+    return fcl.Convex(verts, n + 2, np.array(faces, np.int32))
 
 
 def axis_quaternions(axes: np.ndarray) -> np.ndarray:
@@ -246,6 +307,15 @@ def axis_quaternions(axes: np.ndarray) -> np.ndarray:
     flip = w < 1e-9                                          # axis ~ -z: half turn about x
     q[flip] = [0.0, 1.0, 0.0, 0.0]
     return q / np.linalg.norm(q, axis=1, keepdims=True)
+
+
+SWING = np.radians(1.0)        # cone of axes a pose decided by fcl certifies (see tool_mesh)
+POOL_MIN = 400                 # fcl batches at least twice this long go to worker processes
+_POOL_CHECKER = None           # the checker forked workers inherit
+
+
+def _pool_fcl(job):
+    return _POOL_CHECKER._fcl_here(*job)
 
 
 def _bvh(V, T):
@@ -278,12 +348,14 @@ class CollisionChecker:
     ``meshes``: extra (name, vertices, triangles) obstacles (stock, fixture, neighbouring
     blades); ``clearance``: distance the shank and holder must keep (mm);
     ``gouge_tolerance``: depth below which the ball is not reported as gouging
-    (must be at least twice ``tolerance``). Poses are given by ball centres and unit axes.
+    (must be at least twice ``tolerance``); ``broad_phase``: decide what the numpy broad
+    phase can prove before asking fcl (same answers, see the module doc). Poses are given by
+    ball centres and unit axes.
     """
 
     def __init__(self, model, tool: Tool, meshes=(), tolerance: float = 0.005,
                  clearance: float = 0.0, gouge_tolerance: float | None = None,
-                 polygon_tolerance: float = 0.01, patches=None):
+                 polygon_tolerance: float = 0.01, patches=None, broad_phase: bool = True):
         if fcl is None:
             raise GeometryError("python-fcl is not installed: tool orientation needs it "
                                 "(pip install python-fcl)")
@@ -299,12 +371,18 @@ class CollisionChecker:
         parts = []
         if model is not None:
             parts.append(tessellate_model(model, self.tolerance, patches))
+        e_max, e_cap = 2.0, None
+        if parts:                    # the tessellation's own spacing sets the samples' and the splits'
+            V0, T0 = parts[0].vertices, parts[0].triangles
+            edge = np.linalg.norm(V0[T0[:, [1, 2, 0]]] - V0[T0], axis=2).max(axis=1)
+            e_cap = max(0.1, float(np.quantile(edge, 0.99)))
+            e_max = max(e_max, 4.0 * float(np.median(edge)))
         for item in meshes:
             if isinstance(item, TriangleMesh):
-                parts.append(item)
+                parts.append(split_long_triangles(item, e_max))
             else:
                 name, V, T = item
-                parts.append(named_mesh(V, T, name))
+                parts.append(split_long_triangles(named_mesh(V, T, name), e_max))
         if not parts:
             raise InputError("nothing to check collisions against (no model and no meshes)")
         self.mesh = TriangleMesh.concat(parts)
@@ -322,49 +400,148 @@ class CollisionChecker:
         self._ball = fcl.CollisionObject(fcl.Sphere(tool.ball_radius - self.gouge_tolerance), fcl.Transform())
         self._req = fcl.CollisionRequest()
         self.checks = 0                    # poses checked so far (for reports and benchmarks)
+        self.fcl_checks = 0                # of those, asked of fcl
+        self.broad = BroadPhase(self.mesh.vertices, self.mesh.triangles, self.profile,
+                                tool.ball_radius - self.gouge_tolerance, e_cap) if broad_phase else None
+
+    def profile(self, grow: float = 0.0) -> Profile:
+        """The tool above the ball centre as the fcl checks see it, grown by ``grow`` mm more
+        (as :meth:`_tool_object`): per part its heights and its inscribed (grown) and
+        circumscribed (polygon corner) radii."""
+        rows = []
+        for p in self.tool.parts():
+            g = _part_margin(p.name, self.margin + grow, self.cutting_margin + grow)
+            r0, r1 = p.r0 + g, p.r1 + g
+            f = 1.0 / np.cos(np.pi / polygon_segments(max(r0, r1), self.polygon_tolerance))
+            rows.append((p.z0, p.z1, r0, r1, r0 * f, r1 * f))
+        z0, z1, ri0, ri1, ro0, ro1 = (np.array(c, float) for c in zip(*rows))
+        z1[-1] += grow
+        return Profile(z0, z1, ri0, ri1, ro0, ro1)
 
     @property
     def triangles(self) -> int:
         return len(self.mesh.triangles)
 
     # --- batches -----------------------------------------------------------------------
-    def _grown_tool(self, grow: float):
-        """The tool mesh object grown radially (and along its length) by ``grow`` mm more."""
-        if grow == 0.0:
-            return self._tool
-        cache = self.__dict__.setdefault("_grown", {})
-        if grow not in cache:
-            V, T, _, _ = tool_mesh(self.tool, self.margin + grow, self.polygon_tolerance,
-                                   self.cutting_margin + grow)
-            V = V.copy()
-            top = V[:, 2].max()
-            V[:, 2] = np.where(V[:, 2] >= top - 1e-12, V[:, 2] + grow, V[:, 2])
-            cache[grow] = fcl.CollisionObject(_bvh(V, T), fcl.Transform())
-        return cache[grow]
+    def _tool_object(self, tool: str = "tool", grow: float = 0.0, parts: int = -1):
+        """The fcl object of the tool mesh: 'tool' grown radially (and at its top) by
+        ``grow`` mm more, or 'swung' (grown for a swing of ``SWING``, see tool_mesh); only the
+        parts in the bit mask ``parts`` (-1: all). A pose collides when some part does, and a
+        part's triangles are the same in every subset, so asking only the parts the broad
+        phase could not clear gives the same answer."""
+        key = (tool, float(grow), int(parts))
+        cache = self.__dict__.setdefault("_tool_objects", {})
+        if key not in cache:
+            if tool == "swung":
+                V, T, own, _ = tool_mesh(self.tool, self.margin, self.polygon_tolerance, self.cutting_margin, SWING)
+            else:
+                V, T, own, _ = tool_mesh(self.tool, self.margin + grow, self.polygon_tolerance,
+                                         self.cutting_margin + grow)
+                if grow:
+                    V = V.copy()
+                    top = V[:, 2].max()
+                    V[:, 2] = np.where(V[:, 2] >= top - 1e-12, V[:, 2] + grow, V[:, 2])
+            keep = ((int(parts) >> own) & 1).astype(bool) if parts != -1 else np.ones(len(T), bool)
+            cache[key] = fcl.CollisionObject(_bvh(V, T[keep]), fcl.Transform())
+        return cache[key]
+
+    def _decided(self, C, A, grow, ask=None):
+        """Broad-phase decisions, with fcl for the poses it leaves open: ``ask(C, A)``, or by
+        default the tool mesh reduced to the parts the broad phase could not clear. At zero
+        growth those are first tried with the tool grown for a swing of ``SWING``: the ones it
+        passes are free and leave a cone of free axes at their centre; only at centres asked
+        about before (a new centre's cone would serve nobody), and reduced to the open parts
+        where the cleared ones keep that swing to spare."""
+        if self.broad is None:
+            return ask(C, A) if ask is not None else self._fcl(C, A, "tool", grow)
+        st = self.broad.decide(C, A, grow)
+        out = st == HIT
+        open_ = np.nonzero(st == UNKNOWN)[0]
+        bits = 1 << np.arange(self.broad.open_parts.shape[1])
+        mask = self.broad.open_parts @ bits
+        again = open_[self.broad.revisit[open_]]
+        if len(again) and grow == 0.0:
+            sw = np.where(self.broad.open_phi[again] >= SWING, mask[again], -1)
+            free = ~self._fcl(C[again], A[again], "swung", 0.0, sw)
+            self.broad.add_cones(C[again[free]], A[again[free]], SWING)
+            open_ = np.setdiff1d(open_, again[free])
+        if len(open_):
+            out[open_] = (ask(C[open_], A[open_]) if ask is not None
+                          else self._fcl(C[open_], A[open_], "tool", grow, mask[open_]))
+        return out
+
+    def swung(self):
+        """The tool mesh grown for a swing of ``SWING`` (tool_mesh), as an fcl object."""
+        return self._tool_object("swung")
+
+    def _fcl(self, C, A, tool="tool", grow: float = 0.0, parts=None) -> np.ndarray:
+        """One fcl BVH-BVH query per pose with the tool mesh ``tool`` ('tool' grown by
+        ``grow``, or 'swung'), each pose with its own part mask ``parts`` (default all);
+        large batches are shared among forked worker processes (each asks fcl the same
+        question of the same objects)."""
+        self.fcl_checks += len(C)
+        parts = np.full(len(C), -1) if parts is None else np.asarray(parts)
+        workers = worker_count(None, len(C) // POOL_MIN) if len(C) >= 2 * POOL_MIN else 1
+        if workers > 1:
+            pool = self._pool(workers)
+            chunks = np.array_split(np.arange(len(C)), 2 * workers)
+            got = pool.map(_pool_fcl, [(C[i], A[i], tool, grow, parts[i]) for i in chunks])
+            return np.concatenate(got)
+        return self._fcl_here(C, A, tool, grow, parts)
+
+    def _pool(self, workers: int):
+        """Forked workers that inherit this checker."""
+        pool = getattr(self, "_workers", None)
+        if pool is None:
+            global _POOL_CHECKER
+            _POOL_CHECKER = self
+            pool = self._workers = multiprocessing.get_context("fork").Pool(workers)
+            weakref.finalize(self, pool.terminate)
+        return pool
+
+    def _fcl_here(self, C, A, tool, grow, parts) -> np.ndarray:
+        Q = axis_quaternions(A).tolist()
+        out = np.zeros(len(Q), bool)
+        wp, req, collide, Res = self._wp, self._req, fcl.collide, fcl.CollisionResult
+        for m in np.unique(parts):
+            obj = self._tool_object(tool, float(grow), int(m))
+            for k in np.nonzero(parts == m)[0]:
+                obj.setQuatRotation(Q[k])
+                obj.setTranslation(C[k])
+                if collide(obj, wp, req, Res()):
+                    out[k] = True
+        return out
 
     def collides(self, centers, axes, grow: float = 0.0) -> np.ndarray:
         """True where the pose (ball centre, axis) makes flutes, shank or holder touch the
-        workpiece (within the margin, plus ``grow`` mm). One BVH-BVH query per pose."""
+        workpiece (within the margin, plus ``grow`` mm): the broad phase's proofs, else one
+        BVH-BVH fcl query per pose."""
+        C = np.asarray(centers, float).reshape(-1, 3)
+        A = np.asarray(axes, float).reshape(-1, 3)
+        C, A = (np.ascontiguousarray(x) for x in np.broadcast_arrays(C, A)) if len(C) != len(A) else (C, A)
+        out = self._decided(C, A, float(grow))
+        if grow == 0.0:
+            self.checks += len(C)
+        return out
+
+    def collides_fcl(self, centers, axes, grow: float = 0.0) -> np.ndarray:
+        """:meth:`collides` asked of fcl alone: one BVH-BVH query per pose."""
         C = np.asarray(centers, float).reshape(-1, 3)
         A = np.asarray(axes, float).reshape(-1, 3)
         C, A = np.broadcast_arrays(C, A) if len(C) != len(A) else (C, A)
-        Q = axis_quaternions(A)
-        out = np.zeros(len(Q), bool)
-        obj, wp, req, collide = self._grown_tool(float(grow)), self._wp, self._req, fcl.collide
-        Res = fcl.CollisionResult
-        Ql = Q.tolist()
-        for k in range(len(Ql)):
-            obj.setQuatRotation(Ql[k])
-            obj.setTranslation(C[k])
-            if collide(obj, wp, req, Res()):
-                out[k] = True
-        if grow == 0.0:
-            self.checks += len(Q)
-        return out
+        return self._fcl(C, A, "tool", float(grow))
 
     def collides_exact(self, centers, axes) -> np.ndarray:
-        """The same question asked of fcl primitives (``Cylinder``/``Convex``) part by part:
-        slower, the reference the mesh form is tested against."""
+        """The same question asked of fcl primitives (``Cylinder``/``Convex``) part by part,
+        the reference the mesh form is tested against; the broad phase's proofs hold for both
+        forms (its spheres cover the polygons, its hits lie inside the circles)."""
+        C = np.asarray(centers, float).reshape(-1, 3)
+        A = np.asarray(axes, float).reshape(-1, 3)
+        C, A = (np.ascontiguousarray(x) for x in np.broadcast_arrays(C, A)) if len(C) != len(A) else (C, A)
+        return self._decided(C, A, 0.0, self.collides_primitives)
+
+    def collides_primitives(self, centers, axes) -> np.ndarray:
+        """:meth:`collides_exact` asked of fcl alone."""
         C = np.asarray(centers, float).reshape(-1, 3)
         A = np.asarray(axes, float).reshape(-1, 3)
         C, A = np.broadcast_arrays(C, A) if len(C) != len(A) else (C, A)
@@ -381,11 +558,13 @@ class CollisionChecker:
 
     def ball_gouges(self, centers) -> np.ndarray:
         """True where the ball (shrunk by ``gouge_tolerance``) at the centre touches the
-        workpiece anywhere: the ball would cut into the part deeper than the tolerance."""
+        workpiece anywhere: the ball would cut into the part deeper than the tolerance.
+        The broad phase proves most balls clear; fcl answers for the rest."""
         C = np.asarray(centers, float).reshape(-1, 3)
         out = np.zeros(len(C), bool)
+        ask = np.ones(len(C), bool) if self.broad is None else ~self.broad.ball_free(C)
         obj, wp, req = self._ball, self._wp, self._req
-        for k in range(len(C)):
+        for k in np.nonzero(ask)[0]:
             obj.setTranslation(C[k])
             out[k] = fcl.collide(obj, wp, req, fcl.CollisionResult()) > 0
         return out
@@ -393,19 +572,40 @@ class CollisionChecker:
     def clearance_of(self, centers, axes) -> np.ndarray:
         """Distance (mm) between the tool parts above the ball and the workpiece per pose
         (fcl.distance on the exact primitives; 0 where they touch). The tool is grown by the
-        margin, so the true distance is this plus ``margin``."""
+        margin, so the true distance is this plus ``margin``.
+
+        Parts are measured nearest first by the broad phase's lower bound of their distance;
+        a part is skipped when that bound, or a collision query of the part grown by the
+        nearest distance measured so far (it contains every point within that distance), shows
+        it lies farther: it cannot be the smallest, and a distance query against the whole
+        workpiece costs a hundred collision queries (the holder's long cylinder most).
+        """
         C = np.asarray(centers, float).reshape(-1, 3)
         A = np.asarray(axes, float).reshape(-1, 3)
         Q = axis_quaternions(A)
         out = np.empty(len(Q))
         req = fcl.DistanceRequest()
+        bound = (np.zeros((len(C), len(self._prims))) if self.broad is None
+                 else self.broad.part_lower_bounds(C, A))
+        parts = [p for p in self.tool.parts()]
         for k in range(len(Q)):
             best = np.inf
-            for _, obj, z in self._prims:
+            for j in np.argsort(bound[k], kind="stable"):
+                if bound[k, j] >= best:
+                    break
+                _, obj, z = self._prims[j]
+                if np.isfinite(best):
+                    g = _part_margin(parts[j].name, self.margin, self.cutting_margin) + best
+                    grown = fcl.CollisionObject(frustum_shape(parts[j].r0 + g, parts[j].r1 + g,
+                                                              parts[j].z1 - parts[j].z0 + 2 * best,
+                                                              self.polygon_tolerance), fcl.Transform())
+                    grown.setQuatRotation(Q[k])
+                    grown.setTranslation(C[k] + z * A[k])
+                    if not fcl.collide(grown, self._wp, self._req, fcl.CollisionResult()):
+                        continue
                 obj.setQuatRotation(Q[k])
                 obj.setTranslation(C[k] + z * A[k])
-                res = fcl.DistanceResult()
-                d = fcl.distance(obj, self._wp, req, res)
+                d = fcl.distance(obj, self._wp, req, fcl.DistanceResult())
                 best = min(best, max(d, 0.0))
                 if best <= 0:
                     break

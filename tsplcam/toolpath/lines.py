@@ -77,9 +77,13 @@ class FrameGeom:
         self.det = self.E * self.G - self.F ** 2
 
     def rows(self, index) -> "FrameGeom":
-        """The rows ``index`` (a slice or index array) as a FrameGeom."""
-        return FrameGeom(*(getattr(self, k)[index] for k in
-                           ("P", "n", "Ss", "St", "Sss", "Sst", "Stt", "u", "v", "s", "t")))
+        """The rows ``index`` (a slice or index array) as a FrameGeom (the fundamental forms
+        are taken along, not computed again)."""
+        out = object.__new__(FrameGeom)
+        for k in ("P", "n", "Ss", "St", "Sss", "Sst", "Stt", "u", "v", "s", "t", "E", "F", "G", "L", "M", "N",
+                  "det"):
+            setattr(out, k, getattr(self, k)[index])
+        return out
 
     def cross_curvature(self) -> np.ndarray:
         """Normal curvature across a line s = const, i.e. along S_s - (F/G) S_t
@@ -129,8 +133,8 @@ class LineFrame:
 
     def evaluate(self, s, t) -> FrameGeom:
         s, t = np.broadcast_arrays(np.atleast_1d(np.asarray(s, float)), np.atleast_1d(np.asarray(t, float)))
-        s = np.clip(s, 0.0, 1.0)
-        t = np.clip(t, 0.0, 1.0)
+        s = np.minimum(np.maximum(s, 0.0), 1.0)
+        t = np.minimum(np.maximum(t, 0.0), 1.0)
         u, v = self.uv(s, t)
         sp = self.patch.evaluate(u, v)
         sg = -1.0 if self.s_flip else 1.0
@@ -212,7 +216,7 @@ def _capsule_entry(p, n, a, b, r):
     """Distance along the unit normals n from points p to where they enter the capsule of
     radius r around segment a-b (inf if they miss); arrays broadcast over leading axes."""
     e = b - a
-    L = np.linalg.norm(e, axis=-1)
+    L = np.sqrt(np.sum(e * e, axis=-1))
     eh = e / np.maximum(L, 1e-300)[..., None]
     w = p - a
     dn = np.sum(n * eh, axis=-1)
@@ -223,17 +227,15 @@ def _capsule_entry(p, n, a, b, r):
     B = np.sum(wp * dp, axis=-1)
     C = np.sum(wp * wp, axis=-1) - r * r
     disc = B * B - A * C
-    with np.errstate(invalid="ignore", divide="ignore"):
-        lam = (-B - np.sqrt(np.where(disc >= 0, disc, np.nan))) / A
-        ax = wn + lam * dn
+    lam = (-B - np.sqrt(np.where(disc >= 0, disc, np.nan))) / A
+    ax = wn + lam * dn
     out = np.where((disc >= 0) & (A > 1e-14) & (ax >= 0) & (ax <= L), lam, np.inf)
     for c in (a, b):
         wc = p - c
         bb = np.sum(n * wc, axis=-1)
         cc = np.sum(wc * wc, axis=-1) - r * r
         d = bb * bb - cc
-        with np.errstate(invalid="ignore"):
-            out = np.minimum(out, np.where(d >= 0, -bb - np.sqrt(np.where(d >= 0, d, 0.0)), np.inf))
+        out = np.minimum(out, np.where(d >= 0, -bb - np.sqrt(np.where(d >= 0, d, 0.0)), np.inf))
     return out
 
 
@@ -257,87 +259,115 @@ def cusp_heights(frame: LineFrame, g1: FrameGeom, ds: float, r: float) -> tuple[
     straight capsule from its end ball along the line; the peak is where the two entries
     are equal, bracketed on 17 samples, bracketed again on 17 inside, and interpolated.
     """
-    s1 = g1.s
     with np.errstate(divide="ignore", invalid="ignore"):
-        shift = -(g1.F - r * g1.M) / (g1.G - r * g1.N)
+        h, ends = cusp_heights_many(frame, g1, np.array([ds], float), r)
+    return h[0], ends[0]
+
+
+def cusp_heights_many(frame: LineFrame, g1: FrameGeom, ds: np.ndarray, r: float):
+    """:func:`cusp_heights` for G gaps at once: ``g1`` the samples of G lines one after the
+    other (the same number on each), ``ds`` (G,) the steps to their next lines. Returns the
+    heights (G, m) and the ends (G, 2); two surface evaluations whatever G is."""
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return _cusp_heights(frame, g1, np.asarray(ds, float), r)
+
+
+def _cusp_heights(frame, g1, ds, r):
+    G = len(ds)
+    m = len(g1.t) // G
+    rs = lambda a: a.reshape((G, -1) + a.shape[1:])          # noqa: E731  rows per gap
+    s1 = g1.s[::m]
+    t1 = rs(g1.t)
+    shift = rs(-(g1.F - r * g1.M) / (g1.G - r * g1.N))
     shift = np.where(np.isfinite(shift), shift, 0.0)
-    t2 = g1.t + shift * ds
+    t2 = t1 + shift * ds[:, None]
     beyond = (t2 < 0.0) | (t2 > 1.0)
-    t2 = np.clip(t2, 0.0, 1.0)
-    s2 = min(float(s1[0]) + ds, 1.0)
-    m = len(t2)
+    t2 = np.minimum(np.maximum(t2, 0.0), 1.0)
+    s2 = np.minimum(s1 + ds, 1.0)
     e = EDGE_EPS
     f = np.linspace(0.0, 1.0, END_SAMPLES)
     k_end = len(f)
-    # one evaluation: the partners on line 2 (m), line 2 at its ends and just inside them (4),
-    # line 1 at its ends (2), the mid points of the cusps (m), the edges between the ends (2 k)
-    sm = 0.5 * (s1 + s2)
-    tm = 0.5 * (g1.t + t2)
-    s_all = np.concatenate([np.full(m + 4, s2), [s1[0], s1[0]], sm, s1[0] + np.tile(f, 2) * (s2 - s1[0])])
-    t_all = np.concatenate([t2, [0.0, 1.0, e, 1.0 - e], [0.0, 1.0], tm, np.repeat([0.0, 1.0], k_end)])
-    ga = frame.evaluate(s_all, t_all)
-    gg = ga.rows(slice(0, m + 6))
-    gm = ga.rows(slice(m + 6, 2 * m + 6))
-    ge0 = ga.rows(slice(2 * m + 6, None))
-    c2all = gg.P + r * gg.n
-    c1 = g1.P + r * g1.n
-    c2 = c2all[:m]
+    # one evaluation per gap block: the partners on line 2 (m), line 2 at its ends and just
+    # inside them (4), line 1 at its ends (2), the mid points of the cusps (m), the edges
+    # between the ends (2 k)
+    B = 2 * m + 6 + 2 * k_end
+    S = np.empty((G, B))
+    T = np.empty((G, B))
+    S[:, :m + 4] = s2[:, None]
+    S[:, m + 4:m + 6] = s1[:, None]
+    S[:, m + 6:2 * m + 6] = (0.5 * (s1 + s2))[:, None]
+    S[:, 2 * m + 6:] = s1[:, None] + np.tile(f, 2)[None, :] * (s2 - s1)[:, None]
+    T[:, :m] = t2
+    T[:, m:m + 4] = [0.0, 1.0, e, 1.0 - e]
+    T[:, m + 4:m + 6] = [0.0, 1.0]
+    T[:, m + 6:2 * m + 6] = 0.5 * (t1 + t2)
+    T[:, 2 * m + 6:] = np.repeat([0.0, 1.0], k_end)
+    ga = frame.evaluate(S.ravel(), T.ravel())
+    P, n, St = rs(ga.P), rs(ga.n), rs(ga.St)
+    gP, gn = P[:, :m + 6], n[:, :m + 6]
+    mP, mn, mSs, mSt = P[:, m + 6:2 * m + 6], n[:, m + 6:2 * m + 6], rs(ga.Ss)[:, m + 6:2 * m + 6], \
+        St[:, m + 6:2 * m + 6]
+    mid = slice(m + 6, 2 * m + 6)
+    mE, mF, mG, mL, mM, mN = (rs(getattr(ga, k))[:, mid] for k in ("E", "F", "G", "L", "M", "N"))
+    c2all = gP + r * gn
+    n1 = rs(g1.n)
+    c1 = rs(g1.P) + r * n1
+    c2 = c2all[:, :m]
     w = c2 - c1
-    d2 = np.einsum("ij,ij->i", w, w)
+    d2 = np.einsum("gij,gij->gi", w, w)
     meet = d2 < 4 * r * r
-    down = -(g1.n + gg.n[:m])
-    with np.errstate(divide="ignore", invalid="ignore"):
-        down -= (np.einsum("ij,ij->i", down, w) / np.where(d2 > 0, d2, 1.0))[:, None] * w
-    down /= np.maximum(np.linalg.norm(down, axis=1, keepdims=True), 1e-300)
-    q = 0.5 * (c1 + c2) + np.sqrt(np.maximum(r * r - 0.25 * d2, 0.0))[:, None] * down
-    rel = q - gm.P
+    down = -(n1 + gn[:, :m])
+    down -= (np.einsum("gij,gij->gi", down, w) / np.where(d2 > 0, d2, 1.0))[..., None] * w
+    down /= np.maximum(np.linalg.norm(down, axis=-1, keepdims=True), 1e-300)
+    q = 0.5 * (c1 + c2) + np.sqrt(np.maximum(r * r - 0.25 * d2, 0.0))[..., None] * down
+    rel = q - mP
     # Gauss-Newton foot offset (ds, dt): (J^T J) x = J^T rel
-    a, b, c = gm.E, gm.F, gm.G
-    ra, rb = np.einsum("ij,ij->i", gm.Ss, rel), np.einsum("ij,ij->i", gm.St, rel)
-    det = a * c - b * b
-    with np.errstate(divide="ignore", invalid="ignore"):
-        x = np.where(det > 0, (c * ra - b * rb) / det, 0.0)
-        y = np.where(det > 0, (a * rb - b * ra) / det, 0.0)
-    height = np.einsum("ij,ij->i", gm.n, rel) - 0.5 * (gm.L * x * x + 2 * gm.M * x * y + gm.N * y * y)
+    ra, rb = np.einsum("gij,gij->gi", mSs, rel), np.einsum("gij,gij->gi", mSt, rel)
+    det = mE * mG - mF * mF
+    x = np.where(det > 0, (mG * ra - mF * rb) / det, 0.0)
+    y = np.where(det > 0, (mE * rb - mF * ra) / det, 0.0)
+    height = np.einsum("gij,gij->gi", mn, rel) - 0.5 * (mL * x * x + 2 * mM * x * y + mN * y * y)
     height = np.where(meet, height, np.inf)
     height = np.where(beyond, np.nan, height)
     # the ends: material along the edge between the two end balls, each line's tube taken
     # as a straight capsule from its end ball along the line (into the patch)
     unit = lambda v: v / np.maximum(np.linalg.norm(v, axis=-1, keepdims=True), 1e-300)   # noqa: E731
-    tin1 = unit(np.array([g1.St[0], -g1.St[-1]]))
-    tin2 = unit(np.array([gg.St[m + 2], -gg.St[m + 3]]))
-    c1e, c2e = c2all[m + 4:m + 6], c2all[m:m + 2]
-    ends = np.zeros(2)
-    lo = np.zeros(2)
-    width = np.ones(2)
-    rows = np.arange(2)
+    St1 = rs(g1.St)
+    tin1 = unit(np.stack([St1[:, 0], -St1[:, -1]], axis=1))
+    tin2 = unit(np.stack([St[:, m + 2], -St[:, m + 3]], axis=1))
+    # both lines' capsules at once: (gap, line, end, 1, 3)
+    ca = np.stack([c2all[:, m + 4:m + 6], c2all[:, m:m + 2]], axis=1)[:, :, :, None, :]
+    cb = ca + 4 * r * np.stack([tin1, tin2], axis=1)[:, :, :, None, :]
+    ends = np.zeros((G, 2))
+    lo = np.zeros((G, 2))
+    width = np.ones((G, 2))
+    eP, en = P[:, 2 * m + 6:], n[:, 2 * m + 6:]
+    take = lambda a, i: np.take_along_axis(a, i[..., None], axis=2)[..., 0]   # noqa: E731
     for rnd in range(2):        # a coarse pass, then one inside the bracket of the crossing
-        if rnd == 0:
-            ge = ge0
-        else:
-            ff = lo[:, None] + width[:, None] * f[None, :]              # (2, k)
-            ge = frame.evaluate(s1[0] + np.clip(ff, 0, 1).ravel() * (s2 - s1[0]),
-                                np.repeat([0.0, 1.0], len(f)))
-        p_ = ge.P.reshape(2, -1, 3)
-        n_ = ge.n.reshape(2, -1, 3)
-        h1 = _capsule_entry(p_, n_, c1e[:, None, :], c1e[:, None, :] + 4 * r * tin1[:, None, :], r)
-        h2 = _capsule_entry(p_, n_, c2e[:, None, :], c2e[:, None, :] + 4 * r * tin2[:, None, :], r)
+        if rnd == 1:
+            ff = lo[..., None] + width[..., None] * f                  # (G, 2, k)
+            ge = frame.evaluate((s1[:, None] + np.minimum(np.maximum(ff, 0), 1).reshape(G, -1)
+                                 * (s2 - s1)[:, None]).ravel(), np.tile(np.repeat([0.0, 1.0], k_end), G))
+            eP, en = rs(ge.P), rs(ge.n)
+        h = _capsule_entry(eP.reshape(G, 1, 2, -1, 3), en.reshape(G, 1, 2, -1, 3), ca, cb, r)
+        h1, h2 = h[:, 0], h[:, 1]                                        # (G, 2, k)
         # the material peaks where the two tubes leave the same height (line 1's lower near
         # its end, line 2's near the other): bracket that crossing and interpolate, since a
         # cusp is a corner that samples alone would cut short
-        with np.errstate(invalid="ignore"):
-            d = h1 - h2
-        k = np.argmax(d >= 0, axis=1)
-        k = np.clip(np.where(np.any(d >= 0, axis=1), k, len(f) - 1), 1, len(f) - 1)
-        d0, d1 = d[rows, k - 1], d[rows, k]
-        with np.errstate(invalid="ignore", divide="ignore"):
-            x = np.clip(d0 / (d0 - d1), 0.0, 1.0)
-            cross = h1[rows, k - 1] + x * (h1[rows, k] - h1[rows, k - 1])
-        peak = np.max(np.minimum(h1, h2), axis=1)
+        d = h1 - h2
+        k = np.argmax(d >= 0, axis=2)
+        k = np.where(np.any(d >= 0, axis=2), k, len(f) - 1)
+        k = np.minimum(np.maximum(k, 1), len(f) - 1)
+        d0, d1 = take(d, k - 1), take(d, k)
+        x = np.minimum(np.maximum(d0 / (d0 - d1), 0.0), 1.0)
+        hk0, hk1 = take(h1, k - 1), take(h1, k)
+        cross = hk0 + x * (hk1 - hk0)
+        low = np.minimum(h1, h2)
+        peak = np.max(low, axis=2)
         ok = np.isfinite(cross) & (d0 < 0) & (d1 >= 0)
-        ends = np.maximum(ends, np.where(ok, np.maximum(cross, np.minimum(h1, h2)[rows, k]), peak))
+        ends = np.maximum(ends, np.where(ok, np.maximum(cross, take(low, k)), peak))
         step = width / (len(f) - 1)
-        lo = np.clip(lo + step * (k - 1), 0.0, 1.0)
+        lo = np.minimum(np.maximum(lo + step * (k - 1), 0.0), 1.0)
         width = step
     return height, ends
 
@@ -416,7 +446,7 @@ class Placer:
             if len(hist) >= 2 and hist[-1][0] != hist[-2][0] and hist[-1][1] > 0 and hist[-2][1] > 0 \
                     and np.isfinite(hist[-1][1]) and np.isfinite(hist[-2][1]):
                 p = np.log(hist[-1][1] / hist[-2][1]) / np.log(hist[-1][0] / hist[-2][0])
-                p = float(np.clip(p, 1.0, 4.0)) if np.isfinite(p) else 2.0
+                p = float(min(max(p, 1.0), 4.0)) if np.isfinite(p) else 2.0
             else:
                 p = 2.0
             nd = d * (AIM / R) ** (1.0 / p) if np.isfinite(R) and R > 0 else 0.5 * d
@@ -442,7 +472,7 @@ class Placer:
         full = np.nan
         while True:
             d, R, full, f = self.step(s, factor, target)
-            factor = float(np.clip(f, 0.25, 4.0))
+            factor = float(min(max(f, 0.25), 4.0))
             ratios.append(R)
             if s + d >= 1.0 - 1e-12:
                 pos.append(1.0)
@@ -463,11 +493,17 @@ class Placer:
         if c >= 0.999:
             return None
         new = np.append(pos[:-1] * c, 1.0)
-        ratios = []
-        for a, b in zip(new[:-1], new[1:]):
-            g1 = self.frame.evaluate(np.full_like(self.t, a), self.t)
-            ratios.append(self.ratio(g1, b - a, target.at(g1)))
-        ratios = np.array(ratios)
+        # every gap at once: the lines in one evaluation, their cusps in two
+        m = len(self.t)
+        G = len(new) - 1
+        g1 = self.frame.evaluate(np.repeat(new[:-1], m), np.tile(self.t, G))
+        self.evaluations += 2 * G
+        h, ends = cusp_heights_many(self.frame, g1, np.diff(new), self.r)
+        th = target.at(g1).reshape(G, m)
+        rs = h / th
+        with np.errstate(invalid="ignore"):
+            inner = np.where(np.isnan(rs).all(axis=1), 0.0, np.nanmax(np.where(np.isnan(rs), -np.inf, rs), axis=1))
+        ratios = np.maximum(inner, np.maximum(ends[:, 0] / th[:, 0], ends[:, 1] / th[:, -1]))
         if ratios.max() > FIT:
             return None
         return new, ratios, c

@@ -9,7 +9,7 @@ For each step (patch, start corner, finish corner, crossfeed) of the processing 
 * the lines alternate direction; consecutive lines are joined by LINK moves along the
   patch edge (on the surface, no retraction);
 * points along lines and links are spaced by the chord tolerance
-  (:func:`~tsplcam.toolpath.chord.place_points`);
+  (:func:`~tsplcam.toolpath.chord.place_curves`, every line and link of the step at once);
 * the first point of a step is the previous step's last point (the shared corner node,
   the same point to rounding), reached by a zero-length LINK; a step marked
   ``retract_before`` is reached by RETRACT, RAPID and an approach LINK instead.
@@ -25,8 +25,9 @@ import numpy as np
 
 from ..errors import InputError
 from ..layout.layout import CORNER_NAMES, Layout
-from .chord import place_points
+from .chord import Curve, place_curves
 from .lines import LineFrame, LinePlacement, Placer, Target, check_patch_reachable, parity_for
+from .parallel import map_pieces, worker_count
 from .path import Move, ToolPath
 
 CLEARANCE_MODES = ("auto", "plane", "sphere")
@@ -126,22 +127,25 @@ def step_points(model, patch: int, start: int, finish: int | None, crossfeed: st
     s = placement.s
     dense = 16 * frame.cells_along + 1
     cross_cells = p.shape[0] if crossfeed == "u" else p.shape[1]
-    P, N, U, V, MV, LN = [], [], [], [], [], []
-    tin, tout, mx = settings.chord_tol, settings.undercut, settings.max_step
+    # the lines, and the links along the edge t = t_from from the previous line's end
+    curves, line_of = [], []
     for k, sk in enumerate(s):
         t_from = frame.t0 if k % 2 == 0 else 1.0 - frame.t0
-        t_to = 1.0 - t_from
         if k > 0:
-            # link along the edge t = t_from from the previous line's end
-            _, lp, ln_, lu, lv = place_points(lambda x: frame.evaluate(x, np.full_like(x, t_from)),
-                                              s[k - 1], sk, "s", r, tin, tout, mx,
-                                              dense=max(5, int(np.ceil(16 * cross_cells * (sk - s[k - 1]))) + 1))
+            curves.append(Curve("s", t_from, s[k - 1], sk,
+                                max(5, int(np.ceil(16 * cross_cells * (sk - s[k - 1]))) + 1)))
+            line_of.append(-1)
+        curves.append(Curve("t", sk, t_from, 1.0 - t_from, dense))
+        line_of.append(k)
+    placed = place_curves(frame, curves, r, settings.chord_tol, settings.undercut, settings.max_step)
+    P, N, U, V, MV, LN = [], [], [], [], [], []
+    for k, (_, lp, ln_, lu, lv) in zip(line_of, placed):
+        if k < 0:
             m = len(lp) - 2
             if m > 0:
                 P.append(lp[1:-1]), N.append(ln_[1:-1]), U.append(lu[1:-1]), V.append(lv[1:-1])
                 MV.append(np.full(m, Move.LINK)), LN.append(np.full(m, -1))
-        _, lp, ln_, lu, lv = place_points(lambda x: frame.evaluate(np.full_like(x, sk), x),
-                                          t_from, t_to, "t", r, tin, tout, mx, dense=dense)
+            continue
         mv = np.full(len(lp), Move.CUT)
         mv[0] = Move.LINK
         P.append(lp), N.append(ln_), U.append(lu), V.append(lv), MV.append(mv), LN.append(np.full(len(lp), k))
@@ -214,24 +218,40 @@ def _slerp(a, b, f):
     return (np.sin((1 - f) * ang) * a + np.sin(f * ang) * b) / np.sin(ang)
 
 
-def build_path(model, steps, settings: PathSettings, name: str = "") -> ToolPath:
+def _step_piece(model, steps, settings, i):
+    """The points of step i and the seconds they took (the frame is left out: it holds the
+    patch, which is rebuilt where the result arrives rather than sent between processes)."""
+    st = steps[i]
+    t0 = time.perf_counter()
+    try:
+        sp = step_points(model, st.patch, st.start, st.finish, st.crossfeed, settings)
+    except InputError as exc:
+        raise InputError(exc.message, path=exc.path, line=exc.line,
+                         item=f"step {i + 1} (patch {st.patch})") from None
+    sp.frame = None
+    return sp, time.perf_counter() - t0
+
+
+def build_path(model, steps, settings: PathSettings, name: str = "", workers: int | None = None) -> ToolPath:
     """The whole path for ``steps``: objects with patch, start, finish (None: free),
-    crossfeed and retract_before (a ProcessingList's steps, or the baseline's)."""
+    crossfeed and retract_before (a ProcessingList's steps, or the baseline's). The steps'
+    points are made in ``workers`` processes (default: one per core, see
+    :mod:`tsplcam.toolpath.parallel`), the same points as in one."""
     settings.check()
     t_start = time.perf_counter()
     r = settings.tool_radius
+    steps = list(steps)
+    size = [int(np.prod(model.patches[st.patch].shape)) for st in steps]
+    pieces = map_pieces(_step_piece, (model, steps, settings), len(steps),
+                        worker_count(workers, len(steps)), order=np.argsort(size)[::-1])
     clearance = None
     rows = []                 # per chunk: (P, n, axis, move, patch, uv, line)
     per_patch = []
     line_base = 0
     prev = None               # (centre, axis) of the last point so far
     for i, st in enumerate(steps):
-        t0 = time.perf_counter()
-        try:
-            sp = step_points(model, st.patch, st.start, st.finish, st.crossfeed, settings)
-        except InputError as exc:
-            raise InputError(exc.message, path=exc.path, line=exc.line,
-                             item=f"step {i + 1} (patch {st.patch})") from None
+        sp, seconds = pieces[i]
+        sp.frame = LineFrame(model.patches[st.patch], st.crossfeed, st.start)
         n = len(sp.P)
         move = sp.move.copy()
         if prev is not None and st.retract_before:
@@ -259,7 +279,7 @@ def build_path(model, steps, settings: PathSettings, name: str = "") -> ToolPath
             "trials": [(float(h), int(c)) for h, c in sp.placement.trials],
             "points": int(n), "cut_length": float(seg[sp.move[1:] == Move.CUT].sum()),
             "link_length": float(seg[sp.move[1:] == Move.LINK].sum()),
-            "seconds": time.perf_counter() - t0})
+            "seconds": seconds})
         line_base += sp.placement.count
     P, Nn, A, M, PA, UV, LN = (np.concatenate([r_[k] for r_ in rows]) for k in range(7))
     info = {"model": name or getattr(model, "name", ""), "generator": "isoparametric zigzag",

@@ -1,0 +1,150 @@
+"""The broad phase is conservative: whatever it decides, fcl decides the same.
+
+Random poses around the keycap mold (cavity, block, long holder) and around the convex
+keycap: ball centres on and off the path's centres, axes anywhere within 80 deg of the
+normal, several tool growths. Every pose the broad phase calls free must be free for fcl
+(the tool mesh and the primitives), every pose it calls a hit must collide for fcl, and
+every gouge ball it proves clear must be clear for fcl. It must also decide most poses, or
+it is no broad phase. The free cones (axes within the swing of a pose fcl passed with the
+grown tool) hold for random axes inside them.
+"""
+import unittest
+
+import numpy as np
+
+from tsplcam.model import samples
+from tsplcam.model.cage import cage_model
+from tsplcam.orientation import CollisionChecker, load_tool
+from tsplcam.orientation.broadphase import FREE, HIT, UNKNOWN, closest_on_triangles, mesh_samples
+from tsplcam.orientation.collision import SWING
+from tsplcam.orientation.testpaths import zigzag
+
+try:
+    import fcl  # noqa: F401
+except ImportError:                                       # pragma: no cover
+    fcl = None
+
+
+def random_poses(path, n, rng, spread=0.2, tilt=np.radians(80)):
+    """Ball centres near the path's (some exactly on them), axes within ``tilt`` of the normal."""
+    i = rng.integers(0, len(path), n)
+    C = path.center[i].copy()
+    off = rng.random(n) < 0.6
+    C[off] += rng.normal(scale=spread, size=(int(off.sum()), 3))
+    N = path.normal[i]
+    v = rng.normal(size=(n, 3))
+    v -= np.einsum("ij,ij->i", v, N)[:, None] * N
+    v /= np.linalg.norm(v, axis=1, keepdims=True)
+    th = np.arccos(1 - rng.random(n) * (1 - np.cos(tilt)))
+    A = np.cos(th)[:, None] * N + np.sin(th)[:, None] * v
+    return C, A / np.linalg.norm(A, axis=1, keepdims=True)
+
+
+@unittest.skipIf(fcl is None, "python-fcl not installed")
+class AgreesWithFcl(unittest.TestCase):
+    @classmethod
+    def setUpClass(cls):
+        mold = cage_model(samples.keycap_mold())
+        V, T = samples.keycap_mold_stock()
+        tool = load_tool("ball1_keycap")
+        cls.mold = CollisionChecker(mold, tool, meshes=[("stock", V, T)], clearance=0.3)
+        cls.mold_path = zigzag(mold, 0.5, lines=12, points=40)
+        keycap = cage_model(samples.keycap())
+        cls.keycap = CollisionChecker(keycap, tool, clearance=0.3)
+        cls.keycap_path = zigzag(keycap, 0.5, lines=12, points=40)
+
+    def check(self, checker, path, grow, seed, n=2500):
+        rng = np.random.default_rng(seed)
+        C, A = random_poses(path, n, rng, spread=0.1, tilt=np.radians(60))
+        st = checker.broad.decide(C, A, grow)
+        mesh = checker.collides_fcl(C, A, grow)
+        self.assertEqual(int(((st == FREE) & mesh).sum()), 0, "a pose the broad phase frees collides in fcl")
+        self.assertEqual(int(((st == HIT) & ~mesh).sum()), 0, "a pose the broad phase hits is free in fcl")
+        if grow == 0.0:
+            prim = checker.collides_primitives(C, A)
+            self.assertEqual(int(((st == FREE) & prim).sum()), 0)
+            self.assertEqual(int(((st == HIT) & ~prim).sum()), 0)
+        return st, mesh
+
+    def test_mold_poses(self):
+        decided = []
+        for seed, grow in ((1, 0.0), (2, 0.0), (3, 0.2), (4, 1.0)):
+            st, mesh = self.check(self.mold, self.mold_path, grow, seed)
+            decided.append(np.mean(st != UNKNOWN))
+            if grow == 0.0:                                 # the sample has both kinds
+                self.assertGreater(mesh.mean(), 0.1)
+                self.assertLess(mesh.mean(), 0.95)
+        self.assertGreater(np.mean(decided), 0.6)
+
+    def test_keycap_poses(self):
+        st, mesh = self.check(self.keycap, self.keycap_path, 0.0, 5)
+        self.assertGreater(np.mean(st != UNKNOWN), 0.6)
+
+    def test_gouge_balls(self):
+        rng = np.random.default_rng(6)
+        for checker, path in ((self.mold, self.mold_path), (self.keycap, self.keycap_path)):
+            C = path.center[rng.integers(0, len(path), 1500)]
+            C = C + rng.normal(scale=0.01, size=C.shape) * (rng.random((len(C), 1)) < 0.5)
+            free = checker.broad.ball_free(C)
+            ref = np.array([fcl.collide(self._ball(checker, c), checker._wp, fcl.CollisionRequest(),
+                                        fcl.CollisionResult()) > 0 for c in C])
+            self.assertEqual(int((free & ref).sum()), 0)
+            self.assertGreater(free.mean(), 0.5)
+            np.testing.assert_array_equal(checker.ball_gouges(C), ref)
+
+    @staticmethod
+    def _ball(checker, c):
+        checker._ball.setTranslation(c)
+        return checker._ball
+
+    def test_swing_cones(self):
+        """Axes within the swing of a pose the grown tool passes are free."""
+        rng = np.random.default_rng(7)
+        C, A = random_poses(self.mold_path, 1500, rng)
+        ch = self.mold
+        free = ~ch._fcl(C, A, "swung")
+        C, A = C[free], A[free]
+        v = rng.normal(size=A.shape)
+        v -= np.einsum("ij,ij->i", v, A)[:, None] * A
+        v /= np.linalg.norm(v, axis=1, keepdims=True)
+        ang = SWING * rng.random(len(A)) ** 0.5
+        B = np.cos(ang)[:, None] * A + np.sin(ang)[:, None] * v
+        self.assertFalse(ch.collides_fcl(C, B).any())
+
+    def test_batches_agree_with_fcl(self):
+        """collides (broad phase, swing cones, fcl) returns fcl's answers, batch after batch."""
+        rng = np.random.default_rng(8)
+        C, A = random_poses(self.mold_path, 3000, rng, spread=0.05, tilt=np.radians(50))
+        for k in range(3):                     # later batches reuse cones and witnesses
+            got = self.mold.collides(C[k * 1000:(k + 1) * 1000], A[k * 1000:(k + 1) * 1000])
+            np.testing.assert_array_equal(got, self.mold.collides_fcl(C[k * 1000:(k + 1) * 1000],
+                                                                       A[k * 1000:(k + 1) * 1000]))
+
+
+class Geometry(unittest.TestCase):
+    def test_closest_on_triangles_against_brute_force(self):
+        rng = np.random.default_rng(0)
+        P = rng.normal(size=(400, 3)) * 2
+        A, B, C = (rng.normal(size=(400, 3)) for _ in range(3))
+        got = closest_on_triangles(P, A, B, C)
+        u, v = np.meshgrid(np.linspace(0, 1, 301), np.linspace(0, 1, 301))
+        keep = u + v <= 1
+        u, v = u[keep], v[keep]
+        for k in range(0, 400, 40):
+            pts = A[k] + u[:, None] * (B[k] - A[k]) + v[:, None] * (C[k] - A[k])
+            best = np.linalg.norm(pts - P[k], axis=1).min()
+            self.assertLessEqual(np.linalg.norm(got[k] - P[k]), best + 1e-12)
+            self.assertGreater(np.linalg.norm(got[k] - P[k]), best - 5e-3)
+
+    def test_sample_bound(self):
+        """Every point of a triangle lies at least sqrt(d^2 - e^2/3) from a point whose
+        nearest sample is d away (e the longest sub-triangle edge)."""
+        rng = np.random.default_rng(1)
+        V = rng.normal(size=(3, 3)) * 3
+        T = np.array([[0, 1, 2]])
+        S, _, e = mesh_samples(V, T, 0.7)
+        x = rng.normal(size=(300, 3)) * 3
+        d = np.linalg.norm(x[:, None, :] - S[None], axis=2).min(axis=1)
+        w = closest_on_triangles(x, *(np.repeat(V[i:i + 1], len(x), axis=0) for i in range(3)))
+        true = np.linalg.norm(x - w, axis=1)
+        self.assertTrue(np.all(true >= np.sqrt(np.maximum(d * d - e * e / 3, 0)) - 1e-12))

@@ -1,0 +1,597 @@
+"""Broad phase for tool poses: most collision questions answered in numpy, conservatively.
+
+The collision checker (:mod:`tsplcam.orientation.collision`) asks fcl whether the tool
+(flutes, shank and holder above the ball centre, each part a circumscribed polygon frustum
+grown by its margin) touches the workpiece triangle mesh. This module answers the same
+question for whole arrays of poses at once with *free*, *hit* or *unknown*; only the unknown
+poses go to fcl. Both answers are proofs, never estimates.
+
+**Free.** Every part is covered by spheres on the tool axis (a frustum slab of length l and
+largest circumscribed radius R lies in the sphere of radius sqrt(R^2 + l^2/4) about the
+slab's centre; one sphere per part first, halved where it does not decide), and every sphere
+is shown to miss the mesh with a lower bound of the distance from its centre to the mesh.
+The bound comes from samples of the mesh (the vertices, and points spread over triangles
+longer than ``e_cap``): if every sample lies at least d from x, every point of the mesh lies
+at least sqrt(d^2 - e^2/3) from x, e the longest edge of the (sub)triangles the samples span
+(the nearest mesh point w is a convex combination sum l_i v_i of a triangle's corners, and
+|x - w|^2 = sum l_i |x - v_i|^2 - sum_{i<j} l_i l_j |v_i - v_j|^2 >= d^2 - e^2/3). The bound
+is kept at the nodes of two grids (fine near the mesh, coarse over the tool's reach) and
+read at the eight nodes around x, less the distance to each (the distance to a set is
+1-Lipschitz). Spheres cover flat ends badly (a sphere round a thin slab bulges below it by
+nearly its radius), so poses whose flutes or holder face the surface closely stay unknown.
+
+**Free cones.** Turning the axis by an angle phi about the ball centre moves a point at
+distance l from it by at most l phi. A pose cleared with that much to spare leaves a cone of
+free axes at its centre: from the spheres above (phi = min_j (bound_j - radius_j) / z_j), or
+from fcl with every part grown by phi times its farthest distance from the ball centre
+(:func:`~tsplcam.orientation.collision.tool_mesh`'s ``swing``). Later poses at the same
+centre inside a cone are free without further work: the smoothing's small moves.
+
+**Hit.** A sample of the mesh lies strictly inside a part's inscribed circular frustum (the
+polygon's inradius is the grown radius), and a point of the same connected piece of the mesh
+lies strictly outside the whole tool's circumscribed solid: the piece then crosses the
+tool's surface, so a mesh triangle meets a tool triangle, which is what fcl reports. The
+samples tried are the nearest samples of the grid nodes around spheres that did not clear,
+and the *witnesses* of earlier hits near the same ball centre (a wall that stops one axis
+stops its neighbours).
+
+The gouge check's ball B(c, r0) is proven clear when no sample lies within sqrt(r0^2 + e^2/3)
+of c, or the triangles of the few samples that do are measured exactly and lie beyond r0
+(every triangle that reaches into the ball has a corner or sample within that bound).
+
+Every comparison keeps ``EPS`` (1e-6 mm) on the safe side, for fcl's own rounding. The tests
+compare the decisions with fcl on random poses (tests/orientation).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.sparse import coo_matrix
+from scipy.sparse.csgraph import connected_components
+from scipy.spatial import cKDTree
+
+FREE, HIT, UNKNOWN = 0, 1, -1
+EPS = 1e-6
+MAX_LEVEL = 7                 # finest sphere cover: 2^7 slabs per part
+SLAB_EXCESS = 0.005           # mm: a part's finest cover sticks out at most this much
+BAND = 8                      # samples examined exactly around a gouge-check ball
+LEAFSIZE = 32
+FINE = (0.4, 250_000)         # fine grid: finest spacing (mm), most nodes
+COARSE = (2.0, 150_000)       # coarse grid, over the tool's reach around the mesh
+CONES = 2                     # free cones kept per ball centre
+WITNESSES = 6                 # hit witnesses kept per cell of ball centres
+WITNESS_CELL = 1.0            # mm
+_CORNERS = np.array([(i, j, k) for i in (0, 1) for j in (0, 1) for k in (0, 1)], np.int64)
+DIRECTIONS = np.array([(i, j, k) for i in (-1, 0, 1) for j in (-1, 0, 1) for k in (-1, 0, 1)
+                       if (i, j, k) != (0, 0, 0)], float)
+
+
+def _dot(a, b):
+    return np.einsum("...i,...i->...", a, b)
+
+
+def closest_on_triangles(P, A, B, C):
+    """Closest points of triangles ABC to points P (all (n, 3)): Ericson, Real-Time
+    Collision Detection (2005), section 5.1.5, vectorised."""
+    ab, ac, ap = B - A, C - A, P - A
+    d1, d2 = _dot(ab, ap), _dot(ac, ap)
+    bp = P - B
+    d3, d4 = _dot(ab, bp), _dot(ac, bp)
+    cp = P - C
+    d5, d6 = _dot(ab, cp), _dot(ac, cp)
+    va = d3 * d6 - d5 * d4
+    vb = d5 * d2 - d1 * d6
+    vc = d1 * d4 - d3 * d2
+    with np.errstate(divide="ignore", invalid="ignore"):
+        den = va + vb + vc
+        v = np.where(den != 0, vb / den, 0.0)
+        w = np.where(den != 0, vc / den, 0.0)
+        out = A + v[..., None] * ab + w[..., None] * ac                       # face region
+        # edge regions, then vertex regions: a later assignment wins
+        t_bc = (d4 - d3) / ((d4 - d3) + (d5 - d6))
+        e_bc = (va <= 0) & (d4 - d3 >= 0) & (d5 - d6 >= 0)
+        out = np.where(e_bc[..., None], B + np.nan_to_num(t_bc)[..., None] * (C - B), out)
+        t_ac = d2 / (d2 - d6)
+        e_ac = (vb <= 0) & (d2 >= 0) & (d6 <= 0)
+        out = np.where(e_ac[..., None], A + np.nan_to_num(t_ac)[..., None] * ac, out)
+        t_ab = d1 / (d1 - d3)
+        e_ab = (vc <= 0) & (d1 >= 0) & (d3 <= 0)
+        out = np.where(e_ab[..., None], A + np.nan_to_num(t_ab)[..., None] * ab, out)
+    out = np.where(((d6 >= 0) & (d5 <= d6))[..., None], C, out)
+    out = np.where(((d3 >= 0) & (d4 <= d3))[..., None], B, out)
+    out = np.where(((d1 <= 0) & (d2 <= 0))[..., None], A, out)
+    return out
+
+
+def mesh_samples(V: np.ndarray, T: np.ndarray, e_cap: float):
+    """Points on the triangles: the vertices, and for every triangle longer than ``e_cap``
+    the inner vertices of its uniform barycentric subdivision into k^2 triangles
+    (k = ceil(edge / e_cap)). Returns (points, triangle of each extra point (-1 for the
+    vertices), e = longest (sub)triangle edge)."""
+    V = np.asarray(V, float)
+    T = np.asarray(T, np.int64)
+    if len(T) == 0:
+        return V.copy(), np.full(len(V), -1), 0.0
+    edge = np.linalg.norm(V[T[:, [1, 2, 0]]] - V[T], axis=2).max(axis=1)
+    k = np.maximum(1, np.ceil(edge / e_cap - 1e-9)).astype(int)
+    pts, tri_of = [V], [np.full(len(V), -1)]
+    e = float((edge / k).max())
+    for kk in np.unique(k[k > 1]):
+        sel = np.nonzero(k == kk)[0]
+        i, j = np.meshgrid(np.arange(kk + 1), np.arange(kk + 1), indexing="ij")
+        keep = (i + j <= kk) & ~(((i == 0) & (j == 0)) | ((i == kk) & (j == 0)) | ((i == 0) & (j == kk)))
+        a, b = i[keep] / kk, j[keep] / kk
+        A, B, C = V[T[sel, 0]], V[T[sel, 1]], V[T[sel, 2]]
+        P = A[:, None] * (1 - a - b)[None, :, None] + B[:, None] * a[None, :, None] + C[:, None] * b[None, :, None]
+        pts.append(P.reshape(-1, 3))
+        tri_of.append(np.repeat(sel, len(a)))
+    return np.concatenate(pts), np.concatenate(tri_of), e
+
+
+def mesh_components(nv: int, T: np.ndarray) -> np.ndarray:
+    """Connected component of every vertex (vertices joined by triangle edges)."""
+    T = np.asarray(T, np.int64)
+    if len(T) == 0:
+        return np.arange(nv)
+    rows = np.concatenate([T[:, 0], T[:, 1], T[:, 2]])
+    cols = np.concatenate([T[:, 1], T[:, 2], T[:, 0]])
+    g = coo_matrix((np.ones(len(rows), np.int8), (rows, cols)), shape=(nv, nv))
+    return connected_components(g, directed=False)[1]
+
+
+@dataclass
+class Profile:
+    """The tool's parts as fcl sees them, per part: heights above the ball centre, the
+    inscribed radius (the grown radius: the polygon's inradius, and the fcl Cylinder's
+    radius) and the circumscribed radius (the polygon's corners) at both ends."""
+    z0: np.ndarray
+    z1: np.ndarray
+    rin0: np.ndarray
+    rin1: np.ndarray
+    rout0: np.ndarray
+    rout1: np.ndarray
+
+    def rout(self, k, z):
+        f = (z - self.z0[k]) / (self.z1[k] - self.z0[k])
+        return self.rout0[k] + f * (self.rout1[k] - self.rout0[k])
+
+    def rin(self, k, z):
+        f = (z - self.z0[k]) / (self.z1[k] - self.z0[k])
+        return self.rin0[k] + f * (self.rin1[k] - self.rin0[k])
+
+    @property
+    def reach(self) -> float:
+        """Distance from the ball centre to the farthest point of the tool."""
+        return float(np.hypot(self.z1.max(), max(self.rout0.max(), self.rout1.max())))
+
+
+class SphereCover:
+    """Spheres on the tool axis covering each part, level by level (level L: 2^L slabs)."""
+
+    def __init__(self, prof: Profile):
+        self.prof = prof
+        K = len(prof.z0)
+        self.max_level = np.zeros(K, int)
+        for k in range(K):
+            length = prof.z1[k] - prof.z0[k]
+            r = max(min(prof.rout0[k], prof.rout1[k]), 1e-3)
+            for L in range(MAX_LEVEL + 1):
+                half = 0.5 * length / 2 ** L
+                if np.sqrt(r * r + half * half) - r <= SLAB_EXCESS:
+                    break
+            self.max_level[k] = L
+
+    def spheres(self, part: np.ndarray, level: int, seg: np.ndarray):
+        """(centre height, radius, the slab's largest circumscribed radius) of slab ``seg``
+        of ``part`` at ``level``."""
+        p = self.prof
+        length = (p.z1[part] - p.z0[part]) / 2 ** level
+        za = p.z0[part] + seg * length
+        zb = za + length
+        rmax = np.maximum(p.rout(part, za), p.rout(part, zb))
+        return 0.5 * (za + zb), np.sqrt(rmax * rmax + 0.25 * length * length), rmax
+
+
+class DistanceGrid:
+    """Lower bounds of the distance to the mesh at the nodes of a regular grid (capped), and
+    the nearest sample of each node (-1 beyond the cap)."""
+
+    def __init__(self, tree: cKDTree, e2: float, lo: np.ndarray, hi: np.ndarray, spacing: float,
+                 pad: float, cap: float, nodes: int):
+        ext = hi - lo + 2 * pad
+        self.h = max(float(spacing), float(np.prod(ext) / nodes) ** (1 / 3))
+        self.origin = lo - pad
+        self.shape = np.ceil((hi - lo + 2 * pad) / self.h).astype(np.int64) + 1
+        axes = [self.origin[i] + self.h * np.arange(self.shape[i]) for i in range(3)]
+        nodes = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, 3)
+        self.cap = float(cap)
+        d, j = tree.query(nodes, distance_upper_bound=cap)
+        far = ~np.isfinite(d)
+        self.lb = np.where(far, np.sqrt(max(cap * cap - e2, 0.0)), np.sqrt(np.maximum(d * d - e2, 0.0)))
+        self.idx = np.where(far, -1, j)
+        self.stride = np.array([self.shape[1] * self.shape[2], self.shape[2], 1])
+
+    def __call__(self, x: np.ndarray):
+        """(lower bound, sample index or -1, inside the grid) at points x: the best over the
+        eight nodes around x of the node's bound less the distance to it; the sample is the
+        nearest node's."""
+        f = (x - self.origin) / self.h
+        k0 = np.floor(f).astype(np.int64)
+        ins = np.all((k0 >= 0) & (k0 < self.shape - 1), axis=1)
+        k0 = np.minimum(np.maximum(k0, 0), self.shape - 2)
+        r = f - k0                                                    # (n, 3) in [0, 1)
+        flat = (k0 @ self.stride)[:, None] + _CORNERS @ self.stride   # (n, 8)
+        d = r[:, None, :] - _CORNERS[None]
+        dist = self.h * np.sqrt(d[..., 0] * d[..., 0] + d[..., 1] * d[..., 1] + d[..., 2] * d[..., 2])
+        lb = (self.lb[flat] - dist).max(axis=1)
+        near = flat[np.arange(len(x)), np.argmin(dist, axis=1)]
+        return np.where(ins, lb, 0.0), np.where(ins, self.idx[near], -1), ins
+
+
+class CentreTable:
+    """Per ball centre: slots found by the centre's exact bytes (sorted keys, vectorised)."""
+
+    def __init__(self):
+        self.keys = np.zeros(0, np.dtype((np.void, 24)))
+        self.slot_of_key = np.zeros(0, np.int64)
+        self.size = 0
+
+    def slots(self, C: np.ndarray):
+        """(slot per row of C, the new slots' first rows in C)."""
+        C = np.ascontiguousarray(C, float)
+        keys = C.view(np.dtype((np.void, 24))).ravel()
+        uk, first, inv = np.unique(keys, return_index=True, return_inverse=True)
+        if len(self.keys):
+            pos = np.searchsorted(self.keys, uk)
+            known = (pos < len(self.keys)) & (self.keys[np.minimum(pos, len(self.keys) - 1)] == uk)
+        else:
+            pos, known = np.zeros(len(uk), np.int64), np.zeros(len(uk), bool)
+        slot_u = np.empty(len(uk), np.int64)
+        slot_u[known] = self.slot_of_key[pos[known]]
+        new = np.nonzero(~known)[0]
+        slot_u[new] = self.size + np.arange(len(new))
+        if len(new):
+            self.size += len(new)
+            keys_all = np.concatenate([self.keys, uk[new]])
+            order = np.argsort(keys_all, kind="stable")
+            self.keys = keys_all[order]
+            self.slot_of_key = np.concatenate([self.slot_of_key, slot_u[new]])[order]
+        return slot_u[inv], first[new]
+
+
+class BroadPhase:
+    """Decisions for batches of poses against one triangle mesh (see the module doc).
+
+    ``profile(grow)`` gives the tool as fcl sees it with ``grow`` mm more (the checker's
+    margins already in); ``r0``: radius of the gouge check's ball; ``e_cap``: longest
+    sample spacing (mm) along the triangles (default: the median of the triangles' longest
+    edges; longer triangles get points inside)."""
+
+    def __init__(self, vertices: np.ndarray, triangles: np.ndarray, profile, r0: float,
+                 e_cap: float | None = None):
+        V = np.asarray(vertices, float)
+        T = np.asarray(triangles, np.int64)
+        self.V, self.T = V, T
+        if e_cap is None:
+            edge = np.linalg.norm(V[T[:, [1, 2, 0]]] - V[T], axis=2).max(axis=1) if len(T) else np.ones(1)
+            e_cap = max(0.1, float(np.quantile(edge, 0.5)))
+        self.samples, tri_of, self.e = mesh_samples(V, T, e_cap)
+        self.e2 = self.e * self.e / 3.0
+        self.tree = cKDTree(self.samples, leafsize=LEAFSIZE)
+        # triangles to measure exactly per sample: a vertex's incident ones, else its own
+        nv = len(V)
+        inc_n = np.bincount(T.ravel(), minlength=nv) if len(T) else np.zeros(nv, int)
+        self.sample_tris = np.full((len(self.samples), max(1, int(inc_n.max()) if nv else 1)), -1, np.int64)
+        if len(T):
+            flat_v = T.ravel()
+            order = np.argsort(flat_v, kind="stable")
+            fv, ft = flat_v[order], np.repeat(np.arange(len(T)), 3)[order]
+            self.sample_tris[fv, np.arange(len(fv)) - np.searchsorted(fv, fv)] = ft
+        extra = tri_of >= 0
+        self.sample_tris[extra, 0] = tri_of[extra]
+        comp = mesh_components(nv, T)
+        first_corner = T[np.maximum(tri_of, 0), 0] if len(T) else np.zeros(len(tri_of), int)
+        self.sample_comp = comp[np.where(extra, first_corner, np.arange(len(self.samples)))]
+        # anchors: per component its vertices extreme along 26 directions
+        ncomp = int(comp.max()) + 1 if len(comp) else 0
+        proj = V @ DIRECTIONS.T
+        self.anchors = np.zeros((ncomp, len(DIRECTIONS), 3))
+        order = np.argsort(comp, kind="stable")
+        starts = np.searchsorted(comp[order], np.arange(ncomp))
+        ends = np.append(starts[1:], len(order))
+        for c in range(ncomp):                                   # components are few
+            idx = order[starts[c]:ends[c]]
+            self.anchors[c] = V[idx[np.argmax(proj[idx], axis=0)]]
+        self.profile = profile
+        self.r0 = float(r0)
+        lo, hi = self.samples.min(axis=0), self.samples.max(axis=0)
+        self.box = (lo, hi)
+        reach = profile(0.0).reach
+        fine = DistanceGrid(self.tree, self.e2, lo, hi, FINE[0], 3.0, 1.5, FINE[1])
+        if fine.h > FINE[0]:                       # a large part: pad and cap with the spacing
+            fine = DistanceGrid(self.tree, self.e2, lo, hi, fine.h, 8 * fine.h, 4 * fine.h, FINE[1])
+        self.grids = [fine, DistanceGrid(self.tree, self.e2, lo, hi, COARSE[0], reach + COARSE[0],
+                                         10 * COARSE[0], COARSE[1])]
+        self._covers: dict[float, SphereCover] = {}
+        self.centres = CentreTable()
+        self._gouge = np.zeros(0, bool)
+        self._cone_a = {}                         # per grow: (slots, CONES, 3) axes
+        self._cone_c = {}                         # per grow: (slots, CONES) cos of the cone angle
+        self._wit_cells = CentreTable()
+        self._wit = np.zeros((0, WITNESSES), np.int64)
+        self.stats = {"poses": 0, "free": 0, "hit": 0, "unknown": 0, "cone": 0, "witness": 0,
+                      "queries": 0}
+
+    # --- distances ------------------------------------------------------------------------
+    def lower_bound(self, x: np.ndarray):
+        """(lower bound of the distance to the mesh, a sample near x or -1, x inside the fine
+        grid) at points x: the best bound of the two grids and the box of the mesh; the sample
+        is the nearest one to x's nearest node in the fine grid, else in the coarse grid."""
+        lo, hi = self.box
+        o = np.maximum(np.maximum(lo - x, x - hi), 0.0)
+        lb = np.sqrt(o[:, 0] * o[:, 0] + o[:, 1] * o[:, 1] + o[:, 2] * o[:, 2])
+        lbf, idx, ins = self.grids[0](x)
+        lbc, idc, _ = self.grids[1](x)
+        return np.maximum(lb, np.maximum(lbf, lbc)), np.where(idx >= 0, idx, idc), ins
+
+    def nearest(self, x: np.ndarray, ub: np.ndarray, k: int = 1):
+        """(distances, indices) of the k nearest samples to each x, inf / n where none is
+        closer than ``ub`` (per point; the tree takes one bound per call, so the points are
+        grouped by bounds within a factor of two)."""
+        shape = (len(x),) if k == 1 else (len(x), k)
+        d = np.full(shape, np.inf)
+        j = np.full(shape, len(self.samples))
+        self.stats["queries"] += len(x)
+        if len(x) == 0:
+            return d, j
+        grp = np.floor(np.log2(np.clip(ub, 1e-9, 1e12))).astype(int)
+        for g in np.unique(grp):
+            sel = np.nonzero(grp == g)[0]
+            d[sel], j[sel] = self.tree.query(x[sel], k=k, distance_upper_bound=float(ub[sel].max()))
+        return d, j
+
+    def _clear_exact(self, o: np.ndarray, R: np.ndarray) -> np.ndarray:
+        """True where the ball B(o, R) is shown to hold no part of the mesh: no sample in the
+        band the sample bound leaves open, or the triangles of the (fewer than ``BAND``)
+        samples there measured exactly."""
+        ub = np.sqrt(R * R + self.e2)
+        d, j = self.nearest(o, ub, k=BAND)
+        inb = d < ub[:, None]
+        out = ~inb.any(axis=1)
+        rows, cols = np.nonzero(inb & ~inb.all(axis=1)[:, None])
+        if len(rows):
+            tris = self.sample_tris[j[rows, cols]]
+            r2, t2 = np.nonzero(tris >= 0)
+            tt = self.T[tris[r2, t2]]
+            q = rows[r2]
+            P = closest_on_triangles(o[q], self.V[tt[:, 0]], self.V[tt[:, 1]], self.V[tt[:, 2]])
+            low = np.full(len(o), np.inf)
+            np.minimum.at(low, q, np.linalg.norm(P - o[q], axis=1))
+            ok = np.zeros(len(o), bool)
+            ok[rows] = True
+            out |= ok & (low >= R + EPS)
+        return out
+
+    # --- per ball centre: gouge check, cones ----------------------------------------------------
+    def _slots(self, C: np.ndarray) -> np.ndarray:
+        """Slots of the centres C, with the gouge verdicts of the new ones."""
+        slot, first = self.centres.slots(C)
+        if len(first):
+            Cn = np.asarray(C, float)[first]
+            self._gouge = np.concatenate([self._gouge, self._clear_exact(Cn, np.full(len(Cn), self.r0))])
+            for g in self._cone_a:
+                self._grow_cones(g)
+        return slot
+
+    def _grow_cones(self, grow: float):
+        a = self._cone_a.setdefault(grow, np.zeros((0, CONES, 3)))
+        c = self._cone_c.setdefault(grow, np.zeros((0, CONES)))
+        m = self.centres.size - len(a)
+        if m > 0:
+            self._cone_a[grow] = np.concatenate([a, np.zeros((m, CONES, 3))])
+            self._cone_c[grow] = np.concatenate([c, np.full((m, CONES), 2.0)])   # cos > 1: none
+
+    def ball_free(self, C: np.ndarray) -> np.ndarray:
+        """True where the gouge check's ball (radius r0) at C is proven clear of the mesh."""
+        slot = self._slots(C)
+        return self._gouge[slot]
+
+    # --- poses ---------------------------------------------------------------------------------
+    def _cover(self, grow: float) -> SphereCover:
+        cov = self._covers.get(grow)
+        if cov is None:
+            cov = self._covers[grow] = SphereCover(self.profile(grow))
+        return cov
+
+    @staticmethod
+    def _tool_frame(q, C, A):
+        """(height along the axis, squared distance from it) of points q at poses (C, A)."""
+        w = q - C
+        z = _dot(w, A)
+        return z, np.maximum(_dot(w, w) - z * z, 0.0)
+
+    def _inside(self, q, C, A, prof: Profile) -> np.ndarray:
+        """Points q strictly inside some part's inscribed frustum at poses (C, A)."""
+        z, rad2 = self._tool_frame(q, C, A)
+        out = np.zeros(z.shape, bool)
+        for k in range(len(prof.z0)):
+            r = prof.rin(k, np.clip(z, prof.z0[k], prof.z1[k])) - EPS
+            out |= (z >= prof.z0[k] + EPS) & (z <= prof.z1[k] - EPS) & (rad2 < r * r)
+        return out
+
+    def _outside(self, q, C, A, prof: Profile) -> np.ndarray:
+        """Points q strictly outside every part's circumscribed frustum at poses (C, A)."""
+        z, rad2 = self._tool_frame(q, C, A)
+        out = np.ones(z.shape, bool)
+        for k in range(len(prof.z0)):
+            r = prof.rout(k, np.clip(z, prof.z0[k], prof.z1[k])) + EPS
+            out &= (z < prof.z0[k] - EPS) | (z > prof.z1[k] + EPS) | (rad2 > r * r)
+        return out
+
+    def _hits(self, status, q, j, pose, C, A, prof) -> np.ndarray:
+        """Mark HIT the poses where sample q (index j) lies inside the tool and its piece of
+        the mesh reaches outside the tool (module doc): the piece's anchors are tried one
+        direction at a time until one lies outside. Returns the witnesses (pose, sample)."""
+        live = status[pose] != HIT
+        q, j, pose = q[live], j[live], pose[live]
+        if len(pose) == 0:
+            return np.zeros((0, 2), np.int64)
+        cand = self._inside(q, C[pose], A[pose], prof)
+        if not cand.any():
+            return np.zeros((0, 2), np.int64)
+        pairs = np.unique(np.column_stack([pose[cand], self.sample_comp[j[cand]], j[cand]]), axis=0)
+        pairs = pairs[np.unique(pairs[:, :2], axis=0, return_index=True)[1]]
+        found = []
+        for a in range(len(DIRECTIONS)):
+            out = self._outside(self.anchors[pairs[:, 1], a], C[pairs[:, 0]], A[pairs[:, 0]], prof)
+            status[pairs[out, 0]] = HIT
+            found.append(pairs[out][:, [0, 2]])
+            pairs = pairs[status[pairs[:, 0]] != HIT]
+            if len(pairs) == 0:
+                break
+        return np.concatenate(found)
+
+    def _witness_cells(self, C: np.ndarray) -> np.ndarray:
+        cells = np.floor(np.asarray(C, float) / WITNESS_CELL)
+        slot, first = self._wit_cells.slots(cells)
+        if len(first):
+            self._wit = np.concatenate([self._wit, np.full((len(first), WITNESSES), -1, np.int64)])
+        return slot
+
+    def _remember(self, cell: np.ndarray, found: np.ndarray):
+        """Keep the samples of new hits as witnesses of their poses' cells (newest first)."""
+        if len(found) == 0:
+            return
+        cs, samp = cell[found[:, 0]], found[:, 1]
+        pairs = np.unique(np.column_stack([cs, samp]), axis=0)
+        for c, s in pairs[-4 * WITNESSES:]:                       # a handful per call is enough
+            row = self._wit[c]
+            if s not in row:
+                self._wit[c] = np.concatenate([[s], row[:-1]])
+
+    def part_lower_bounds(self, C: np.ndarray, A: np.ndarray, level: int = 3) -> np.ndarray:
+        """(poses, parts): lower bounds of each part's distance to the mesh (its spheres at
+        ``level``, each a bound at its centre less its radius; 0 where they touch)."""
+        C = np.asarray(C, float).reshape(-1, 3)
+        A = np.asarray(A, float).reshape(-1, 3)
+        cov = self._cover(0.0)
+        K = len(cov.prof.z0)
+        nseg = 2 ** level
+        pose = np.repeat(np.arange(len(C)), K * nseg)
+        part = np.tile(np.repeat(np.arange(K), nseg), len(C))
+        seg = np.tile(np.arange(nseg), len(C) * K)
+        zc, s, _ = cov.spheres(part, level, seg)
+        x = C[pose] + zc[:, None] * A[pose]
+        lb, _, _ = self.lower_bound(x)
+        return np.maximum(lb - s, 0.0).reshape(len(C), K, nseg).min(axis=2)
+
+    def add_cones(self, C: np.ndarray, A: np.ndarray, phi: float, grow: float = 0.0):
+        """Remember that every axis within ``phi`` of the axes A is free at the centres C."""
+        if len(C) == 0:
+            return
+        slot = self._slots(C)
+        self._grow_cones(grow)
+        self._store_cones(slot, A, np.full(len(A), np.cos(phi)), grow)
+
+    def _store_cones(self, slot, A, c, grow):
+        """Keep cone (axis A, cos of its angle c) at each slot, replacing the slot's narrowest."""
+        cone_a, cone_c = self._cone_a[grow], self._cone_c[grow]
+        for _ in range(2):                        # a slot may come twice in one batch
+            worst = np.argmax(cone_c[slot], axis=1)
+            better = c < cone_c[slot, worst]
+            _, first = np.unique(slot[better], return_index=True)
+            sel = np.nonzero(better)[0][first]
+            cone_a[slot[sel], worst[sel]] = A[sel]
+            cone_c[slot[sel], worst[sel]] = c[sel]
+            keep = np.ones(len(slot), bool)
+            keep[sel] = False
+            slot, A, c = slot[keep], A[keep], c[keep]
+            if len(slot) == 0:
+                break
+
+    def decide(self, C: np.ndarray, A: np.ndarray, grow: float = 0.0) -> np.ndarray:
+        """FREE (0), HIT (1) or UNKNOWN (-1) per pose (ball centre, unit axis)."""
+        C = np.asarray(C, float).reshape(-1, 3)
+        A = np.asarray(A, float).reshape(-1, 3)
+        n = len(C)
+        grow = float(grow)
+        status = np.full(n, UNKNOWN, np.int8)
+        cov = self._cover(grow)
+        self.open_parts = np.ones((n, len(cov.prof.z0)), bool)
+        self.open_phi = np.zeros(n)
+        self.revisit = np.zeros(n, bool)
+        if n == 0:
+            return status
+        prof = cov.prof
+        known = self.centres.size
+        slot = self._slots(C)
+        self.revisit = slot < known              # centres asked about in an earlier batch
+        self._grow_cones(grow)
+        cone_a, cone_c = self._cone_a[grow], self._cone_c[grow]
+        # free cones of earlier free poses at the same centre
+        inc = (np.einsum("nki,ni->nk", cone_a[slot], A) >= cone_c[slot]).any(axis=1)
+        status[inc] = FREE
+        self.stats["cone"] += int(inc.sum())
+        # witnesses of earlier hits near the same centre
+        cell = self._witness_cells(C)
+        todo = np.nonzero(~inc)[0]
+        wit = self._wit[cell[todo]]
+        r, k = np.nonzero(wit >= 0)
+        if len(r):
+            before = status == HIT
+            self._hits(status, self.samples[wit[r, k]], wit[r, k], todo[r], C, A, prof)
+            self.stats["witness"] += int((~before & (status == HIT)).sum())
+        todo = np.nonzero(status == UNKNOWN)[0]
+        phi = np.full(n, np.inf)                 # free cone of each pose, from its spheres
+        K = len(prof.z0)
+        unresolved = np.zeros((n, K), bool)      # parts the spheres could not clear
+        pose = np.repeat(todo, K)
+        part = np.tile(np.arange(K), len(todo))
+        seg = np.zeros(len(pose), np.int64)
+        level = 0
+        while len(pose):
+            zc, s, rmax = cov.spheres(part, level, seg)
+            x = C[pose] + zc[:, None] * A[pose]
+            bound, jg, _ = self.lower_bound(x)
+            cert = bound >= s + EPS
+            split = np.zeros(len(pose), bool)
+            rest = np.nonzero(~cert)[0]
+            if len(rest):
+                # the grid node's sample: inside the tool (hit); the sphere is split while it
+                # can be, and a pose left with spheres the grid cannot clear goes to fcl
+                jr = jg[rest]
+                has = jr >= 0
+                found = self._hits(status, self.samples[jr[has]], jr[has], pose[rest[has]], C, A, prof)
+                self._remember(cell, found)
+                hopeless = bound[rest] < rmax[rest] + EPS      # no smaller sphere can clear
+                unresolved[pose[rest[hopeless]], part[rest[hopeless]]] = True
+                split[rest[~hopeless]] = True
+            ok = np.nonzero(cert)[0]
+            np.minimum.at(phi, pose[ok], (bound[ok] - s[ok] - EPS) / zc[ok])
+            keep = split & (status[pose] != HIT) & ~unresolved[pose, part]
+            last = keep & (level >= cov.max_level[part])
+            unresolved[pose[last], part[last]] = True
+            keep &= ~last
+            m = int(keep.sum())
+            pose, part = np.repeat(pose[keep], 2), np.repeat(part[keep], 2)
+            seg = 2 * np.repeat(seg[keep], 2) + np.tile([0, 1], m)
+            level += 1
+        free = np.zeros(n, bool)
+        free[todo] = True
+        free &= (status != HIT) & ~unresolved.any(axis=1)
+        status[free] = FREE
+        # what fcl still has to answer for the poses left open: their unresolved parts, and
+        # the cone the cleared parts leave free
+        self.open_parts = unresolved
+        self.open_phi = np.where(unresolved.any(axis=1), phi, np.inf)
+        # remember the new free cones (replacing each centre's narrower one)
+        fi = np.nonzero(free & (phi > 0))[0]
+        if len(fi):
+            self._store_cones(slot[fi], A[fi], np.cos(np.minimum(phi[fi], np.pi)), grow)
+        st = self.stats
+        st["poses"] += n
+        st["free"] += int((status == FREE).sum())
+        st["hit"] += int((status == HIT).sum())
+        st["unknown"] += int((status == UNKNOWN).sum())
+        return status

@@ -1,0 +1,61 @@
+"""Both cores where it pays: independent pieces of work (the patches of a path) in forked
+worker processes, results in the order asked, identical to one process (each piece runs the
+same code on the same data).
+
+Workers are forked (they inherit the model without pickling it) and only on platforms that
+fork; inside FreeCAD everything stays in the one process (forking a Qt application is not
+safe) unless ``TSPLCAM_WORKERS`` asks for more. ``TSPLCAM_WORKERS`` (an integer) sets the
+count, 1 turns processes off.
+"""
+from __future__ import annotations
+
+import multiprocessing
+import os
+import sys
+
+_TASK = None                   # (function, shared arguments) the forked workers inherit
+
+
+def worker_count(requested: int | None = None, pieces: int = 2) -> int:
+    """Processes to use for ``pieces`` independent pieces: ``requested``, else
+    ``TSPLCAM_WORKERS``, else the cores this process may run on; 1 where forking is not
+    available or not safe."""
+    if "fork" not in multiprocessing.get_all_start_methods():
+        return 1
+    env = os.environ.get("TSPLCAM_WORKERS", "").strip()
+    if requested is None and env:
+        requested = int(env)
+    if requested is None:
+        if "FreeCAD" in sys.modules:
+            return 1
+        requested = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
+    return max(1, min(int(requested), int(pieces)))
+
+
+def _run(index):
+    fn, shared = _TASK
+    try:
+        return index, fn(*shared, index), None
+    except Exception as exc:                               # re-raised by the caller's own run
+        return index, None, repr(exc)
+
+
+def map_pieces(fn, shared: tuple, count: int, workers: int, order=None) -> list:
+    """[fn(*shared, i) for i in range(count)], in forked processes when ``workers`` > 1.
+    ``order``: the indices to hand out first (largest pieces first balances the cores). A
+    piece that fails in a worker is run again here, so its error is raised as it would be
+    without workers."""
+    if workers <= 1 or count <= 1:
+        return [fn(*shared, i) for i in range(count)]
+    global _TASK
+    _TASK = (fn, shared)
+    try:
+        ctx = multiprocessing.get_context("fork")
+        with ctx.Pool(min(workers, count)) as pool:
+            got = pool.map(_run, list(order) if order is not None else range(count), chunksize=1)
+    finally:
+        _TASK = None
+    out = [None] * count
+    for index, result, error in sorted(got, key=lambda g: g[0]):      # the first failure raises
+        out[index] = fn(*shared, index) if error is not None else result
+    return out

@@ -1,6 +1,6 @@
 """The model in the real FreeCAD GUI: import, screenshots, toggles, save and reload, bad files.
 
-Pictures go to build/artifacts (tsplcam.testing.artifact_path). Colour checks count
+Pictures go to build/artifacts (conftest.artifact_path). Colour checks count
 pixels by hue: shading under white light keeps a colour's hue, so every patch shows up
 as pixels of its palette hue whatever the lighting (testsupport.colour_pixel_counts).
 """

@@ -13,27 +13,13 @@ point, patch, (u, v) and what the tool hits.
   great circle between them (as close as the collision check allows, not just the nearest
   discrete candidate).
 * ``smooth``: xu2013 replaces the per-point choice by a smooth sequence picked from a cone of
-  candidates per point. Here that choice is global and exact over the discrete candidates:
-  a Viterbi dynamic programme minimising, along the path (METHOD-NOTES 4),
-
-      J = sum_i  L * dtheta_i^2 / ds_i  +  sum_i  dev_i^2 * ds_i / L
-
-  (dtheta_i the angle between consecutive axes, ds_i the contact spacing, dev_i the angle
-  to the preferred axis, L the ``smoothing_length``: a required tilt is spread over about L
-  mm on each side, like a membrane under tension, cf. xu2013 eq. (22)), with a hard
-  ``max_step`` per point and only admissible (cone, rotary reach) candidates. A squared
-  change is used rather than xu2013's plain sum of angles because the plain sum (total
-  variation) is indifferent between one jump and a ramp. Collision checks are lazy: the
-  programme runs on candidates not yet known to collide, the chosen poses are checked, and
-  every point whose chosen pose collides gets all its candidates checked before the next
-  run; the loop ends when the chosen sequence is collision-free, which is then optimal for
-  the true collision-free sets. Finally the discrete sequence is relaxed continuously
-  (red-black Gauss-Seidel on J, each move kept only when it is admissible and
-  collision-free), which removes the candidate grid's quantisation. With a machine and a
-  ``rotary_weight`` w > 0 each step also costs ``L * w (v_tilt / v_C)^2 dC^2 / ds``, dC the
-  turn of the rotary axis C (the azimuth about +Z, modulo 180 deg where the tilt may change
-  sign instead, free inside the post's 0.5 deg singular cone): where the tilt follows walls
-  around a cavity this trades a little axis angle for much less C travel.
+  candidates per point. Here that choice is made where the machine feels it, in the joint
+  space of its rotary axes (orientation.smoothing): a Viterbi programme over poses of a grid
+  of rotary values, each with its admissible tilt nearest the preferred axis, minimising
+  rotary-axis velocity (in the machine's time units) plus the deviation from the preferred
+  axis, with lazy collision checks; then a continuous polish of the chosen poses with
+  velocity and acceleration terms against the machine's limits, on the admissible arcs and
+  inside what the checks found free. Without a machine a virtual A/C table stands in.
 """
 from __future__ import annotations
 
@@ -45,6 +31,9 @@ from ..errors import CollisionError, InputError
 from .candidates import (DEG, Z_AXIS, Limits, Reach, admissible, angle, candidate_axes,
                          feed_directions, unit)
 from .collision import CollisionChecker
+from .rotary import Rotary
+from .smoothing import (NoPath, SmoothingCost, cone_halfspaces, free_tilts, joint_programme,
+                        meridian_grid, smooth_joints)
 from ..toolpath.path import Move
 
 STRATEGIES = ("fixed", "closest-z", "smooth")
@@ -197,213 +186,79 @@ def _spacing(path) -> np.ndarray:
     return np.maximum(ds, 1e-3)
 
 
-SINGULAR_CONE = 0.5 * DEG      # the post holds the rotary axis within this of +Z (POST-NOTES 2.7)
-
-
-def _azimuth(A: np.ndarray, reach) -> np.ndarray:
-    """Azimuth of axes about +Z (the rotary axis C of every supported machine) as a complex
-    number: angle = azimuth, modulus 2 where both inverse solutions (tilt, C) and (-tilt,
-    C + 180 deg) are within the machine's tilt range, else 1; NaN within the singular cone,
-    where the post does not follow the azimuth."""
-    th = np.arctan2(np.hypot(A[..., 0], A[..., 1]), A[..., 2])
-    both = len(reach.intervals) == 2
-    for a, b in reach.intervals:
-        both = both & (th >= a - 1e-9) & (th <= b + 1e-9)
-    z = np.exp(1j * np.arctan2(A[..., 1], A[..., 0])) * np.where(both, 2.0, 1.0)
-    return np.where(th < SINGULAR_CONE, np.nan, z)
-
-
-def _azimuth_step(za: np.ndarray, zb: np.ndarray) -> np.ndarray:
-    """Rotary-axis motion (rad) between two axes given by :func:`_azimuth`: the azimuth change,
-    modulo 180 deg where both axes can take either inverse solution (the post may flip the
-    tilt's sign instead of turning C half a turn), 0 next to the pole."""
-    with np.errstate(invalid="ignore", divide="ignore"):
-        d = np.angle(zb / za)
-    flip = (np.abs(za) > 1.5) & (np.abs(zb) > 1.5)
-    d = np.where(flip, np.mod(d + 0.5 * np.pi, np.pi) - 0.5 * np.pi, d)
-    return np.where(np.isnan(d), 0.0, d)
-
-
-def _viterbi(A, allowed, node_cost, ds, L, max_step, free_step, phi=None, wrot=0.0):
-    """Best state per point: min sum node_cost + L * (angle^2 + wrot * dC^2) / ds with steps
-    <= max_step (except into points where ``free_step``); dC the rotary-axis motion
-    (:func:`_azimuth_step` of the azimuths ``phi``). Returns (states, None) or (None, i)
-    where the chain breaks at step i -> i+1."""
-    n, m = allowed.shape
-    big = np.inf
-    acc = np.where(allowed[0], node_cost[0], big)
-    back = np.zeros((n, m), np.int32)
-    cmax = np.cos(max_step)
-    for i in range(1, n):
-        dots = np.clip(A[i - 1] @ A[i].T, -1.0, 1.0)                 # (m_prev, m)
-        ang = np.arccos(dots)
-        trans = ang * ang
-        if wrot > 0.0:
-            dc = _azimuth_step(phi[i - 1][:, None], phi[i][None, :])
-            trans += wrot * dc * dc
-        trans *= L / ds[i - 1]
-        if not free_step[i]:
-            trans[dots < cmax - 1e-12] = big
-        tot = acc[:, None] + trans
-        b = np.argmin(tot, axis=0)
-        best = tot[b, np.arange(m)]
-        acc = np.where(allowed[i], best + node_cost[i], big)
-        back[i] = b
-        if not np.isfinite(acc).any():
-            return None, i - 1
-    states = np.zeros(n, np.int64)
-    states[-1] = int(np.argmin(acc))
-    for i in range(n - 1, 0, -1):
-        states[i - 1] = back[i, states[i]]
-    return states, None
-
-
-def _relax(path, checker, axes, pref, feed, limits, reach, L, max_step, rounds=40, wrot=0.0):
-    """Red-black Gauss-Seidel on J: move each axis toward the weighted mean of its
-    neighbours and the preferred axis, keeping only admissible, collision-free moves that
-    lower its share of J and respect max_step. Returns (axes, moves)."""
-    free_step = path.move != Move.CUT
-    n = len(axes)
-    if n < 3:
-        return axes, 0
-    ds = _spacing(path)
-    wl = np.concatenate([[0.0], L / ds])                      # weight of the previous axis
-    wr = np.concatenate([L / ds, [0.0]])                      # of the next
-    half = np.concatenate([[0.0], ds]) * 0.5 + np.concatenate([ds, [0.0]]) * 0.5
-    wp = half / L                                             # of the preferred axis
-    C = path.center
-    moves = 0
-
-    def local_cost(x, idx):
-        c = wp[idx] * angle(x, pref[idx]) ** 2
-        prev = np.clip(idx - 1, 0, n - 1)
-        nxt = np.clip(idx + 1, 0, n - 1)
-        c = c + wl[idx] * angle(x, axes[prev]) ** 2 + wr[idx] * angle(x, axes[nxt]) ** 2
-        if wrot > 0.0:
-            px = _azimuth(x, reach)
-            c = c + wrot * (wl[idx] * _azimuth_step(_azimuth(axes[prev], reach), px) ** 2
-                            + wr[idx] * _azimuth_step(px, _azimuth(axes[nxt], reach)) ** 2)
-        return c
-
-    for r in range(rounds):
-        changed = 0
-        for parity in (0, 1):
-            idx = np.arange(parity, n, 2)
-            prev = np.clip(idx - 1, 0, n - 1)
-            nxt = np.clip(idx + 1, 0, n - 1)
-            target = unit(wl[idx, None] * axes[prev] + wr[idx, None] * axes[nxt] + wp[idx, None] * pref[idx])
-            step = angle(axes[idx], target)
-            live = step > 1e-5
-            idx, target = idx[live], target[live]
-            if len(idx) == 0:
-                continue
-            old = local_cost(axes[idx], idx)
-            for frac in (1.0, 0.5):
-                cand = _toward(axes[idx], target, np.full(len(idx), frac))
-                better = local_cost(cand, idx) < old - 1e-15
-                pv, nx = np.clip(idx - 1, 0, n - 1), np.clip(idx + 1, 0, n - 1)
-                better &= (angle(cand, axes[pv]) <= max_step) | free_step[idx]
-                better &= (angle(cand, axes[nx]) <= max_step) | free_step[nx]
-                better &= admissible(cand[:, None], path.normal[idx], feed[idx], limits, reach)[:, 0]
-                if better.any():
-                    k = np.nonzero(better)[0]
-                    free = ~checker.collides(C[idx[k]], cand[k])
-                    k = k[free]
-                    axes[idx[k]] = cand[k]
-                    changed += len(k)
-                    keep = np.ones(len(idx), bool)
-                    keep[k] = False
-                    idx, target, old = idx[keep], target[keep], old[keep]
-                if len(idx) == 0:
-                    break
-        moves += changed
-        if changed == 0:
-            break
-    return axes, moves
-
-
 def orient_smooth(path, checker, preferred, limits: Limits, reach, feed, smoothing_length: float,
-                  max_step: float, window: int = 2, relax_rounds: int = 40, max_rounds: int = 200,
-                  wrot: float = 0.0, tick=None):
+                  max_step: float, window: int = 2, cost: SmoothingCost | None = None,
+                  constraints=(), pole_tilt: float = 0.0, tick=None):
+    """xu2013 after the module docstring, in the machine's joint space (orientation.smoothing):
+    a Viterbi programme over the poses of a grid of rotary values (each with its admissible
+    tilt nearest the preferred axis) with lazy collision checks, then the continuous
+    joint-space smoothing. ``preferred`` (3,) or (n,3); ``constraints``: more half-spaces
+    ``(h, b)``, ``h . a >= b``, the axes must keep (the controls' cones)."""
     n = len(path)
     C = path.center
-    A, ok = candidate_axes(path.normal, feed, preferred, limits, reach)
-    m = A.shape[1]
-    tick = tick or (lambda m: None)
     pref = unit(np.broadcast_to(preferred, (n, 3)).copy())
-    none = ~ok.any(axis=1)
+    if cost is None:
+        cost = SmoothingCost.build(None, smoothing_length)
+    rot = cost.rotary
+    tick = tick or (lambda m: None)
+    M = max(12, int(round(2 * np.pi / limits.resolution)))
+    cons = [(h, np.zeros(n)) for h in cone_halfspaces(path.normal, feed, limits.lead_max, limits.tilt_max)]
+    cons += list(constraints)
+    grid = meridian_grid(rot, pref, path.normal, cons, M, pole_tilt)
+    none = ~grid.ok.any(axis=1)
     if none.any():
         i = int(np.argmax(none))
-        raise CollisionError(f"{_where(path, i)}: no candidate axis within the lead/tilt limits and the "
-                             f"machine's reach ({reach.name if reach else 'no machine'})")
+        raise CollisionError(f"{_where(path, i)}: no tool axis within the lead/tilt limits, the controls' "
+                             f"limits and the machine's reach ({reach.name if reach else 'no machine'})")
     ds = _spacing(path)
     free_step = path.move != Move.CUT          # links and retracts: no hard step limit
     half = np.concatenate([[ds[0]], ds]) * 0.5 + np.concatenate([ds, [ds[-1]]]) * 0.5
-    dev = angle(A, pref[:, None, :])
-    node_cost = dev ** 2 * (half / smoothing_length)[:, None]
-    if reach is None:
-        wrot = 0.0                      # no machine: no rotary axis to weigh
-    phi = _azimuth(A, reach) if wrot > 0.0 else None
-    status = np.where(ok, -1, 2).astype(np.int8)         # -1 unknown, 0 free, 1 collides, 2 excluded
-    resolved = np.zeros(n, bool)
-    rounds = 0
-    while True:
-        rounds += 1
-        tick(m)
-        states, broke = _viterbi(A, status <= 0, node_cost, ds, smoothing_length, max_step, free_step,
-                                 phi, wrot)
-        if states is None:
-            i = broke
-            # a break is final only when both points' cones are fully known
-            todo = [j for j in (i, i + 1) if not resolved[j]]
-            if todo:
-                for j in todo:
-                    _resolve(checker, C, A, status, resolved, [j], tick)
-                continue
-            if not (status[i] == 0).any() or not (status[i + 1] == 0).any():
-                j = i if not (status[i] == 0).any() else i + 1
-                raise _no_axis_error(path, checker, j, A[j, np.argsort(np.where(ok[j], dev[j], np.inf))[:3]],
-                                     f"no collision-free tool axis in the cone of {int(ok[j].sum())} "
-                                     "candidates")
-            raise CollisionError(f"{_where(path, i)} -> {_where(path, i + 1)}: no pair of collision-free "
-                                 f"axes within the maximum step of {max_step / DEG:.1f} deg (raise max_step "
-                                 "or the cone limits, or split the path there)")
-        pick = states
-        unknown = np.nonzero(status[np.arange(n), pick] == -1)[0]
-        if len(unknown):
-            hit = checker.collides(C[unknown], A[unknown, pick[unknown]])
-            status[unknown, pick[unknown]] = np.where(hit, 1, 0)
-            bad = unknown[hit]
-        else:
-            bad = np.zeros(0, int)
-        if len(bad) == 0:
-            break
-        near = np.unique(np.clip(bad[:, None] + np.arange(-window, window + 1)[None, :], 0, n - 1))
-        _resolve(checker, C, A, status, resolved, near[~resolved[near]], tick)
-        if rounds >= max_rounds:                                     # pragma: no cover
-            raise CollisionError(f"orientation DP did not settle in {max_rounds} rounds")
-    axes = A[np.arange(n), pick].copy()
-    axes, moves = _relax(path, checker, axes, pref, feed, limits, reach, smoothing_length, max_step,
-                         relax_rounds, wrot)
-    return axes, {"dp_rounds": rounds, "resolved_points": int(resolved.sum()), "relaxation_moves": moves,
-                  "candidates": m}
+    try:
+        states, rounds, checks, status = joint_programme(checker, C, grid, cost, pref, ds, half / smoothing_length,
+                                                 max_step, free_step, limits.resolution, tick=lambda: tick(M))
+    except NoPath as e:
+        i = e.point
+        if e.kind == "point":
+            k = np.nonzero(grid.ok[i])[0][:3]
+            raise _no_axis_error(path, checker, i, rot.axis(grid.theta[i, k], grid.phi[k]),
+                                 f"no collision-free tool axis on any of the {int(grid.ok[i].sum())} "
+                                 "admissible rotary positions") from None
+        raise CollisionError(f"{_where(path, i)} -> {_where(path, i + 1)}: no pair of collision-free "
+                             f"axes within the maximum step of {max_step / DEG:.1f} deg (raise max_step "
+                             "or the cone limits, or split the path there)") from None
+    theta = grid.theta[np.arange(n), states].copy()
+    phi = grid.phi[states]
+    phi = phi[0] + np.concatenate([[0.0], np.cumsum(np.pi - np.mod(np.pi - np.diff(phi), 2 * np.pi))])
+    moving = ~np.isin(path.move[1:], (Move.CUT, Move.LINK))
+    theta, phi, info = smooth_joints(path, rot, theta, phi, pref, path.normal, cost, cons, checker=checker,
+                                     free_tilt=free_tilts(grid, status), move_free=moving, pole_tilt=pole_tilt, tick=lambda: tick(M))
+    return rot.axis(theta, phi), {"dp_rounds": rounds, "resolved_points": 0,
+                                  "relaxation_moves": info["joint_checks"], "candidates": M,
+                                  "dp_checks": checks} | info
 
 
-def _rotary_weight(machine, rotary_weight: float | None) -> float:
-    """Weight of the squared rotary-axis motion in J: the user's factor (default 0, the axis
-    angle alone) times the machine's (tilt speed / rotary speed)^2, so that a factor 1 adds
-    rotary joint motion in units of the tilt axis's time. Without a machine there is no
-    rotary axis to weigh: a weight > 0 is refused."""
-    if rotary_weight is None:
-        rotary_weight = 0.0
-    if rotary_weight < 0 or not np.isfinite(rotary_weight):
-        raise InputError(f"rotary weight must be a number >= 0, not {rotary_weight}")
-    if rotary_weight == 0.0:
-        return 0.0
+def smoothing_cost(machine, reach, smoothing_length: float, rotary_weight: float | None,
+                   feed: float, acceleration_weight: float = 1.0) -> SmoothingCost:
+    """The smooth strategy's weights (orientation.smoothing). With a machine: its rotary axes'
+    joint space, rotary motion counted ``rotary_weight`` (default 1) times in tilt-axis time
+    (the machine's (tilt speed / rotary speed)^2), accelerations against its limits at the
+    path's feed. Without one: the tool-axis direction (a rotary weight > 0 is refused: there is
+    no rotary axis to weigh)."""
+    for name, v in (("rotary weight", rotary_weight), ("acceleration weight", acceleration_weight)):
+        if v is not None and (not np.isfinite(v) or v < 0):
+            raise InputError(f"{name} must be a number >= 0, not {v}")
     if machine is None:
-        raise InputError("a rotary weight needs a machine (--machine): it weighs that machine's rotary axis")
-    vt, vr = machine.tilt.max_velocity, machine.rotary.max_velocity
-    return float(rotary_weight * (vt / vr) ** 2) if vt and vr else float(rotary_weight)
+        if rotary_weight:
+            raise InputError("a rotary weight needs a machine (--machine): it weighs that machine's rotary axis")
+        cost = SmoothingCost.build(None, smoothing_length)
+        if reach is not None:
+            cost.rotary.theta_lo, cost.rotary.theta_hi = -reach.theta_max, reach.theta_max
+        return cost
+    rw = 1.0 if rotary_weight is None else float(rotary_weight)
+    cost = SmoothingCost.build(Rotary.from_machine(machine), smoothing_length, rw, acceleration_weight, feed)
+    if rw == 0.0:
+        cost.beta = 1.0                          # C not weighed: keep the axis direction smooth
+    return cost
 
 
 def _resolve(checker, C, A, status, resolved, idx, tick=None, chunk: int = 20000):
@@ -457,7 +312,7 @@ def orient(path, model=None, tool=None, strategy: str = "smooth", *, checker: Co
                         ("candidate resolution", resolution)):
         if not (np.isfinite(value) and value > 0):
             raise InputError(f"{name} must be a number > 0, not {value:g}")
-    wrot = _rotary_weight(machine, rotary_weight) if strategy == "smooth" else 0.0
+    cost = smoothing_cost(machine, None, smoothing_length, rotary_weight, path.feed) if strategy == "smooth" else None
     if checker is None:
         if tool is None:
             raise InputError("orient needs a tool (or a prepared collision checker)")
@@ -489,15 +344,17 @@ def orient(path, model=None, tool=None, strategy: str = "smooth", *, checker: Co
     elif strategy == "closest-z":
         axes, info = orient_closest(path, checker, pref, limits, reach, feed, tick=tick)
     else:
+        if machine is None and reach is not None:
+            cost = smoothing_cost(None, reach, smoothing_length, rotary_weight, path.feed)
         axes, info = orient_smooth(path, checker, pref, limits, reach, feed, smoothing_length,
-                                   max_step * DEG, wrot=wrot, tick=tick)
+                                   max_step * DEG, cost=cost, tick=tick)
     if progress is not None:
         progress(worst[0], worst[0])
     out = path.with_axis(axes)
     steps = angle(axes[1:], axes[:-1]) / DEG if len(axes) > 1 else np.zeros(1)
     settings = dict(strategy=strategy, lead_max=lead_max, tilt_max=tilt_max, resolution=resolution,
                     max_step=max_step, smoothing_length=smoothing_length,
-                    rotary_weight=wrot,
+                    rotary_weight=float(cost.w) if cost is not None and machine is not None else 0.0,
                     tolerance=checker.tolerance,
                     clearance=checker.clearance, preferred=[float(x) for x in pref],
                     reach=reach.name if reach else "none", tool=tool.name)

@@ -55,11 +55,10 @@ def read_triangles(path: str):
 
 
 def sample_stock(model_spec: str):
-    """The mold block around a shipped sample's cavity (keycap_mold), else None."""
+    """The mold block around a shipped sample's cavity (keycap_mold, deep_mold), else None."""
     from .model import samples
-    if os.path.basename(str(model_spec)).split(".")[0] == "keycap_mold":
-        return samples.keycap_mold_stock()
-    return None
+    make = samples.STOCKS.get(os.path.basename(str(model_spec)).split(".")[0])
+    return make() if make is not None else None
 
 
 @dataclass

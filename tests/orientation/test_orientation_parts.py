@@ -82,7 +82,7 @@ class KeycapMold(PartCase, unittest.TestCase):
 
     def test_rotary_weight_lowers_rotary_motion(self):
         """In the cavity the tilt follows the walls around, so C turns a lot: counting the
-        rotary axis in the machine's time (rotary_weight 1, the default) against leaving it out
+        rotary axis in the machine's time (the default weight) against leaving it out
         (0: the tilt and the tool-axis direction only) lowers the C travel and the
         machining-time estimate, still collision-free."""
         from tsplcam.post import load_machine
@@ -94,7 +94,7 @@ class KeycapMold(PartCase, unittest.TestCase):
                               rotary_weight=w)
             self.assertEqual(int(self.checker.collides_exact(out.center, out.axis).sum()), 0)
             res[w] = orientation_metrics(out, self.checker, machine)
-        self.assertEqual(rep.settings["rotary_weight"], 1.0)      # equal A and C speeds
+        self.assertEqual(rep.settings["rotary_weight"], 2.0)      # equal A and C speeds, ROTARY_WEIGHT 2
         angle_only, weighted = res[0.0], res[None]
         self.assertLess(weighted.c_travel_deg, angle_only.c_travel_deg)
         self.assertLess(weighted.time_s, angle_only.time_s)

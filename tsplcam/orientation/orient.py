@@ -6,12 +6,17 @@
 by the machine; where no such axis exists it raises :class:`CollisionError` naming the
 point, patch, (u, v) and what the tool hits.
 
-* ``fixed``: one axis for the whole path (three-axis machining, the comparison baseline).
-* ``closest-z``: shang2020 (end of 3.5): per point the collision-free axis closest to the
-  preferred axis (+Z). Candidates are tried in order of their angle to +Z, in batches
-  over all points still open, then the winner is pulled toward +Z by bisection along the
-  great circle between them (as close as the collision check allows, not just the nearest
-  discrete candidate).
+* ``fixed``: exactly the target axis at every point (one axis: 3+2, the three-axis baseline;
+  or a fixed lead/tilt, toward a point or a line: orientation.controls); refused, naming the
+  point, where it collides or leaves a limit.
+* ``closest`` (``closest-z``): "tilt only where needed", shang2020 (end of 3.5): per point the
+  collision-free axis closest to the target (+Z). Computed as the smooth strategy with a
+  smoothing length of ``CLOSEST_LENGTH`` (0.05 mm): the deviation decides, the machine's
+  joint motion only breaks ties, so where several poses are as close (at the pole, where
+  any rotary value gives the axis) the rotary axis holds still, and no neighbouring axes
+  differ by more than ``max_step``. :func:`orient_closest` is the literal per-point rule
+  (candidates tried in order of their angle to the target, then pulled toward it by
+  bisection), kept for comparisons: its axes jump where the nearest wall changes.
 * ``smooth``: xu2013 replaces the per-point choice by a smooth sequence picked from a cone of
   candidates per point. Here that choice is made where the machine feels it, in the joint
   space of its rotary axes (orientation.smoothing): a Viterbi programme over poses of a grid
@@ -31,12 +36,14 @@ from ..errors import CollisionError, InputError
 from .candidates import (DEG, Z_AXIS, Limits, Reach, admissible, angle, candidate_axes,
                          feed_directions, unit)
 from .collision import CollisionChecker
+from .controls import limit_halfspaces, point_settings, runs, target_axes
+from .settings import OrientationSettings
 from .rotary import Rotary
 from .smoothing import (NoPath, SmoothingCost, cone_halfspaces, free_tilts, joint_programme,
                         meridian_grid, smooth_joints)
 from ..toolpath.path import Move
 
-STRATEGIES = ("fixed", "closest-z", "smooth")
+STRATEGIES = ("fixed", "closest-z", "closest", "smooth")
 
 
 @dataclass
@@ -65,7 +72,7 @@ class OrientationReport:
 
 
 def _where(path, i: int) -> str:
-    text = f"point {i}"
+    text = f"point {i + path.info.get('index_offset', 0)}"
     if path.patch[i] >= 0:
         u, v = path.uv[i]
         text += f" (patch {int(path.patch[i])}, u={u:.4f}, v={v:.4f})"
@@ -96,24 +103,6 @@ def _check_ball(path, checker: CollisionChecker) -> None:
 
 # --- strategies ----------------------------------------------------------------------------
 
-def orient_fixed(path, checker, axis=Z_AXIS, reach=None):
-    a = unit(np.asarray(axis, float).reshape(3))
-    A = np.tile(a, (len(path), 1))
-    side = np.einsum("ij,j->i", path.normal, a) <= 1e-6
-    if side.any():
-        i = int(np.argmax(side))
-        raise CollisionError(f"{_where(path, i)}: the fixed axis ({a[0]:.4f}, {a[1]:.4f}, {a[2]:.4f}) "
-                             f"points into the surface (the ball cannot touch there with it)")
-    if reach is not None and not reach.ok(a[None])[0]:
-        raise CollisionError(f"the fixed axis is outside the reach of {reach.name}")
-    bad = checker.collides(path.center, A)
-    if bad.any():
-        i = int(np.argmax(bad))
-        raise _no_axis_error(path, checker, i, A[i:i + 1],
-                             f"the fixed axis collides ({int(bad.sum())} of {len(path)} points)")
-    return A, {}
-
-
 def _toward(a, b, t):
     """Great-circle points from a toward b at fractions t (all (n,3)/(n,))."""
     ang = angle(a, b)
@@ -124,11 +113,14 @@ def _toward(a, b, t):
     return unit(w0[:, None] * a + w1[:, None] * b)
 
 
-def orient_closest(path, checker, preferred, limits: Limits, reach, feed, bisect: int = 6, tick=None):
-    """shang2020: per point the admissible collision-free axis closest to ``preferred``."""
+def orient_closest(path, checker, preferred, limits: Limits, reach, feed, bisect: int = 6, tick=None,
+                   constraints=()):
+    """shang2020: per point the admissible collision-free axis closest to ``preferred``;
+    ``constraints``: half-spaces ``(h, b)``, ``h . a >= b``, the axes must keep too."""
     n = len(path)
     C = path.center
     A, ok = candidate_axes(path.normal, feed, preferred, limits, reach)
+    ok &= _keeps(A, constraints)
     tick = tick or (lambda m: None)
     pref = unit(np.broadcast_to(preferred, (n, 3)).copy())
     dev = angle(A, pref[:, None, :])
@@ -172,6 +164,7 @@ def orient_closest(path, checker, preferred, limits: Limits, reach, feed, bisect
         t = 0.5 * (lo[idx] + hi[idx])
         cand = _toward(axes[idx], pref[idx], t)
         good = admissible(cand[:, None], path.normal[idx], feed[idx], limits, reach)[:, 0]
+        good &= _keeps(cand[:, None], [(h[idx], b[idx]) for h, b in constraints])[:, 0]
         free = np.zeros(len(idx), bool)
         if good.any():
             free[good] = ~checker.collides(C[idx[good]], cand[good])
@@ -179,6 +172,14 @@ def orient_closest(path, checker, preferred, limits: Limits, reach, feed, bisect
         hi[idx[~free]] = t[~free]
     del okp, first
     return _toward(axes, pref, lo), {"bisection_steps": bisect}
+
+
+def _keeps(A, constraints) -> np.ndarray:
+    """Mask (n, m) of candidate axes A (n, m, 3) inside every half-space ``(h, b)``."""
+    ok = np.ones(A.shape[:2], bool)
+    for h, b in constraints:
+        ok &= np.einsum("nmi,ni->nm", A, h) >= b[:, None] - 1e-12
+    return ok
 
 
 def _spacing(path) -> np.ndarray:
@@ -240,7 +241,7 @@ def orient_smooth(path, checker, preferred, limits: Limits, reach, feed, smoothi
 def smoothing_cost(machine, reach, smoothing_length: float, rotary_weight: float | None,
                    feed: float, acceleration_weight: float = 1.0) -> SmoothingCost:
     """The smooth strategy's weights (orientation.smoothing). With a machine: its rotary axes'
-    joint space, rotary motion counted ``rotary_weight`` (default 1) times in tilt-axis time
+    joint space, rotary motion counted ``rotary_weight`` (default ``ROTARY_WEIGHT``) times in tilt-axis time
     (the machine's (tilt speed / rotary speed)^2), accelerations against its limits at the
     path's feed. Without one: the tool-axis direction (a rotary weight > 0 is refused: there is
     no rotary axis to weigh)."""
@@ -254,7 +255,7 @@ def smoothing_cost(machine, reach, smoothing_length: float, rotary_weight: float
         if reach is not None:
             cost.rotary.theta_lo, cost.rotary.theta_hi = -reach.theta_max, reach.theta_max
         return cost
-    rw = 1.0 if rotary_weight is None else float(rotary_weight)
+    rw = ROTARY_WEIGHT if rotary_weight is None else float(rotary_weight)
     cost = SmoothingCost.build(Rotary.from_machine(machine), smoothing_length, rw, acceleration_weight, feed)
     if rw == 0.0:
         cost.beta = 1.0                          # C not weighed: keep the axis direction smooth
@@ -279,40 +280,108 @@ def _resolve(checker, C, A, status, resolved, idx, tick=None, chunk: int = 20000
 
 # --- the stage's entry point -------------------------------------------------------------------
 
-def orient(path, model=None, tool=None, strategy: str = "smooth", *, checker: CollisionChecker | None = None,
-           stock=None, meshes=(), machine=None, preferred=Z_AXIS, fixed_axis=Z_AXIS,
-           lead_max: float = 60.0, tilt_max: float = 60.0, resolution: float = 10.0,
-           max_step: float = 10.0, smoothing_length: float = 5.0, tolerance: float = 0.005,
-           clearance: float = 0.0, max_tilt: float | None = None, rotary_weight: float | None = None,
+# The rotary axis's velocity counts twice its share of the tilt axis's time: with the squared
+# velocities of J, 1 would be the time-consistent weight, but the machining time follows the
+# peaks the squares smooth over; 2 measured best on the keycap, its mold half and deep_mold
+# (estimated time / length-feed time 1.04, 1.09, 1.07 against 1.03, 1.15, 1.10 with 1).
+ROTARY_WEIGHT = 2.0
+CLOSEST_LENGTH = 0.05      # mm: the smoothing length of "closest": the deviation decides, joints break ties
+
+
+def _narrowed(machine, tilt_range):
+    """The machine with its tilt axis limits narrowed to ``tilt_range`` (deg, machine values)."""
+    if machine is None or tilt_range is None:
+        return machine
+    from dataclasses import replace
+    t = machine.tilt
+    lo = tilt_range[0] if t.min is None else max(t.min, tilt_range[0])
+    hi = tilt_range[1] if t.max is None else min(t.max, tilt_range[1])
+    if lo >= hi:
+        raise InputError(f"tilt_range {tilt_range[0]:g} .. {tilt_range[1]:g} leaves nothing of "
+                         f"{t.name}'s range on machine {machine.name}", item="tilt_range")
+    return replace(machine, tilt=replace(t, min=lo, max=hi))
+
+
+def _segment(path, a: int, b: int):
+    """Points a..b-1 of a path as a path (messages keep the whole path's point numbers)."""
+    from dataclasses import replace
+    info = dict(path.info)
+    info["index_offset"] = info.get("index_offset", 0) + a
+    return replace(path, contact=path.contact[a:b], normal=path.normal[a:b], axis=path.axis[a:b],
+                   move=path.move[a:b], patch=path.patch[a:b], uv=path.uv[a:b], line=path.line[a:b], info=info)
+
+
+def orient_target(path, checker, targets, reach, constraints=()):
+    """Exactly the target axis at every point (a fixed axis: 3+2; or a fixed lead/tilt, toward
+    a point or a line); refused where it points into the surface, leaves the machine's reach or
+    a limit cone, or collides, naming the point."""
+    A = unit(np.asarray(targets, float))
+    side = np.einsum("ij,ij->i", path.normal, A) <= 1e-6
+    if side.any():
+        i = int(np.argmax(side))
+        a = A[i]
+        raise CollisionError(f"{_where(path, i)}: the target axis ({a[0]:.4f}, {a[1]:.4f}, {a[2]:.4f}) "
+                             f"points into the surface (the ball cannot touch there with it)")
+    if reach is not None:
+        out = ~reach.ok(A)
+        if out.any():
+            i = int(np.argmax(out))
+            raise CollisionError(f"{_where(path, i)}: the target axis is outside the reach of {reach.name}")
+    for h, b in constraints:
+        out = np.einsum("ij,ij->i", h, A) < b - 1e-12
+        if out.any():
+            i = int(np.argmax(out))
+            raise CollisionError(f"{_where(path, i)}: the target axis leaves the largest tilt allowed "
+                                 f"({np.degrees(np.arccos(np.clip(b[i], -1, 1))):.1f} deg from the limit axis)")
+    bad = checker.collides(path.center, A)
+    if bad.any():
+        i = int(np.argmax(bad))
+        raise _no_axis_error(path, checker, i, A[i:i + 1],
+                             f"the target axis collides ({int(bad.sum())} of {len(path)} points)")
+    return A, {}
+
+
+def orient(path, model=None, tool=None, strategy: str | None = None, *, settings: OrientationSettings | None = None,
+           per_patch: dict | None = None, checker: CollisionChecker | None = None, stock=None, meshes=(),
+           machine=None, preferred=None, fixed_axis=None, lead_max: float | None = None,
+           tilt_max: float | None = None, resolution: float | None = None, max_step: float | None = None,
+           smoothing_length: float | None = None, tolerance: float = 0.005, clearance: float = 0.0,
+           max_tilt: float | None = None, rotary_weight: float | None = None, pole_tilt: float | None = None,
            progress=None):
     """Tool axes for ``path`` (a ToolPath). Angles in degrees at this interface.
 
-    ``model``, ``tool``: the surface model and :class:`Tool` (or give a prepared
+    ``settings``: an :class:`OrientationSettings` (strategy, target, limits, smoothing; see
+    orientation.settings); the keyword arguments override it (``strategy`` 'smooth',
+    'closest' (or 'closest-z') or 'fixed'; ``preferred`` / ``fixed_axis`` the target axis;
+    ``max_tilt`` degrees from +Z; the rest as the settings of the same name).
+    ``per_patch``: {patch: OrientationSettings} from a processing list's step blocks; the
+    points of those patches follow them (runs of one strategy are oriented one after the
+    other). ``model``, ``tool``: the surface model and :class:`Tool` (or give a prepared
     ``checker``); ``stock``: (vertices, triangles) of the stock or mold block; ``meshes``:
-    more (name, V, T) obstacles; ``machine``: a tsplcam.post Machine whose rotary limits
-    bound the axes (or ``max_tilt`` degrees from +Z); ``strategy``: 'fixed', 'closest-z' or
-    'smooth'; cone limits ``lead_max``/``tilt_max`` around the normal, candidate
-    ``resolution``; smooth only: ``max_step`` per point, ``smoothing_length`` (mm) and
-    ``rotary_weight``: how much the rotary (C) axis motion counts next to the change of the
-    axis direction, scaled by the machine's tilt/rotary speed ratio squared (default 0: the
-    tool axis angle alone; needs a machine). It pays where the tilt follows walls around a
-    cavity (the mold: C travel and machining time about a third lower on the test path);
-    on the impeller it does not (C travel up to 20 % higher, time equal).
+    more (name, V, T) obstacles; ``machine``: a tsplcam.post Machine whose rotary limits bound
+    the axes and whose joint space the smoothing works in.
     ``progress(done, total)``, when given, is called as collision checks accumulate: poses
-    checked so far against the most there can be (every candidate of every point); the last
-    call has done == total.
+    checked so far against the most there can be; the last call has done == total.
     Returns ``(path_with_axes, OrientationReport)``; raises CollisionError where no
-    admissible collision-free axis exists (naming point, patch, (u, v) and the obstacle).
+    admissible collision-free axis exists (naming point, patch, (u, v) and the obstacle), or
+    where a fixed target collides.
     """
     import time
+    from dataclasses import replace
     t0 = time.perf_counter()
-    if strategy not in STRATEGIES:
-        raise InputError(f"unknown orientation strategy {strategy!r} (one of {', '.join(STRATEGIES)})")
-    for name, value in (("smoothing length", smoothing_length), ("maximum step", max_step),
-                        ("candidate resolution", resolution)):
-        if not (np.isfinite(value) and value > 0):
-            raise InputError(f"{name} must be a number > 0, not {value:g}")
-    cost = smoothing_cost(machine, None, smoothing_length, rotary_weight, path.feed) if strategy == "smooth" else None
+    s = replace(settings) if settings is not None else OrientationSettings()
+    given = {"strategy": strategy, "lead_max": lead_max, "tilt_max": tilt_max, "resolution": resolution,
+             "max_step": max_step, "smoothing_length": smoothing_length, "max_tilt": max_tilt,
+             "rotary_weight": rotary_weight, "pole_tilt": pole_tilt}
+    for k, v in given.items():
+        if v is not None:
+            setattr(s, k, v)
+    if s.strategy in ("fixed",) and fixed_axis is not None:
+        s.axis, s.target = tuple(np.asarray(fixed_axis, float).reshape(3)), "axis"
+    elif preferred is not None:
+        s.axis, s.target = tuple(np.asarray(preferred, float).reshape(3)), "axis"
+    s.check()
+    machine = _narrowed(machine, s.tilt_range)
     if checker is None:
         if tool is None:
             raise InputError("orient needs a tool (or a prepared collision checker)")
@@ -325,45 +394,72 @@ def orient(path, model=None, tool=None, strategy: str = "smooth", *, checker: Co
         raise InputError(f"the path was made for a ball of radius {path.tool_radius:g} mm, the tool "
                          f"{tool.name} has {tool.ball_radius:g} mm")
     if len(path) == 0:
-        return path, OrientationReport(strategy, 0)
+        return path, OrientationReport(s.strategy, 0)
     reach = Reach.from_machine(machine) if machine is not None else (
-        Reach.max_tilt(max_tilt) if max_tilt is not None else None)
-    limits = Limits(lead_max * DEG, tilt_max * DEG, resolution * DEG)
+        Reach.max_tilt(s.max_tilt) if s.max_tilt is not None and np.allclose(unit(np.asarray(s.limit_axis)), Z_AXIS)
+        else None)
+    limits = Limits(s.lead_max * DEG, s.tilt_max * DEG, s.resolution * DEG)
     checks0 = checker.checks
     _check_ball(path, checker)
+    n = len(path)
     feed = feed_directions(path.contact, path.normal)
-    pref = unit(np.asarray(preferred, float).reshape(3))
-    worst = [len(path)]
+    # per point: strategy, target axis and the largest-tilt cone
+    groups = point_settings(path, s, per_patch)
+    strat = np.empty(n, object)
+    pref = np.zeros((n, 3))
+    lim_h, lim_b = np.tile(Z_AXIS, (n, 1)), np.full(n, -2.0)
+    pole = 0.0
+    for gs, idx in groups:
+        strat[idx] = gs.strategy
+        pref[idx] = target_axes(gs, path.center[idx], path.normal[idx], feed[idx])
+        for h, b in limit_halfspaces(gs, len(idx)):
+            lim_h[idx], lim_b[idx] = h, b
+        pole = max(pole, gs.pole_tilt)
+    limited = bool((lim_b > -2.0).any())
+    worst = [n]
 
     def tick(m: int) -> None:
-        worst[0] = len(path) * m
+        worst[0] = n * m
         if progress is not None:
             progress(min(checker.checks - checks0, worst[0] - 1), worst[0])
-    if strategy == "fixed":
-        axes, info = orient_fixed(path, checker, fixed_axis, reach)
-    elif strategy == "closest-z":
-        axes, info = orient_closest(path, checker, pref, limits, reach, feed, tick=tick)
-    else:
-        if machine is None and reach is not None:
-            cost = smoothing_cost(None, reach, smoothing_length, rotary_weight, path.feed)
-        axes, info = orient_smooth(path, checker, pref, limits, reach, feed, smoothing_length,
-                                   max_step * DEG, cost=cost, tick=tick)
+    axes = np.zeros((n, 3))
+    info: dict = {}
+    cost = None
+    for a, b in runs(strat):
+        seg = path if (a, b) == (0, n) else _segment(path, a, b)
+        cons = [(lim_h[a:b], lim_b[a:b])] if limited else []
+        kind = strat[a]
+        if kind == "fixed":
+            ax, inf = orient_target(seg, checker, pref[a:b], reach, cons)
+        elif kind == "closest":
+            c2 = smoothing_cost(machine, reach, CLOSEST_LENGTH, s.rotary_weight, path.feed)
+            ax, inf = orient_smooth(seg, checker, pref[a:b], limits, reach, feed[a:b], CLOSEST_LENGTH,
+                                    s.max_step * DEG, cost=c2, constraints=cons, pole_tilt=pole * DEG,
+                                    tick=tick)
+        else:
+            cost = smoothing_cost(machine, reach, s.smoothing_length, s.rotary_weight, path.feed)
+            ax, inf = orient_smooth(seg, checker, pref[a:b], limits, reach, feed[a:b], s.smoothing_length,
+                                    s.max_step * DEG, cost=cost, constraints=cons, pole_tilt=pole * DEG,
+                                    tick=tick)
+        axes[a:b] = ax
+        for k, v in inf.items():
+            info[k] = info.get(k, 0) + v if isinstance(v, (int, float)) else v
     if progress is not None:
         progress(worst[0], worst[0])
     out = path.with_axis(axes)
     steps = angle(axes[1:], axes[:-1]) / DEG if len(axes) > 1 else np.zeros(1)
-    settings = dict(strategy=strategy, lead_max=lead_max, tilt_max=tilt_max, resolution=resolution,
-                    max_step=max_step, smoothing_length=smoothing_length,
-                    rotary_weight=float(cost.w) if cost is not None and machine is not None else 0.0,
-                    tolerance=checker.tolerance,
-                    clearance=checker.clearance, preferred=[float(x) for x in pref],
-                    reach=reach.name if reach else "none", tool=tool.name)
-    rep = OrientationReport(strategy, len(path), checks=checker.checks - checks0,
+    settings_used = s.as_dict() | dict(
+        rotary_weight=float(cost.w) if cost is not None and machine is not None else 0.0,
+        tolerance=checker.tolerance, clearance=checker.clearance,
+        preferred=[float(x) for x in unit(np.asarray(s.axis, float))],
+        reach=reach.name if reach else "none", tool=tool.name,
+        steps_with_own_settings=sorted(int(p) for p in (per_patch or {})))
+    rep = OrientationReport(s.strategy, n, checks=checker.checks - checks0,
                             seconds=time.perf_counter() - t0,
                             dp_rounds=info.get("dp_rounds", 0), resolved_points=info.get("resolved_points", 0),
                             relaxation_moves=info.get("relaxation_moves", 0),
                             max_step_deg=float(steps.max()), mean_step_deg=float(steps.mean()),
-                            max_deviation_deg=float((angle(axes, pref[None]) / DEG).max()),
-                            tolerance=checker.tolerance, triangles=checker.triangles, settings=settings)
-    out.info["orientation"] = settings | {"report": rep.summary()}
+                            max_deviation_deg=float((angle(axes, pref) / DEG).max()),
+                            tolerance=checker.tolerance, triangles=checker.triangles, settings=settings_used)
+    out.info["orientation"] = settings_used | {"report": rep.summary()}
     return out, rep

@@ -69,6 +69,8 @@ class SmoothingCost:
     l_phi: float = 0.0
     alpha: float = 1.0
     beta: float = 0.0
+    feed: float = 0.0            # mm/s: > 0 weighs moves beyond an axis's speed at this feed more
+    over: float = 4.0            # how much more (the polish, iteratively reweighted)
 
     @staticmethod
     def build(rotary: Rotary | None, length: float, rotary_weight: float = 1.0,
@@ -80,7 +82,7 @@ class SmoothingCost:
         f = feed / 60.0                                        # mm/s
         lt = f * rotary.v_theta / rotary.a_theta * np.sqrt(acceleration_weight)
         lp = f * rotary.v_phi / rotary.a_phi * np.sqrt(acceleration_weight)
-        return SmoothingCost(length, rotary, w=rotary_weight * rotary.weight, l_theta=lt, l_phi=lp)
+        return SmoothingCost(length, rotary, w=rotary_weight * rotary.weight, l_theta=lt, l_phi=lp, feed=f)
 
 
 # --- the discrete programme --------------------------------------------------------------------
@@ -487,14 +489,16 @@ class _Banded:
         return np.clip(x, lo, hi)
 
 
-def _quadratic(x0_len: int, ds, couple, L: float, w_vel: float, l_acc: float) -> _Banded:
-    """Velocity and acceleration terms of one joint coordinate along the path (see the module)."""
+def _quadratic(x0_len: int, ds, couple, L: float, w_vel: float, l_acc: float, block=None) -> _Banded:
+    """Velocity and acceleration terms of one joint coordinate along the path (see the module);
+    ``block`` (n-1,): extra factors of the blocks' velocity terms."""
     n = x0_len
     B = _Banded(n, 2)
     j = np.nonzero(couple)[0]
     one = np.ones(len(j))
     if len(j):
-        B.add(w_vel * L / ds[j], np.stack([j, j + 1], 1), np.stack([-one, one], 1), np.zeros(len(j)))
+        f = 1.0 if block is None else block[j]
+        B.add(w_vel * L / ds[j] * f, np.stack([j, j + 1], 1), np.stack([-one, one], 1), np.zeros(len(j)))
     k = np.nonzero(couple[:-1] & couple[1:])[0] + 1 if n > 2 else np.zeros(0, int)
     if len(k) and l_acc > 0:
         d0, d1 = ds[k - 1], ds[k]
@@ -538,6 +542,7 @@ def smooth_joints(path, rot: Rotary, theta0, phi0, pref, normal, cost: Smoothing
     held = np.zeros(n, bool)                       # pose held after a collision
     theta, phi = theta0.copy(), phi0.copy()        # the last poses checked free (and admissible)
     M = 0 if free_tilt is None else free_tilt.shape[1]
+    bw_t = bw_p = None
     hold = (half / L) * np.sin(theta0) ** 2 + 1e-9 * half / L
 
     def arcs(ph, th, idx=None):
@@ -569,7 +574,7 @@ def smooth_joints(path, rot: Rotary, theta0, phi0, pref, normal, cost: Smoothing
             plo = np.where(held, ph_c, np.minimum(plo, ph_c))   # the current value is admissible
             phi_hi = np.where(held, ph_c, np.maximum(phi_hi, ph_c))
             B = _Banded(n, 2)
-            B.ab[:] = Qphi.ab
+            B.ab[:] = Qphi.ab if bw_p is None else _quadratic(n, ds, couple, L, alpha * cost.w, cost.l_phi, bw_p).ab
             B.add(hold, np.arange(n)[:, None], np.ones((n, 1)), -phi0)
             ph_c = B.solve_box(plo, phi_hi)
             # 2. tilts: the convex problem on the admissible arcs at the new rotary values
@@ -591,9 +596,18 @@ def smooth_joints(path, rot: Rotary, theta0, phi0, pref, normal, cost: Smoothing
             lo, hi = np.minimum(lo, th_c), np.maximum(hi, th_c)
             lo, hi = np.where(held, th_c, lo), np.where(held, th_c, hi)
             B = _Banded(n, 2)
-            B.ab[:] = Qth.ab
+            B.ab[:] = Qth.ab if bw_t is None else _quadratic(n, ds, couple, L, alpha + cost.beta, cost.l_theta, bw_t).ab
             B.add(half / L, np.arange(n)[:, None], np.ones((n, 1)), -tp)
             th_c = B.solve_box(lo, hi)
+            if cost.feed > 0 and cost.over > 0:
+                # blocks beyond an axis's speed at the feed would slow it: weigh them more
+                # in the next alternation (iteratively reweighted)
+                r_t = np.abs(np.diff(th_c)) / (ds * rot.v_theta / cost.feed)
+                r_p = np.abs(np.diff(ph_c)) / (ds * rot.v_phi / cost.feed)
+                bw_t = np.maximum(1.0 if bw_t is None else bw_t,
+                                  np.minimum(1.0 + cost.over * np.maximum(r_t - 1.0, 0.0) ** 2, 100.0))
+                bw_p = np.maximum(1.0 if bw_p is None else bw_p,
+                                  np.minimum(1.0 + cost.over * np.maximum(r_p - 1.0, 0.0) ** 2, 100.0))
         # 3. lazy collision checks of the moved poses; a colliding one goes as far as it can
         K = rot.axis(theta, phi)
         Kc = rot.axis(th_c, ph_c)

@@ -111,8 +111,8 @@ class TsplcamProgram(FeatureProxy):
         add_property(obj, "App::PropertyLength", "SmoothingLength", g,
                      "Smooth: a needed tilt is spread over about this length of path on each side", 5.0)
         add_property(obj, "App::PropertyFloat", "RotaryWeight", g,
-                     "Smooth: weight of the rotary (C) axis motion next to the change of the tool axis "
-                     "(0: the axis angle only; 1 shortens mold cavities)", 0.0)
+                     "Smooth: how much the rotary (C) axis motion counts, in the machine's time units "
+                     "(2 default; 0: not at all, the tool-axis direction instead)", 2.0)
         add_property(obj, "App::PropertyFileIncluded", "ProgramFile", g,
                      "The posted program, kept inside the document", hidden=True)
         add_property(obj, "App::PropertyString", "ProgramName", g,
@@ -339,7 +339,7 @@ def make_program(path_obj, **settings):
     doc = path_obj.Document
     radius = float(path_obj.ToolRadius.Value)
     s = dict(tool=tool_for_radius(radius), orientation="smooth", machine=DEFAULT_MACHINE, dialect=None,
-             holder_clearance=0.3, smoothing_length=5.0, rotary_weight=0.0)
+             holder_clearance=0.3, smoothing_length=5.0, rotary_weight=2.0)
     stock_obj = settings.pop("stock", None)
     s.update(settings)
     busy = _busy()

@@ -19,7 +19,7 @@ from dataclasses import dataclass, field
 
 from .errors import InputError
 
-ORIENTATIONS = ("normal", "fixed", "closest-z", "smooth")
+ORIENTATIONS = ("normal", "fixed", "closest-z", "closest", "smooth")
 
 
 # -- the pieces --------------------------------------------------------------------------------
@@ -69,8 +69,10 @@ class Oriented:
 
 
 def orient_path(path, model, strategy: str, tool=None, machine=None, stock=None,
-                clearance: float = 0.3, **limits) -> Oriented:
+                clearance: float = 0.3, plist=None, plist_file=None, **limits) -> Oriented:
     """Tool axes by ``strategy``; 'normal' keeps the surface normals (no tool geometry needed).
+    ``plist``: the processing list, whose steps may carry tool-axis settings per patch;
+    ``limits``: orient's keywords (``settings`` an OrientationSettings among them).
     The result is re-checked for collisions with the same checker: zero or an error."""
     if strategy == "normal":
         return Oriented(path)
@@ -82,6 +84,13 @@ def orient_path(path, model, strategy: str, tool=None, machine=None, stock=None,
     from .verify.orientation import orientation_metrics
     meshes = [] if stock is None else [("stock", stock[0], stock[1])]
     checker = CollisionChecker(model, tool, meshes=meshes, clearance=clearance)
+    from .orientation.controls import step_settings
+    from .orientation.settings import OrientationSettings
+    from .plan.listfile import orientation_blocks
+    blocks = orientation_blocks(plist, plist_file) if plist is not None else {}
+    if blocks:
+        base = limits.get("settings") or OrientationSettings(strategy=strategy)
+        limits["per_patch"] = step_settings(base, blocks)
     oriented, report = orient(path, model, tool, strategy, checker=checker, machine=machine, **limits)
     metrics = orientation_metrics(oriented, checker, machine)
     return Oriented(oriented, report, metrics)
@@ -105,6 +114,7 @@ def _cmd_path(args) -> int:
         machine = load_machine(args.machine)
     stock = read_triangles(args.stock) if args.stock else sample_stock(args.model)
     oriented = orient_path(path, model, args.orientation, tool, machine, stock, args.holder_clearance,
+                           plist=plist, plist_file=getattr(args, "processing_list", None),
                            smoothing_length=args.smoothing_length, rotary_weight=args.rotary_weight,
                            progress=_progress("orienting: poses checked / at most"))
     path = oriented.path
@@ -115,9 +125,11 @@ def _cmd_path(args) -> int:
         if machine is None:
             raise InputError("--gcode needs --machine (see `python3 -m tsplcam machines`)")
         from .post import post_program
-        posted = post_program(path, machine, args.post)
+        posted = post_program(path, machine, args.post, orientation=args.axes_form)
         posted.write(args.gcode)
         extra["machining_time_s"] = posted.time.total_s
+        from .verify.orientation import machine_motion
+        extra["machine_motion"] = machine_motion(posted, path)
     written = tp.write_outputs(args, path, baseline, extra)
     print(tp.report(path, verification, baseline))
     if oriented.report is not None:
@@ -181,6 +193,9 @@ def add_path_command(subparsers) -> None:
     g.add_argument("--post", metavar="DIALECT", help="heidenhain, sinumerik, fanuc or linuxcnc (default: the "
                                                      "machine's controller)")
     g.add_argument("--gcode", metavar="OUT", help="write the machine program")
+    g.add_argument("--axes-form", choices=("angles", "vector"), default=None,
+                   help="tool axes in the program as machine angles (default) or as the tool vector "
+                        "(Heidenhain LN TX TY TZ, Sinumerik A3 B3 C3, Fanuc G43.5 I J K)")
     p.set_defaults(func=_cmd_path)
 
 
@@ -196,6 +211,7 @@ class JobSettings:
     orientation: str = "smooth"
     machine: str = "mikron_ucp600_heidenhain"
     dialect: str | None = None
+    axes_form: str | None = None       # "angles" or "vector" in the program (default: the dialect's)
     holder_clearance: float = 0.3
     out: str = "tsplcam-job"
     extra: dict = field(default_factory=dict)
@@ -238,7 +254,7 @@ def run_job(s: JobSettings, log=print) -> dict:
         log(f"tool axes ({s.orientation}): {oriented.metrics.summary()} ({time.perf_counter() - t:.2f} s)")
         figures["orientation"] = oriented.metrics.as_dict()
     t = time.perf_counter()
-    posted = post_program(oriented.path, machine, s.dialect)
+    posted = post_program(oriented.path, machine, s.dialect, orientation=s.axes_form)
     ext = {"heidenhain": ".h", "sinumerik": ".mpf", "fanuc": ".nc", "linuxcnc": ".ngc"}.get(posted.dialect, ".nc")
     program = os.path.join(s.out, f"{os.path.basename(s.model).split('.')[0]}{ext}")
     posted.write(program)
@@ -246,6 +262,14 @@ def run_job(s: JobSettings, log=print) -> dict:
     write_cl(oriented.path, cl)
     log(posted.summary())
     figures["machining_time_s"] = posted.time.total_s
+    from .verify.orientation import machine_motion
+    figures["machine_motion"] = machine_motion(posted, oriented.path)
+    mm = figures["machine_motion"]
+    log(f"machine motion: time {mm['time_s']:.1f} s = {mm['time_ratio']:.3f} x length/feed "
+        f"({mm['length_feed_time_s']:.1f} s); C travel {mm['c_travel_deg']:.0f} deg "
+        f"({mm['c_deg_per_mm']:.2f} deg/mm), branch flips {mm['branch_flips']}, pole points "
+        f"{mm['pole_points']}, largest axis step {mm['max_axis_step_deg']:.2f} deg, retract-reorient "
+        f"{mm['reorientations']}")
     figures["seconds"] = time.perf_counter() - t_all
     with open(os.path.join(s.out, "report.json"), "w", encoding="utf-8") as fh:
         from .toolpath.commands import _json_default
@@ -260,7 +284,7 @@ def _cmd_job(args) -> int:
     from . import __version__
     print(f"tsplcam {__version__}: the paper's keycap job (shang2020 section 4)")
     s = JobSettings(out=args.out)
-    for k in ("model", "tool", "scallop", "orientation", "machine", "dialect"):
+    for k in ("model", "tool", "scallop", "orientation", "machine", "dialect", "axes_form"):
         v = getattr(args, k)
         if v is not None:
             setattr(s, k, v)
@@ -278,4 +302,6 @@ def add_job_command(subparsers) -> None:
     p.add_argument("--orientation", choices=ORIENTATIONS, help="tool axes (default smooth)")
     p.add_argument("--machine", help="machine (default mikron_ucp600_heidenhain)")
     p.add_argument("--dialect", help="controller dialect (default: the machine's)")
+    p.add_argument("--axes-form", choices=("angles", "vector"),
+                   help="tool axes in the program as machine angles (default) or as the tool vector")
     p.set_defaults(func=_cmd_job)

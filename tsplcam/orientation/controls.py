@@ -78,6 +78,13 @@ def point_settings(path, base: OrientationSettings, per_patch: dict | None) -> l
     return out
 
 
+def step_settings(base: OrientationSettings, blocks: dict) -> dict:
+    """{patch: OrientationSettings} from a processing list's step blocks ``{patch: (block,
+    where)}`` (plan.listfile.orientation_blocks): each block over ``base``, checked; errors
+    name the file, line and step."""
+    return {p: base.with_step(block, where) for p, (block, where) in blocks.items()}
+
+
 def runs(strategy_of_point: np.ndarray) -> list:
     """Maximal runs ``(start, stop)`` of consecutive points with the same strategy."""
     s = np.asarray(strategy_of_point)

@@ -174,6 +174,28 @@ def orient_closest(path, checker, preferred, limits: Limits, reach, feed, bisect
     return _toward(axes, pref, lo), {"bisection_steps": bisect}
 
 
+def cutting_directions(path) -> np.ndarray:
+    """Feed directions of the points for the lead/tilt cone: the central difference, except at
+    a line's first and last point, where it is the line's own direction (the move to or
+    from the neighbouring line is a link, not the cut: the cone must not turn with it)."""
+    feed = feed_directions(path.contact, path.normal)
+    n = len(path)
+    if n < 3:
+        return feed
+    P, N = path.contact, path.normal
+    link = np.asarray(path.move) != Move.CUT
+    last = np.nonzero(link[1:])[0]                       # the point before a non-cut move
+    first = np.nonzero(link[:-1])[0]                     # a point a non-cut move arrives at
+    for idx, d in ((last[last >= 1], P[last[last >= 1]] - P[last[last >= 1] - 1]),
+                   (first, P[first + 1] - P[first])):
+        if len(idx) == 0:
+            continue
+        d = d - np.einsum("ij,ij->i", d, N[idx])[:, None] * N[idx]
+        ok = np.linalg.norm(d, axis=1) > 1e-12
+        feed[idx[ok]] = unit(d[ok])
+    return feed
+
+
 def _keeps(A, constraints) -> np.ndarray:
     """Mask (n, m) of candidate axes A (n, m, 3) inside every half-space ``(h, b)``."""
     ok = np.ones(A.shape[:2], bool)
@@ -216,7 +238,8 @@ def orient_smooth(path, checker, preferred, limits: Limits, reach, feed, smoothi
     half = np.concatenate([[ds[0]], ds]) * 0.5 + np.concatenate([ds, [ds[-1]]]) * 0.5
     try:
         states, rounds, checks, status = joint_programme(checker, C, grid, cost, pref, ds, half / smoothing_length,
-                                                 max_step, free_step, limits.resolution, tick=lambda: tick(M))
+                                                 max_step, free_step, limits.resolution, tick=lambda: tick(M),
+                                                 air=np.isin(path.move, (Move.RETRACT, Move.RAPID)))
     except NoPath as e:
         i = e.point
         if e.kind == "point":
@@ -402,7 +425,7 @@ def orient(path, model=None, tool=None, strategy: str | None = None, *, settings
     checks0 = checker.checks
     _check_ball(path, checker)
     n = len(path)
-    feed = feed_directions(path.contact, path.normal)
+    feed = cutting_directions(path)
     # per point: strategy, target axis and the largest-tilt cone
     groups = point_settings(path, s, per_patch)
     strat = np.empty(n, object)

@@ -122,12 +122,16 @@ def meridian_grid(rot: Rotary, pref, normal, constraints, M: int, pole_tilt: flo
     return MeridianGrid(phis, th, lo, hi, tp, ok, th.copy(), np.zeros(th.shape, bool))
 
 
+IN_PLACE = (0.1, 10.0 * DEG)     # no rotary step above 10 deg while the contact moves less than 0.1 mm
+
+
 def joint_transitions(grid: MeridianGrid, cost: SmoothingCost, ds: np.ndarray, max_step: float,
-                      free_step: np.ndarray):
+                      free_step: np.ndarray, air=None):
     """The transition cost ``i -> (M, M)`` between the grid's poses (see the module):
     ``L / ds * (alpha (dtheta^2 + w dphi^2) + beta |dK|^2)``, moves of the tool axis above
-    ``max_step`` forbidden except into points where ``free_step``. Reads ``grid.theta`` when
-    called (the lazy collision checks update it)."""
+    ``max_step`` forbidden except into points where ``free_step``, and rotary steps above
+    ``IN_PLACE`` forbidden on blocks shorter than it except into points where ``air``
+    (retracts, rapids). Reads ``grid.theta`` when called (the lazy collision checks update it)."""
     phis = grid.phi
     dphi = np.pi - np.mod(np.pi - (phis[None, :] - phis[:, None]), 2 * np.pi)
     D2 = cost.w * dphi ** 2
@@ -135,6 +139,8 @@ def joint_transitions(grid: MeridianGrid, cost: SmoothingCost, ds: np.ndarray, m
     cmax = np.cos(max_step)
     alpha, beta, L = cost.alpha, cost.beta, cost.length
     TH = grid.theta
+    swing = np.abs(dphi) > IN_PLACE[1] + 1e-9
+    air = np.zeros(len(TH), bool) if air is None else air
 
     def trans(i: int) -> np.ndarray:
         a, b = TH[i - 1], TH[i]
@@ -146,6 +152,8 @@ def joint_transitions(grid: MeridianGrid, cost: SmoothingCost, ds: np.ndarray, m
         t *= L / ds[i - 1]
         if not free_step[i]:
             t[dots < cmax - 1e-12] = np.inf
+        if ds[i - 1] < IN_PLACE[0] and not air[i]:
+            t[swing] = np.inf
         return t
     return trans
 
@@ -214,7 +222,7 @@ class NoPath(Exception):
 
 def joint_programme(checker, C, grid: MeridianGrid, cost: SmoothingCost, pref, ds, half, max_step: float,
                     free_step, step: float, anchor: int = 4, window: int = 1, k_window: int = 1,
-                    max_rounds: int = 200, tick=None):
+                    max_rounds: int = 200, air=None, tick=None):
     """The Viterbi programme over the grid's poses with lazy collision checks.
 
     The programme runs on poses not known to collide, the chosen ones are checked, and around
@@ -228,7 +236,7 @@ def joint_programme(checker, C, grid: MeridianGrid, cost: SmoothingCost, pref, d
     n, M = grid.theta.shape
     rot = cost.rotary
     tick = tick or (lambda: None)
-    trans = joint_transitions(grid, cost, ds, max_step, free_step)
+    trans = joint_transitions(grid, cost, ds, max_step, free_step, air)
     status = np.where(grid.ok, -1, 2).astype(np.int8)   # -1 unknown, 0 free, 2 excluded, 3 likely excluded
     theta_init = grid.theta.copy()
     anchored = np.zeros(n, bool)
@@ -623,6 +631,29 @@ def smooth_joints(path, rot: Rotary, theta0, phi0, pref, normal, cost: Smoothing
         theta[good], phi[good] = th_c[good], ph_c[good]
         if len(bad) == 0:
             break
+        # first keep the new rotary value with the tilt where it was, or a little further
+        # from the preferred axis (a collision limits the tilt more often than the azimuth:
+        # the rotary value then stays with its smoothed neighbours)
+        tp_b = rot.best_theta(pref[bad], ph_c[bad])
+        away = np.where(theta[bad] >= tp_b, 1.0, -1.0)
+        placed = np.zeros(len(bad), bool)
+        for extra in (0.0, lean, 2 * lean):
+            q = np.nonzero(~placed)[0]
+            if len(q) == 0:
+                break
+            tt = np.clip(np.where(away[q] > 0, np.maximum(theta[bad[q]], th_c[bad[q]]),
+                                  np.minimum(theta[bad[q]], th_c[bad[q]])) + away[q] * extra,
+                         rot.theta_lo, rot.theta_hi)
+            lo, hi = arcs(ph_c[bad[q]], tt, bad[q])
+            q = q[(tt >= lo - 1e-12) & (tt <= hi + 1e-12)]
+            tt = tt[(tt >= lo - 1e-12) & (tt <= hi + 1e-12)]
+            if len(q):
+                free = ~checker.collides(path.center[bad[q]], rot.axis(tt, ph_c[bad[q]]))
+                info["joint_checks"] += len(q)
+                theta[bad[q[free]]], phi[bad[q[free]]] = tt[free], ph_c[bad[q[free]]]
+                placed[q[free]] = True
+        held[bad] = True
+        bad = bad[~placed]
         t_lo, t_hi = np.zeros(len(bad)), np.ones(len(bad))
         for _ in range(bisect):
             t = 0.5 * (t_lo + t_hi)
@@ -639,6 +670,5 @@ def smooth_joints(path, rot: Rotary, theta0, phi0, pref, normal, cost: Smoothing
             t_hi = np.where(free, t_hi, t)
         theta[bad] = theta[bad] + t_lo * (th_c[bad] - theta[bad])
         phi[bad] = phi[bad] + t_lo * (ph_c[bad] - phi[bad])
-        held[bad] = True
     info["held_points"] = int(held.sum())
     return theta, phi, info

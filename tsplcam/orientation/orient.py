@@ -45,6 +45,18 @@ from ..toolpath.path import Move
 
 STRATEGIES = ("fixed", "closest-z", "closest", "smooth")
 
+# The rotary axis's velocity counts twice its share of the tilt axis's time: with the squared
+# velocities of J, 1 would be the time-consistent weight, but the machining time follows the
+# peaks the squares smooth over; 2 measured best on the keycap, its mold half and deep_mold
+# (estimated time / length-feed time 1.04, 1.09, 1.07 against 1.03, 1.15, 1.10 with 1, at a
+# 0.01 mm scallop and the full acceleration weight).
+ROTARY_WEIGHT = 2.0
+# The acceleration terms at a sixteenth of their time-consistent weight (l = F v / (4 a)):
+# the squared accelerations at full weight over-smooth, holding the axes off the bounds the
+# walls set; the full jobs measured estimated time / length-feed time 1.092 on the mold half
+# with 1/16 against 1.100 (1/4), 1.110 (1), 1.217 (4) and 1.134 without acceleration terms.
+ACCELERATION_WEIGHT = 1.0 / 16.0
+
 
 @dataclass
 class OrientationReport:
@@ -262,7 +274,7 @@ def orient_smooth(path, checker, preferred, limits: Limits, reach, feed, smoothi
 
 
 def smoothing_cost(machine, reach, smoothing_length: float, rotary_weight: float | None,
-                   feed: float, acceleration_weight: float = 1.0) -> SmoothingCost:
+                   feed: float, acceleration_weight: float = ACCELERATION_WEIGHT) -> SmoothingCost:
     """The smooth strategy's weights (orientation.smoothing). With a machine: its rotary axes'
     joint space, rotary motion counted ``rotary_weight`` (default ``ROTARY_WEIGHT``) times in tilt-axis time
     (the machine's (tilt speed / rotary speed)^2), accelerations against its limits at the
@@ -303,11 +315,6 @@ def _resolve(checker, C, A, status, resolved, idx, tick=None, chunk: int = 20000
 
 # --- the stage's entry point -------------------------------------------------------------------
 
-# The rotary axis's velocity counts twice its share of the tilt axis's time: with the squared
-# velocities of J, 1 would be the time-consistent weight, but the machining time follows the
-# peaks the squares smooth over; 2 measured best on the keycap, its mold half and deep_mold
-# (estimated time / length-feed time 1.04, 1.09, 1.07 against 1.03, 1.15, 1.10 with 1).
-ROTARY_WEIGHT = 2.0
 CLOSEST_LENGTH = 0.05      # mm: the smoothing length of "closest": the deviation decides, joints break ties
 
 

@@ -12,7 +12,6 @@ from tsplcam.errors import CollisionError, InputError
 from tsplcam.model import samples
 from tsplcam.model.cage import cage_model
 from tsplcam.orientation import CollisionChecker, HolderSegment, Reach, Tool, load_tool, orient
-from tsplcam.orientation.candidates import angle
 from tsplcam.orientation.collision import tessellate_model
 from tsplcam.orientation.viterbi import viterbi
 from tsplcam.orientation.tool import parse_length, read_fctb, read_tool, shipped_tools_dir

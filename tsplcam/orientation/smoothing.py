@@ -53,8 +53,6 @@ from scipy.linalg import solveh_banded
 from .rotary import DEG, Rotary, angle_between
 from .viterbi import viterbi
 
-POLE = 0.5 * DEG       # the pole cone of the figures (the post's default singular cone)
-
 
 @dataclass
 class SmoothingCost:

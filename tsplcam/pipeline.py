@@ -173,7 +173,8 @@ def add_path_command(subparsers) -> None:
     g = p.add_argument_group("tool orientation (issue 7)")
     g.add_argument("--orientation", choices=ORIENTATIONS, default="normal",
                    help="tool axes: the surface normal (default), fixed +Z (three-axis), the collision-free "
-                        "axis closest to +Z (shang2020), or smooth (xu2013, global)")
+                        "axis closest to +Z (closest, or closest-z: shang2020, tilt only where needed), or "
+                        "smooth (xu2013, in the machine's joint space)")
     g.add_argument("--tool", metavar="TOOL", help="tool: a shipped name, a tsplcam tool .json or a FreeCAD "
                                                   ".fctb (its ball radius must equal --tool-radius)")
     g.add_argument("--stock", metavar="OBJ", help="stock or fixture triangles (OBJ) for collision checks "
@@ -184,9 +185,8 @@ def add_path_command(subparsers) -> None:
                    help="smooth: a needed tilt is spread over about this length of path on each side "
                         "(mm, default 5)")
     g.add_argument("--rotary-weight", type=float, default=None, metavar="W",
-                   help="smooth, with --machine: weight of the rotary (C) axis motion against the change "
-                        "of the tool axis, scaled by the machine's tilt/rotary speeds (default 0: the "
-                        "axis angle only; 1 counts C like the tilt axis, which shortens mold cavities)")
+                   help="smooth, with --machine: how much the rotary (C) axis motion counts, in the "
+                        "machine's time units (default 2; 0: not at all, the tool-axis direction instead)")
     g = p.add_argument_group("posting (issue 8)")
     g.add_argument("--machine", metavar="NAME", help="machine (`python3 -m tsplcam machines`); also limits "
                                                      "the tool axes to its rotary range")

@@ -1,6 +1,6 @@
 """The orientation controls (orientation.settings, orientation.controls) on real parts: each
 control's geometry measured back from the axes it produced (lead and tilt against the
-normal and the feed direction, the angle to a point, a line, a limit axis, the tilt axis
+normal and the feed direction (at a line's ends the line's own direction), the angle to a point, a line, a limit axis, the tilt axis
 values through the machine's inverse kinematics), every result re-checked collision-free with
 the tool as fcl primitives, and every refusal naming the point, its patch and (u, v)."""
 import unittest
@@ -14,6 +14,7 @@ from tsplcam.orientation import CollisionChecker, load_tool, orient
 from tsplcam.orientation.candidates import feed_directions, lead_tilt
 from tsplcam.orientation.controls import target_axes
 from tsplcam.orientation.settings import STEP_KEYS, OrientationSettings
+from tsplcam.orientation.orient import cutting_directions
 from tsplcam.orientation.testpaths import zigzag
 from tsplcam.post import load_machine
 from tsplcam.post.kinematics import inverse_orientation, solve_joints
@@ -103,7 +104,7 @@ class OnParts(unittest.TestCase):
         s = OrientationSettings(strategy="fixed", target="lead-tilt", lead=10.0, side_tilt=-5.0)
         out, rep = orient(path, checker=self.cap_checker, settings=s, machine=self.machine)
         self.free(out, self.cap_checker)
-        lead, tilt = lead_tilt(out.axis[:, None], out.normal, feed_directions(out.contact, out.normal))
+        lead, tilt = lead_tilt(out.axis[:, None], out.normal, cutting_directions(out))
         self.assertLess(np.abs(np.degrees(lead[:, 0]) - 10.0).max(), 1e-6)
         self.assertLess(np.abs(np.degrees(tilt[:, 0]) + 5.0).max(), 1e-6)
         # in the cavity a vertical fixed axis (3+2) collides: refused, naming point and patch
@@ -153,7 +154,7 @@ class OnParts(unittest.TestCase):
                           machine=self.machine)
         self.free(out, self.cap_checker)
         on = out.patch == 0
-        _, tilt = lead_tilt(out.axis[on][:, None], out.normal[on], feed_directions(out.contact, out.normal)[on])
+        _, tilt = lead_tilt(out.axis[on][:, None], out.normal[on], cutting_directions(out)[on])
         self.assertLess(np.abs(np.degrees(tilt[:, 0]) - 8.0).max(), 1e-6)
         self.assertEqual(rep.settings["steps_with_own_settings"], [0])
 

@@ -237,10 +237,13 @@ def pose_sequence(rot: Rotary, K, *, feasible=None, cone: float = 0.0, length=No
         if not reps_mode:
             dP = wrap_pi(dP)
         trans = np.abs(dT) / rot.v_theta + np.abs(dP) / rot.v_phi
-        # a sweeping block (flip or rewind off the pole) costs a half turn more
-        ph_to = Ps[:-1, :, None] + dP
-        sw = swing_mid(rot, Ks[:-1, None, None, :], Ks[1:, None, None, :], Ts[:-1, :, None],
-                       Ps[:-1, :, None], Ts[1:, None, :], ph_to)
+        # a sweeping block (flip or rewind off the pole) costs a half turn more; only moves
+        # that turn a rotary axis by more than 20 deg can sweep
+        big = (np.abs(dP) > 20.0 * DEG) | (np.abs(dT) > 20.0 * DEG)
+        sw = np.zeros(dP.shape)
+        if big.any():
+            k, a, b = np.nonzero(big)
+            sw[k, a, b] = swing_mid(rot, Ks[k], Ks[k + 1], Ts[k, a], Ps[k, a], Ts[k + 1, b], Ps[k, a] + dP[k, a, b])
         blk_cut = np.ones(len(idx) - 1, bool)
         if len(idx) > 1:
             c = np.concatenate([[True], np.asarray(cut, bool)])

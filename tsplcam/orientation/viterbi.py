@@ -26,9 +26,7 @@ def first_min(v: np.ndarray, axis: int = 0) -> np.ndarray:
     """Index of the smallest value along ``axis``; values within ``TIE`` (relative) of it
     count as equal and the first of them wins."""
     m = v.min(axis=axis, keepdims=True)
-    with np.errstate(invalid="ignore"):
-        close = v <= m + TIE * np.maximum(1.0, np.abs(m))
-    return np.argmax(close, axis=axis)
+    return np.argmax(v <= m + TIE * np.maximum(1.0, np.abs(m)), axis=axis)
 
 
 def _le(x: float, y: float) -> bool:

@@ -52,7 +52,8 @@ COMMANDS = {
                             "mm, feeds in mm/min. Exit code 0, or 2 with one line naming the option, file or "
                             "place."),
 }
-NUMBER_KINDS = ("length", "length0", "feed", "factor")
+NUMBER_KINDS = ("length", "length0", "feed", "factor", "angle")
+VECTOR_KINDS = {"vector": 3, "pair": 2}
 
 
 # -- options from the settings' fields ----------------------------------------------------------
@@ -61,6 +62,20 @@ def _number(text: str) -> float:
         return float(text)
     except ValueError:
         raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
+
+
+def _numbers(n: int):
+    """An argument type for ``n`` comma-separated numbers ('0,0,1')."""
+    def parse(text: str) -> tuple:
+        parts = text.replace(" ", "").split(",")
+        try:
+            values = tuple(float(x) for x in parts)
+        except ValueError:
+            values = ()
+        if len(values) != n:
+            raise argparse.ArgumentTypeError(f"{text!r} is not {n} numbers separated by commas")
+        return values
+    return parse
 
 
 def flags_of(f) -> tuple:
@@ -93,15 +108,18 @@ def add_options(parser, command: str) -> None:
         if md["kind"] == "flag":
             kw["action"] = "store_false" if default else "store_true"
         else:
-            kw.update(metavar=md["metavar"], type=_number if md["kind"] in NUMBER_KINDS else str)
+            kind = md["kind"]
+            kw.update(metavar=md["metavar"], type=_number if kind in NUMBER_KINDS
+                      else _numbers(VECTOR_KINDS[kind]) if kind in VECTOR_KINDS else str)
             if md["kind"] == "choice":
                 kw["choices"] = choices_of(f)
                 kw.pop("metavar") if md["metavar"] is None else None
             if f.name in spec["required"]:
                 kw["required"] = True
             elif default is not None and "default:" not in text:
-                shown = f"{default:g}" if isinstance(default, float) else str(default)
-                unit = text.endswith(("(mm)", "(mm/min)"))
+                shown = (f"{default:g}" if isinstance(default, float) else
+                         ",".join(f"{x:g}" for x in default) if isinstance(default, tuple) else str(default))
+                unit = text.endswith(("(mm)", "(mm/min)", "(deg)"))
                 text = text[:-1] + f", default {shown})" if unit else text + f" (default {shown})"
         if md["group"] not in groups:
             groups[md["group"]] = parser.add_argument_group(GROUPS[md["group"]])
@@ -191,7 +209,7 @@ def _cmd_path(args) -> int:
             verification = measure(path, model, progress=_progress("measuring scallop, patch"))
             timing["verify_s"] = time.perf_counter() - t
         program = make_program(path, model, s, stock=stock, progress=_progress("orienting: poses checked / at most"),
-                               post=bool(s.gcode))
+                               post=bool(s.gcode), plist=plist)
         timing.update(program.seconds)
         files = []
         if s.cl:
@@ -211,7 +229,9 @@ def _cmd_path(args) -> int:
         print(program.report.summary())
         print(program.metrics.summary())
     if program.posted is not None:
+        from .verify.orientation import machine_motion
         print(program.posted.summary())
+        print(motion_summary(machine_motion(program.posted, program.path)))
     for f in written:
         print(f"wrote {f}")
     print(f"time taken {time.perf_counter() - t0:.2f} s")
@@ -238,7 +258,9 @@ def path_figures(program, verification=None, baseline=None) -> dict:
     if program.metrics is not None:
         doc["orientation"] = program.metrics.as_dict()
     if program.posted is not None:
+        from .verify.orientation import machine_motion
         doc["machining_time_s"] = program.posted.time.total_s
+        doc["machine_motion"] = machine_motion(program.posted, program.path)
     if baseline is not None:
         doc["baseline"] = _summary(baseline)
     return doc
@@ -310,8 +332,11 @@ def run_job(s: JobSettings, log=print, progress=None) -> dict:
         log(f"tool axes ({s.orientation}): {program.metrics.summary()} ({timing['orientation_s']:.2f} s)")
     post = program.posted
     log(post.summary())
+    from .verify.orientation import machine_motion
+    motion = machine_motion(post, program.path)
+    log(motion_summary(motion))
     figures = {"settings": s.to_dict(JobSettings.option_names("job")), "path": m.as_dict(),
-               "machining_time_s": post.time.total_s}
+               "machining_time_s": post.time.total_s, "machine_motion": motion}
     if program.metrics is not None:
         figures["orientation"] = program.metrics.as_dict()
     name = program_file_name(s.model, post.dialect)
@@ -326,6 +351,15 @@ def run_job(s: JobSettings, log=print, progress=None) -> dict:
     log(f"wrote {os.path.join(s.out, name)}, {os.path.join(s.out, cl_name)}, processing-list.json and "
         f"report.json in {s.out} ({timing['total_s']:.1f} s in all)")
     return figures
+
+
+def motion_summary(mm: dict) -> str:
+    """One line of what the machine does: time against length/feed, C travel, flips, poles."""
+    return (f"machine motion: time {mm['time_s']:.1f} s = {mm['time_ratio']:.3f} x length/feed "
+            f"({mm['length_feed_time_s']:.1f} s); C travel {mm['c_travel_deg']:.0f} deg "
+            f"({mm['c_deg_per_mm']:.2f} deg/mm), branch flips {mm['branch_flips']}, pole points "
+            f"{mm['pole_points']}, largest axis step {mm['max_axis_step_deg']:.2f} deg, retract-reorient "
+            f"{mm['reorientations']}")
 
 
 def _cmd_job(args) -> int:

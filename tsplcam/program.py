@@ -130,14 +130,16 @@ class Program:
     seconds: dict = field(default_factory=dict)
 
 
-def make_program(path, model, settings: JobSettings, stock=None, progress=None, post: bool = True) -> Program:
+def make_program(path, model, settings: JobSettings, stock=None, progress=None, post: bool = True,
+                 plist=None) -> Program:
     """Tool axes and machine program of ``path`` (a ToolPath of ``model``) by ``settings``
     (its ``tool``, ``orientation``, ``holder_clearance``, ``smoothing_length``,
     ``rotary_weight``, ``machine`` and ``dialect``).
 
     ``stock``: (V, T) triangles the tool must clear besides the model (default:
     :func:`load_stock`); ``progress(done, total)`` follows the collision checks; ``post``:
-    False stops before the machine program. Raises InputError, CollisionError or
+    False stops before the machine program; ``plist``: the processing list, whose steps may
+    carry tool-axis settings for their patch. Raises InputError, CollisionError or
     KinematicsError naming the place; a path that collides is never returned."""
     machine = load_machine(settings)
     t = time.perf_counter()
@@ -151,27 +153,35 @@ def make_program(path, model, settings: JobSettings, stock=None, progress=None, 
                              f"made for {path.tool_radius:g} mm: pick a matching tool or make the path for "
                              "that radius", item="tool")
         program = _orient(path, model, settings, tool, machine,
-                          load_stock(settings) if stock is None else stock, progress)
+                          load_stock(settings) if stock is None else stock, progress, plist)
         program.seconds["orientation_s"] = time.perf_counter() - t
     else:
         program = Program(path)
     if post and machine is not None:
         from .post import post_program
         t = time.perf_counter()
-        program.posted = post_program(program.path, machine, settings.dialect)
+        options = {} if settings.axes_form is None else {"orientation": settings.axes_form}
+        program.posted = post_program(program.path, machine, settings.dialect, **options)
         program.seconds["post_s"] = time.perf_counter() - t
     return program
 
 
-def _orient(path, model, settings: JobSettings, tool, machine, stock, progress) -> Program:
-    """Tool axes by the orientation strategy, checked again with the same collision checker."""
+def _orient(path, model, settings: JobSettings, tool, machine, stock, progress, plist=None) -> Program:
+    """Tool axes by the orientation settings (and a processing list's per-step blocks),
+    checked again with the same collision checker."""
     from .orientation import CollisionChecker, orient
+    from .orientation.controls import step_settings
     from .verify.orientation import orientation_metrics
+    base = settings.orientation_settings()
+    per_patch = None
+    if plist is not None:
+        from .plan.listfile import orientation_blocks
+        blocks = orientation_blocks(plist, settings.processing_list)
+        per_patch = step_settings(base, blocks) if blocks else None
     meshes = [] if stock is None else [("stock", stock[0], stock[1])]
     checker = CollisionChecker(model, tool, meshes=meshes, clearance=settings.holder_clearance)
-    oriented, report = orient(path, model, tool, settings.orientation, checker=checker, machine=machine,
-                              smoothing_length=settings.smoothing_length, rotary_weight=settings.rotary_weight,
-                              progress=progress)
+    oriented, report = orient(path, model, tool, settings=base, per_patch=per_patch, checker=checker,
+                              machine=machine, progress=progress)
     return Program(oriented, report, orientation_metrics(oriented, checker, machine))
 
 

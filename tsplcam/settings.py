@@ -29,13 +29,21 @@ GROUPS = {
 
 # the options each stage reads, besides the model
 PATH_KEYS = ("scallop", "chord_tol", "max_step", "feed", "clearance", "clearance_mode", "balance")
+# the tool-axis controls, handed to the orientation stage (tsplcam.orientation.settings)
+AXIS_KEYS = ("target", "axis", "lead", "side_tilt", "point", "direction", "max_tilt", "limit_axis",
+             "tilt_range", "pole_tilt")
 PROGRAM_KEYS = ("tool", "orientation", "holder_clearance", "smoothing_length", "rotary_weight",
-                "machine", "dialect")
+                "machine", "dialect", "axes_form") + AXIS_KEYS
 
 
 def _orientations():
     from .orientation import ORIENTATIONS
     return ORIENTATIONS
+
+
+def _targets():
+    from .orientation.settings import TARGETS
+    return TARGETS
 
 
 def _dialects():
@@ -62,7 +70,8 @@ def option(default, group: str, help: str, kind: str, metavar: str | None = None
     """A field with what the command line and the checks need to know about it.
 
     ``kind``: ``length`` (a number > 0, mm), ``length0`` (>= 0, mm), ``feed`` (> 0, mm/min),
-    ``factor`` (>= 0), ``choice`` (one of ``choices()``), ``flag`` (true/false), ``text`` (a
+    ``factor`` (>= 0), ``angle`` (degrees; its range is the stage's to check), ``vector``
+    (three numbers, x,y,z), ``pair`` (two numbers, min,max), ``choice`` (one of ``choices()``), ``flag`` (true/false), ``text`` (a
     name or file, required), ``name`` (a name or file, or nothing), ``file`` (a file name, or
     nothing when the default is nothing). ``flags``: command-line
     spellings other than ``--field-name``; ``command``: the one command an output belongs to.
@@ -106,16 +115,37 @@ class JobSettings:
                            flags=("--no-balance",))
     # the tool axes
     orientation: str = option("smooth", "axes", "tool axes: normal (the surface normal, no collision "
-                              "checks), fixed (vertical, three-axis), closest-z (per point the collision-free "
-                              "axis nearest vertical) or smooth (collision-free, changes spread along the path)",
-                              "choice", choices=_orientations)
+                              "checks), fixed (exactly the target axis: 3+2, or a fixed lead/tilt), closest "
+                              "(alias closest-z: per point the collision-free axis nearest the target, tilting "
+                              "only where needed) or smooth (collision-free, changes spread along the path in "
+                              "the machine's rotary axes)", "choice", choices=_orientations)
+    target: str = option("axis", "axes", "what the tool axis leans toward: axis (a fixed direction, --axis), "
+                         "lead-tilt (--lead and --side-tilt against the surface normal), toward-point / "
+                         "away-from-point (--point), toward-line / away-from-line (through --point along "
+                         "--direction)", "choice", choices=_targets)
+    axis: tuple = option((0.0, 0.0, 1.0), "axes", "target tool axis x,y,z (part frame)", "vector", "X,Y,Z")
+    lead: float = option(0.0, "axes", "lead-tilt target: lead toward the feed direction, negative for lag "
+                         "(deg)", "angle", "DEG")
+    side_tilt: float = option(0.0, "axes", "lead-tilt target: side tilt to the left of the feed direction "
+                              "(deg)", "angle", "DEG")
+    point: tuple | None = option(None, "axes", "point the axis leans toward or away from, or a point of the "
+                                 "line (x,y,z mm)", "vector", "X,Y,Z")
+    direction: tuple | None = option(None, "axes", "direction of that line (x,y,z)", "vector", "X,Y,Z")
+    max_tilt: float | None = option(None, "axes", "largest angle between the tool axis and --limit-axis "
+                                    "(deg); default: the machine's range alone", "angle", "DEG")
+    limit_axis: tuple = option((0.0, 0.0, 1.0), "axes", "the axis --max-tilt is measured from (x,y,z)",
+                               "vector", "X,Y,Z")
+    tilt_range: tuple | None = option(None, "axes", "the machine's tilt axis narrowed to min,max (deg, "
+                                      "machine values)", "pair", "MIN,MAX")
+    pole_tilt: float = option(0.0, "axes", "smallest angle kept between the tool axis and the rotary axis "
+                              "(deg); 0: at the pole the rotary axis holds still instead", "angle", "DEG")
     holder_clearance: float = option(0.3, "axes", "distance kept between shank or holder and the part "
                                      "(mm); only the flutes may touch it", "length0", "MM")
     smoothing_length: float = option(5.0, "axes", "smooth: a tilt needed at one place is eased in and out "
                                      "over about this length of path on each side (mm)", "length", "MM")
-    rotary_weight: float = option(0.0, "axes", "smooth, with a machine: how much the rotary (C) axis motion "
-                                  "counts next to the change of the tool axis (0: the tool axis alone; 1: C "
-                                  "counts like the tilt axis, which shortens mold cavities)", "factor", "W")
+    rotary_weight: float | None = option(None, "axes", "smooth, with a machine: how much the rotary (C) axis "
+                                         "motion counts, in the machine's time units (default 2; 0: not at "
+                                         "all, the change of the tool-axis direction instead)", "factor", "W")
     # the machine and the program
     machine: str | None = option("mikron_ucp600_heidenhain", "machine", "the five-axis machine: kinematics, "
                                  "travel and rotary limits, axis speeds (`python3 -m tsplcam machines`, or a "
@@ -123,6 +153,10 @@ class JobSettings:
     dialect: str | None = option(None, "machine", "controller syntax of the program: {dialects}; default: "
                                  "the machine's controller", "choice", "DIALECT", choices=_dialects,
                                  flags=("--dialect", "--post"))
+    axes_form: str | None = option(None, "machine", "tool axes in the program as machine angles or as the "
+                                   "tool vector (Heidenhain LN TX TY TZ, Sinumerik A3 B3 C3, Fanuc G43.5 I J K); "
+                                   "default: the machine file's choice, else angles", "choice", "FORM",
+                                   choices=("angles", "vector"))
     # where the files go
     out: str = option("tsplcam-job", "outputs", "folder for the program (named after the model, with the "
                       "controller's extension), the CL data, processing-list.json and report.json",
@@ -148,7 +182,10 @@ class JobSettings:
         other must come together. Returns self."""
         label = label or (lambda name: name)
         for f in fields(self):
-            _check_value(f, getattr(self, f.name), label(f.name))
+            value = getattr(self, f.name)
+            _check_value(f, value, label(f.name))
+            if f.metadata["kind"] in ("vector", "pair") and value is not None:
+                setattr(self, f.name, tuple(float(x) for x in value))     # a JSON list as a tuple
         if self.tool is None and self.tool_radius is None:
             raise InputError(f"needed when no tool ({label('tool')}) is given", item=label("tool_radius"))
         if self.orientation != "normal" and self.tool is None:
@@ -159,12 +196,18 @@ class JobSettings:
                 if getattr(self, name) >= self.tool_radius:
                     raise InputError(f"{getattr(self, name):g} mm must be smaller than the tool radius "
                                      f"{self.tool_radius:g} mm", item=label(name))
+        if self.orientation != "normal":
+            try:
+                self.orientation_settings()
+            except InputError as exc:
+                item = {"strategy": "orientation"}.get(exc.item, exc.item)
+                raise InputError(exc.message, item=label(item) if item else None) from None
         if self.machine is None:
-            for name in ("gcode", "dialect"):
+            for name in ("gcode", "dialect", "axes_form"):
                 if getattr(self, name) is not None:
                     raise InputError(f"needs {label('machine')} (see `python3 -m tsplcam machines`)",
                                      item=label(name))
-            if self.rotary_weight > 0:
+            if self.rotary_weight:
                 raise InputError(f"needs {label('machine')}: it weighs that machine's rotary axis",
                                  item=label("rotary_weight"))
         return self
@@ -200,6 +243,14 @@ class JobSettings:
         ``command`` (all outputs when None)."""
         return [f.name for f in fields(cls) if command is None or f.metadata["command"] in (None, command)]
 
+    def orientation_settings(self):
+        """The orientation stage's settings (tsplcam.orientation.OrientationSettings), checked;
+        errors name the option."""
+        from .orientation.settings import OrientationSettings
+        return OrientationSettings(strategy=self.orientation, smoothing_length=self.smoothing_length,
+                                   rotary_weight=self.rotary_weight,
+                                   **{k: getattr(self, k) for k in AXIS_KEYS}).check()
+
     def path_settings(self, tool_radius: float):
         """The path generator's settings (tsplcam.toolpath.zigzag.PathSettings)."""
         from .toolpath.zigzag import PathSettings
@@ -231,7 +282,13 @@ def _check_value(f, value, name: str) -> None:
         if f.default is None or kind == "name":
             return
         raise InputError("must be given", item=name)
-    if kind in ("length", "length0", "feed", "factor"):
+    if kind in ("vector", "pair"):
+        n = 3 if kind == "vector" else 2
+        if isinstance(value, (str, bytes)) or not hasattr(value, "__len__") or len(value) != n or not all(
+                isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x) for x in value):
+            raise InputError(f"must be {n} finite numbers, not {value!r}", item=name)
+        return
+    if kind in ("length", "length0", "feed", "factor", "angle"):
         if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
             raise InputError(f"must be a finite number, not {value!r}", item=name)
         unit = {"length": " (mm)", "length0": " (mm)", "feed": " (mm/min)"}.get(kind, "")

@@ -12,9 +12,8 @@ from tsplcam.errors import CollisionError, InputError
 from tsplcam.model import samples
 from tsplcam.model.cage import cage_model
 from tsplcam.orientation import CollisionChecker, HolderSegment, Reach, Tool, load_tool, orient
-from tsplcam.orientation.candidates import angle
 from tsplcam.orientation.collision import tessellate_model
-from tsplcam.orientation.orient import _viterbi
+from tsplcam.orientation.viterbi import viterbi
 from tsplcam.orientation.tool import parse_length, read_fctb, read_tool, shipped_tools_dir
 from tsplcam.toolpath.path import Move, ToolPath
 
@@ -151,31 +150,32 @@ class CollisionGeometry(unittest.TestCase):
 
 class DynamicProgramme(unittest.TestCase):
     def test_viterbi_matches_brute_force(self):
+        """The one programme (orientation.viterbi) against enumerating every sequence, with
+        forbidden states and moves, for the two-state fast path and the general one, given
+        as an array and as a function."""
         rng = np.random.default_rng(7)
-        n, m = 5, 4
-        A = rng.normal(size=(n, m, 3))
-        A[..., 2] = np.abs(A[..., 2]) + 1
-        A /= np.linalg.norm(A, axis=2, keepdims=True)
-        allowed = rng.uniform(size=(n, m)) > 0.25
-        allowed[:, 0] = True
-        node = rng.uniform(size=(n, m))
-        ds = rng.uniform(0.2, 1.0, n - 1)
-        L, step = 2.0, np.radians(60)
-        free = np.zeros(n, bool)
-        states, _ = _viterbi(A, allowed, node, ds, L, step, free)
+        for S in (2, 4):
+            for trial in range(6):
+                n = 6
+                node = rng.uniform(size=(n, S))
+                node[rng.uniform(size=(n, S)) < 0.2] = np.inf
+                node[:, trial % S] = rng.uniform(size=n)        # keep a way through
+                trans = rng.uniform(size=(n - 1, S, S))
+                trans[rng.uniform(size=trans.shape) < 0.2] = np.inf
+                trans[:, trial % S, trial % S] = 0.5
 
-        def cost(s):
-            if not all(allowed[i, s[i]] for i in range(n)):
-                return np.inf
-            c = sum(node[i, s[i]] for i in range(n))
-            for i in range(n - 1):
-                a = angle(A[i, s[i]], A[i + 1, s[i + 1]])
-                if a > step:
-                    return np.inf
-                c += L / ds[i] * a * a
-            return c
-        best = min(itertools.product(range(m), repeat=n), key=cost)
-        self.assertAlmostEqual(cost(tuple(states)), cost(best), places=12)
+                def cost(s):
+                    return sum(node[i, s[i]] for i in range(n)) + sum(trans[i, s[i], s[i + 1]] for i in range(n - 1))
+                best = min(itertools.product(range(S), repeat=n), key=cost)
+                for form in (trans, lambda i: trans[i - 1]):
+                    states, broke = viterbi(node, form)
+                    self.assertIsNone(broke)
+                    self.assertAlmostEqual(cost(tuple(states)), cost(best), places=12)
+        # a chain that cannot continue says where it breaks
+        node = np.zeros((4, 3))
+        trans = np.zeros((3, 3, 3))
+        trans[1] = np.inf
+        self.assertEqual(viterbi(node, trans), (None, 1))
 
 
 class MachineReach(unittest.TestCase):

@@ -82,21 +82,22 @@ class KeycapMold(PartCase, unittest.TestCase):
         cls.path = zigzag(cls.model, 0.5, lines=8, points=30)
 
     def test_rotary_weight_lowers_rotary_motion(self):
-        """In the cavity the tilt follows the walls around, so C turns a lot: weighing the
-        rotary axis motion (rotary_weight 1) against the axis angle alone (the default 0)
-        lowers the C travel and the machining-time estimate, still collision-free."""
+        """In the cavity the tilt follows the walls around, so C turns a lot: counting the
+        rotary axis in the machine's time (the default weight) against leaving it out
+        (0: the tilt and the tool-axis direction only) lowers the C travel and the
+        machining-time estimate, still collision-free."""
         from tsplcam.post import load_machine
         from tsplcam.verify.orientation import orientation_metrics
         machine = load_machine("linuxcnc_xyzac_trt")
         res = {}
-        for w in (None, 1.0):
+        for w in (0.0, None):
             out, rep = orient(self.path, checker=self.checker, strategy="smooth", machine=machine,
                               rotary_weight=w)
             self.assertEqual(int(self.checker.collides_exact(out.center, out.axis).sum()), 0)
             res[w] = orientation_metrics(out, self.checker, machine)
         # exact by construction: the default setting itself, reported back
-        self.assertEqual(rep.settings["rotary_weight"], 1.0)      # equal A and C speeds
-        angle_only, weighted = res[None], res[1.0]
+        self.assertEqual(rep.settings["rotary_weight"], 2.0)      # equal A and C speeds, ROTARY_WEIGHT 2
+        angle_only, weighted = res[0.0], res[None]
         self.assertLess(weighted.c_travel_deg, angle_only.c_travel_deg)
         self.assertLess(weighted.time_s, angle_only.time_s)
         for bad in ({"rotary_weight": -1.0}, {"smoothing_length": 0.0}, {"max_step": float("nan")}):

@@ -580,6 +580,30 @@ class ListFile(unittest.TestCase):
                          ("tsplcam-processing-list", 1, "mm"))
         self.assertIn(data["steps"][0]["start"], CORNER_NAMES)
 
+    def test_orientation_block_per_step(self):
+        """A step may carry tool-axis settings: they load, save back, survive a re-plan;
+        a list without them loads as before; a block that is not an object is refused."""
+        from tsplcam.plan.listfile import orientation_blocks
+        block = {"strategy": "fixed", "target": "lead-tilt", "side_tilt": 10}
+
+        def add(d):
+            d["steps"][2]["orientation"] = block
+        path = self.edited(add)
+        pl = load(path, self.lay)
+        p2 = pl.steps[2].patch
+        self.assertEqual(pl.steps[2].orientation, block)
+        self.assertTrue(all(s.orientation is None for i, s in enumerate(pl.steps) if i != 2))
+        again = loads(dumps(pl), self.lay)
+        self.assertEqual(again.steps[2].orientation, block)
+        blocks = orientation_blocks(pl, path)
+        self.assertEqual(list(blocks), [p2])
+        self.assertIn("step 3", blocks[p2][1])
+        self.assertIn("line", blocks[p2][1])
+        self.assertEqual({s.patch: s.orientation for s in complete_file(path, self.lay).steps}[p2], block)
+        self.assertNotIn("orientation", open(self.path).read())          # none written when absent
+        self.refused(lambda d: d["steps"][1].update(orientation=[1, 2]), "'orientation' must be an object",
+                     item=f"step 2 (patch {self.pl.steps[1].patch})")
+
     def test_corner_indices_are_accepted(self):
         def to_index(d):
             for s in d["steps"]:

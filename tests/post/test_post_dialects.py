@@ -29,9 +29,36 @@ CASES = [  # machine, dialect, orientation
 ]
 
 
+_ORIENTED = []
+
+
+def oriented_keycap():
+    """A real job's path: the keycap's top and a side wall, tool axes smoothed for the A/C
+    table (the keycap job at a coarse scallop, cut short)."""
+    if not _ORIENTED:
+        from tsplcam.orientation import CollisionChecker, load_tool, orient
+        from tsplcam.post import load_machine
+        from tsplcam.toolpath import zigzag_path
+        from tsplcam import load_model
+        from tsplcam.toolpath.zigzag import default_plan
+        model = load_model("keycap")
+        tool = load_tool("ball1_keycap")
+        path = zigzag_path(model, default_plan(model), tool.ball_radius, 0.2, 0.001)
+        keep = np.isin(path.patch, (0, 4))
+        first, last = np.argmax(keep), len(keep) - np.argmax(keep[::-1])
+        from dataclasses import replace
+        path = replace(path, contact=path.contact[first:last], normal=path.normal[first:last],
+                       axis=path.axis[first:last], move=path.move[first:last], patch=path.patch[first:last],
+                       uv=path.uv[first:last], line=path.line[first:last])
+        out, _ = orient(path, strategy="smooth", checker=CollisionChecker(model, tool, clearance=0.3),
+                        machine=load_machine("mikron_ucp600_heidenhain"))
+        _ORIENTED.append(out)
+    return _ORIENTED[0]
+
+
 def paths():
     return {"hemisphere": hemisphere_sweep(n=300), "helix": helix(n=400, turns=2.5, tilt=25.0, radius=30.0),
-            "pole": pole_pass(miss=0.1, tilt=15.0, length=40.0)}
+            "pole": pole_pass(miss=0.1, tilt=15.0, length=40.0), "keycap job": oriented_keycap()}
 
 
 def interpret_linuxcnc(case, r):

@@ -340,6 +340,55 @@ class ChoosingSolutions(unittest.TestCase):
         self.assertLess(np.linalg.norm(t2 - tp.tip, axis=1).max(), 1e-9)
 
 
+class HalfTurnAtThePole(unittest.TestCase):
+    def test_the_c_half_turn_goes_where_the_axis_is_nearest_the_pole(self):
+        """The axis swings from 40 deg one side to 40 deg the other, 3 deg beside the pole: on
+        the Mikron (A -30..115) no branch flip can carry it, C must turn half a turn. It turns
+        where the axis passes the pole (the only place where that does not sweep the tool),
+        and the post needs no retract."""
+        from tsplcam.post import post_program
+        m = load_machine("mikron_ucp600_heidenhain")
+        tp = pole_pass(n=201, tilt=40.0, miss=3.0)
+        sol, _ = solve_joints(m, tp.tip, tp.axis, move=tp.move)
+        c = sol.joints[:, 4]
+        self.assertGreater(abs(c[-1] - c[0]), 150.0)
+        tilt = np.degrees(np.arccos(np.clip(tp.axis[:, 2], -1, 1)))
+        turn = np.abs(np.diff(c))
+        steep = (tilt[1:] < 15.0) & (tilt[:-1] < 15.0)
+        self.assertGreater(turn[steep].sum(), 140.0)       # turned while within 15 deg of the pole
+        self.assertTrue((sol.joints[:, 3] > 0).all())       # never the other branch (A >= -30)
+        self.assertLess(turn[~steep].sum(), 35.0)
+        self.assertEqual(post_program(tp, m, "heidenhain").reorientations, 0)
+
+
+class UnwindingAtLineEnds(unittest.TestCase):
+    def test_a_limited_c_rewinds_where_a_line_ends(self):
+        """Five zigzag-like lines whose tool axis (30 deg tilt) turns on by 150 deg each: a C
+        axis of -200..200 deg must rewind every second or third line. The rewinds (and the
+        post's retract around them) fall on the links between lines, never inside a cut."""
+        from tsplcam.toolpath.path import Move, ToolPath
+        m = make_machine("head-head", "B", 1, 1, tilt_range=(-100, 100), rot_range=(-200, 200),
+                         tilt_pivot=(0, 0, 150), rot_pivot=(0, 0, 150), tool_length=100.0)
+        lines, per = 5, 60
+        az = np.radians(np.arange(lines * per) * 150.0 / (per - 1) * (per - 1) / per)
+        th = np.radians(30.0)
+        K = np.column_stack([np.sin(th) * np.cos(az), np.sin(th) * np.sin(az), np.full(len(az), np.cos(th))])
+        tip = np.column_stack([np.arange(len(az)) * 0.2, np.zeros(len(az)), np.zeros(len(az))])
+        move = np.full(len(az), Move.CUT, np.int8)
+        move[per::per] = Move.LINK
+        sol, _ = solve_joints(m, tip, K, move=move)
+        c = sol.joints[:, 4]
+        self.assertTrue(((c >= -200 - 1e-9) & (c <= 200 + 1e-9)).all())
+        jumps = np.nonzero(np.abs(np.diff(c)) > 90.0)[0] + 1          # the block arriving at the point
+        self.assertGreaterEqual(len(jumps), 1)
+        self.assertTrue(np.all(move[jumps] == Move.LINK), f"rewinds at {jumps}, links at {np.nonzero(move == 1)[0]}")
+        tp = ToolPath(contact=tip, normal=K, axis=K, move=move, patch=np.zeros(len(az), int),
+                      uv=np.zeros((len(az), 2)), line=np.repeat(np.arange(lines), per), tool_radius=0.0)
+        from tsplcam.post import post_program
+        r = post_program(tp, m, "fanuc")
+        self.assertEqual(r.reorientations, len(jumps))
+
+
 class Linearisation(unittest.TestCase):
     def test_joint_space_tip_stays_within_tolerance(self):
         m = load_machine("linuxcnc_xyzac_trt")

@@ -6,6 +6,8 @@
 * ``keycap_mold``: its concave mold half: the same shape mirrored into a cavity, opening at
   the top face of an 18 x 18 x 8.6 mm block (the block itself is ``keycap_mold_stock``,
   a triangle mesh for collision checks).
+* ``deep_mold``: a cavity with deep walls, 16 x 16 x 10 mm in a 20 x 20 x 12 mm block
+  (``deep_mold_stock``), for a long tool: the rotary axes' test part.
 * ``head``: a closed head-like model after the paper's figure 2: 6 patches, 8
   extraordinary points.
 * ``figure4``: a surface with the 12-patch layout of the paper's figure 4
@@ -33,6 +35,8 @@ SAMPLE_DIR = os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file
 
 KEYCAP_SIZE = (14.4, 14.4, 6.8)
 MOLD_BLOCK = (18.0, 18.0, 8.6)
+DEEP_SIZE = (16.0, 16.0, 10.0)
+DEEP_BLOCK = (20.0, 20.0, 12.0)
 
 
 def _square_ring(half: float, n: int) -> np.ndarray:
@@ -111,22 +115,36 @@ def keycap() -> Cage:
     return _fit(cage, (sx, sy, sz), (-sx / 2, -sy / 2, 0.0))
 
 
+def _mirrored(cap: Cage, top: float) -> Cage:
+    """A convex part turned into a cavity whose rim lies on z = ``top``. Mirroring reverses
+    the handedness, so the normals point into the cavity, toward the tool."""
+    P = cap.points.copy()
+    P[:, 2] = top - P[:, 2]
+    return Cage(cap.mesh, P, None, dict(cap.tags))
+
+
 def keycap_mold() -> Cage:
     """The concave mold half's cavity: the keycap mirrored, its rim on the block's top face
     z = 8.6 and its bottom 1.8 mm above the block's base. Mirroring reverses the handedness,
     so the normals point into the cavity, toward the tool."""
-    cap = keycap()
-    P = cap.points.copy()
-    P[:, 2] = MOLD_BLOCK[2] - P[:, 2]
-    return Cage(cap.mesh, P, None, dict(cap.tags))
+    return _mirrored(keycap(), MOLD_BLOCK[2])
 
 
-def keycap_mold_stock(hole_margin: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
-    """The mold block around the cavity as a triangle mesh (vertices (n,3), triangles (m,3)):
-    its top face with a square opening the size of the cavity rim, and its outer walls.
-    For collision checks (the cavity surface itself is the model)."""
-    bx, by, bz = MOLD_BLOCK
-    hx, hy = KEYCAP_SIZE[0] / 2 + hole_margin, KEYCAP_SIZE[1] / 2 + hole_margin
+def deep_mold() -> Cage:
+    """A cavity with deep walls: the keycap's shape stretched to 16 x 16 x 10 mm (walls near
+    84 degrees) and mirrored into a 20 x 20 x 12 mm block, rim on its top face z = 12; for
+    a long tool (``ball1_long``). A tilt test for the rotary axes: across the cavity the tool
+    leans away from one wall, then from the other."""
+    cage = _open_box(n=4, m=3, bottom_half=7.6, top_half=6.2, height=7.2, dish=0.9)
+    sx, sy, sz = DEEP_SIZE
+    return _mirrored(_fit(cage, (sx, sy, sz), (-sx / 2, -sy / 2, 0.0)), DEEP_BLOCK[2])
+
+
+def _block_with_opening(block, opening, hole_margin: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
+    """A block (x, y, z sizes, centred on x = y = 0, base at z = 0) whose top face has a
+    centred square opening ``opening`` (x, y) wide, as triangles."""
+    bx, by, bz = block
+    hx, hy = opening[0] / 2 + hole_margin, opening[1] / 2 + hole_margin
     ox, oy = bx / 2, by / 2
     outer = [(-ox, -oy), (ox, -oy), (ox, oy), (-ox, oy)]
     inner = [(-hx, -hy), (hx, -hy), (hx, hy), (-hx, hy)]
@@ -138,6 +156,22 @@ def keycap_mold_stock(hole_margin: float = 0.0) -> tuple[np.ndarray, np.ndarray]
         T += [(8 + i, 8 + j, j), (8 + i, j, i)]                    # outer walls
     T += [(8, 10, 9), (8, 11, 10)]                                 # base
     return np.array(V, float), np.array(T, int)
+
+
+def keycap_mold_stock(hole_margin: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
+    """The mold block around the cavity as a triangle mesh (vertices (n,3), triangles (m,3)):
+    its top face with a square opening the size of the cavity rim, and its outer walls.
+    For collision checks (the cavity surface itself is the model)."""
+    return _block_with_opening(MOLD_BLOCK, KEYCAP_SIZE, hole_margin)
+
+
+def deep_mold_stock(hole_margin: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
+    """The block around :func:`deep_mold`'s cavity, as :func:`keycap_mold_stock`."""
+    return _block_with_opening(DEEP_BLOCK, DEEP_SIZE, hole_margin)
+
+
+# what a sample's part sits in: the block the tool must clear besides the surface itself
+STOCKS = {"keycap_mold": keycap_mold_stock, "deep_mold": deep_mold_stock}
 
 
 def head(n: int = 3) -> Cage:
@@ -322,13 +356,12 @@ def tjunction_mold():
 SAMPLES = {
     "keycap": keycap,
     "keycap_mold": keycap_mold,
+    "deep_mold": deep_mold,
     "head": head,
     "figure4": figure4,
     "tjunction_mold": tjunction_mold,
 }
 TSPLINE_SAMPLES = frozenset({"tjunction_mold"})       # shipped as native .tspl files
-# what a sample's part sits in: the block the tool must clear besides the surface itself
-SAMPLE_STOCKS = {"keycap_mold": keycap_mold_stock}
 
 
 def sample_stock(model: str):
@@ -336,7 +369,7 @@ def sample_stock(model: str):
     ``model`` is a sample name or a file of that sample (a copy keeps its name: a FreeCAD
     document stores the model file under its own name)."""
     name = os.path.basename(str(model)).split(".")[0]
-    make = SAMPLE_STOCKS.get(name)
+    make = STOCKS.get(name)
     return make() if make is not None else None
 
 

@@ -7,16 +7,22 @@ API::
     path2, report = orient(path, model, tool, strategy="smooth", stock=(V, T), machine=machine)
     print(report.summary())
 
-Strategies: ``fixed`` (three-axis), ``closest-z`` (shang2020), ``smooth`` (global DP after
-xu2013 plus continuous relaxation); see :mod:`tsplcam.orientation.orient`. Tool files:
+Strategies: ``fixed`` (exactly the target: 3+2 or a fixed lead/tilt), ``closest`` (tilt only
+where needed, shang2020; alias ``closest-z``), ``smooth`` (xu2013, judged in the machine's
+joint space); see :mod:`tsplcam.orientation.orient`. Settings and controls (target, lead/tilt,
+toward a point or line, largest tilt, tilt range, pole tilt): :class:`OrientationSettings`
+(:mod:`tsplcam.orientation.settings`, :mod:`tsplcam.orientation.controls`); the smoothing:
+:mod:`tsplcam.orientation.smoothing`; the rotary axes' closed form and pose choice, shared
+with the post: :mod:`tsplcam.orientation.rotary`. Tool files:
 ``tsplcam/orientation/TOOLS.md``. Collision geometry: :mod:`tsplcam.orientation.collision`.
 Metrics live in :mod:`tsplcam.verify.orientation`.
 """
 from .candidates import Limits, Reach  # noqa: F401
 from .collision import CollisionChecker, tessellate_model  # noqa: F401
-from .orient import STRATEGIES, OrientationReport, orient  # noqa: F401
+from .orient import OrientationReport, orient  # noqa: F401
+from .settings import ALIASES, STRATEGIES, OrientationSettings  # noqa: F401
 from .tool import HolderSegment, Tool, load_tool, read_fctb, read_tool  # noqa: F401
 
 # what a user picks for the tool axes: the surface normal as the path has it (no tool
 # geometry, no collision checks), or one of the strategies above
-ORIENTATIONS = ("normal",) + tuple(STRATEGIES)
+ORIENTATIONS = ("normal",) + tuple(STRATEGIES) + tuple(ALIASES)

@@ -6,34 +6,25 @@
 by the machine; where no such axis exists it raises :class:`CollisionError` naming the
 point, patch, (u, v) and what the tool hits.
 
-* ``fixed``: one axis for the whole path (three-axis machining, the comparison baseline).
-* ``closest-z``: shang2020 (end of 3.5): per point the collision-free axis closest to the
-  preferred axis (+Z). Candidates are tried in order of their angle to +Z, in batches
-  over all points still open, then the winner is pulled toward +Z by bisection along the
-  great circle between them (as close as the collision check allows, not just the nearest
-  discrete candidate).
+* ``fixed``: exactly the target axis at every point (one axis: 3+2, the three-axis baseline;
+  or a fixed lead/tilt, toward a point or a line: orientation.controls); refused, naming the
+  point, where it collides or leaves a limit.
+* ``closest`` (``closest-z``): "tilt only where needed", shang2020 (end of 3.5): per point the
+  collision-free axis closest to the target (+Z). Computed as the smooth strategy with a
+  smoothing length of ``CLOSEST_LENGTH`` (0.05 mm): the deviation decides, the machine's
+  joint motion only breaks ties, so where several poses are as close (at the pole, where
+  any rotary value gives the axis) the rotary axis holds still, and no neighbouring axes
+  differ by more than ``max_step``. :func:`orient_closest` is the literal per-point rule
+  (candidates tried in order of their angle to the target, then pulled toward it by
+  bisection), kept for comparisons: its axes jump where the nearest wall changes.
 * ``smooth``: xu2013 replaces the per-point choice by a smooth sequence picked from a cone of
-  candidates per point. Here that choice is global and exact over the discrete candidates:
-  a Viterbi dynamic programme minimising, along the path (docs/method.md section 4.4),
-
-      J = sum_i  L * dtheta_i^2 / ds_i  +  sum_i  dev_i^2 * ds_i / L
-
-  (dtheta_i the angle between consecutive axes, ds_i the contact spacing, dev_i the angle
-  to the preferred axis, L the ``smoothing_length``: a required tilt is spread over about L
-  mm on each side, like a membrane under tension, cf. xu2013 eq. (22)), with a hard
-  ``max_step`` per point and only admissible (cone, rotary reach) candidates. A squared
-  change is used rather than xu2013's plain sum of angles because the plain sum (total
-  variation) is indifferent between one jump and a ramp. Collision checks are lazy: the
-  programme runs on candidates not yet known to collide, the chosen poses are checked, and
-  every point whose chosen pose collides gets all its candidates checked before the next
-  run; the loop ends when the chosen sequence is collision-free, which is then optimal for
-  the true collision-free sets. Finally the discrete sequence is relaxed continuously
-  (red-black Gauss-Seidel on J, each move kept only when it is admissible and
-  collision-free), which removes the candidate grid's quantisation. With a machine and a
-  ``rotary_weight`` w > 0 each step also costs ``L * w (v_tilt / v_C)^2 dC^2 / ds``, dC the
-  turn of the rotary axis C (the azimuth about +Z, modulo 180 deg where the tilt may change
-  sign instead, free inside the post's 0.5 deg singular cone): where the tilt follows walls
-  around a cavity this trades a little axis angle for much less C travel.
+  candidates per point. Here that choice is made where the machine feels it, in the joint
+  space of its rotary axes (orientation.smoothing): a Viterbi programme over poses of a grid
+  of rotary values, each with its admissible tilt nearest the preferred axis, minimising
+  rotary-axis velocity (in the machine's time units) plus the deviation from the preferred
+  axis, with lazy collision checks; then a continuous polish of the chosen poses with
+  velocity and acceleration terms against the machine's limits, on the admissible arcs and
+  inside what the checks found free. Without a machine a virtual A/C table stands in.
 """
 from __future__ import annotations
 
@@ -45,9 +36,24 @@ from ..errors import CollisionError, InputError
 from .candidates import (DEG, Z_AXIS, Limits, Reach, admissible, angle, candidate_axes,
                          feed_directions, unit)
 from .collision import CollisionChecker
+from .controls import limit_halfspaces, point_settings, runs, target_axes
+from .settings import STRATEGIES, OrientationSettings  # noqa: F401 (STRATEGIES: orient.STRATEGIES)
+from .rotary import Rotary
+from .smoothing import (NoPath, SmoothingCost, cone_halfspaces, free_tilts, joint_programme,
+                        meridian_grid, smooth_joints)
 from ..toolpath.path import Move
 
-STRATEGIES = ("fixed", "closest-z", "smooth")
+# The rotary axis's velocity counts twice its share of the tilt axis's time: with the squared
+# velocities of J, 1 would be the time-consistent weight, but the machining time follows the
+# peaks the squares smooth over; 2 measured best on the keycap, its mold half and deep_mold
+# (estimated time / length-feed time 1.04, 1.09, 1.07 against 1.03, 1.15, 1.10 with 1, at a
+# 0.01 mm scallop and the full acceleration weight).
+ROTARY_WEIGHT = 2.0
+# The acceleration terms at a sixteenth of their time-consistent weight (l = F v / (4 a)):
+# the squared accelerations at full weight over-smooth, holding the axes off the bounds the
+# walls set; the full jobs measured estimated time / length-feed time 1.092 on the mold half
+# with 1/16 against 1.100 (1/4), 1.110 (1), 1.217 (4) and 1.134 without acceleration terms.
+ACCELERATION_WEIGHT = 1.0 / 16.0
 
 
 @dataclass
@@ -76,7 +82,7 @@ class OrientationReport:
 
 
 def _where(path, i: int) -> str:
-    text = f"point {i}"
+    text = f"point {i + path.info.get('index_offset', 0)}"
     if path.patch[i] >= 0:
         u, v = path.uv[i]
         text += f" (patch {int(path.patch[i])}, u={u:.4f}, v={v:.4f})"
@@ -107,24 +113,6 @@ def _check_ball(path, checker: CollisionChecker) -> None:
 
 # --- strategies ----------------------------------------------------------------------------
 
-def orient_fixed(path, checker, axis=Z_AXIS, reach=None):
-    a = unit(np.asarray(axis, float).reshape(3))
-    A = np.tile(a, (len(path), 1))
-    side = np.einsum("ij,j->i", path.normal, a) <= 1e-6
-    if side.any():
-        i = int(np.argmax(side))
-        raise CollisionError(f"{_where(path, i)}: the fixed axis ({a[0]:.4f}, {a[1]:.4f}, {a[2]:.4f}) "
-                             f"points into the surface (the ball cannot touch there with it)")
-    if reach is not None and not reach.ok(a[None])[0]:
-        raise CollisionError(f"the fixed axis is outside the reach of {reach.name}")
-    bad = checker.collides(path.center, A)
-    if bad.any():
-        i = int(np.argmax(bad))
-        raise _no_axis_error(path, checker, i, A[i:i + 1],
-                             f"the fixed axis collides ({int(bad.sum())} of {len(path)} points)")
-    return A, {}
-
-
 def _toward(a, b, t):
     """Great-circle points from a toward b at fractions t (all (n,3)/(n,))."""
     ang = angle(a, b)
@@ -135,11 +123,14 @@ def _toward(a, b, t):
     return unit(w0[:, None] * a + w1[:, None] * b)
 
 
-def orient_closest(path, checker, preferred, limits: Limits, reach, feed, bisect: int = 6, tick=None):
-    """shang2020: per point the admissible collision-free axis closest to ``preferred``."""
+def orient_closest(path, checker, preferred, limits: Limits, reach, feed, bisect: int = 6, tick=None,
+                   constraints=()):
+    """shang2020: per point the admissible collision-free axis closest to ``preferred``;
+    ``constraints``: half-spaces ``(h, b)``, ``h . a >= b``, the axes must keep too."""
     n = len(path)
     C = path.center
     A, ok = candidate_axes(path.normal, feed, preferred, limits, reach)
+    ok &= _keeps(A, constraints)
     tick = tick or (lambda m: None)
     pref = unit(np.broadcast_to(preferred, (n, 3)).copy())
     dev = angle(A, pref[:, None, :])
@@ -183,6 +174,7 @@ def orient_closest(path, checker, preferred, limits: Limits, reach, feed, bisect
         t = 0.5 * (lo[idx] + hi[idx])
         cand = _toward(axes[idx], pref[idx], t)
         good = admissible(cand[:, None], path.normal[idx], feed[idx], limits, reach)[:, 0]
+        good &= _keeps(cand[:, None], [(h[idx], b[idx]) for h, b in constraints])[:, 0]
         free = np.zeros(len(idx), bool)
         if good.any():
             free[good] = ~checker.collides(C[idx[good]], cand[good])
@@ -192,218 +184,115 @@ def orient_closest(path, checker, preferred, limits: Limits, reach, feed, bisect
     return _toward(axes, pref, lo), {"bisection_steps": bisect}
 
 
+def cutting_directions(path) -> np.ndarray:
+    """Feed directions of the points for the lead/tilt cone: the central difference, except at
+    a line's first and last point, where it is the line's own direction (the move to or
+    from the neighbouring line is a link, not the cut: the cone must not turn with it)."""
+    feed = feed_directions(path.contact, path.normal)
+    n = len(path)
+    if n < 3:
+        return feed
+    P, N = path.contact, path.normal
+    link = np.asarray(path.move) != Move.CUT
+    last = np.nonzero(link[1:])[0]                       # the point before a non-cut move
+    first = np.nonzero(link[:-1])[0]                     # a point a non-cut move arrives at
+    for idx, d in ((last[last >= 1], P[last[last >= 1]] - P[last[last >= 1] - 1]),
+                   (first, P[first + 1] - P[first])):
+        if len(idx) == 0:
+            continue
+        d = d - np.einsum("ij,ij->i", d, N[idx])[:, None] * N[idx]
+        ok = np.linalg.norm(d, axis=1) > 1e-12
+        feed[idx[ok]] = unit(d[ok])
+    return feed
+
+
+def _keeps(A, constraints) -> np.ndarray:
+    """Mask (n, m) of candidate axes A (n, m, 3) inside every half-space ``(h, b)``."""
+    ok = np.ones(A.shape[:2], bool)
+    for h, b in constraints:
+        ok &= np.einsum("nmi,ni->nm", A, h) >= b[:, None] - 1e-12
+    return ok
+
+
 def _spacing(path) -> np.ndarray:
     ds = np.linalg.norm(np.diff(path.contact, axis=0), axis=1)
     return np.maximum(ds, 1e-3)
 
 
-SINGULAR_CONE = 0.5 * DEG      # the post holds the rotary axis within this of +Z (docs/post.md 4)
-
-
-def _azimuth(A: np.ndarray, reach) -> np.ndarray:
-    """Azimuth of axes about +Z (the rotary axis C of every supported machine) as a complex
-    number: angle = azimuth, modulus 2 where both inverse solutions (tilt, C) and (-tilt,
-    C + 180 deg) are within the machine's tilt range, else 1; NaN within the singular cone,
-    where the post does not follow the azimuth."""
-    th = np.arctan2(np.hypot(A[..., 0], A[..., 1]), A[..., 2])
-    both = len(reach.intervals) == 2
-    for a, b in reach.intervals:
-        both = both & (th >= a - 1e-9) & (th <= b + 1e-9)
-    z = np.exp(1j * np.arctan2(A[..., 1], A[..., 0])) * np.where(both, 2.0, 1.0)
-    return np.where(th < SINGULAR_CONE, np.nan, z)
-
-
-def _azimuth_step(za: np.ndarray, zb: np.ndarray) -> np.ndarray:
-    """Rotary-axis motion (rad) between two axes given by :func:`_azimuth`: the azimuth change,
-    modulo 180 deg where both axes can take either inverse solution (the post may flip the
-    tilt's sign instead of turning C half a turn), 0 next to the pole."""
-    with np.errstate(invalid="ignore", divide="ignore"):
-        d = np.angle(zb / za)
-    flip = (np.abs(za) > 1.5) & (np.abs(zb) > 1.5)
-    d = np.where(flip, np.mod(d + 0.5 * np.pi, np.pi) - 0.5 * np.pi, d)
-    return np.where(np.isnan(d), 0.0, d)
-
-
-def _viterbi(A, allowed, node_cost, ds, L, max_step, free_step, phi=None, wrot=0.0):
-    """Best state per point: min sum node_cost + L * (angle^2 + wrot * dC^2) / ds with steps
-    <= max_step (except into points where ``free_step``); dC the rotary-axis motion
-    (:func:`_azimuth_step` of the azimuths ``phi``). Returns (states, None) or (None, i)
-    where the chain breaks at step i -> i+1."""
-    n, m = allowed.shape
-    big = np.inf
-    acc = np.where(allowed[0], node_cost[0], big)
-    back = np.zeros((n, m), np.int32)
-    cmax = np.cos(max_step)
-    for i in range(1, n):
-        dots = np.clip(A[i - 1] @ A[i].T, -1.0, 1.0)                 # (m_prev, m)
-        ang = np.arccos(dots)
-        trans = ang * ang
-        if wrot > 0.0:
-            dc = _azimuth_step(phi[i - 1][:, None], phi[i][None, :])
-            trans += wrot * dc * dc
-        trans *= L / ds[i - 1]
-        if not free_step[i]:
-            trans[dots < cmax - 1e-12] = big
-        tot = acc[:, None] + trans
-        b = np.argmin(tot, axis=0)
-        best = tot[b, np.arange(m)]
-        acc = np.where(allowed[i], best + node_cost[i], big)
-        back[i] = b
-        if not np.isfinite(acc).any():
-            return None, i - 1
-    states = np.zeros(n, np.int64)
-    states[-1] = int(np.argmin(acc))
-    for i in range(n - 1, 0, -1):
-        states[i - 1] = back[i, states[i]]
-    return states, None
-
-
-def _relax(path, checker, axes, pref, feed, limits, reach, L, max_step, rounds=40, wrot=0.0):
-    """Red-black Gauss-Seidel on J: move each axis toward the weighted mean of its
-    neighbours and the preferred axis, keeping only admissible, collision-free moves that
-    lower its share of J and respect max_step. Returns (axes, moves)."""
-    free_step = path.move != Move.CUT
-    n = len(axes)
-    if n < 3:
-        return axes, 0
-    ds = _spacing(path)
-    wl = np.concatenate([[0.0], L / ds])                      # weight of the previous axis
-    wr = np.concatenate([L / ds, [0.0]])                      # of the next
-    half = np.concatenate([[0.0], ds]) * 0.5 + np.concatenate([ds, [0.0]]) * 0.5
-    wp = half / L                                             # of the preferred axis
-    C = path.center
-    moves = 0
-
-    def local_cost(x, idx):
-        c = wp[idx] * angle(x, pref[idx]) ** 2
-        prev = np.clip(idx - 1, 0, n - 1)
-        nxt = np.clip(idx + 1, 0, n - 1)
-        c = c + wl[idx] * angle(x, axes[prev]) ** 2 + wr[idx] * angle(x, axes[nxt]) ** 2
-        if wrot > 0.0:
-            px = _azimuth(x, reach)
-            c = c + wrot * (wl[idx] * _azimuth_step(_azimuth(axes[prev], reach), px) ** 2
-                            + wr[idx] * _azimuth_step(px, _azimuth(axes[nxt], reach)) ** 2)
-        return c
-
-    for r in range(rounds):
-        changed = 0
-        for parity in (0, 1):
-            idx = np.arange(parity, n, 2)
-            prev = np.clip(idx - 1, 0, n - 1)
-            nxt = np.clip(idx + 1, 0, n - 1)
-            target = unit(wl[idx, None] * axes[prev] + wr[idx, None] * axes[nxt] + wp[idx, None] * pref[idx])
-            step = angle(axes[idx], target)
-            live = step > 1e-5
-            idx, target = idx[live], target[live]
-            if len(idx) == 0:
-                continue
-            old = local_cost(axes[idx], idx)
-            for frac in (1.0, 0.5):
-                cand = _toward(axes[idx], target, np.full(len(idx), frac))
-                better = local_cost(cand, idx) < old - 1e-15
-                pv, nx = np.clip(idx - 1, 0, n - 1), np.clip(idx + 1, 0, n - 1)
-                better &= (angle(cand, axes[pv]) <= max_step) | free_step[idx]
-                better &= (angle(cand, axes[nx]) <= max_step) | free_step[nx]
-                better &= admissible(cand[:, None], path.normal[idx], feed[idx], limits, reach)[:, 0]
-                if better.any():
-                    k = np.nonzero(better)[0]
-                    free = ~checker.collides(C[idx[k]], cand[k])
-                    k = k[free]
-                    axes[idx[k]] = cand[k]
-                    changed += len(k)
-                    keep = np.ones(len(idx), bool)
-                    keep[k] = False
-                    idx, target, old = idx[keep], target[keep], old[keep]
-                if len(idx) == 0:
-                    break
-        moves += changed
-        if changed == 0:
-            break
-    return axes, moves
-
-
 def orient_smooth(path, checker, preferred, limits: Limits, reach, feed, smoothing_length: float,
-                  max_step: float, window: int = 2, relax_rounds: int = 40, max_rounds: int = 200,
-                  wrot: float = 0.0, tick=None):
+                  max_step: float, window: int = 2, cost: SmoothingCost | None = None,
+                  constraints=(), pole_tilt: float = 0.0, tick=None):
+    """xu2013 after the module docstring, in the machine's joint space (orientation.smoothing):
+    a Viterbi programme over the poses of a grid of rotary values (each with its admissible
+    tilt nearest the preferred axis) with lazy collision checks, then the continuous
+    joint-space smoothing. ``preferred`` (3,) or (n,3); ``constraints``: more half-spaces
+    ``(h, b)``, ``h . a >= b``, the axes must keep (the controls' cones)."""
     n = len(path)
     C = path.center
-    A, ok = candidate_axes(path.normal, feed, preferred, limits, reach)
-    m = A.shape[1]
-    tick = tick or (lambda m: None)
     pref = unit(np.broadcast_to(preferred, (n, 3)).copy())
-    none = ~ok.any(axis=1)
+    if cost is None:
+        cost = SmoothingCost.build(None, smoothing_length)
+    rot = cost.rotary
+    tick = tick or (lambda m: None)
+    M = max(12, int(round(2 * np.pi / limits.resolution)))
+    cons = [(h, np.zeros(n)) for h in cone_halfspaces(path.normal, feed, limits.lead_max, limits.tilt_max)]
+    cons += list(constraints)
+    grid = meridian_grid(rot, pref, path.normal, cons, M, pole_tilt)
+    none = ~grid.ok.any(axis=1)
     if none.any():
         i = int(np.argmax(none))
-        raise CollisionError(f"{_where(path, i)}: no candidate axis within the lead/tilt limits and the "
-                             f"machine's reach ({reach.name if reach else 'no machine'})")
+        raise CollisionError(f"{_where(path, i)}: no tool axis within the lead/tilt limits, the controls' "
+                             f"limits and the machine's reach ({reach.name if reach else 'no machine'})")
     ds = _spacing(path)
     free_step = path.move != Move.CUT          # links and retracts: no hard step limit
     half = np.concatenate([[ds[0]], ds]) * 0.5 + np.concatenate([ds, [ds[-1]]]) * 0.5
-    dev = angle(A, pref[:, None, :])
-    node_cost = dev ** 2 * (half / smoothing_length)[:, None]
-    if reach is None:
-        wrot = 0.0                      # no machine: no rotary axis to weigh
-    phi = _azimuth(A, reach) if wrot > 0.0 else None
-    status = np.where(ok, -1, 2).astype(np.int8)         # -1 unknown, 0 free, 1 collides, 2 excluded
-    resolved = np.zeros(n, bool)
-    rounds = 0
-    while True:
-        rounds += 1
-        tick(m)
-        states, broke = _viterbi(A, status <= 0, node_cost, ds, smoothing_length, max_step, free_step,
-                                 phi, wrot)
-        if states is None:
-            i = broke
-            # a break is final only when both points' cones are fully known
-            todo = [j for j in (i, i + 1) if not resolved[j]]
-            if todo:
-                for j in todo:
-                    _resolve(checker, C, A, status, resolved, [j], tick)
-                continue
-            if not (status[i] == 0).any() or not (status[i + 1] == 0).any():
-                j = i if not (status[i] == 0).any() else i + 1
-                raise _no_axis_error(path, checker, j, A[j, np.argsort(np.where(ok[j], dev[j], np.inf))[:3]],
-                                     f"no collision-free tool axis in the cone of {int(ok[j].sum())} "
-                                     "candidates")
-            raise CollisionError(f"{_where(path, i)} -> {_where(path, i + 1)}: no pair of collision-free "
-                                 f"axes within the maximum step of {max_step / DEG:.1f} deg (raise max_step "
-                                 "or the cone limits, or split the path there)")
-        pick = states
-        unknown = np.nonzero(status[np.arange(n), pick] == -1)[0]
-        if len(unknown):
-            hit = checker.collides(C[unknown], A[unknown, pick[unknown]])
-            status[unknown, pick[unknown]] = np.where(hit, 1, 0)
-            bad = unknown[hit]
-        else:
-            bad = np.zeros(0, int)
-        if len(bad) == 0:
-            break
-        near = np.unique(np.clip(bad[:, None] + np.arange(-window, window + 1)[None, :], 0, n - 1))
-        _resolve(checker, C, A, status, resolved, near[~resolved[near]], tick)
-        if rounds >= max_rounds:                                     # pragma: no cover
-            raise CollisionError(f"orientation DP did not settle in {max_rounds} rounds")
-    axes = A[np.arange(n), pick].copy()
-    axes, moves = _relax(path, checker, axes, pref, feed, limits, reach, smoothing_length, max_step,
-                         relax_rounds, wrot)
-    return axes, {"dp_rounds": rounds, "resolved_points": int(resolved.sum()), "relaxation_moves": moves,
-                  "candidates": m}
+    try:
+        states, rounds, checks, status = joint_programme(checker, C, grid, cost, pref, ds, half / smoothing_length,
+                                                 max_step, free_step, limits.resolution, tick=lambda: tick(M),
+                                                 air=np.isin(path.move, (Move.RETRACT, Move.RAPID)))
+    except NoPath as e:
+        i = e.point
+        if e.kind == "point":
+            k = np.nonzero(grid.ok[i])[0][:3]
+            raise _no_axis_error(path, checker, i, rot.axis(grid.theta[i, k], grid.phi[k]),
+                                 f"no collision-free tool axis on any of the {int(grid.ok[i].sum())} "
+                                 "admissible rotary positions") from None
+        raise CollisionError(f"{_where(path, i)} -> {_where(path, i + 1)}: no pair of collision-free "
+                             f"axes within the maximum step of {max_step / DEG:.1f} deg (raise max_step "
+                             "or the cone limits, or split the path there)") from None
+    theta = grid.theta[np.arange(n), states].copy()
+    phi = grid.phi[states]
+    phi = phi[0] + np.concatenate([[0.0], np.cumsum(np.pi - np.mod(np.pi - np.diff(phi), 2 * np.pi))])
+    moving = ~np.isin(path.move[1:], (Move.CUT, Move.LINK))
+    theta, phi, info = smooth_joints(path, rot, theta, phi, pref, path.normal, cost, cons, checker=checker,
+                                     free_tilt=free_tilts(grid, status), move_free=moving, pole_tilt=pole_tilt, tick=lambda: tick(M))
+    return rot.axis(theta, phi), {"dp_rounds": rounds, "resolved_points": 0,
+                                  "relaxation_moves": info["joint_checks"], "candidates": M,
+                                  "dp_checks": checks} | info
 
 
-def _rotary_weight(machine, rotary_weight: float | None) -> float:
-    """Weight of the squared rotary-axis motion in J: the user's factor (default 0, the axis
-    angle alone) times the machine's (tilt speed / rotary speed)^2, so that a factor 1 adds
-    rotary joint motion in units of the tilt axis's time. Without a machine there is no
-    rotary axis to weigh: a weight > 0 is refused."""
-    if rotary_weight is None:
-        rotary_weight = 0.0
-    if rotary_weight < 0 or not np.isfinite(rotary_weight):
-        raise InputError(f"rotary weight must be a number >= 0, not {rotary_weight}")
-    if rotary_weight == 0.0:
-        return 0.0
+def smoothing_cost(machine, reach, smoothing_length: float, rotary_weight: float | None,
+                   feed: float, acceleration_weight: float = ACCELERATION_WEIGHT) -> SmoothingCost:
+    """The smooth strategy's weights (orientation.smoothing). With a machine: its rotary axes'
+    joint space, rotary motion counted ``rotary_weight`` (default ``ROTARY_WEIGHT``) times in tilt-axis time
+    (the machine's (tilt speed / rotary speed)^2), accelerations against its limits at the
+    path's feed. Without one: the tool-axis direction (a rotary weight > 0 is refused: there is
+    no rotary axis to weigh)."""
+    for name, v in (("rotary weight", rotary_weight), ("acceleration weight", acceleration_weight)):
+        if v is not None and (not np.isfinite(v) or v < 0):
+            raise InputError(f"{name} must be a number >= 0, not {v}")
     if machine is None:
-        raise InputError("a rotary weight needs a machine (--machine): it weighs that machine's rotary axis")
-    vt, vr = machine.tilt.max_velocity, machine.rotary.max_velocity
-    return float(rotary_weight * (vt / vr) ** 2) if vt and vr else float(rotary_weight)
+        if rotary_weight:
+            raise InputError("a rotary weight needs a machine (--machine): it weighs that machine's rotary axis")
+        cost = SmoothingCost.build(None, smoothing_length)
+        if reach is not None:
+            cost.rotary.theta_lo, cost.rotary.theta_hi = -reach.theta_max, reach.theta_max
+        return cost
+    rw = ROTARY_WEIGHT if rotary_weight is None else float(rotary_weight)
+    cost = SmoothingCost.build(Rotary.from_machine(machine), smoothing_length, rw, acceleration_weight, feed)
+    if rw == 0.0:
+        cost.beta = 1.0                          # C not weighed: keep the axis direction smooth
+    return cost
 
 
 def _resolve(checker, C, A, status, resolved, idx, tick=None, chunk: int = 20000):
@@ -424,40 +313,103 @@ def _resolve(checker, C, A, status, resolved, idx, tick=None, chunk: int = 20000
 
 # --- the stage's entry point -------------------------------------------------------------------
 
-def orient(path, model=None, tool=None, strategy: str = "smooth", *, checker: CollisionChecker | None = None,
-           stock=None, meshes=(), machine=None, preferred=Z_AXIS, fixed_axis=Z_AXIS,
-           lead_max: float = 60.0, tilt_max: float = 60.0, resolution: float = 10.0,
-           max_step: float = 10.0, smoothing_length: float = 5.0, tolerance: float = 0.005,
-           clearance: float = 0.0, max_tilt: float | None = None, rotary_weight: float | None = None,
+CLOSEST_LENGTH = 0.05      # mm: the smoothing length of "closest": the deviation decides, joints break ties
+
+
+def _narrowed(machine, tilt_range):
+    """The machine with its tilt axis limits narrowed to ``tilt_range`` (deg, machine values)."""
+    if machine is None or tilt_range is None:
+        return machine
+    from dataclasses import replace
+    t = machine.tilt
+    lo = tilt_range[0] if t.min is None else max(t.min, tilt_range[0])
+    hi = tilt_range[1] if t.max is None else min(t.max, tilt_range[1])
+    if lo >= hi:
+        raise InputError(f"tilt_range {tilt_range[0]:g} .. {tilt_range[1]:g} leaves nothing of "
+                         f"{t.name}'s range on machine {machine.name}", item="tilt_range")
+    return replace(machine, tilt=replace(t, min=lo, max=hi))
+
+
+def _segment(path, a: int, b: int):
+    """Points a..b-1 of a path as a path (messages keep the whole path's point numbers)."""
+    from dataclasses import replace
+    info = dict(path.info)
+    info["index_offset"] = info.get("index_offset", 0) + a
+    return replace(path, contact=path.contact[a:b], normal=path.normal[a:b], axis=path.axis[a:b],
+                   move=path.move[a:b], patch=path.patch[a:b], uv=path.uv[a:b], line=path.line[a:b], info=info)
+
+
+def orient_target(path, checker, targets, reach, constraints=()):
+    """Exactly the target axis at every point (a fixed axis: 3+2; or a fixed lead/tilt, toward
+    a point or a line); refused where it points into the surface, leaves the machine's reach or
+    a limit cone, or collides, naming the point."""
+    A = unit(np.asarray(targets, float))
+    side = np.einsum("ij,ij->i", path.normal, A) <= 1e-6
+    if side.any():
+        i = int(np.argmax(side))
+        a = A[i]
+        raise CollisionError(f"{_where(path, i)}: the target axis ({a[0]:.4f}, {a[1]:.4f}, {a[2]:.4f}) "
+                             f"points into the surface (the ball cannot touch there with it)")
+    if reach is not None:
+        out = ~reach.ok(A)
+        if out.any():
+            i = int(np.argmax(out))
+            raise CollisionError(f"{_where(path, i)}: the target axis is outside the reach of {reach.name}")
+    for h, b in constraints:
+        out = np.einsum("ij,ij->i", h, A) < b - 1e-12
+        if out.any():
+            i = int(np.argmax(out))
+            raise CollisionError(f"{_where(path, i)}: the target axis leaves the largest tilt allowed "
+                                 f"({np.degrees(np.arccos(np.clip(b[i], -1, 1))):.1f} deg from the limit axis)")
+    bad = checker.collides(path.center, A)
+    if bad.any():
+        i = int(np.argmax(bad))
+        raise _no_axis_error(path, checker, i, A[i:i + 1],
+                             f"the target axis collides ({int(bad.sum())} of {len(path)} points)")
+    return A, {}
+
+
+def orient(path, model=None, tool=None, strategy: str | None = None, *, settings: OrientationSettings | None = None,
+           per_patch: dict | None = None, checker: CollisionChecker | None = None, stock=None, meshes=(),
+           machine=None, preferred=None, fixed_axis=None, lead_max: float | None = None,
+           tilt_max: float | None = None, resolution: float | None = None, max_step: float | None = None,
+           smoothing_length: float | None = None, tolerance: float = 0.005, clearance: float = 0.0,
+           max_tilt: float | None = None, rotary_weight: float | None = None, pole_tilt: float | None = None,
            progress=None):
     """Tool axes for ``path`` (a ToolPath). Angles in degrees at this interface.
 
-    ``model``, ``tool``: the surface model and :class:`Tool` (or give a prepared
+    ``settings``: an :class:`OrientationSettings` (strategy, target, limits, smoothing; see
+    orientation.settings); the keyword arguments override it (``strategy`` 'smooth',
+    'closest' (or 'closest-z') or 'fixed'; ``preferred`` / ``fixed_axis`` the target axis;
+    ``max_tilt`` degrees from +Z; the rest as the settings of the same name).
+    ``per_patch``: {patch: OrientationSettings} from a processing list's step blocks; the
+    points of those patches follow them (runs of one strategy are oriented one after the
+    other). ``model``, ``tool``: the surface model and :class:`Tool` (or give a prepared
     ``checker``); ``stock``: (vertices, triangles) of the stock or mold block; ``meshes``:
-    more (name, V, T) obstacles; ``machine``: a tsplcam.post Machine whose rotary limits
-    bound the axes (or ``max_tilt`` degrees from +Z); ``strategy``: 'fixed', 'closest-z' or
-    'smooth'; cone limits ``lead_max``/``tilt_max`` around the normal, candidate
-    ``resolution``; smooth only: ``max_step`` per point, ``smoothing_length`` (mm) and
-    ``rotary_weight``: how much the rotary (C) axis motion counts next to the change of the
-    axis direction, scaled by the machine's tilt/rotary speed ratio squared (default 0: the
-    tool axis angle alone; needs a machine). It pays where the tilt follows walls around a
-    cavity (the mold: C travel and machining time about a third lower on the test path);
-    on the impeller it does not (C travel up to 20 % higher, time equal).
+    more (name, V, T) obstacles; ``machine``: a tsplcam.post Machine whose rotary limits bound
+    the axes and whose joint space the smoothing works in.
     ``progress(done, total)``, when given, is called as collision checks accumulate: poses
-    checked so far against the most there can be (every candidate of every point); the last
-    call has done == total.
+    checked so far against the most there can be; the last call has done == total.
     Returns ``(path_with_axes, OrientationReport)``; raises CollisionError where no
-    admissible collision-free axis exists (naming point, patch, (u, v) and the obstacle).
+    admissible collision-free axis exists (naming point, patch, (u, v) and the obstacle), or
+    where a fixed target collides.
     """
     import time
+    from dataclasses import replace
     t0 = time.perf_counter()
-    if strategy not in STRATEGIES:
-        raise InputError(f"unknown orientation strategy {strategy!r} (one of {', '.join(STRATEGIES)})")
-    for name, value in (("smoothing length", smoothing_length), ("maximum step", max_step),
-                        ("candidate resolution", resolution)):
-        if not (np.isfinite(value) and value > 0):
-            raise InputError(f"{name} must be a number > 0, not {value:g}")
-    wrot = _rotary_weight(machine, rotary_weight) if strategy == "smooth" else 0.0
+    s = replace(settings) if settings is not None else OrientationSettings()
+    given = {"strategy": strategy, "lead_max": lead_max, "tilt_max": tilt_max, "resolution": resolution,
+             "max_step": max_step, "smoothing_length": smoothing_length, "max_tilt": max_tilt,
+             "rotary_weight": rotary_weight, "pole_tilt": pole_tilt}
+    for k, v in given.items():
+        if v is not None:
+            setattr(s, k, v)
+    if s.strategy in ("fixed",) and fixed_axis is not None:
+        s.axis, s.target = tuple(np.asarray(fixed_axis, float).reshape(3)), "axis"
+    elif preferred is not None:
+        s.axis, s.target = tuple(np.asarray(preferred, float).reshape(3)), "axis"
+    s.check()
+    machine = _narrowed(machine, s.tilt_range)
     if checker is None:
         if tool is None:
             raise InputError("orient needs a tool (or a prepared collision checker)")
@@ -470,43 +422,72 @@ def orient(path, model=None, tool=None, strategy: str = "smooth", *, checker: Co
         raise InputError(f"the path was made for a ball of radius {path.tool_radius:g} mm, the tool "
                          f"{tool.name} has {tool.ball_radius:g} mm")
     if len(path) == 0:
-        return path, OrientationReport(strategy, 0)
+        return path, OrientationReport(s.strategy, 0)
     reach = Reach.from_machine(machine) if machine is not None else (
-        Reach.max_tilt(max_tilt) if max_tilt is not None else None)
-    limits = Limits(lead_max * DEG, tilt_max * DEG, resolution * DEG)
+        Reach.max_tilt(s.max_tilt) if s.max_tilt is not None and np.allclose(unit(np.asarray(s.limit_axis)), Z_AXIS)
+        else None)
+    limits = Limits(s.lead_max * DEG, s.tilt_max * DEG, s.resolution * DEG)
     checks0 = checker.checks
     _check_ball(path, checker)
-    feed = feed_directions(path.contact, path.normal)
-    pref = unit(np.asarray(preferred, float).reshape(3))
-    worst = [len(path)]
+    n = len(path)
+    feed = cutting_directions(path)
+    # per point: strategy, target axis and the largest-tilt cone
+    groups = point_settings(path, s, per_patch)
+    strat = np.empty(n, object)
+    pref = np.zeros((n, 3))
+    lim_h, lim_b = np.tile(Z_AXIS, (n, 1)), np.full(n, -2.0)
+    pole = 0.0
+    for gs, idx in groups:
+        strat[idx] = gs.strategy
+        pref[idx] = target_axes(gs, path.center[idx], path.normal[idx], feed[idx])
+        for h, b in limit_halfspaces(gs, len(idx)):
+            lim_h[idx], lim_b[idx] = h, b
+        pole = max(pole, gs.pole_tilt)
+    limited = bool((lim_b > -2.0).any())
+    worst = [n]
 
     def tick(m: int) -> None:
-        worst[0] = len(path) * m
+        worst[0] = n * m
         if progress is not None:
             progress(min(checker.checks - checks0, worst[0] - 1), worst[0])
-    if strategy == "fixed":
-        axes, info = orient_fixed(path, checker, fixed_axis, reach)
-    elif strategy == "closest-z":
-        axes, info = orient_closest(path, checker, pref, limits, reach, feed, tick=tick)
-    else:
-        axes, info = orient_smooth(path, checker, pref, limits, reach, feed, smoothing_length,
-                                   max_step * DEG, wrot=wrot, tick=tick)
+    axes = np.zeros((n, 3))
+    info: dict = {}
+    cost = None
+    for a, b in runs(strat):
+        seg = path if (a, b) == (0, n) else _segment(path, a, b)
+        cons = [(lim_h[a:b], lim_b[a:b])] if limited else []
+        kind = strat[a]
+        if kind == "fixed":
+            ax, inf = orient_target(seg, checker, pref[a:b], reach, cons)
+        elif kind == "closest":
+            c2 = smoothing_cost(machine, reach, CLOSEST_LENGTH, s.rotary_weight, path.feed)
+            ax, inf = orient_smooth(seg, checker, pref[a:b], limits, reach, feed[a:b], CLOSEST_LENGTH,
+                                    s.max_step * DEG, cost=c2, constraints=cons, pole_tilt=pole * DEG,
+                                    tick=tick)
+        else:
+            cost = smoothing_cost(machine, reach, s.smoothing_length, s.rotary_weight, path.feed)
+            ax, inf = orient_smooth(seg, checker, pref[a:b], limits, reach, feed[a:b], s.smoothing_length,
+                                    s.max_step * DEG, cost=cost, constraints=cons, pole_tilt=pole * DEG,
+                                    tick=tick)
+        axes[a:b] = ax
+        for k, v in inf.items():
+            info[k] = info.get(k, 0) + v if isinstance(v, (int, float)) else v
     if progress is not None:
         progress(worst[0], worst[0])
     out = path.with_axis(axes)
     steps = angle(axes[1:], axes[:-1]) / DEG if len(axes) > 1 else np.zeros(1)
-    settings = dict(strategy=strategy, lead_max=lead_max, tilt_max=tilt_max, resolution=resolution,
-                    max_step=max_step, smoothing_length=smoothing_length,
-                    rotary_weight=wrot,
-                    tolerance=checker.tolerance,
-                    clearance=checker.clearance, preferred=[float(x) for x in pref],
-                    reach=reach.name if reach else "none", tool=tool.name)
-    rep = OrientationReport(strategy, len(path), checks=checker.checks - checks0,
+    settings_used = s.as_dict() | dict(
+        rotary_weight=float(cost.w) if cost is not None and machine is not None else 0.0,
+        tolerance=checker.tolerance, clearance=checker.clearance,
+        preferred=[float(x) for x in unit(np.asarray(s.axis, float))],
+        reach=reach.name if reach else "none", tool=tool.name,
+        steps_with_own_settings=sorted(int(p) for p in (per_patch or {})))
+    rep = OrientationReport(s.strategy, n, checks=checker.checks - checks0,
                             seconds=time.perf_counter() - t0,
                             dp_rounds=info.get("dp_rounds", 0), resolved_points=info.get("resolved_points", 0),
                             relaxation_moves=info.get("relaxation_moves", 0),
                             max_step_deg=float(steps.max()), mean_step_deg=float(steps.mean()),
-                            max_deviation_deg=float((angle(axes, pref[None]) / DEG).max()),
-                            tolerance=checker.tolerance, triangles=checker.triangles, settings=settings)
-    out.info["orientation"] = settings | {"report": rep.summary()}
+                            max_deviation_deg=float((angle(axes, pref) / DEG).max()),
+                            tolerance=checker.tolerance, triangles=checker.triangles, settings=settings_used)
+    out.info["orientation"] = settings_used | {"report": rep.summary()}
     return out, rep

@@ -19,8 +19,9 @@ Schema, version 1 (``tsplcam/plan/PROCESSING-LIST.md`` explains it for people)::
                                                 approach this step's start from clearance
          "link": "boundary",                    optional, informational, checked if present:
                                                 "first", "boundary", "corner", "retract"
-         "pinned": ["position", "start"]}       optional: fields the solver must keep
-      ],
+         "pinned": ["position", "start"],       optional: fields the solver must keep
+         "orientation": {"lead": 3}}            optional: tool-axis settings for this patch
+      ],                                        (the orientation stage checks the keys)
       "summary": {...}, "solver": {...}         optional, informational, ignored on reading
     }
 
@@ -51,7 +52,7 @@ FORMAT = "tsplcam-processing-list"
 VERSION = 1
 _TOP_KEYS = {"format", "version", "model", "layout", "patches", "units", "steps", "summary",
              "solver"}
-_STEP_KEYS = {"patch", "start", "finish", "crossfeed", "retract_before", "link", "pinned"}
+_STEP_KEYS = {"patch", "start", "finish", "crossfeed", "retract_before", "link", "pinned", "orientation"}
 
 
 # -- writing -----------------------------------------------------------------------------
@@ -67,6 +68,8 @@ def to_dict(plist: ProcessingList) -> dict:
             "link": s.link,
             "pinned": [f for f in PIN_FIELDS if f in s.pinned],
         })
+        if s.orientation:
+            steps[-1]["orientation"] = dict(s.orientation)
     out = {"format": FORMAT, "version": VERSION, "model": plist.model,
            "layout": plist.layout_hash, "patches": len(plist.steps), "units": plist.units,
            "steps": steps,
@@ -173,8 +176,11 @@ def from_dict(data, path=None, text=None, partial: bool = False) -> ProcessingLi
         link = r.get("link")
         if link is not None and link not in LINKS:
             raise bad(f"'link' must be one of {', '.join(LINKS)}, not {link!r}")
+        ori = r.get("orientation")
+        if ori is not None and not isinstance(ori, dict):
+            raise bad(f"'orientation' must be an object of tool-axis settings, not {ori!r}")
         steps.append(Step(patch, vals["start"], vals["finish"], d, retract, link,
-                          frozenset(pinned)))
+                          frozenset(pinned), ori or None))
     patches = data.get("patches")
     if patches is not None and patches != len(steps) and not partial:
         raise InputError(f"'patches' says {patches} but the list has {len(steps)} steps",
@@ -280,4 +286,21 @@ def complete_file(path, layout, **options) -> ProcessingList:
     """Read a (possibly partial) list, keep what it pins and solve the rest."""
     from .solve import complete
     plist = load(path, layout, partial=True)
-    return complete(plist, layout, **options)
+    done = complete(plist, layout, **options)
+    blocks = {s.patch: s.orientation for s in plist.steps if s.orientation}
+    for s in done.steps:
+        s.orientation = blocks.get(s.patch)
+    return done
+
+
+def orientation_blocks(plist: ProcessingList, path=None) -> dict:
+    """{patch: (block, where)} of the steps that carry an ``orientation`` block; ``where``
+    names the file, line and step for messages."""
+    lines = plist.info.get("step_lines") or [None] * len(plist.steps)
+    out = {}
+    for i, s in enumerate(plist.steps):
+        if s.orientation:
+            where = (f"{path}: " if path else "") + (f"line {lines[i]}: " if lines[i] else "") + \
+                f"step {i + 1} (patch {s.patch})"
+            out[s.patch] = (dict(s.orientation), where)
+    return out

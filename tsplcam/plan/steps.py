@@ -70,6 +70,7 @@ class Step:
     retract_before: bool = False
     link: str = "first"
     pinned: frozenset = frozenset()
+    orientation: dict | None = None     # optional tool-axis settings for this patch (a JSON object)
 
     def describe(self) -> str:
         s = CORNER_NAMES[self.start] if self.start is not None else "?"

@@ -16,17 +16,19 @@ Chain (rigid rotations about the axis lines, ``R = rot(about, sign * (value - ze
 
 For every kind ``K = Rz(phi) R_tilt(theta) z`` with ``theta = e_t s_t (T - zero_t)``,
 ``phi = e_c s_c (C - zero_c)``, ``e = -1`` for a table axis, ``+1`` for a head axis. With ISO
-signs this is docs/post.md section 1 (A/C: ``K = (sin C sin A, -cos C sin A, cos A)``);
-with LinuxCNC's unconventional directions it is the table of docs/post.md section 2.3.
-Inverse: ``theta = atan2(hypot(Kx, Ky), Kz)``, ``phi = atan2(Kx, -Ky)`` (tilt about X) or
-``atan2(Ky, Kx)`` (about Y); the second solution is ``(-theta, phi + 180 deg)``.
+signs this is docs/post.md section 1 (A/C: ``K = (sin C sin A, -cos C sin A, cos A)``); with LinuxCNC's
+unconventional directions it is the table of docs/post.md section 2.3. Inverse: ``theta =
+atan2(hypot(Kx, Ky), Kz)``, ``phi = atan2(Kx, -Ky)`` (tilt about X) or ``atan2(Ky, Kx)``
+(about Y); the second solution is ``(-theta, phi + 180 deg)``.
 
-:func:`solve_joints` picks one solution per point: dynamic programming over the branches
-(and, for a C axis with a short range, its 360-degree representatives) minimising the
-rotary motion time, unwinding an endless C (no 360-degree swings), holding and
+:func:`solve_joints` picks one solution per point with
+:func:`tsplcam.orientation.rotary.pose_sequence` (the same choice the orientation stage
+smooths with): dynamic programming over the branches (and, for a C axis with a short range,
+its 360-degree representatives) minimising the rotary motion time, flips and rewinds where
+the tool axis is nearest the pole, unwinding an endless C (no 360-degree swings), holding and
 interpolating the free angle inside a small cone around the singular pose (tool axis along
-C) as docs/post.md section 4 describes, and refusing (never clipping) a pose outside the
-limits.
+C) as docs/post.md section 4 describes; it refuses (never clips) a pose outside the limits. The
+closed form lives in :class:`tsplcam.orientation.rotary.Rotary`.
 :func:`linearise` inserts points where joint-space interpolation would take the tip off the
 programmed line (docs/post.md section 4).
 """
@@ -37,6 +39,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..errors import KinematicsError
+from ..orientation.rotary import Rotary, pose_sequence
+from ..toolpath.path import Move
 from .machine import Machine, RotaryAxis
 
 DEG = np.pi / 180.0
@@ -125,20 +129,23 @@ def linear_joints(machine: Machine, tip, tilt, rotary, tool_length=None, part_or
     return x - h
 
 
-def _eps(machine: Machine, ax: RotaryAxis) -> float:
-    return -1.0 if machine.on_table(ax) else 1.0
+def rotary_of(machine: Machine) -> Rotary:
+    """The machine's rotary axes in part-frame angles (orientation.rotary), cached on the machine."""
+    r = getattr(machine, "_rotary", None)
+    if r is None:
+        r = Rotary.from_machine(machine)
+        try:
+            object.__setattr__(machine, "_rotary", r)
+        except (AttributeError, TypeError):       # pragma: no cover
+            pass
+    return r
 
 
 def orientation(machine: Machine, tilt, rotary) -> np.ndarray:
     """Unit tool axis (n,3) in the part frame for rotary values (deg), closed form."""
-    theta = _eps(machine, machine.tilt) * machine.tilt.sign * (np.asarray(tilt, float) - machine.tilt.zero) * DEG
-    phi = _eps(machine, machine.rotary) * machine.rotary.sign * (np.asarray(rotary, float) - machine.rotary.zero) * DEG
-    st = np.sin(theta)
-    if machine.tilt.about == "X":
-        k = np.stack([np.sin(phi) * st, -np.cos(phi) * st, np.cos(theta)], axis=-1)
-    else:
-        k = np.stack([np.cos(phi) * st, np.sin(phi) * st, np.cos(theta)], axis=-1)
-    return k.reshape(-1, 3)
+    r = rotary_of(machine)
+    th, ph = r.from_machine_values(tilt, rotary)
+    return r.axis(th, ph).reshape(-1, 3)
 
 
 def _wrap180(a):
@@ -153,34 +160,19 @@ def inverse_orientation(machine: Machine, axis):
     ``theta >= 0``, column 1 the other; rotary values in ``zero + (-180, 180]``) and
     ``theta`` (n,), the angle between the tool axis and the C axis (rad).
     """
+    r = rotary_of(machine)
     K = np.asarray(axis, float).reshape(-1, 3)
-    sxy = np.hypot(K[:, 0], K[:, 1])
-    theta = np.arctan2(sxy, K[:, 2])
-    if machine.tilt.about == "X":
-        phi = np.arctan2(K[:, 0], -K[:, 1] + 0.0)
-    else:
-        phi = np.arctan2(K[:, 1], K[:, 0])
-    et = _eps(machine, machine.tilt) * machine.tilt.sign
-    ec = _eps(machine, machine.rotary) * machine.rotary.sign
-    th = np.stack([theta, -theta], axis=1)
-    ph = np.stack([phi, phi + np.pi], axis=1)
-    tilt = machine.tilt.zero + th / DEG * et
-    rot = machine.rotary.zero + _wrap180(ph / DEG * ec)
+    theta, phi = r.angles(K)
+    tilt, rot = r.to_machine(np.stack([theta, -theta], axis=1), np.stack([phi, phi + np.pi], axis=1))
+    rot = machine.rotary.zero + _wrap180(rot - machine.rotary.zero)
     return tilt, rot, theta
 
 
 def best_tilt(machine: Machine, axis, rotary) -> np.ndarray:
     """Tilt (deg) that brings the tool closest to ``axis`` when the rotary axis is held."""
-    K = np.asarray(axis, float).reshape(-1, 3)
-    ec = _eps(machine, machine.rotary) * machine.rotary.sign
-    phi = ec * (np.asarray(rotary, float) - machine.rotary.zero) * DEG
-    if machine.tilt.about == "X":
-        e = np.stack([np.sin(phi), -np.cos(phi)], axis=1)
-    else:
-        e = np.stack([np.cos(phi), np.sin(phi)], axis=1)
-    theta = np.arctan2(np.einsum("ni,ni->n", K[:, :2], e), K[:, 2])
-    et = _eps(machine, machine.tilt) * machine.tilt.sign
-    return machine.tilt.zero + theta / DEG * et
+    r = rotary_of(machine)
+    _, ph = r.from_machine_values(0.0, rotary)
+    return r.to_machine(r.best_theta(np.asarray(axis, float).reshape(-1, 3), ph), 0.0)[0]
 
 
 def angle_between(a, b) -> np.ndarray:
@@ -239,66 +231,20 @@ class JointSolution:
     info: dict = field(default_factory=dict)
 
 
-_TIE = 1e-9        # relative: costs this close are a tie, decided for the lower state
-
-
-def _le(x: float, y: float) -> bool:
-    """x <= y up to a relative tie tolerance: the last bits of vectorised sums may differ with
-    memory alignment from run to run, and exact ties (symmetric branches) must not flip."""
-    return x <= y + _TIE * max(1.0, abs(x), abs(y))
-
-
-def _viterbi(cost_first: np.ndarray, trans: np.ndarray) -> np.ndarray:
-    """States minimising first cost plus the transition costs; ties (within _TIE, relative)
-    pick the lower state, so the same input gives the same program in every process."""
-    n, S = trans.shape[0] + 1, cost_first.shape[-1]
-    back = np.zeros((n, S), np.int64)
-    if S == 2:                                   # the common case, plain floats are faster
-        a0, a1 = float(cost_first[0]), float(cost_first[1])
-        t = trans.reshape(-1, 4).tolist()
-        bk = [None] * n
-        for i in range(1, n):
-            c00, c01, c10, c11 = t[i - 1]
-            x0, x1 = a0 + c00, a1 + c10
-            y0, y1 = a0 + c01, a1 + c11
-            b0 = 0 if _le(x0, x1) else 1
-            b1 = 0 if _le(y0, y1) else 1
-            a0, a1 = (x0 if b0 == 0 else x1), (y0 if b1 == 0 else y1)
-            bk[i] = (b0, b1)
-        state = np.zeros(n, np.int64)
-        s = 0 if _le(a0, a1) else 1
-        for i in range(n - 1, 0, -1):
-            state[i] = s
-            s = bk[i][s]
-        state[0] = s
-        return state
-
-    def first_min(v: np.ndarray, axis: int = 0) -> np.ndarray:
-        m = v.min(axis=axis, keepdims=True)
-        return np.argmax(v <= m + _TIE * np.maximum(1.0, np.abs(m)), axis=axis)
-
-    acc = cost_first.astype(float).copy()
-    for i in range(1, n):
-        tot = acc[:, None] + trans[i - 1]
-        back[i] = first_min(tot, axis=0)
-        acc = tot[back[i], np.arange(S)]
-    state = np.zeros(n, np.int64)
-    state[-1] = int(first_min(acc))
-    for i in range(n - 1, 0, -1):
-        state[i - 1] = back[i, state[i]]
-    return state
-
-
 def solve_joints(machine: Machine, tip, axis, *, tool_length=None, part_origin=None,
                  singular_cone: float = 0.5, radius: float = 0.0, patch=None, uv=None,
-                 index_offset: int = 0) -> tuple:
+                 index_offset: int = 0, move=None, swing_limit: float = 5.0) -> tuple:
     """Machine poses for tool tips and axes (program coordinates), see the module docstring.
 
     ``singular_cone`` (deg): inside it the rotary (C) angle is interpolated between the poses
     around it and the tilt re-fitted, so the tool axis moves by at most the cone angle; the
     ball centre ``tip + radius * axis`` is kept, so the returned tips move with the axis
-    (exact for ``radius = 0`` and exactly at the pole). Returns ``(JointSolution, tip)``.
-    Raises :class:`KinematicsError` naming the first point no pose within limits reaches.
+    (exact for ``radius = 0`` and exactly at the pole). ``move`` (n,): the path's move kinds
+    (branch flips and rewinds go to non-cutting blocks where they must happen);
+    ``swing_limit`` (deg): the tool-axis sweep a flip or rewind may cause inside a block
+    before it counts as sweeping (orientation.rotary.pose_sequence). Returns
+    ``(JointSolution, tip)``. Raises :class:`KinematicsError` naming the first point no
+    pose within limits reaches.
     """
     L, origin = _defaults(machine, tool_length, part_origin)
     tip = np.asarray(tip, float).reshape(-1, 3)
@@ -313,41 +259,24 @@ def solve_joints(machine: Machine, tip, axis, *, tool_length=None, part_origin=N
         raise KinematicsError(f"{where(int(np.argmax(norm < 1e-9)))}: tool axis has zero length")
     K = K / norm[:, None]
     center = tip + radius * K
+    rot = rotary_of(machine)
+    rax = machine.rotary
 
     tilt2, rot2, theta = inverse_orientation(machine, K)
     cone = max(float(singular_cone), 0.0) * DEG
     singular = theta <= max(cone, 1e-12)
     xyz2 = np.stack([linear_joints(machine, tip, tilt2[:, b], rot2[:, b], L, origin)
                      for b in range(2)], axis=1)                     # (n,2,3)
-    feas2 = machine.tilt.within(tilt2) & _travel_ok(machine, xyz2, L)
-    rax = machine.rotary
-    span = None if rax.continuous else rax.max - rax.min
-    enumerate_reps = span is not None and span < 720.0
-
-    # States per point: (branch, representative of C).
-    if enumerate_reps:
-        reps = np.arange(int(np.floor((rax.min - rax.zero - 180.0) / 360.0)),
-                         int(np.ceil((rax.max - rax.zero + 180.0) / 360.0)) + 1)
-        cand = rot2[:, :, None] + 360.0 * reps[None, None, :]         # (n,2,R)
-        ok = feas2[:, :, None] & rax.within(cand)
-        keep = ok.reshape(n, -1).any(axis=0)
-        R = len(reps)
-        Cst = cand.reshape(n, 2 * R)
-        Tst = np.repeat(tilt2, R, axis=1)
-        Fst = ok.reshape(n, 2 * R)
-        Bst = np.repeat(np.arange(2), R)[None, :].repeat(n, 0)
-        cols = np.nonzero(keep)[0]
-        if len(cols) == 0:
-            cols = np.arange(2 * R)
-        Cst, Tst, Fst, Bst = Cst[:, cols], Tst[:, cols], Fst[:, cols], Bst[:, cols]
-    else:
-        Cst, Tst, Fst = rot2, tilt2, feas2
-        Bst = np.tile(np.arange(2), (n, 1))
-
-    # A point no state reaches is an error (singular points are re-fitted below: they need
+    travel2 = _travel_ok(machine, xyz2, L)
+    feas2 = machine.tilt.within(tilt2) & travel2
+    if not rax.continuous and rax.min is not None:
+        reach_c = np.zeros((n, 2), bool)
+        for k in range(-2, 3):
+            reach_c |= rax.within(rot2 + 360.0 * k)
+        feas2 &= reach_c
+    # A point no pose reaches is an error (singular points are re-fitted below: they need
     # only a tilt near zero, checked after the fit).
-    need = ~singular
-    none = need & ~Fst.any(axis=1)
+    none = ~singular & ~feas2.any(axis=1)
     if none.any():
         i = int(np.argmax(none))
         reasons = []
@@ -360,62 +289,13 @@ def solve_joints(machine: Machine, tip, axis, *, tool_length=None, part_origin=N
                               f"for tool axis ({K[i, 0]:.6f}, {K[i, 1]:.6f}, {K[i, 2]:.6f}) at tip "
                               f"({tip[i, 0]:.4f}, {tip[i, 1]:.4f}, {tip[i, 2]:.4f}); " + "; ".join(reasons))
 
-    idx = np.nonzero(~singular)[0]
-    wt = 1.0 / machine.tilt.max_velocity        # minutes per degree: the cost is rotary time
-    wc = 1.0 / rax.max_velocity
-    state = np.zeros(n, np.int64)
-    if len(idx):
-        Ts, Cs, Fs = Tst[idx], Cst[idx], Fst[idx]
-        dT = np.abs(Ts[1:, None, :] - Ts[:-1, :, None])
-        dC = Cs[1:, None, :] - Cs[:-1, :, None]
-        dC = np.abs(dC if enumerate_reps else _wrap180(dC))
-        trans = wt * dT + wc * dC
-        trans = np.where(Fs[1:, None, :] & Fs[:-1, :, None], trans, np.inf)
-        # Start anywhere feasible; ties go to the first branch, then to C nearest its zero.
-        first = (np.where(Fs[0], 0.0, np.inf) + 1e-9 * Bst[idx[0]]
-                 + 1e-12 * np.abs(Cs[0] - rax.zero))
-        state[idx] = _viterbi(first, trans)
-
-    tilt = Tst[np.arange(n), state]
-    rotv = Cst[np.arange(n), state]
-    branch = Bst[np.arange(n), state].astype(np.int8)
-    if len(idx) and not enumerate_reps:
-        r = rotv[idx]
-        r = r[0] + np.concatenate([[0.0], np.cumsum(_wrap180(np.diff(r)))])
-        if rax.min is not None:                  # a long but limited C: shift whole turns in
-            lo, hi = r.min(), r.max()
-            k_lo = np.ceil((rax.min - lo) / 360.0 - 1e-12)
-            k_hi = np.floor((rax.max - hi) / 360.0 + 1e-12)
-            if k_lo <= k_hi:
-                k = min(max(0.0, k_lo), k_hi)
-                r = r + 360.0 * k
-        rotv[idx] = r
-
-    # Singular runs: interpolate the free angle between the poses around the run.
-    if singular.any():
-        s = singular.astype(np.int8)
-        starts = np.nonzero(np.diff(np.concatenate([[0], s])) == 1)[0]
-        ends = np.nonzero(np.diff(np.concatenate([s, [0]])) == -1)[0]
-        hold = rax.zero if rax.within(rax.zero) else 0.5 * (rax.min + rax.max)
-        for a, b in zip(starts, ends):
-            before, after = a - 1, b + 1
-            if before >= 0 and after < n:
-                c0, c1 = rotv[before], rotv[after]
-                seg = center[before:after + 1]
-                d = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(seg, axis=0), axis=1))])
-                w = d / d[-1] if d[-1] > 0 else np.linspace(0.0, 1.0, len(seg))
-                rotv[a:b + 1] = c0 + (c1 - c0) * w[1:-1]
-            elif before >= 0:
-                rotv[a:b + 1] = rotv[before]
-            elif after < n:
-                rotv[a:b + 1] = rotv[after]
-            else:
-                rotv[a:b + 1] = hold
-        sing = np.nonzero(singular)[0]
-        tilt[sing] = best_tilt(machine, K[sing], rotv[sing])
-        th = _eps(machine, machine.tilt) * machine.tilt.sign * (tilt[sing] - machine.tilt.zero)
-        branch[sing] = (th < 0).astype(np.int8)
-    reached = orientation(machine, tilt, rotv)
+    length = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(center, axis=0), axis=1))])
+    cut = None if move is None else (np.asarray(move)[1:] == Move.CUT)
+    ps = pose_sequence(rot, K, feasible=travel2, cone=cone, length=length, cut=cut,
+                       swing_limit=float(swing_limit) * DEG)
+    tilt, rotv = rot.to_machine(ps.theta, ps.phi)
+    branch = ps.branch
+    reached = rot.axis(ps.theta, ps.phi)
     deviation = angle_between(K, reached)
     deviation[~singular] = 0.0
     reached[~singular] = K[~singular]
@@ -433,16 +313,14 @@ def solve_joints(machine: Machine, tip, axis, *, tool_length=None, part_origin=N
         raise KinematicsError(f"{where(i)}: pose outside the limits of machine {machine.name}: {why}")
 
     joints = np.column_stack([xyz, tilt, rotv])
-    nb = branch[~singular]
-    flips = int(np.count_nonzero(nb[1:] != nb[:-1])) if len(nb) > 1 else 0
     info = {"singular_points": int(singular.sum()),
             "max_axis_deviation_deg": float(deviation.max() / DEG) if n else 0.0,
-            "branch_flips": flips,
+            "branch_flips": ps.flips,
             "rotary_travel_deg": float(np.abs(np.diff(rotv)).sum()) if n > 1 else 0.0,
             "tilt_travel_deg": float(np.abs(np.diff(tilt)).sum()) if n > 1 else 0.0,
             "max_rotary_step_deg": float(np.abs(np.diff(rotv)).max()) if n > 1 else 0.0}
     return (JointSolution(joints=joints, axis=reached, branch=branch, singular=singular,
-                          deviation=deviation, flips=flips, info=info), new_tip)
+                          deviation=deviation, flips=ps.flips, info=info), new_tip)
 
 
 def slerp(a, b, t) -> np.ndarray:

@@ -186,7 +186,7 @@ def post_program(toolpath: ToolPath, machine, dialect: str | None = None, **opti
     tip_in = np.asarray(toolpath.tip, float)
     sol, tip = solve_joints(machine, tip_in, axis_in, tool_length=L, part_origin=origin,
                             singular_cone=s["singular_cone"], radius=R, patch=toolpath.patch,
-                            uv=toolpath.uv)
+                            uv=toolpath.uv, move=toolpath.move, swing_limit=s["swing_limit"])
     joints = sol.joints.copy()
     da = int(s["decimals"]["angle"])
     if mod.JOINT_SPACE:

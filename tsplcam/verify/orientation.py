@@ -179,3 +179,35 @@ def orientation_metrics(path: ToolPath, checker=None, machine=None, v_rotary=(54
         rotary_travel_deg=float(At + Ct), tilt_travel_deg=float(At), c_travel_deg=float(Ct),
         time_s=float(time_s), feed_time_s=feed_time, average_linear_speed=lin, average_rotary_speed=rot,
         machine=name, extra=extra)
+
+
+def machine_motion(posted, toolpath=None) -> dict:
+    """What the machine does with a posted program (tsplcam.post PostResult), the figures the
+    job's report lists: estimated time against length/feed, rotary travel and C per mm of
+    path, the largest change of the tool axis between neighbouring cutting points, branch
+    flips, pole points, the largest C step and how many C steps above 10 deg the machine makes
+    while the tip moves less than 0.1 mm, and the retract-reorient-approach sequences the
+    post inserted."""
+    mo = posted.motion
+    J = mo.joints
+    info = posted.solution.info
+    dtip = np.linalg.norm(np.diff(mo.tip, axis=0), axis=1)
+    dC = np.abs(np.diff(J[:, 4]))
+    feed_rows = ~mo.rapid[1:]
+    out = {"machine": posted.machine.name, "dialect": posted.dialect,
+           "time_s": float(posted.time.total_s), "length_feed_time_s": float(posted.time.feed_only_s),
+           "time_ratio": float(posted.time.total_s / posted.time.feed_only_s) if posted.time.feed_only_s else 0.0,
+           "tilt_travel_deg": float(info["tilt_travel_deg"]), "c_travel_deg": float(info["rotary_travel_deg"]),
+           "branch_flips": int(info["branch_flips"]), "pole_points": int(info["singular_points"]),
+           "max_c_step_deg": float(dC[feed_rows].max()) if feed_rows.any() else 0.0,
+           "c_steps_over_10_deg_within_0_1_mm": int(np.count_nonzero(feed_rows & (dC > 10.0) & (dtip < 0.1))),
+           "reorientations": int(posted.reorientations)}
+    if toolpath is not None:
+        K = toolpath.axis
+        cut = toolpath.move[1:] == Move.CUT
+        step = _angle(K[1:], K[:-1]) / DEG
+        length = float(np.linalg.norm(np.diff(toolpath.tip, axis=0), axis=1).sum())
+        out["path_length_mm"] = length
+        out["c_deg_per_mm"] = out["c_travel_deg"] / length if length > 0 else 0.0
+        out["max_axis_step_deg"] = float(step[cut].max()) if cut.any() else 0.0
+    return out

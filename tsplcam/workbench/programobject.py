@@ -28,6 +28,7 @@ import FreeCAD
 
 from ..errors import InputError
 from ..orientation import ORIENTATIONS
+from ..orientation.orient import ROTARY_WEIGHT
 from ..program import make_program as build_program, program_file_name
 from ..settings import PROGRAM_KEYS, JobSettings
 from . import messages
@@ -122,8 +123,8 @@ class TsplcamProgram(FeatureProxy):
                      "Smooth: a needed tilt is spread over about this length of path on each side",
                      DEFAULTS.smoothing_length)
         add_property(obj, "App::PropertyFloat", "RotaryWeight", g,
-                     "Smooth: weight of the rotary (C) axis motion next to the change of the tool axis "
-                     "(0: the axis angle only; 1 shortens mold cavities)", DEFAULTS.rotary_weight)
+                     "Smooth: how much the rotary (C) axis motion counts, in the machine's time units "
+                     "(default 2; 0: not at all, the tool-axis direction instead)", ROTARY_WEIGHT)
         add_property(obj, "App::PropertyFileIncluded", "ProgramFile", g,
                      "The posted program, kept inside the document", hidden=True)
         add_property(obj, "App::PropertyString", "ProgramName", g,
@@ -359,6 +360,7 @@ def make_program(path_obj, **settings):
     busy = _busy()
     try:
         settings.setdefault("tool", tool_for_radius(radius))
+        settings.setdefault("rotary_weight", ROTARY_WEIGHT)      # what the property shows
         if settings["tool"] is None and settings.get("orientation", DEFAULTS.orientation) != "normal":
             raise InputError(f"no shipped tool has a ball of radius {radius:g} mm: add a tool file "
                              "(tsplcam/orientation/TOOLS.md) or post with orientation 'normal'",

@@ -1,0 +1,117 @@
+"""The joint-space smoothing's pieces against brute force: the admissible arcs of a meridian
+and of a circle of latitude (closed form) against sampling the cone test of the candidates
+module, the programme's transition cost against the joint motion of every pair of poses,
+the banded box-constrained solve against scipy's L-BFGS-B."""
+import unittest
+
+import numpy as np
+from scipy.optimize import minimize
+
+from tsplcam.orientation.candidates import Limits, admissible, feed_directions
+from tsplcam.orientation.rotary import DEG, Rotary
+from tsplcam.orientation.smoothing import (MeridianGrid, SmoothingCost, _Banded, _quadratic, cone_halfspaces,
+                                           joint_transitions, phi_interval, theta_interval)
+
+
+def random_frames(rng, n):
+    normal = rng.normal(size=(n, 3))
+    normal[:, 2] = np.abs(normal[:, 2]) + 0.2
+    normal /= np.linalg.norm(normal, axis=1, keepdims=True)
+    pts = np.cumsum(rng.normal(size=(n, 3)), axis=0)
+    return normal, feed_directions(pts, normal)
+
+
+class AdmissibleArcs(unittest.TestCase):
+    def setUp(self):
+        rng = np.random.default_rng(11)
+        self.n = 300
+        self.normal, self.feed = random_frames(rng, self.n)
+        self.limits = Limits(50 * DEG, 35 * DEG, 10 * DEG)
+        self.cons = [(h, np.zeros(self.n)) for h in
+                     cone_halfspaces(self.normal, self.feed, self.limits.lead_max, self.limits.tilt_max)]
+        self.rot = Rotary(about="Y")
+        self.rng = rng
+
+    def sampled(self, axes):
+        return admissible(axes, self.normal, self.feed, self.limits, None)
+
+    def test_tilt_interval_on_a_meridian(self):
+        phi = self.rng.uniform(-np.pi, np.pi, self.n)
+        lo, hi = theta_interval(self.rot, phi, self.cons, self.rot.best_theta(self.normal, phi))
+        t = np.linspace(-np.pi, np.pi, 3601)
+        ok = self.sampled(self.rot.axis(t[None, :], phi[:, None]))
+        inside = (t[None, :] >= lo[:, None]) & (t[None, :] <= hi[:, None])
+        # every sample inside the interval passes, and the sampled set is no wider (one arc)
+        self.assertFalse((inside & ~ok).any())
+        miss = ok & ~inside
+        self.assertFalse(miss.any(), f"{int(miss.sum())} admissible samples outside")
+
+    def test_rotary_interval_on_a_circle_of_latitude(self):
+        # start from admissible poses; the arc around them must contain only admissible ones
+        phi0 = self.rng.uniform(-np.pi, np.pi, self.n)
+        lo, hi = theta_interval(self.rot, phi0, self.cons, self.rot.best_theta(self.normal, phi0))
+        keep = lo <= hi
+        theta = np.where(keep, 0.5 * (lo + hi), 0.0)
+        plo, phi_hi = phi_interval(self.rot, theta, self.cons, phi0)
+        p = np.linspace(-np.pi, np.pi, 721)
+        for i in np.nonzero(keep)[0][:80]:
+            grid = phi0[i] + p
+            ok = admissible(self.rot.axis(np.full((1, len(p)), theta[i]), grid[None, :]),
+                            self.normal[i:i + 1], self.feed[i:i + 1], self.limits, None)[0]
+            inside = (grid >= plo[i] - 1e-9) & (grid <= phi_hi[i] + 1e-9)
+            self.assertFalse((inside & ~ok).any(), i)
+            # and it reaches the first inadmissible sample on either side of the start
+            j0 = np.argmin(np.abs(p))
+            run = ok.copy()
+            r = j0
+            while r + 1 < len(p) and run[r + 1]:
+                r += 1
+            self.assertLess(abs(grid[r] - min(phi_hi[i], grid[-1])), 2 * (p[1] - p[0]) + 1e-9, i)
+
+
+class TransitionCost(unittest.TestCase):
+    def test_joint_cost_of_every_pair(self):
+        rng = np.random.default_rng(3)
+        rot = Rotary(theta_lo=-30 * DEG, theta_hi=115 * DEG, v_theta=1.0, v_phi=2.0)
+        cost = SmoothingCost(2.0, rot, w=rot.weight)
+        M = 12
+        th = rng.uniform(-0.5, 1.5, (2, M))
+        grid = MeridianGrid(2 * np.pi * np.arange(M) / M, th, th - 1, th + 1, np.zeros((2, M)),
+                            np.ones((2, M), bool))
+        T = joint_transitions(grid, cost, np.array([0.5]), np.pi, np.zeros(2, bool))(1)
+        for a in range(M):
+            for b in range(M):
+                dphi = (grid.phi[b] - grid.phi[a] + np.pi) % (2 * np.pi) - np.pi
+                want = cost.length / 0.5 * ((th[1, b] - th[0, a]) ** 2 + cost.w * dphi ** 2)
+                self.assertAlmostEqual(T[a, b], want, places=10)
+
+
+class BoxSolve(unittest.TestCase):
+    def test_matches_lbfgsb(self):
+        rng = np.random.default_rng(1)
+        for trial in range(4):
+            n = 80
+            ds = rng.uniform(0.05, 0.9, n - 1)
+            Q = _quadratic(n, ds, rng.uniform(size=n - 1) > 0.05, 5.0, 1.0, 1.25)
+            B = _Banded(n, 2)
+            B.ab[:] = Q.ab
+            half = np.zeros(n)
+            half[:-1] += ds / 2
+            half[1:] += ds / 2
+            B.add(half / 5, np.arange(n)[:, None], np.ones((n, 1)), -rng.uniform(-0.5, 0.5, n))
+            lo = rng.uniform(-0.2, 0.3, n)
+            hi = lo + rng.uniform(0.0, 1.0, n)
+            x = B.solve_box(lo, hi)
+            H = np.zeros((n, n))
+            for k in range(3):
+                for i in range(n - k):
+                    H[i, i + k] = H[i + k, i] = B.ab[2 - k, i + k]
+            f = lambda z: 0.5 * z @ H @ z + B.g @ z           # noqa: E731
+            ref = minimize(f, np.clip(np.zeros(n), lo, hi), jac=lambda z: H @ z + B.g, bounds=list(zip(lo, hi)),
+                           method="L-BFGS-B", options=dict(ftol=1e-15, gtol=1e-12, maxiter=20000))
+            self.assertLessEqual(f(x), ref.fun + 1e-10)
+            self.assertTrue(np.all(x >= lo - 1e-12) and np.all(x <= hi + 1e-12))
+
+
+if __name__ == "__main__":
+    unittest.main()

@@ -1,0 +1,672 @@
+"""Tool-axis smoothing judged where the machine feels it: in the rotary axes' joint space.
+
+The smooth strategy (orient.orient_smooth, after xu2013) minimises along the path
+
+    J = sum_i  L / ds_i * (dtheta_i^2 + w dphi_i^2)                      velocity
+      + sum_i  L * ds_i * (l_t^2 k_theta,i^2 + w l_p^2 k_phi,i^2)          acceleration
+      + sum_i  dev_i^2 * ds_i / L                                          tilt where needed
+
+over collision-free axes inside the admissible cone. ``theta``, ``phi`` are the signed tilt
+and the rotary angle of the machine's pose (orientation.rotary: joint values are affine in
+them, and the sign of theta is the branch), ``ds_i`` the contact spacing, ``k`` second
+derivatives along the path (rad/mm^2), ``dev_i`` the angle to the preferred (target) axis
+and ``L`` the smoothing length: a needed tilt spreads over about L mm on each side (a
+membrane under tension; xu2013 eq. (22)). The weights come from the machine:
+``w = rotary_weight * (v_theta / v_phi)^2`` counts rotary motion in tilt-axis time, so the
+velocity term is the time integral of (axis speed / its limit)^2, scaled; ``l = F v / a``
+(feed F, axis limits v, a) is the path length over which an axis reaches full speed, which
+puts (axis acceleration / its limit)^2 on the same scale. Without a machine a virtual A/C
+table with equal axis speeds stands in. With ``rotary_weight`` 0 the change of the tool
+axis direction replaces the rotary term (``beta``).
+
+Two stages:
+
+* a Viterbi dynamic programme (orientation.viterbi) over joint-space candidates
+  (:func:`meridian_grid`): M rotary values ``phi_k`` (the candidate resolution apart), each
+  with the tilt on its meridian that is admissible and nearest the preferred axis. The cone
+  around the normal (|lead|, |tilt| limits) and a control's cone are convex, so with phi
+  held their intersection with the meridian is one interval of theta, in closed form
+  (:func:`theta_interval`). Holding C is a state (the same k), a pole pass with C still is
+  the tilt crossing zero on one meridian, a C half-turn is a walk over the k: the programme
+  chooses the branch once per region, not per point. Its transition cost is exact in joint
+  space and one M x M array operation per point (:func:`joint_transitions`). Collisions are
+  checked lazily (:func:`joint_programme`): the chosen poses are checked, and around a
+  colliding one the meridians are searched for the collision-free tilt nearest the
+  preferred axis (:func:`resolve_meridians`), at anchor points first, whose findings the
+  points between take over.
+* a continuous polish of the chosen poses (:func:`smooth_joints`): alternately the rotary
+  values solve their banded quadratic problem within the interval where the tilt stays
+  admissible (and, from what the programme learnt, collision-free: :func:`free_tilts`),
+  and the tilts solve theirs on their admissible arcs (:meth:`_Banded.solve_box`, exact
+  active set); the moved poses are then checked, a colliding one goes only as far as the
+  checks allow and is held there. Near the pole this holds C still: C moves only where an
+  obstacle or the cone demands a tilt direction, never because the axis passes close to the
+  C axis. ``pole_tilt`` > 0 keeps every axis at least that far from the pole instead.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.linalg import solveh_banded
+
+from .rotary import DEG, Rotary, angle_between
+from .viterbi import viterbi
+
+
+@dataclass
+class SmoothingCost:
+    """Weights of J (see the module): smoothing length L (mm), rotary weight ``w`` (in
+    tilt-axis units), acceleration lengths ``l_theta``, ``l_phi`` (mm), weight ``alpha`` of
+    the joint terms and ``beta`` of the tool-axis direction change (used when C is not
+    weighed)."""
+    length: float
+    rotary: Rotary
+    w: float = 1.0
+    l_theta: float = 0.0
+    l_phi: float = 0.0
+    alpha: float = 1.0
+    beta: float = 0.0
+    feed: float = 0.0            # mm/s: > 0 weighs moves beyond an axis's speed at this feed more
+    over: float = 4.0            # how much more (the polish, iteratively reweighted)
+
+    @staticmethod
+    def build(rotary: Rotary | None, length: float, rotary_weight: float = 1.0,
+              acceleration_weight: float = 1.0, feed: float = 1000.0) -> "SmoothingCost":
+        """Joint-space weights for a machine's rotary axes; without one (``rotary`` None) a
+        virtual A/C table with equal axis speeds and no acceleration terms."""
+        if rotary is None:
+            return SmoothingCost(length, Rotary())
+        f = feed / 60.0                                        # mm/s
+        lt = f * rotary.v_theta / rotary.a_theta * np.sqrt(acceleration_weight)
+        lp = f * rotary.v_phi / rotary.a_phi * np.sqrt(acceleration_weight)
+        return SmoothingCost(length, rotary, w=rotary_weight * rotary.weight, l_theta=lt, l_phi=lp, feed=f)
+
+
+# --- the discrete programme --------------------------------------------------------------------
+
+@dataclass
+class MeridianGrid:
+    """Joint-space candidates: rotary values ``phi_k = 2 pi k / M`` and, per point and k, the
+    signed tilt on that meridian: the admissible one nearest the preferred axis (``theta``
+    (n, M)), inside ``[lo, hi]``; ``ok`` where the meridian meets the admissible cone."""
+    phi: np.ndarray
+    theta: np.ndarray
+    lo: np.ndarray
+    hi: np.ndarray
+    pref: np.ndarray            # (n, M) tilt of the preferred axis's projection on the meridian
+    ok: np.ndarray
+    start: np.ndarray = None    # the tilts before any collision check
+    raised: np.ndarray = None   # the checks moved the tilt away from the preferred axis
+
+
+def meridian_grid(rot: Rotary, pref, normal, constraints, M: int, pole_tilt: float = 0.0) -> MeridianGrid:
+    n = len(pref)
+    phis = 2 * np.pi * np.arange(M) / M
+    PH = np.broadcast_to(phis, (n, M))
+    lo, hi = theta_interval(rot, PH, constraints, rot.best_theta(normal[:, None, :], PH))
+    lo = np.maximum(lo, rot.theta_lo)
+    hi = np.minimum(hi, rot.theta_hi)
+    tp = rot.best_theta(pref[:, None, :], PH)
+    th = np.clip(tp, lo, hi)
+    if pole_tilt > 0:
+        near = np.abs(th) < pole_tilt
+        up = np.where(hi >= pole_tilt, np.maximum(lo, pole_tilt), np.inf)
+        dn = np.where(lo <= -pole_tilt, np.minimum(hi, -pole_tilt), -np.inf)
+        pick = np.where(np.abs(up - th) <= np.abs(dn - th), up, dn)
+        th = np.where(near, pick, th)
+    ok = (lo <= hi) & np.isfinite(th)
+    th = np.where(ok, th, 0.0)
+    return MeridianGrid(phis, th, lo, hi, tp, ok, th.copy(), np.zeros(th.shape, bool))
+
+
+IN_PLACE = (0.1, 10.0 * DEG)     # no rotary step above 10 deg while the contact moves less than 0.1 mm
+
+
+def joint_transitions(grid: MeridianGrid, cost: SmoothingCost, ds: np.ndarray, max_step: float,
+                      free_step: np.ndarray, air=None):
+    """The transition cost ``i -> (M, M)`` between the grid's poses (see the module):
+    ``L / ds * (alpha (dtheta^2 + w dphi^2) + beta |dK|^2)``, moves of the tool axis above
+    ``max_step`` forbidden except into points where ``free_step``, and rotary steps above
+    ``IN_PLACE`` forbidden on blocks shorter than it except into points where ``air``
+    (retracts, rapids). Reads ``grid.theta`` when called (the lazy collision checks update it)."""
+    phis = grid.phi
+    dphi = np.pi - np.mod(np.pi - (phis[None, :] - phis[:, None]), 2 * np.pi)
+    D2 = cost.w * dphi ** 2
+    cosD = np.cos(dphi)
+    cmax = np.cos(max_step)
+    alpha, beta, L = cost.alpha, cost.beta, cost.length
+    TH = grid.theta
+    swing = np.abs(dphi) > IN_PLACE[1] + 1e-9
+    air = np.zeros(len(TH), bool) if air is None else air
+
+    def trans(i: int) -> np.ndarray:
+        a, b = TH[i - 1], TH[i]
+        dots = np.cos(a)[:, None] * np.cos(b)[None, :] + (np.sin(a)[:, None] * np.sin(b)[None, :]) * cosD
+        dt = a[:, None] - b[None, :]
+        t = alpha * (dt * dt + D2)
+        if beta:
+            t += beta * (2.0 - 2.0 * dots)
+        t *= L / ds[i - 1]
+        if not free_step[i]:
+            t[dots < cmax - 1e-12] = np.inf
+        if ds[i - 1] < IN_PLACE[0] and not air[i]:
+            t[swing] = np.inf
+        return t
+    return trans
+
+
+def resolve_meridians(checker, C, rot: Rotary, grid: MeridianGrid, status, pts, ks, step: float,
+                      count: int = 12, refine: int = 3, tick=None):
+    """For the states (pts, ks) whose pose collides or is not yet known: the collision-free
+    tilt on the same meridian nearest the preferred one, among the current tilt and ``count``
+    tilts ``step`` apart further from the preferred axis inside the admissible arc (closer
+    tilts of this meridian are the other side of the pole: meridian k + M/2), tried nearest first (one
+    batch of checks per rank, only for the states still open); a state with none is
+    excluded (status 2), else free (status 0) at the tilt found, refined by ``refine``
+    bisections toward the last colliding one. Returns the checks made."""
+    if len(pts) == 0:
+        return 0
+    th0 = grid.theta[pts, ks]
+    # away from the preferred axis only: the other side of the pole is the meridian k + M/2
+    away = np.where(th0 >= grid.pref[pts, ks], 1.0, -1.0)
+    T = th0[:, None] + away[:, None] * step * np.arange(count + 1)[None, :]
+    inside = (T >= grid.lo[pts, ks][:, None] - 1e-12) & (T <= grid.hi[pts, ks][:, None] + 1e-12)
+    key = np.where(inside, np.abs(T - grid.pref[pts, ks][:, None]), np.inf)
+    order = np.argsort(key, axis=1, kind="stable")
+    T = np.take_along_axis(T, order, 1)
+    inside = np.take_along_axis(inside, order, 1)
+    found = np.full(len(pts), np.nan)
+    near = np.full(len(pts), np.nan)           # the last colliding tilt before the free one
+    checks = 0
+    for rank in range(T.shape[1]):
+        open_ = np.nonzero(np.isnan(found) & inside[:, rank])[0]
+        if len(open_) == 0:
+            if not (np.isnan(found) & inside[:, rank:].any(axis=1)).any():
+                break
+            continue
+        hit = checker.collides(C[pts[open_]], rot.axis(T[open_, rank], grid.phi[ks[open_]]))
+        checks += len(open_)
+        found[open_[~hit]] = T[open_[~hit], rank]
+        near[open_[hit]] = T[open_[hit], rank]
+        if tick is not None:
+            tick()
+    # the boundary between the last colliding and the first free tilt, by bisection
+    q = np.nonzero(~np.isnan(found) & ~np.isnan(near))[0]
+    a, b = near[q], found[q]
+    for _ in range(refine):
+        if len(q) == 0:
+            break
+        mid = 0.5 * (a + b)
+        hit = checker.collides(C[pts[q]], rot.axis(mid, grid.phi[ks[q]]))
+        checks += len(q)
+        a, b = np.where(hit, mid, a), np.where(hit, b, mid)
+    found[q] = b
+    ok = ~np.isnan(found)
+    grid.raised[pts[ok], ks[ok]] = ~np.isnan(near[ok]) | (found[ok] != th0[ok])
+    grid.theta[pts[ok], ks[ok]] = found[ok]
+    status[pts, ks] = np.where(ok, 0, 2)
+    return checks
+
+
+class NoPath(Exception):
+    """The programme found no allowed sequence: ``point`` has no collision-free pose
+    (``where = "point"``) or no pair of poses joins ``point`` and ``point + 1``."""
+
+    def __init__(self, point: int, kind: str):
+        super().__init__(kind)
+        self.point, self.kind = point, kind
+
+
+def joint_programme(checker, C, grid: MeridianGrid, cost: SmoothingCost, pref, ds, half, max_step: float,
+                    free_step, step: float, anchor: int = 4, window: int = 1, k_window: int = 1,
+                    max_rounds: int = 200, air=None, tick=None):
+    """The Viterbi programme over the grid's poses with lazy collision checks.
+
+    The programme runs on poses not known to collide, the chosen ones are checked, and around
+    a colliding one the anchors (every ``anchor``-th point) of its stretch get all their
+    rotary positions searched (:func:`resolve_meridians`); the points between take from
+    them what is likely (a position excluded at both anchors is left out, one free at an
+    anchor starts from the anchor's extra tilt), and the colliding pose's own neighbourhood
+    is searched. The loop ends when every chosen pose is checked free: the sequence is then
+    optimal over the poses known free. Returns ``(states, rounds, checks, status)``; raises
+    :class:`NoPath`."""
+    n, M = grid.theta.shape
+    rot = cost.rotary
+    tick = tick or (lambda: None)
+    trans = joint_transitions(grid, cost, ds, max_step, free_step, air)
+    status = np.where(grid.ok, -1, 2).astype(np.int8)   # -1 unknown, 0 free, 2 excluded, 3 likely excluded
+    theta_init = grid.theta.copy()
+    anchored = np.zeros(n, bool)
+    rounds = checks = 0
+    kw = np.arange(-window, window + 1)
+    kk = np.arange(-k_window, k_window + 1)
+
+    def resolve(pj, pk):
+        keep = (status[pj, pk] == -1) | (status[pj, pk] == 3)
+        status[pj[keep], pk[keep]] = -1
+        return resolve_meridians(checker, C, rot, grid, status, pj[keep], pk[keep], step, tick=tick)
+
+    while True:
+        rounds += 1
+        tick()
+        dev = angle_between(rot.axis(grid.theta, grid.phi[None, :]), pref[:, None, :])
+        node = np.where((status == -1) | (status == 0), dev ** 2 * half[:, None], np.inf)
+        states, broke = viterbi(node, trans)
+        if states is None:
+            i = max(broke, 0)
+            pts = np.array([j for j in (i, i + 1) if j < n])
+            pj, pk = np.nonzero((status[pts] == -1) | (status[pts] == 3))
+            if len(pj):
+                checks += resolve(pts[pj], pk)
+                continue
+            j = next((j for j in pts if not (status[j] == 0).any()), None)
+            raise NoPath(j, "point") if j is not None else NoPath(i, "pair")
+        cols = np.arange(n)
+        unknown = np.nonzero(status[cols, states] == -1)[0]
+        if len(unknown) == 0:
+            return states, rounds, checks, status
+        ax = rot.axis(grid.theta[unknown, states[unknown]], grid.phi[states[unknown]])
+        hit = checker.collides(C[unknown], ax)
+        checks += len(unknown)
+        status[unknown[~hit], states[unknown[~hit]]] = 0
+        bad = unknown[hit]
+        if len(bad):
+            # anchors of the stretches around colliding poses: every rotary position
+            lo_a = (bad // anchor) * anchor
+            hi_a = np.minimum(lo_a + anchor, n - 1)
+            anc = np.unique(np.concatenate([lo_a, hi_a]))
+            anc = anc[~anchored[anc]]
+            if len(anc):
+                pj, pk = np.nonzero(status[anc] == -1)
+                checks += resolve(anc[pj], pk)
+                anchored[anc] = True
+                # the points between two anchors: what both anchors say
+                starts = np.unique(lo_a)
+                ends = np.minimum(starts + anchor, n - 1)
+                span = np.arange(1, anchor)
+                P = starts[:, None] + span[None, :]
+                A0 = np.broadcast_to(starts[:, None], P.shape)
+                A1 = np.broadcast_to(ends[:, None], P.shape)
+                inside = P < A1
+                P, A0, A1 = P[inside], A0[inside], A1[inside]
+                und = status[P] == -1                                   # (p, M)
+                ex0, ex1 = status[A0] == 2, status[A1] == 2
+                d0 = np.where(status[A0] == 0, grid.theta[A0] - theta_init[A0], 0.0)
+                d1 = np.where(status[A1] == 0, grid.theta[A1] - theta_init[A1], 0.0)
+                d = np.where(np.abs(d0) >= np.abs(d1), d0, d1)
+                st = status[P]
+                st[und & ex0 & ex1] = 3
+                status[P] = st
+                th = np.clip(theta_init[P] + d, grid.lo[P], grid.hi[P])
+                grid.theta[P] = np.where(und & ~(ex0 & ex1), th, grid.theta[P])
+            # and the colliding poses' own neighbourhood
+            pj = np.clip(bad[:, None, None] + kw[None, :, None], 0, n - 1)
+            pk = np.mod(states[bad][:, None, None] + kk[None, None, :], M)
+            pj, pk = (v.ravel() for v in np.broadcast_arrays(pj, pk))
+            key = np.unique(pj * M + pk)
+            checks += resolve(key // M, key % M)
+        if rounds >= max_rounds:                                  # pragma: no cover
+            raise NoPath(0, "rounds")
+
+
+def free_tilts(grid: MeridianGrid, status) -> np.ndarray | None:
+    """What the programme learnt about collisions, as the polish's constraint: per point and
+    grid azimuth ``phi_k`` the smallest tilt from the C axis toward it that the checks found
+    collision-free where they had to raise it, ``inf`` where every admissible tilt collides,
+    0 where no check said anything (the cone is the polish's own constraint) (n, M). Only for
+    a preferred axis along the C axis, where the free tilts of a meridian start at a bound and
+    go outward (None otherwise: the polish then learns from its own checks alone)."""
+    if np.abs(grid.pref).max() > 1e-9:
+        return None
+    n, M = grid.theta.shape
+    A = np.zeros((n, M))
+    raised = (status == 0) & grid.raised
+    blocked = grid.ok & (status == 2)
+    v = grid.theta
+    rows = np.broadcast_to(np.arange(n)[:, None], (n, M))
+    cols = np.broadcast_to(np.arange(M)[None, :], (n, M))
+    pos, neg = raised & (v >= 0), raised & (v < 0)
+    np.maximum.at(A, (rows[pos], cols[pos]), v[pos])
+    np.maximum.at(A, (rows[neg], (cols[neg] + M // 2) % M), -v[neg])
+    # every tilt of a blocked meridian collides: toward its side from the start tilt on
+    s0 = grid.start
+    bp, bn = blocked & (s0 >= 0), blocked & (s0 < 0)
+    A[rows[bp], cols[bp]] = np.inf
+    A[rows[bn], (cols[bn] + M // 2) % M] = np.inf
+    return A
+
+
+def _tilt_table(A, az, M):
+    """Conservative smallest free tilt toward azimuths ``az`` (n,): the larger of the two
+    grid azimuths around it."""
+    f = np.mod(az, 2 * np.pi) / (2 * np.pi) * M
+    k0 = np.floor(f).astype(int) % M
+    r = np.arange(len(az))
+    return np.maximum(A[r, k0], A[r, (k0 + 1) % M])
+
+
+def _azimuth_window(A, az, tilt, M):
+    """How far (rad, left and right) the azimuth of a pose at ``tilt`` may turn from ``az``
+    through grid azimuths whose free tilt is at most ``tilt``."""
+    n = len(az)
+    d = 2 * np.pi / M
+    f = np.mod(az, 2 * np.pi) / d
+    c = np.rint(f).astype(int) % M
+    off = (f - np.rint(f)) * d                      # az minus the centre of cell c
+    ok = A <= tilt[:, None] + 1e-12
+    j = np.arange(1, M // 2 + 1)
+    right = np.take_along_axis(ok, (c[:, None] + j[None, :]) % M, 1)
+    left = np.take_along_axis(ok, (c[:, None] - j[None, :]) % M, 1)
+    run_r = np.where(right.all(1), M // 2, np.argmin(right, 1))
+    run_l = np.where(left.all(1), M // 2, np.argmin(left, 1))
+    here = ok[np.arange(n), c]
+    return (np.where(here, np.maximum(0.0, run_l * d + off), 0.0),
+            np.where(here, np.maximum(0.0, run_r * d - off), 0.0))
+
+
+# --- admissible arcs on a meridian -----------------------------------------------------------
+
+def cone_halfspaces(normal, feed, lead_max: float, tilt_max: float):
+    """The lead/tilt limits around the normal as half-spaces ``h . a >= 0`` (list of (n,3)):
+    ``|a.f| <= tan(lead_max) a.n`` and ``|a.s| <= tan(tilt_max) a.n`` (s = n x f)."""
+    side = np.cross(normal, feed)
+    tl = np.tan(min(lead_max, 89.9 * DEG))
+    tt = np.tan(min(tilt_max, 89.9 * DEG))
+    return [tl * normal - feed, tl * normal + feed, tt * normal - side, tt * normal + side]
+
+
+def theta_interval(rot: Rotary, phi, constraints, ref):
+    """Interval [lo, hi] of signed tilt on the meridian at rotary ``phi`` ((n,) or (n, M))
+    where every constraint ``(h (n,3), b (n,))``, ``h . a >= b``, holds; arcs are taken on
+    the branch nearest ``ref`` (shaped like phi; a point known or expected inside, e.g. the
+    normal's tilt on that meridian). Empty where lo > hi."""
+    phi = np.asarray(phi, float)
+    m = rot.meridian(phi)
+    grid = phi.ndim == 2
+    lo = np.full(phi.shape, -np.inf)
+    hi = np.full(phi.shape, np.inf)
+    for h, b in constraints:
+        hz = h[:, 2][:, None] if grid else h[:, 2]
+        hm = np.einsum("nj,nkj->nk", h, m) if grid else np.einsum("ij,ij->i", h, m)
+        bb = np.asarray(b, float)[:, None] if grid else np.asarray(b, float)
+        R = np.hypot(hz, hm)
+        al = np.arctan2(hm, hz)
+        al = ref + (np.pi - np.mod(np.pi - (al - ref), 2 * np.pi))          # nearest ref
+        with np.errstate(divide="ignore", invalid="ignore"):
+            c = np.where(R > 1e-15, bb / np.where(R > 1e-15, R, 1.0), np.where(bb <= 0, -1.0, 2.0))
+        half = np.where(c <= -1.0, np.pi, np.where(c >= 1.0, -1.0, np.arccos(np.clip(c, -1.0, 1.0))))
+        lo = np.maximum(lo, al - half)
+        hi = np.minimum(hi, al + half)
+    return lo, hi
+
+
+def phi_interval(rot: Rotary, theta, constraints, ref):
+    """Interval [lo, hi] of rotary values around ``ref`` (n,) where the tilt ``theta`` (n,)
+    keeps every constraint ``(h, b)``: a circle of latitude meets each half-space in an arc."""
+    theta = np.asarray(theta, float)
+    n = len(theta)
+    st, ct = np.sin(theta), np.cos(theta)
+    lo = np.full(n, -np.inf)
+    hi = np.full(n, np.inf)
+    for h, b in constraints:
+        if rot.about == "X":                       # h . meridian(phi) = A cos phi + B sin phi
+            A_, B_ = -h[:, 1], h[:, 0]
+        else:
+            A_, B_ = h[:, 0], h[:, 1]
+        rho = np.hypot(A_, B_) * np.abs(st)
+        beta = np.arctan2(B_, A_) + np.where(st < 0, np.pi, 0.0)
+        beta = ref + (np.pi - np.mod(np.pi - (beta - ref), 2 * np.pi))
+        need = np.asarray(b, float) - h[:, 2] * ct
+        with np.errstate(divide="ignore", invalid="ignore"):
+            c = np.where(rho > 1e-12, need / np.where(rho > 1e-12, rho, 1.0), np.where(need <= 1e-12, -1.0, 2.0))
+        half = np.where(c <= -1.0, np.inf, np.where(c >= 1.0, -1.0, np.arccos(np.clip(c, -1.0, 1.0))))
+        lo = np.maximum(lo, beta - half)
+        hi = np.minimum(hi, beta + half)
+    return lo, hi
+
+
+# --- the continuous smoothing ------------------------------------------------------------------
+
+class _Banded:
+    """A symmetric positive definite banded system (upper form, ``u`` off-diagonals) assembled
+    from terms ``W (r + v . x)^2``; :meth:`solve_box` minimises ``x^T H x / 2 + g^T x`` within
+    bounds by an active set (exact for the convex quadratic)."""
+
+    def __init__(self, N: int, u: int = 2):
+        self.N, self.u = N, u
+        self.ab = np.zeros((u + 1, N))
+        self.g = np.zeros(N)
+
+    def add(self, W, idx, V, r):
+        """Terms: weights W (T,), variable indices idx (T,k), coefficients V (T,k), residuals r (T,)."""
+        W = np.broadcast_to(np.asarray(W, float), (len(idx),))
+        k = idx.shape[1]
+        for a in range(k):
+            self.g += np.bincount(idx[:, a], W * r * V[:, a], minlength=self.N)
+            for b in range(k):
+                i, j = idx[:, a], idx[:, b]
+                keep = i <= j
+                flat = (self.u + i[keep] - j[keep]) * self.N + j[keep]
+                self.ab += np.bincount(flat, (W * V[:, a] * V[:, b])[keep],
+                                       minlength=(self.u + 1) * self.N).reshape(self.u + 1, self.N)
+
+    def matvec(self, x):
+        u, N, ab = self.u, self.N, self.ab
+        y = ab[u] * x
+        for k in range(1, u + 1):
+            band = ab[u - k, k:]                 # H[i, i + k]
+            y[:-k] += band * x[k:]
+            y[k:] += band * x[:-k]
+        return y
+
+    def solve_box(self, lo, hi, iterations: int = 40):
+        """argmin over lo <= x <= hi (lo <= hi everywhere)."""
+        N, u = self.N, self.u
+        at = np.zeros(N, np.int8)                # -1 at lo, +1 at hi
+        x = np.zeros(N)
+        for _ in range(iterations):
+            fixed = at != 0
+            xf = np.where(at < 0, lo, np.where(at > 0, hi, 0.0))
+            ab = self.ab.copy()
+            rhs = -self.g - self.matvec(xf)
+            if fixed.any():
+                f = np.nonzero(fixed)[0]
+                for k in range(1, u + 1):
+                    c = f[f + k < N]
+                    ab[u - k, c + k] = 0.0       # H[f, f + k]
+                    c = f[f - k >= 0]
+                    ab[u - k, c] = 0.0           # H[f - k, f]
+                ab[u, f] = 1.0
+                rhs[f] = 0.0
+            x = solveh_banded(ab, rhs, lower=False, check_finite=False) + xf
+            change = False
+            low, high = ~fixed & (x < lo - 1e-12), ~fixed & (x > hi + 1e-12)
+            if low.any() or high.any():
+                at[low], at[high] = -1, 1
+                change = True
+            grad = self.matvec(x) + self.g
+            rel = ((at < 0) & (grad < -1e-12)) | ((at > 0) & (grad > 1e-12))
+            if rel.any() and not change:
+                at[rel] = 0
+                change = True
+            if not change:
+                break
+        return np.clip(x, lo, hi)
+
+
+def _quadratic(x0_len: int, ds, couple, L: float, w_vel: float, l_acc: float, block=None) -> _Banded:
+    """Velocity and acceleration terms of one joint coordinate along the path (see the module);
+    ``block`` (n-1,): extra factors of the blocks' velocity terms."""
+    n = x0_len
+    B = _Banded(n, 2)
+    j = np.nonzero(couple)[0]
+    one = np.ones(len(j))
+    if len(j):
+        f = 1.0 if block is None else block[j]
+        B.add(w_vel * L / ds[j] * f, np.stack([j, j + 1], 1), np.stack([-one, one], 1), np.zeros(len(j)))
+    k = np.nonzero(couple[:-1] & couple[1:])[0] + 1 if n > 2 else np.zeros(0, int)
+    if len(k) and l_acc > 0:
+        d0, d1 = ds[k - 1], ds[k]
+        dm = 0.5 * (d0 + d1)
+        ca, cc = 1.0 / (d0 * dm), 1.0 / (d1 * dm)
+        B.add(w_vel * L * dm * l_acc ** 2, np.stack([k - 1, k, k + 1], 1),
+              np.stack([ca, -(ca + cc), cc], 1), np.zeros(len(k)))
+    return B
+
+
+def smooth_joints(path, rot: Rotary, theta0, phi0, pref, normal, cost: SmoothingCost, constraints, *,
+                  checker=None, move_free=None, pole_tilt: float = 0.0, rounds: int = 6, alternations: int = 3,
+                  lean: float = 2.0 * DEG, bisect: int = 4, free_tilt=None, tick=None):
+    """Polish the programme's collision-free poses ``(theta0, phi0)`` (rad, phi unwound) in
+    joint space: the rotary values are smoothed (velocity and acceleration terms, held to the
+    programme's tool-axis direction in proportion to sin^2 theta: nothing near the pole),
+    then the tilts solve their convex problem on each point's admissible arc at the new
+    rotary value (:meth:`_Banded.solve_box`); a few such alternations, then the moved poses
+    are checked. A colliding pose goes as far toward its new value as the checks allow
+    (bisection in joint space), its rotary value is held there and its tilt may not come
+    nearer the preferred axis; then the polish is repeated (``rounds`` at most). Every
+    returned pose was checked free (or is the programme's). Returns ``(theta, phi, info)``."""
+    n = len(theta0)
+    info = {"joint_rounds": 0, "joint_checks": 0, "held_points": 0}
+    theta0 = np.asarray(theta0, float)
+    phi0 = np.asarray(phi0, float)
+    if n < 3:
+        return theta0.copy(), phi0.copy(), info
+    ds = np.maximum(np.linalg.norm(np.diff(path.contact, axis=0), axis=1), 1e-3)
+    L = cost.length
+    couple = np.ones(n - 1, bool) if move_free is None else ~np.asarray(move_free, bool)
+    if rot.phi_limited:
+        couple &= np.abs(np.diff(phi0)) < 0.5 * np.pi            # rewinds of a limited C
+    half = np.zeros(n)
+    half[:-1] += 0.5 * ds
+    half[1:] += 0.5 * ds
+    K0 = rot.axis(theta0, phi0)
+    alpha = max(cost.alpha, 1e-9)
+    Qphi = _quadratic(n, ds, couple, L, alpha * cost.w + cost.beta * 0.0, cost.l_phi)
+    Qth = _quadratic(n, ds, couple, L, alpha + cost.beta, cost.l_theta)
+    held = np.zeros(n, bool)                       # pose held after a collision
+    theta, phi = theta0.copy(), phi0.copy()        # the last poses checked free (and admissible)
+    M = 0 if free_tilt is None else free_tilt.shape[1]
+    bw_t = bw_p = None
+    hold = (half / L) * np.sin(theta0) ** 2 + 1e-9 * half / L
+
+    def arcs(ph, th, idx=None):
+        cons = constraints if idx is None else [(h[idx], np.asarray(b)[idx]) for h, b in constraints]
+        lo, hi = theta_interval(rot, ph, cons, th)
+        return np.maximum(lo, rot.theta_lo), np.minimum(hi, rot.theta_hi)
+
+    for r in range(rounds):
+        info["joint_rounds"] = r + 1
+        th_c = np.where(held, theta, theta0)           # every round starts from the programme
+        ph_c = np.where(held, phi, phi0)
+        for _ in range(alternations):
+            # 1. rotary values: smooth where the tilt stays admissible, held where the tool
+            # axis would turn with them (nothing near the pole)
+            plo, phi_hi = phi_interval(rot, th_c, constraints, ph_c)
+            # ... or at a little more tilt away from the preferred axis, which the tilt step
+            # may then take (the rotary value held by a tilt on its bound can move)
+            away = np.where(th_c >= rot.best_theta(pref, ph_c), 1.0, -1.0)
+            th2 = np.clip(th_c + away * lean, rot.theta_lo, rot.theta_hi)
+            l2, h2 = phi_interval(rot, th2, constraints, ph_c)
+            ok2 = (l2 <= ph_c) & (ph_c <= h2)
+            plo, phi_hi = np.where(ok2, np.minimum(plo, l2), plo), np.where(ok2, np.maximum(phi_hi, h2), phi_hi)
+            if rot.phi_limited:
+                plo, phi_hi = np.maximum(plo, rot.phi_lo), np.minimum(phi_hi, rot.phi_hi)
+            if free_tilt is not None:        # ... and through azimuths known free
+                az = ph_c + np.where(th_c < 0, np.pi, 0.0)
+                wl, wr = _azimuth_window(free_tilt, az, np.abs(th_c) + lean, M)
+                plo, phi_hi = np.maximum(plo, ph_c - wl), np.minimum(phi_hi, ph_c + wr)
+            plo = np.where(held, ph_c, np.minimum(plo, ph_c))   # the current value is admissible
+            phi_hi = np.where(held, ph_c, np.maximum(phi_hi, ph_c))
+            B = _Banded(n, 2)
+            B.ab[:] = Qphi.ab if bw_p is None else _quadratic(n, ds, couple, L, alpha * cost.w, cost.l_phi, bw_p).ab
+            B.add(hold, np.arange(n)[:, None], np.ones((n, 1)), -phi0)
+            ph_c = B.solve_box(plo, phi_hi)
+            # 2. tilts: the convex problem on the admissible arcs at the new rotary values
+            tp = rot.best_theta(pref, ph_c)
+            lo, hi = arcs(ph_c, th_c)
+            if pole_tilt > 0:                          # stay on the programme's side of the pole
+                lo = np.where(theta0 > 0, np.maximum(lo, pole_tilt), lo)
+                hi = np.where(theta0 < 0, np.minimum(hi, -pole_tilt), hi)
+            if free_tilt is not None:        # the free tilts the programme found
+                up = th_c >= 0
+                t_pos = _tilt_table(free_tilt, ph_c, M)
+                t_neg = _tilt_table(free_tilt, ph_c + np.pi, M)
+                # a raised side keeps the tilt at its bound; a raised other side keeps it off
+                # the pole's other side
+                b_up = np.where(t_pos > 0, t_pos, np.where(t_neg > 0, 0.0, -np.inf))
+                b_dn = np.where(t_neg > 0, -t_neg, np.where(t_pos > 0, 0.0, np.inf))
+                lo = np.where(up, np.maximum(lo, b_up), lo)
+                hi = np.where(~up, np.minimum(hi, b_dn), hi)
+            lo, hi = np.minimum(lo, th_c), np.maximum(hi, th_c)
+            lo, hi = np.where(held, th_c, lo), np.where(held, th_c, hi)
+            B = _Banded(n, 2)
+            B.ab[:] = Qth.ab if bw_t is None else _quadratic(n, ds, couple, L, alpha + cost.beta, cost.l_theta, bw_t).ab
+            B.add(half / L, np.arange(n)[:, None], np.ones((n, 1)), -tp)
+            th_c = B.solve_box(lo, hi)
+            if cost.feed > 0 and cost.over > 0:
+                # blocks beyond an axis's speed at the feed would slow it: weigh them more
+                # in the next alternation (iteratively reweighted)
+                r_t = np.abs(np.diff(th_c)) / (ds * rot.v_theta / cost.feed)
+                r_p = np.abs(np.diff(ph_c)) / (ds * rot.v_phi / cost.feed)
+                bw_t = np.maximum(1.0 if bw_t is None else bw_t,
+                                  np.minimum(1.0 + cost.over * np.maximum(r_t - 1.0, 0.0) ** 2, 100.0))
+                bw_p = np.maximum(1.0 if bw_p is None else bw_p,
+                                  np.minimum(1.0 + cost.over * np.maximum(r_p - 1.0, 0.0) ** 2, 100.0))
+        # 3. lazy collision checks of the moved poses; a colliding one goes as far as it can
+        K = rot.axis(theta, phi)
+        Kc = rot.axis(th_c, ph_c)
+        todo = np.nonzero(angle_between(Kc, K) > 1e-9)[0]
+        bad = np.zeros(0, int)
+        if checker is not None and len(todo):
+            hit = checker.collides(path.center[todo], Kc[todo])
+            info["joint_checks"] += len(todo)
+            if tick is not None:
+                tick()
+            bad = todo[hit]
+        good = np.setdiff1d(todo, bad)
+        theta[good], phi[good] = th_c[good], ph_c[good]
+        if len(bad) == 0:
+            break
+        # first keep the new rotary value with the tilt where it was, or a little further
+        # from the preferred axis (a collision limits the tilt more often than the azimuth:
+        # the rotary value then stays with its smoothed neighbours)
+        tp_b = rot.best_theta(pref[bad], ph_c[bad])
+        away = np.where(theta[bad] >= tp_b, 1.0, -1.0)
+        placed = np.zeros(len(bad), bool)
+        for extra in (0.0, lean, 2 * lean):
+            q = np.nonzero(~placed)[0]
+            if len(q) == 0:
+                break
+            tt = np.clip(np.where(away[q] > 0, np.maximum(theta[bad[q]], th_c[bad[q]]),
+                                  np.minimum(theta[bad[q]], th_c[bad[q]])) + away[q] * extra,
+                         rot.theta_lo, rot.theta_hi)
+            lo, hi = arcs(ph_c[bad[q]], tt, bad[q])
+            q = q[(tt >= lo - 1e-12) & (tt <= hi + 1e-12)]
+            tt = tt[(tt >= lo - 1e-12) & (tt <= hi + 1e-12)]
+            if len(q):
+                free = ~checker.collides(path.center[bad[q]], rot.axis(tt, ph_c[bad[q]]))
+                info["joint_checks"] += len(q)
+                theta[bad[q[free]]], phi[bad[q[free]]] = tt[free], ph_c[bad[q[free]]]
+                placed[q[free]] = True
+        held[bad] = True
+        bad = bad[~placed]
+        t_lo, t_hi = np.zeros(len(bad)), np.ones(len(bad))
+        for _ in range(bisect):
+            t = 0.5 * (t_lo + t_hi)
+            tt = theta[bad] + t * (th_c[bad] - theta[bad])
+            pt = phi[bad] + t * (ph_c[bad] - phi[bad])
+            lo, hi = arcs(pt, tt, bad)
+            ok = (tt >= lo - 1e-12) & (tt <= hi + 1e-12)
+            q = np.nonzero(ok)[0]
+            free = np.zeros(len(bad), bool)
+            if len(q):
+                free[q] = ~checker.collides(path.center[bad[q]], rot.axis(tt[q], pt[q]))
+                info["joint_checks"] += len(q)
+            t_lo = np.where(free, t, t_lo)
+            t_hi = np.where(free, t_hi, t)
+        theta[bad] = theta[bad] + t_lo * (th_c[bad] - theta[bad])
+        phi[bad] = phi[bad] + t_lo * (ph_c[bad] - phi[bad])
+    info["held_points"] = int(held.sum())
+    return theta, phi, info

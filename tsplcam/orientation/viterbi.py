@@ -1,0 +1,106 @@
+"""Minimum-cost state sequences along a chain: the Viterbi algorithm (dynamic programming).
+
+Every point ``i`` of a path has the same ``S`` states (candidate tool axes, or machine
+poses); a sequence costs the sum of its node costs ``node[i, s_i]`` and of its transition
+costs ``T_i[s_i, s_{i+1}]``; ``inf`` marks a state or a move that is not allowed. One
+forward pass keeps, per state, the cheapest way to reach it and where it came from; the
+backward pass reads the best sequence off. Exact, ``O(n S^2)``, one array operation per
+point (the recurrence is sequential, each step is vectorised over the ``S x S`` moves).
+
+The tool-orientation smoothing (candidate axes per point) and the post's choice of machine
+poses (inverse-kinematics branches and C representatives per point) both use this one
+function. Ties, and costs equal up to a relative ``TIE``, go to the lowest state: vectorised
+sums may differ in the last bits with memory alignment from run to run, and no decision
+(and so no program byte) may hang on them.
+"""
+from __future__ import annotations
+
+from typing import Callable
+
+import numpy as np
+
+TIE = 1e-9
+
+
+def first_min(v: np.ndarray, axis: int = 0) -> np.ndarray:
+    """Index of the smallest value along ``axis``; values within ``TIE`` (relative) of it
+    count as equal and the first of them wins."""
+    m = v.min(axis=axis, keepdims=True)
+    return np.argmax(v <= m + TIE * np.maximum(1.0, np.abs(m)), axis=axis)
+
+
+def _le(x: float, y: float) -> bool:
+    """x <= y up to the relative tie tolerance (infinite costs compare exactly)."""
+    if x == np.inf or y == np.inf:
+        return x <= y
+    return x <= y + TIE * max(1.0, abs(x), abs(y))
+
+
+def _two_states(node: np.ndarray, trans: np.ndarray):
+    """S = 2 with every transition given: plain floats beat array calls on 2 x 2 steps."""
+    n = len(node)
+    nd = node.tolist()
+    t = trans.reshape(-1, 4).tolist()
+    a0, a1 = nd[0]
+    bk = [None] * n
+    for i in range(1, n):
+        c00, c01, c10, c11 = t[i - 1]
+        x0, x1 = a0 + c00, a1 + c10
+        y0, y1 = a0 + c01, a1 + c11
+        b0 = 0 if _le(x0, x1) else 1
+        b1 = 0 if _le(y0, y1) else 1
+        n0, n1 = nd[i]
+        a0 = (x0 if b0 == 0 else x1) + n0
+        a1 = (y0 if b1 == 0 else y1) + n1
+        if a0 == np.inf and a1 == np.inf:
+            return None, i - 1
+        bk[i] = (b0, b1)
+    if a0 == np.inf and a1 == np.inf:
+        return None, -1
+    state = np.zeros(n, np.int64)
+    s = 0 if _le(a0, a1) else 1
+    for i in range(n - 1, 0, -1):
+        state[i] = s
+        s = bk[i][s]
+    state[0] = s
+    return state, None
+
+
+def viterbi(node: np.ndarray, transition) -> tuple:
+    """The cheapest state sequence.
+
+    ``node``: (n, S) node costs (``inf``: the state is not allowed at that point);
+    ``transition``: an (n-1, S, S) array, or a function ``i -> (S, S)`` array giving the cost
+    of going from state a at point ``i - 1`` to state b at point ``i`` (``inf``: forbidden).
+    Returns ``(states, None)`` with ``states`` (n,) int, or ``(None, i)`` when no allowed
+    sequence reaches point ``i + 1`` (the chain breaks between ``i`` and ``i + 1``; ``i = -1``
+    when the first point has no allowed state).
+    """
+    node = np.asarray(node, float)
+    n, S = node.shape
+    if not np.isfinite(node[0]).any():
+        return None, -1
+    if n == 1:
+        return np.array([int(first_min(node[0]))], np.int64), None
+    if callable(transition):
+        get: Callable = transition
+    else:
+        trans = np.asarray(transition, float)
+        if S == 2:
+            return _two_states(node, trans)
+        get = lambda i: trans[i - 1]                      # noqa: E731
+    acc = node[0].copy()
+    back = np.zeros((n, S), np.int32)
+    cols = np.arange(S)
+    for i in range(1, n):
+        tot = acc[:, None] + get(i)
+        b = first_min(tot, axis=0)
+        acc = tot[b, cols] + node[i]
+        back[i] = b
+        if not np.isfinite(acc).any():
+            return None, i - 1
+    states = np.zeros(n, np.int64)
+    states[-1] = int(first_min(acc))
+    for i in range(n - 1, 0, -1):
+        states[i - 1] = back[i, states[i]]
+    return states, None

@@ -111,7 +111,7 @@ class OneProgramBuilder(unittest.TestCase):
                        smoothing_length=4.0, machine="bc_head_table_sinumerik", dialect="fanuc")
         with tempfile.TemporaryDirectory() as tmp:
             figures = run_job(JobSettings(out=os.path.join(tmp, "job"), **options), log=lambda *a: None,
-                              progress=lambda done, total: None)
+                              progress=lambda stage, done, total: None)
             with open(os.path.join(tmp, "job", "keycap.nc"), "rb") as fh:
                 job_program = fh.read()
             argv = ["path", "keycap", "--tool-radius", "0.5", "--tool", "ball1_keycap", "--orientation", "smooth",

@@ -21,13 +21,13 @@ import argparse
 import contextlib
 import json
 import os
-import sys
 import time
 from dataclasses import fields
 
 from . import load_model
 from .errors import InputError
 from .outfile import check_folder, check_writable, write_texts
+from .progress import TerminalProgress, for_stage
 from .program import (load_machine, load_stock, load_tool, make_baseline, make_path, make_program,
                       processing_list, program_file_name, tool_radius)
 from .settings import GROUPS, JobSettings, choices_of, default_of, help_text
@@ -147,13 +147,6 @@ def named_options(command: str):
         raise InputError(exc.message, path=exc.path, line=exc.line, item=label(exc.item)) from None
 
 
-def _progress(what: str):
-    """A progress callback printing 'what k/n' on stderr (the report stays on stdout)."""
-    def report(done: int, total: int) -> None:
-        print(f"\r{what} {done}/{total}", end="\n" if done == total else "", file=sys.stderr, flush=True)
-    return report
-
-
 def json_text(doc: dict) -> str:
     """A report as JSON text: sorted keys, numpy numbers as plain ones, LF line ends."""
     def plain(x):
@@ -194,7 +187,8 @@ def _cmd_path(args) -> int:
         load_machine(s)
         stock = load_stock(s) if s.orientation != "normal" else None
         timing = {}
-        path = make_path(model, plist, s, radius)
+        bar = TerminalProgress()
+        path = make_path(model, plist, s, radius, progress=bar)
         path.info["model"] = os.path.basename(s.model)
         timing["path_s"] = path.info["seconds"]
         baseline = None
@@ -206,10 +200,9 @@ def _cmd_path(args) -> int:
         if s.verify:
             from .verify.scallop import measure
             t = time.perf_counter()
-            verification = measure(path, model, progress=_progress("measuring scallop, patch"))
+            verification = measure(path, model, progress=for_stage(bar, "scallop"))
             timing["verify_s"] = time.perf_counter() - t
-        program = make_program(path, model, s, stock=stock, progress=_progress("orienting: poses checked / at most"),
-                               post=bool(s.gcode), plist=plist)
+        program = make_program(path, model, s, stock=stock, progress=bar, post=bool(s.gcode), plist=plist)
         timing.update(program.seconds)
         files = []
         if s.cl:
@@ -297,7 +290,9 @@ def path_report(path, verification=None, baseline=None) -> str:
 # -- the job ----------------------------------------------------------------------------------
 def run_job(s: JobSettings, log=print, progress=None) -> dict:
     """Model -> processing list -> path -> tool axes -> program, with a report; the files go
-    into ``s.out`` (made when missing), all written at the end. Returns the report."""
+    into ``s.out`` (made when missing), all written at the end. Returns the report.
+    ``progress``: a tsplcam.progress callback (default: a bar on stderr)."""
+    progress = progress or TerminalProgress()
     from .plan.listfile import dumps as list_text
     from .verify.metrics import path_metrics
     s.check()
@@ -320,13 +315,13 @@ def run_job(s: JobSettings, log=print, progress=None) -> dict:
     load_machine(s)
     stock = load_stock(s)
     t = time.perf_counter()
-    path = make_path(model, plist, s, radius)
+    path = make_path(model, plist, s, radius, progress=progress)
     timing["path_s"] = time.perf_counter() - t
     m = path_metrics(path)
     log(f"path: {m.lines} lines, {m.points} points, {m.length:.1f} mm, {m.retractions} retractions "
         f"({timing['path_s']:.2f} s)")
     program = make_program(path, model, s, stock=stock,
-                           progress=progress or _progress("orienting: poses checked / at most"))
+                           progress=progress)
     timing.update(program.seconds)
     if program.metrics is not None:
         log(f"tool axes ({s.orientation}): {program.metrics.summary()} ({timing['orientation_s']:.2f} s)")

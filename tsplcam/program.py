@@ -93,12 +93,18 @@ def load_stock(settings: JobSettings):
     return sample_stock(settings.model)
 
 
-def make_path(model, plist, settings: JobSettings, radius: float | None = None):
+def make_path(model, plist, settings: JobSettings, radius: float | None = None, progress=None):
     """The finishing path (ToolPath) of ``model`` in the order of ``plist``: one zigzag per
-    patch, linked at shared corners, tool axes along the surface normals."""
+    patch, linked at shared corners, tool axes along the surface normals. ``progress``: a
+    tsplcam.progress callback (stage "path")."""
+    from .progress import report
     from .toolpath import zigzag_path
     radius = tool_radius(settings) if radius is None else radius
-    return zigzag_path(model, plist, radius, **_path_options(settings, radius))
+    options = _path_options(settings, radius)
+    report(progress, "path", 0, 1)
+    path = zigzag_path(model, plist, radius, **options)
+    report(progress, "path", 1, 1)
+    return path
 
 
 def make_baseline(model, plist, settings: JobSettings, radius: float):
@@ -137,7 +143,9 @@ def make_program(path, model, settings: JobSettings, stock=None, progress=None, 
     ``rotary_weight``, ``machine`` and ``dialect``).
 
     ``stock``: (V, T) triangles the tool must clear besides the model (default:
-    :func:`load_stock`); ``progress(done, total)`` follows the collision checks; ``post``:
+    :func:`load_stock`); ``progress(stage, done, total)`` (tsplcam.progress) follows the
+    tool axes ("tool axes": poses checked) and the program ("program"), and may raise
+    Cancelled to stop; ``post``:
     False stops before the machine program; ``plist``: the processing list, whose steps may
     carry tool-axis settings for their patch. Raises InputError, CollisionError or
     KinematicsError naming the place; a path that collides is never returned."""
@@ -159,10 +167,13 @@ def make_program(path, model, settings: JobSettings, stock=None, progress=None, 
         program = Program(path)
     if post and machine is not None:
         from .post import post_program
+        from .progress import report
         t = time.perf_counter()
+        report(progress, "program", 0, 1)
         options = {} if settings.axes_form is None else {"orientation": settings.axes_form}
         program.posted = post_program(program.path, machine, settings.dialect, **options)
         program.seconds["post_s"] = time.perf_counter() - t
+        report(progress, "program", 1, 1)
     return program
 
 
@@ -171,6 +182,7 @@ def _orient(path, model, settings: JobSettings, tool, machine, stock, progress, 
     checked again with the same collision checker."""
     from .orientation import CollisionChecker, orient
     from .orientation.controls import step_settings
+    from .progress import for_stage
     from .verify.orientation import orientation_metrics
     base = settings.orientation_settings()
     per_patch = None
@@ -181,7 +193,7 @@ def _orient(path, model, settings: JobSettings, tool, machine, stock, progress, 
     meshes = [] if stock is None else [("stock", stock[0], stock[1])]
     checker = CollisionChecker(model, tool, meshes=meshes, clearance=settings.holder_clearance)
     oriented, report = orient(path, model, tool, settings=base, per_patch=per_patch, checker=checker,
-                              machine=machine, progress=progress)
+                              machine=machine, progress=for_stage(progress, "tool axes"))
     return Program(oriented, report, orientation_metrics(oriented, checker, machine))
 
 

@@ -76,7 +76,7 @@ class ProgramObject(unittest.TestCase):
         settings = obj.Proxy.settings(obj)
         self.assertEqual((settings.tool, settings.tool_radius, settings.scallop), ("ball1_keycap", 0.5, 0.05))
         settings.model, settings.out = "keycap", os.path.join(self.tmp, "job")
-        run_job(settings, log=lambda *a: None, progress=lambda done, total: None)
+        run_job(settings, log=lambda *a: None, progress=lambda stage, done, total: None)
         with open(os.path.join(self.tmp, "job", obj.ProgramName), encoding="ascii") as f:
             self.assertEqual(text, f.read())
 

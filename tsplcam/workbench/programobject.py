@@ -304,7 +304,9 @@ def compute_program(toolpath, model, settings: JobSettings, stock=None, progress
     builder; ``stock`` (V, T) triangles of the linked Stock object, else the sample's mold
     block where the model is the keycap_mold sample; ``progress(done, total)`` follows the
     collision checks. Raises InputError, CollisionError or KinematicsError naming the place."""
-    program = build_program(toolpath, model, settings, stock=stock, progress=progress)
+    staged = None if progress is None else (lambda stage, done, total: progress(done, total)
+                                            if stage == "tool axes" else None)
+    program = build_program(toolpath, model, settings, stock=stock, progress=staged)
     return program.path, program.posted, program.metrics
 
 

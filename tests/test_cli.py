@@ -6,6 +6,7 @@ import contextlib
 import io
 import json
 import os
+import shutil
 import subprocess
 import tempfile
 import unittest
@@ -15,7 +16,7 @@ from tsplcam.cli import main
 from tsplcam.model.samples import sample_path
 from tsplcam.plan import save
 from tsplcam.plan.steps import ProcessingList, Step
-from conftest import REPO_DIR
+from conftest import REPO_DIR, artifact_path
 from tsplcam.toolpath.cldata import read_cl
 from tsplcam.toolpath.path import Move
 
@@ -282,9 +283,15 @@ class Determinism(unittest.TestCase):
             for r in results:
                 self.assertEqual(r.returncode, 0, r.stderr)
             job_a, job_b, path_a, path_b = (os.path.join(cwd, "out") for cwd, _, _ in runs)
-            self.assert_same_files(job_a, job_b, ["keycap.cl", "keycap.ngc", "processing-list.json",
-                                                  "report.json"], "report.json")
-            self.assert_same_files(path_a, path_b, ["k.cl", "k.json", "k.mpf"], "k.json")
+            try:
+                self.assert_same_files(job_a, job_b, ["keycap.cl", "keycap.ngc", "processing-list.json",
+                                                      "report.json"], "report.json")
+                self.assert_same_files(path_a, path_b, ["k.cl", "k.json", "k.mpf"], "k.json")
+            except AssertionError:         # keep both runs' files for a look
+                keep = artifact_path("determinism-failure")
+                shutil.rmtree(keep, ignore_errors=True)
+                shutil.copytree(tmp, keep)
+                raise
 
 if __name__ == "__main__":
     unittest.main()

@@ -1,0 +1,81 @@
+"""The keycap job's stages in-process, for the README's example report and the report tests.
+
+    /usr/bin/python3 -m tsplcam.report.example [--scallop 0.005] [--out docs/report-example]
+
+runs model -> processing list -> path -> smooth collision-free tool axes -> Heidenhain program
+(the main job's defaults), measures the scallop on the surface and builds the compound-NURBS
+baseline, then writes the report; it prints each stage's time, the report's time and its size.
+"""
+from __future__ import annotations
+
+import argparse
+import os
+import time
+
+DEFAULTS = {"model": "keycap", "tool": "ball1_keycap", "scallop": 0.005, "chord_tol": 0.001,
+            "orientation": "smooth", "machine": "mikron_ucp600_heidenhain", "dialect": None,
+            "holder_clearance": 0.3}
+
+
+def job_objects(log=None, **settings) -> dict:
+    """Everything :func:`tsplcam.report.write_report` takes, for the job ``settings`` (keys of
+    :data:`DEFAULTS`), made by the pipeline's own stages; ``log(stage, seconds)`` is told each."""
+    from ..orientation import load_tool
+    from ..pipeline import orient_path, sample_stock
+    from ..post import load_machine, post_program
+    from ..toolpath import zigzag_path
+    from ..toolpath.baseline import baseline_path
+    from ..toolpath.commands import load_model
+    from ..toolpath.zigzag import default_plan
+    from ..verify.scallop import measure
+    s = dict(DEFAULTS, **settings)
+    log = log or (lambda stage, seconds: None)
+    out = {"settings": s}
+
+    def stage(name, make):
+        t = time.perf_counter()
+        value = make()
+        log(name, time.perf_counter() - t)
+        return value
+
+    model = out["model"] = stage("model", lambda: load_model(s["model"]))
+    plist = out["processing_list"] = stage("processing list", lambda: default_plan(model))
+    tool = out["tool"] = load_tool(s["tool"])
+    machine = out["machine"] = load_machine(s["machine"])
+    stock = out["stock"] = sample_stock(s["model"])
+    path = out["path"] = stage("path", lambda: zigzag_path(model, plist, tool.ball_radius, s["scallop"],
+                                                           s["chord_tol"]))
+    oriented = out["oriented"] = stage("tool axes", lambda: orient_path(
+        path, model, s["orientation"], tool, machine, stock, s["holder_clearance"]))
+    out["posted"] = stage("program", lambda: post_program(oriented.path, machine, s["dialect"]))
+    out["verification"] = stage("scallop verification", lambda: measure(path, model, heights=True))
+    out["baseline"] = stage("baseline", lambda: baseline_path(model, tool.ball_radius, s["scallop"], s["chord_tol"],
+                                                             order=plist.order))
+    return out
+
+
+def folder_size(path: str) -> int:
+    """Bytes of every file under ``path``."""
+    return sum(os.path.getsize(os.path.join(d, f)) for d, _, files in os.walk(path) for f in files)
+
+
+def main(argv=None) -> int:
+    from .report import FILES, write_report
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--out", default="docs/report-example")
+    for k, v in DEFAULTS.items():
+        ap.add_argument("--" + k.replace("_", "-"), type=type(v) if v is not None else str, default=v)
+    args = ap.parse_args(argv)
+    settings = {k: getattr(args, k) for k in DEFAULTS}
+    objects = job_objects(log=lambda stage, sec: print(f"{stage}: {sec:.2f} s"), **settings)
+    t = time.perf_counter()
+    page = write_report(args.out, **objects)
+    took = time.perf_counter() - t
+    pictures = os.path.join(args.out, FILES)
+    print(f"report: {took:.2f} s, {os.path.getsize(page) + folder_size(pictures):,d} bytes "
+          f"({len(os.listdir(pictures))} pictures): {page}")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -2,7 +2,7 @@
 pipeline made, writes one PNG and returns the figures it shows (for the tables beside it
 and for tests).
 
-Sizes are fixed (:data:`SIZES`, inches at :data:`tsplcam.report.style.DPI`), patch k has the
+Sizes are fixed (:data:`SIZES`, pixels at :data:`tsplcam.report.style.DPI`), patch k has the
 same colour everywhere (:func:`tsplcam.report.style.patch_colours`), and every axis names its
 unit.
 """
@@ -14,14 +14,13 @@ from ..layout.layout import CORNER_UV, EDGE_CORNERS
 from ..toolpath.path import Move
 from . import scene, style
 
-SIZES = {"layout": (13.0, 6.2), "path": (13.0, 6.6), "scallop": (14.0, 6.0), "axis": (13.0, 6.0),
-         "machine": (13.0, 10.0), "clearance": (13.0, 4.6), "time": (13.0, 5.0), "baseline": (13.0, 4.4)}
+SIZES = {"layout": (1300, 620), "path": (1300, 660), "scallop": (1400, 600), "axis": (1300, 600),
+         "machine": (1300, 1000), "clearance": (1300, 460), "time": (1300, 500), "baseline": (1300, 440)}
 
 
 def pixel_size(name: str) -> tuple[int, int]:
     """(width, height) in pixels of picture ``name``."""
-    w, h = SIZES[name]
-    return int(round(w * style.DPI)), int(round(h * style.DPI))
+    return SIZES[name]
 
 
 def _lighter(rgba: np.ndarray, amount: float) -> np.ndarray:

@@ -58,11 +58,12 @@ def drawing():
         yield
 
 
-def figure(width: float, height: float):
-    """A Figure of width x height inches (at :data:`DPI`), laid out by matplotlib's constrained
-    layout; the pixel size is exactly ``width * DPI`` x ``height * DPI``."""
+def figure(width: int, height: int):
+    """A Figure of width x height pixels (at :data:`DPI`), laid out by matplotlib's constrained
+    layout. (A hundredth of a pixel more in inches: matplotlib truncates, and 4.6 * 100 is
+    459.99999999999994 in floating point.)"""
     from matplotlib.figure import Figure
-    return Figure(figsize=(width, height), dpi=DPI, layout="constrained")
+    return Figure(figsize=((width + 0.01) / DPI, (height + 0.01) / DPI), dpi=DPI, layout="constrained")
 
 
 def save(fig, path: str) -> None:

@@ -103,7 +103,7 @@ def min_clearance(checker, centers, axes, levels=(0.05, 0.1, 0.2, 0.5, 1.0, 2.0,
     return float(d[k]), int(pick[k])
 
 
-def clearance_levels(top: float = 10.0, step: float = 0.01, ratio: float = 1.01) -> np.ndarray:
+def clearance_levels(top: float = 10.0, step: float = 0.01, ratio: float = 1.02) -> np.ndarray:
     """Growths (mm) :func:`clearance_profile` tries: every ``step`` up to 0.5 mm, then
     geometric by ``ratio`` up to ``top``."""
     fine = np.arange(0.0, 0.5, step)
@@ -111,38 +111,58 @@ def clearance_levels(top: float = 10.0, step: float = 0.01, ratio: float = 1.01)
     return np.unique(np.concatenate([fine, np.minimum(coarse, top)]))
 
 
-class _Parts:
-    """Tool parts in the shape :func:`tsplcam.orientation.collision.tool_mesh` reads."""
-
-    def __init__(self, parts):
-        self._parts = parts
-
-    def parts(self):
-        return self._parts
-
-
-def offset_parts(parts, grow: float, arc_segments: int = 3) -> list:
-    """The tool parts grown by ``grow`` mm in every direction (each part's Minkowski sum with a
-    ball), as stacks of frustums: the part's (radius, height) profile offset by ``grow`` with
-    its corners rounded by circumscribed arcs, so the grown solid contains the true one (by at
-    most ``grow * (1 / cos(45 deg / arc_segments) - 1)`` at the corners). A body of revolution
-    is closest to a point in the point's meridian plane, so offsetting the profile offsets the
-    solid."""
-    from ..orientation.tool import ToolPart
+def offset_profile(part, grow: float, max_angle: float = 15.0):
+    """The (radius, height) profile of a tool part (a frustum about the axis) grown by ``grow``
+    mm in every direction, i.e. of its Minkowski sum with a ball: from the axis at the bottom
+    to the axis at the top, the corners rounded by arcs drawn as circumscribed polylines of
+    at most ``max_angle`` degrees a segment. A body of revolution is closest to a point in the
+    point's meridian plane, so offsetting the profile offsets the solid; the polyline contains
+    the arcs and strays from them by at most ``grow * (1 / cos(max_angle / 2) - 1)``."""
     if grow <= 0:
-        return list(parts)
-    out = []
-    g = grow / np.cos(0.25 * np.pi / arc_segments)
-    for p in parts:
-        normal = -np.arctan2(p.r1 - p.r0, p.z1 - p.z0)      # angle of the side's outward normal
-        a0 = np.linspace(-0.5 * np.pi, normal, arc_segments + 1)
-        a1 = np.linspace(normal, 0.5 * np.pi, arc_segments + 1)
-        r = np.concatenate([[p.r0], p.r0 + g * np.cos(a0[1:]), p.r1 + g * np.cos(a1[:-1]), [p.r1]])
-        z = np.concatenate([[p.z0 - grow], p.z0 + g * np.sin(a0[1:]), p.z1 + g * np.sin(a1[:-1]), [p.z1 + grow]])
-        for k in range(len(z) - 1):
-            if z[k + 1] - z[k] > 1e-12:
-                out.append(ToolPart(p.name, float(z[k]), float(z[k + 1]), float(r[k]), float(r[k + 1])))
-    return out
+        return np.array([0.0, part.r0, part.r1, 0.0]), np.array([part.z0, part.z0, part.z1, part.z1])
+    normal = -np.arctan2(part.r1 - part.r0, part.z1 - part.z0)     # the side's outward normal
+    r, z = [0.0], [part.z0 - grow]
+    for (cr, cz), a0, a1 in (((part.r0, part.z0), -0.5 * np.pi, normal), ((part.r1, part.z1), normal, 0.5 * np.pi)):
+        n = max(1, int(np.ceil(np.degrees(a1 - a0) / max_angle)))
+        step = (a1 - a0) / n
+        mid = a0 + (np.arange(n) + 0.5) * step                     # tangents at a0, a0 + step, ... meet here
+        ends = np.array([a0, a1])
+        g = grow / np.cos(0.5 * step)
+        r += [cr + grow * np.cos(ends[0]), *(cr + g * np.cos(mid)), cr + grow * np.cos(ends[1])]
+        z += [cz + grow * np.sin(ends[0]), *(cz + g * np.sin(mid)), cz + grow * np.sin(ends[1])]
+    r.append(0.0)
+    z.append(part.z1 + grow)
+    return np.array(r), np.array(z)
+
+
+def revolved_mesh(profiles, polygon_tolerance: float = 0.01):
+    """Closed triangle meshes (vertices, triangles) of profiles (radius, height) revolved about
+    +z, one per profile, joined: each ring a polygon circumscribing its circle within
+    ``polygon_tolerance``, the first and last profile points on the axis."""
+    from ..orientation.collision import polygon_segments
+    V, T = [], []
+    base = 0
+    for r, z in profiles:
+        r, z = np.asarray(r, float), np.asarray(z, float)
+        n = polygon_segments(float(r.max()), polygon_tolerance)
+        a = np.arange(n) * 2.0 * np.pi / n
+        ring = np.column_stack([np.cos(a), np.sin(a)]) / np.cos(np.pi / n)
+        m = len(r) - 2                                             # rings
+        rings = np.concatenate([(ring[None, :, :] * r[1:-1, None, None]).reshape(-1, 2),
+                                np.repeat(z[1:-1], n)[:, None]], axis=1)
+        pts = np.vstack([[0.0, 0.0, z[0]], rings, [0.0, 0.0, z[-1]]])
+        k = np.arange(n)
+        k1 = (k + 1) % n
+        tri = [np.column_stack([np.zeros(n, int), 1 + k1, 1 + k])]
+        for i in range(m - 1):
+            lo, hi = 1 + i * n, 1 + (i + 1) * n
+            tri += [np.column_stack([lo + k, lo + k1, hi + k1]), np.column_stack([lo + k, hi + k1, hi + k])]
+        top = 1 + m * n
+        tri.append(np.column_stack([np.full(n, top), 1 + (m - 1) * n + k, 1 + (m - 1) * n + k1]))
+        V.append(pts)
+        T.append(np.concatenate(tri) + base)
+        base += len(pts)
+    return np.concatenate(V), np.concatenate(T)
 
 
 class ClearanceGauge:
@@ -150,12 +170,12 @@ class ClearanceGauge:
     stock, fixtures), for plots along a path.
 
     ``parts``: names of the tool parts measured (default every part but the flutes: the shank
-    and holder). :meth:`measure` grows the parts (:func:`offset_parts`) and brackets each
-    pose's distance by bisection over the growths of :func:`clearance_levels`: about nine BVH
+    and holder). :meth:`measure` grows the parts (:func:`offset_profile`) and brackets each
+    pose's distance by bisection over the growths of :func:`clearance_levels`: about eight BVH
     collision queries a pose instead of one fcl distance query (tens of ms) a pose. The grown
     tools are built once per growth and kept, so later calls are cheaper."""
 
-    def __init__(self, checker, parts=None, top: float = 10.0, step: float = 0.01, ratio: float = 1.01):
+    def __init__(self, checker, parts=None, top: float = 10.0, step: float = 0.01, ratio: float = 1.02):
         import fcl
         names = [p.name for p in checker.tool.parts()]
         self.parts = [p for p in checker.tool.parts() if (p.name in parts if parts is not None else p.name != "flutes")]
@@ -171,10 +191,9 @@ class ClearanceGauge:
     def _tool(self, m: int):
         if m not in self._tools:
             import fcl
-
-            from ..orientation.collision import tool_mesh
-            V, T, _, _ = tool_mesh(_Parts(offset_parts(self.parts, float(self.levels[m]))), 0.0,
-                                   self.polygon_tolerance)
+            g = float(self.levels[m])
+            # polygons as fine as the bracket needs: the checker's tolerance or 0.5 % of the growth
+            V, T = revolved_mesh([offset_profile(p, g) for p in self.parts], max(self.polygon_tolerance, 0.005 * g))
             self._tools[m] = fcl.CollisionObject(_bvh(V, T), fcl.Transform())
         return self._tools[m]
 
@@ -191,8 +210,9 @@ class ClearanceGauge:
     def measure(self, centers, axes) -> np.ndarray:
         """Distance (mm) per pose (ball centre, unit axis), inf beyond the top level: the
         middle of the bracket, so within ``step / 2`` below 0.5 mm and ``(ratio - 1) / 2`` of the
-        value above, less at most the polygon tolerance (circumscribed polygons) and the
-        corner rounding of :func:`offset_parts`. No margin is added: the distance itself."""
+        value above, less at most the polygon tolerance (circumscribed polygons: the checker's,
+        or 0.5 % of the growth when larger) and 0.9 % for the corner arcs of
+        :func:`offset_profile`. No margin is added: the distance itself."""
         from ..orientation.collision import axis_quaternions
         C = np.asarray(centers, float).reshape(-1, 3)
         Q = axis_quaternions(np.asarray(axes, float).reshape(-1, 3))
@@ -216,7 +236,7 @@ class ClearanceGauge:
 
 
 def clearance_profile(checker, centers, axes, parts=None, top: float = 10.0, step: float = 0.01,
-                      ratio: float = 1.01) -> np.ndarray:
+                      ratio: float = 1.02) -> np.ndarray:
     """Distance (mm) of every pose between the tool parts (default: shank and holder) and the
     checker's workpiece, inf beyond ``top``; see :class:`ClearanceGauge`."""
     return ClearanceGauge(checker, parts, top, step, ratio).measure(centers, axes)

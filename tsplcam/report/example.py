@@ -20,7 +20,7 @@ DEFAULTS = {"model": "keycap", "tool": "ball1_keycap", "scallop": 0.005, "chord_
 def job_objects(log=None, **settings) -> dict:
     """Everything :func:`tsplcam.report.write_report` takes, for the job ``settings`` (keys of
     :data:`DEFAULTS`), made by the pipeline's own stages; ``log(stage, seconds)`` is told each."""
-    from ..orientation import load_tool
+    from ..orientation import CollisionChecker, load_tool
     from ..pipeline import orient_path, sample_stock
     from ..post import load_machine, post_program
     from ..toolpath import zigzag_path
@@ -48,6 +48,9 @@ def job_objects(log=None, **settings) -> dict:
     oriented = out["oriented"] = stage("tool axes", lambda: orient_path(
         path, model, s["orientation"], tool, machine, stock, s["holder_clearance"]))
     out["posted"] = stage("program", lambda: post_program(oriented.path, machine, s["dialect"]))
+    # the orientation's checker is not kept by the pipeline: the same one again, for the clearance
+    out["checker"] = CollisionChecker(model, tool, meshes=[] if stock is None else [("stock", *stock)],
+                                      clearance=s["holder_clearance"])
     out["verification"] = stage("scallop verification", lambda: measure(path, model, heights=True))
     out["baseline"] = stage("baseline", lambda: baseline_path(model, tool.ball_radius, s["scallop"], s["chord_tol"],
                                                              order=plist.order))

@@ -34,17 +34,10 @@ def _surface(sc: scene.Scene, quads: scene.SurfaceQuads, colours: np.ndarray, li
     sc.polygons(quads.corners, face, width=0.3)
 
 
-def _patch_borders(model, samples: int = 33):
-    """(a, b) segments along every patch's four edges."""
-    t = np.linspace(0.0, 1.0, samples)
-    A, B = [], []
-    for p in model.patches:
-        for c0, c1 in EDGE_CORNERS:
-            uv = CORNER_UV[c0][None, :] + t[:, None] * (CORNER_UV[c1] - CORNER_UV[c0])[None, :]
-            P = p.evaluate(np.clip(uv[:, 0], 1e-7, 1 - 1e-7), np.clip(uv[:, 1], 1e-7, 1 - 1e-7)).P
-            A.append(P[:-1])
-            B.append(P[1:])
-    return np.concatenate(A), np.concatenate(B)
+def _patch_borders(model, samples: int = 33) -> list:
+    """Polylines (samples, 3) along every patch's four edges."""
+    return [_on_patch(model, p.index, CORNER_UV[c0], CORNER_UV[c1], samples)
+            for p in model.patches for c0, c1 in EDGE_CORNERS]
 
 
 def _centres(model):
@@ -129,7 +122,8 @@ def layout_figure(out: str, model, plist=None, colours=None) -> dict:
         for ax, v in zip(axes, (scene.TOP, scene.ISO)):
             sc = scene.Scene(v, lift=1.5 * quads.size)
             _surface(sc, quads, colours, light=0.35)
-            sc.segments(*borders, "#202020", width=1.1)
+            for line in borders:
+                sc.polyline(line, "#202020", width=1.1)
             sc.draw(ax)
             xy, _ = v.project(centres)
             seen = np.ones(n, bool) if v is scene.TOP else scene.facing(v, cnormals)
@@ -158,7 +152,7 @@ def layout_figure(out: str, model, plist=None, colours=None) -> dict:
                    Line2D([], [], color="black", lw=1.5, ls=(0, (4, 3)), label="corner link (shared corner)"),
                    Line2D([], [], marker="o", ls="none", mfc=style.AIR, mec="white", ms=9,
                           label=f"extraordinary point ({len(eps)})")]
-        axes[0].legend(handles=handles, loc="upper left", bbox_to_anchor=(0.0, -0.09), ncol=3, frameon=False)
+        axes[1].legend(handles=handles, loc="lower right", frameon=False)
         style.patch_legend(axes[1], colours, range(n), loc="upper left", bbox_to_anchor=(1.0, 1.0))
         fig.suptitle(f"{model.name}: {n} patches, {len(eps)} extraordinary points, "
                      f"{len(boundary_pairs)} boundary links, {len(corner_pairs)} corner links")
@@ -177,13 +171,16 @@ def path_figure(out: str, model, path, colours=None) -> dict:
     mv = np.asarray(path.move)[1:]
     on = path.patch >= 0
     P = np.where(on[:, None], path.contact, path.center)
-    a, b = P[:-1], P[1:]
     surf = on[:-1] & on[1:]
     cut = surf & (mv == Move.CUT)
     link = surf & (mv != Move.CUT)
     air = ~surf
     seg_col = style.band_colours(path.patch[1:], colours)
-    lw = 0.45 if len(path) > 8000 else 0.7
+    # lines about half their spacing wide in the picture, so the patch colours read
+    lo, hi = model.bounding_box(5)
+    step = np.sqrt(8.0 * path.tool_radius * float(path.info.get("settings", {}).get("scallop", 0.01)))
+    px_per_mm = 560.0 / max(float(np.max((np.asarray(hi) - np.asarray(lo))[:2])), 1e-9)
+    lw = float(np.clip(0.5 * step * px_per_mm * 72.0 / style.DPI, 0.35, 1.0))
     with style.drawing():
         fig = style.figure(*SIZES["path"])
         axes = fig.subplots(1, 2)
@@ -191,9 +188,9 @@ def path_figure(out: str, model, path, colours=None) -> dict:
             sc = scene.Scene(v, lift=1.5 * quads.size)
             grey = np.tile([0.93, 0.93, 0.93, 1.0], (len(quads.patch), 1))
             sc.polygons(quads.corners, scene.shade(grey, quads.normal, v, ambient=0.75), width=0.3)
-            sc.segments(a[cut], b[cut], seg_col[cut], width=lw)
-            sc.segments(a[link], b[link], style.LINK, width=1.6)
-            sc.segments(a[air], b[air], style.AIR, width=1.3, dashes=(4, 2))
+            sc.polyline(P, seg_col, keep=cut, width=lw)
+            sc.polyline(P, style.LINK, keep=link, width=1.6)
+            sc.polyline(P, style.AIR, keep=air, width=1.3, dashes=(4, 2))
             sc.draw(ax)
             s0, _ = v.project(P[0])
             s1, _ = v.project(P[-1])
@@ -206,7 +203,7 @@ def path_figure(out: str, model, path, colours=None) -> dict:
                    Line2D([], [], color=style.AIR, lw=1.3, ls=(0, (4, 2)), label=f"air move ({int(air.sum())})"),
                    Line2D([], [], marker="^", ms=9, mfc="#2ecc71", mec="black", ls="none", label="start"),
                    Line2D([], [], marker="s", ms=8, mfc="white", mec="black", ls="none", label="end")]
-        axes[0].legend(handles=handles, loc="upper left", bbox_to_anchor=(0.0, -0.09), ncol=4, frameon=False)
+        axes[1].legend(handles=handles, loc="lower right", frameon=False)
         order = list(dict.fromkeys(int(p) for p in path.patch[on]))
         style.patch_legend(axes[1], colours, order, title="patch\n(in order)", loc="upper left",
                            bbox_to_anchor=(1.0, 1.0))

@@ -29,6 +29,7 @@ from . import figures, page, style
 FILES = "report_files"
 CLEARANCE_POSES = 2000          # poses measured for the clearance plot (and around the closest)
 CLEARANCE_TOP = 10.0            # mm: farther is drawn as "more than"
+CLEARANCE_TESSELLATION = 0.02   # mm, chordal tolerance of the workpiece when the report builds it
 
 
 def _f(x, digits: int = 3) -> str:
@@ -137,13 +138,17 @@ def write_report(out_dir: str, *, model, path, processing_list=None, oriented=No
     ``measure(..., heights=True)`` for the map; ``baseline``: the compound-NURBS ToolPath;
     ``settings``: the job's settings (dataclass, dict or Namespace), shown as given;
     ``tool``: the Tool (header; with it the clearance is measured, against ``stock``
-    (vertices, triangles) too, or with ``checker``, a CollisionChecker to reuse).
+    (vertices, triangles) too); ``checker``: the orientation's CollisionChecker to reuse for
+    that (default: ``oriented.checker`` if it has one, else one is built, which on a big
+    model takes as long as the orientation's did).
     The same inputs give the same bytes."""
     os.makedirs(os.path.join(out_dir, FILES), exist_ok=True)
     final = oriented.path if oriented is not None else path
     metrics = oriented.metrics if oriented is not None else None
     if machine is None and posted is not None:
         machine = posted.machine
+    if checker is None:
+        checker = getattr(oriented, "checker", None)     # the orientation's, when it keeps it
     if tool is None and checker is not None:
         tool = checker.tool
     colours = style.patch_colours(len(model.patches))
@@ -278,7 +283,7 @@ def write_report(out_dir: str, *, model, path, processing_list=None, oriented=No
         if checker is None:
             from ..orientation import CollisionChecker
             meshes = [] if stock is None else [("stock", stock[0], stock[1])]
-            checker = CollisionChecker(model, tool, meshes=meshes)
+            checker = CollisionChecker(model, tool, meshes=meshes, tolerance=CLEARANCE_TESSELLATION)
         kept = None
         if oriented is not None and oriented.report is not None:
             kept = oriented.report.settings.get("clearance")
@@ -293,8 +298,9 @@ def write_report(out_dir: str, *, model, path, processing_list=None, oriented=No
             "clearance", "Clearance",
             page.picture(src, "clearance along the path", f"Distance from the shank and from the holder to the "
                          f"workpiece along the path (log scale), measured by growing the tool part until it "
-                         f"touches: {measured:,d} poses in all, spread over the path and around the closest ones. "
-                         f"Red dashed: the clearance the tool axes were chosen to keep.",
+                         f"touches: {measured:,d} poses in all, spread over the path and around the closest ones; "
+                         f"the surface as triangles within {checker.mesh.chordal_error:.3f} mm. Red dashed: the "
+                         f"clearance the tool axes were chosen to keep.",
                          figures.pixel_size("clearance")),
             page.row_table(("tool part", "smallest clearance (mm)", "at point"), rows, ident="clearance",
                            numeric=(1, 2))))

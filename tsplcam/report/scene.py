@@ -109,17 +109,44 @@ class Scene:
         edge = face if edge is None else np.broadcast_to(np.asarray(edge, float), face.shape)
         self._items.append((closed, d.mean(axis=1), face, edge, np.full(len(corners), width), None))
 
-    def segments(self, a: np.ndarray, b: np.ndarray, colour, width: float = 0.8, dashes=None) -> None:
-        """Line segments a[i] -> b[i] (n, 3) in RGBA colours (n, 4) or one colour."""
+    def polyline(self, points: np.ndarray, colour, keep=None, width: float = 0.8, dashes=None) -> None:
+        """The polyline through ``points`` (n, 3): segment i (points i -> i+1) drawn where
+        ``keep[i]`` (default all), in ``colour`` (one, or RGBA per segment (n-1, 4)).
+
+        Drawn as long pieces, not segment by segment: separately drawn segments leave
+        anti-aliasing seams at every joint, which on dense parallel lines line up into false
+        steps. A piece ends where the segments stop, change colour, or span more depth than
+        ``lift`` (so the depth sort stays right)."""
         from matplotlib.colors import to_rgba
-        a, b = np.asarray(a, float), np.asarray(b, float)
-        if len(a) == 0:
+        P = np.asarray(points, float).reshape(-1, 3)
+        m = len(P) - 1
+        if m < 1:
             return
-        xy, d = self.view.project(np.stack([a, b], axis=1))
-        col = np.asarray(colour, float) if not isinstance(colour, str) else np.array(to_rgba(colour))
-        col = np.broadcast_to(col, (len(a), 4))
-        none = np.zeros((len(a), 4))
-        self._items.append((xy, d.max(axis=1) + self.lift, none, col, np.full(len(a), width), dashes))
+        keep = np.ones(m, bool) if keep is None else np.asarray(keep, bool)
+        col = np.array(to_rgba(colour)) if isinstance(colour, str) else np.asarray(colour, float)
+        col = np.broadcast_to(col, (m, 4))
+        xy, d = self.view.project(P)
+        span = self.lift if self.lift > 0 else np.inf
+        starts = np.nonzero(keep & np.concatenate([[True], ~keep[:-1] | (col[1:] != col[:-1]).any(axis=1)]))[0]
+        pieces, depth, colours = [], [], []
+        for s0 in starts:
+            e = s0
+            while e < m and keep[e] and (e == s0 or (col[e] == col[s0]).all()):
+                e += 1                                   # segments s0 .. e-1 form a run
+            a = s0
+            while a < e:                                 # cut the run where the depth spreads
+                dd = d[a:e + 1]
+                spread = np.maximum.accumulate(dd) - np.minimum.accumulate(dd)
+                b = a + max(1, int(np.searchsorted(spread, span, side="right")) - 1)
+                b = min(b, e)
+                pieces.append(xy[a:b + 1])
+                depth.append(d[a:b + 1].max() + self.lift)
+                colours.append(col[a])
+                a = b
+        if pieces:
+            n = len(pieces)
+            self._items.append((pieces, np.array(depth), np.zeros((n, 4)), np.array(colours), np.full(n, width),
+                                dashes))
 
     def draw(self, ax) -> None:
         """Add everything to ``ax`` far to near, and fit the axes to it (equal scales)."""
@@ -128,7 +155,7 @@ class Scene:
             return
         paths, depth, face, edge, width, dash = [], [], [], [], [], []
         for xy, d, f, e, w, ds in self._items:
-            paths += list(xy)
+            paths += list(xy)                       # polygons (m, k, 2) or a list of pieces
             depth.append(d)
             face.append(f)
             edge.append(e)
@@ -140,7 +167,8 @@ class Scene:
         col = PolyCollection([paths[i] for i in order], closed=False,
                              facecolors=np.concatenate(face)[order], edgecolors=np.concatenate(edge)[order],
                              linewidths=np.concatenate(width)[order],
-                             linestyles=[styles[i] for i in order] if any(ds is not None for ds in dash) else "solid")
+                             linestyles=[styles[i] for i in order] if any(ds is not None for ds in dash) else "solid",
+                             joinstyle="round", capstyle="round")
         ax.add_collection(col)
         pts = np.concatenate([np.asarray(p) for p in paths])
         lo, hi = pts.min(axis=0), pts.max(axis=0)

@@ -183,8 +183,12 @@ class ClearanceGauge:
             raise ValueError(f"no tool part named {parts!r} (parts: {names})")
         self.levels = clearance_levels(top, step, ratio)
         self.polygon_tolerance = checker.polygon_tolerance
-        mesh = checker.mesh
-        self._wp = fcl.CollisionObject(_bvh(mesh.vertices, mesh.triangles), fcl.Transform())
+        # the checker's own workpiece object (its BVH takes seconds to build on big models),
+        # else one built from its triangles
+        self._wp = getattr(checker, "_wp", None)
+        if self._wp is None:
+            mesh = checker.mesh
+            self._wp = fcl.CollisionObject(_bvh(mesh.vertices, mesh.triangles), fcl.Transform())
         self._req = fcl.CollisionRequest()
         self._tools: dict = {}
 

@@ -1,4 +1,4 @@
-"""The HTML report of the keycap job (coarse: scallop 0.05 mm) checked for content: every
+"""The HTML report of the keycap job (coarse: scallop 0.1 mm) checked for content: every
 picture referenced and there, of its size, not blank, in the patch colours; the tables carry
 the figures of the metrics objects; nothing external; the same inputs give the same bytes."""
 import os
@@ -82,7 +82,7 @@ class KeycapReport(unittest.TestCase):
     @classmethod
     def setUpClass(cls):
         cls.tmp = tempfile.mkdtemp(prefix="tsplcam-report-")
-        cls.job = job_objects(scallop=0.05)
+        cls.job = job_objects(scallop=0.1, baseline_axes="normal")
         cls.saved = report.CLEARANCE_POSES
         report.CLEARANCE_POSES = 600                      # a shorter clearance sweep for the test
         cls.out = [os.path.join(cls.tmp, k) for k in ("a", "b")]
@@ -90,6 +90,7 @@ class KeycapReport(unittest.TestCase):
         with open(cls.html[0], encoding="utf-8") as fh:
             cls.text = fh.read()
         cls.page = Page(cls.text)
+        cls._colours = {}
 
     @classmethod
     def tearDownClass(cls):
@@ -115,9 +116,14 @@ class KeycapReport(unittest.TestCase):
             self.assertTrue(im.get("alt"), name)
 
     def colour_pixels(self, name, rgba, tol=40):
-        px = self.picture(name)
+        """Pixels within ``tol`` (0..255, each channel) of a colour."""
+        if name not in self._colours:
+            px = self.picture(name).reshape(-1, 3)
+            packed, counts = np.unique((px[:, 0] << 16) | (px[:, 1] << 8) | px[:, 2], return_counts=True)
+            self._colours[name] = (np.column_stack([packed >> 16, (packed >> 8) & 255, packed & 255]), counts)
+        colours, counts = self._colours[name]
         c = np.asarray(rgba[:3]) * 255
-        return int(np.count_nonzero(np.abs(px - c).max(axis=2) <= tol))
+        return int(counts[np.abs(colours - c).max(axis=1) <= tol].sum())
 
     def test_patch_colours_in_the_pictures(self):
         colours = style.patch_colours(len(self.job["model"].patches))
@@ -181,6 +187,20 @@ class KeycapReport(unittest.TestCase):
         # the orientation kept 0.3 mm between shank/holder and the part
         self.assertGreaterEqual(min(clearance.values()), 0.3 - 0.01)
 
+    def test_baseline_with_its_own_axes_is_timed_against_the_program(self):
+        from tsplcam.pipeline import Oriented
+        j = dict(self.job)
+        base = j["baseline"]
+        j["baseline"] = Oriented(base.with_axis(np.tile([0.0, 0.0, 1.0], (len(base), 1))))   # three-axis
+        for k in ("verification", "checker", "tool"):
+            j.pop(k)
+        html = write_report(os.path.join(self.tmp, "own-axes"), **j)
+        with open(html, encoding="utf-8") as fh:
+            page = Page(fh.read())
+        table = {r[0]: r[1:] for r in page.tables["baseline"][1:]}
+        self.assertEqual(num(table["machining time (s)"][0]), round(j["posted"].time.total_s, 1))
+        self.assertEqual(num(table["points"][0]), len(j["oriented"].path))
+
     def test_headline(self):
         j = self.job
         c = self.page.cards
@@ -194,7 +214,7 @@ class KeycapReport(unittest.TestCase):
         for ident in ("model", "tool", "machine-info", "path-settings", "job-settings"):
             self.assertIn(ident, self.page.tables)
         self.assertEqual(self.page.key_values("tool")["name"], "ball1_keycap")
-        self.assertEqual(self.page.key_values("job-settings")["scallop"], "0.05")
+        self.assertEqual(self.page.key_values("job-settings")["scallop"], "0.1")
 
     def test_same_inputs_same_bytes(self):
         a, b = self.out

@@ -28,10 +28,10 @@ def big_plane(half=120.0):
 
 def within_bounds(got, want):
     """The gauge's stated accuracy: the bisection bracket (0.005 mm below 0.5 mm, 1 % above)
-    above and below, and below also the circumscribed polygons (0.01 mm or 0.5 % of the growth)
-    and corner arcs (0.9 % of the growth)."""
+    above and below, and below also the circumscribed polygons (0.01 mm or 1 % of the growth)
+    and corner arcs (0.005 mm or 1 % of the growth)."""
     half = np.maximum(0.005, 0.01 * want) + 1e-9
-    return (got <= want + half) & (got >= want - half - np.maximum(0.01, 0.005 * want) - 0.009 * want)
+    return (got <= want + half) & (got >= want - half - np.maximum(0.01, 0.01 * want) - np.maximum(0.005, 0.01 * want))
 
 
 def closed_form(tool, parts, theta):

@@ -14,12 +14,14 @@ import time
 
 DEFAULTS = {"model": "keycap", "tool": "ball1_keycap", "scallop": 0.005, "chord_tol": 0.001,
             "orientation": "smooth", "machine": "mikron_ucp600_heidenhain", "dialect": None,
-            "holder_clearance": 0.3}
+            "holder_clearance": 0.3, "baseline_axes": "job"}
 
 
 def job_objects(log=None, **settings) -> dict:
     """Everything :func:`tsplcam.report.write_report` takes, for the job ``settings`` (keys of
-    :data:`DEFAULTS`), made by the pipeline's own stages; ``log(stage, seconds)`` is told each."""
+    :data:`DEFAULTS`), made by the pipeline's own stages; ``log(stage, seconds)`` is told each.
+    ``baseline_axes``: "job" orients the baseline like the job (what a shop would run),
+    "normal" keeps its surface normals (quicker; compares the linking only)."""
     from ..orientation import CollisionChecker, load_tool
     from ..pipeline import orient_path, sample_stock
     from ..post import load_machine, post_program
@@ -52,8 +54,14 @@ def job_objects(log=None, **settings) -> dict:
     out["checker"] = CollisionChecker(model, tool, meshes=[] if stock is None else [("stock", *stock)],
                                       clearance=s["holder_clearance"])
     out["verification"] = stage("scallop verification", lambda: measure(path, model, heights=True))
-    out["baseline"] = stage("baseline", lambda: baseline_path(model, tool.ball_radius, s["scallop"], s["chord_tol"],
-                                                             order=plist.order))
+    base = stage("baseline", lambda: baseline_path(model, tool.ball_radius, s["scallop"], s["chord_tol"],
+                                                   order=plist.order))
+    if s["baseline_axes"] == "job":
+        base = stage("baseline tool axes", lambda: orient_path(base, model, s["orientation"], tool, machine, stock,
+                                                               s["holder_clearance"]))
+    elif s["baseline_axes"] != "normal":
+        raise ValueError(f"baseline_axes must be 'job' or 'normal', not {s['baseline_axes']!r}")
+    out["baseline"] = base
     return out
 
 
@@ -71,6 +79,7 @@ def main(argv=None) -> int:
     args = ap.parse_args(argv)
     settings = {k: getattr(args, k) for k in DEFAULTS}
     objects = job_objects(log=lambda stage, sec: print(f"{stage}: {sec:.2f} s"), **settings)
+    objects["settings"] = {k: v for k, v in objects["settings"].items() if k != "baseline_axes"}
     t = time.perf_counter()
     page = write_report(args.out, **objects)
     took = time.perf_counter() - t

@@ -283,6 +283,8 @@ def scallop_figure(out: str, model, verification, limit: float, tool_radius: flo
         ax.axvline(verification.max_scallop * um, color="black", lw=1.4, ls=(0, (4, 2)),
                    label=f"largest {verification.max_scallop * um:.2f} µm")
         ax.set_yscale("log")
+        ax.set_ylim(0.7, ax.get_ylim()[1] * 40.0)           # room for the legend above the bars
+        ax.axvline(0.0, color="#888888", lw=0.8)
         ax.set_xlabel("material height left on the surface (µm)")
         ax.set_ylabel("count (log scale)")
         ax.set_title("Measured heights")

@@ -135,7 +135,9 @@ def write_report(out_dir: str, *, model, path, processing_list=None, oriented=No
     ProcessingList it followed; ``oriented``: the pipeline's Oriented (path with tool axes,
     report, metrics); ``machine``: a Machine (default: the posted program's); ``posted``:
     the PostResult (joints and time estimate); ``verification``: a ScallopReport, made with
-    ``measure(..., heights=True)`` for the map; ``baseline``: the compound-NURBS ToolPath;
+    ``measure(..., heights=True)`` for the map; ``baseline``: the compound-NURBS ToolPath as
+    generated (compared with ``path``, both with surface-normal axes) or oriented like the job
+    (an Oriented, or a ToolPath with other axes: compared with the job's program);
     ``settings``: the job's settings (dataclass, dict or Namespace), shown as given;
     ``tool``: the Tool (header; with it the clearance is measured, against ``stock``
     (vertices, triangles) too); ``checker``: the orientation's CollisionChecker to reuse for
@@ -342,11 +344,18 @@ def write_report(out_dir: str, *, model, path, processing_list=None, oriented=No
     # -- baseline -----------------------------------------------------------------------------
     if baseline is not None:
         dialect = posted.dialect if posted is not None else None
-        table = {}
-        notes = []
-        for label, p in (("T-spline path", path), ("compound-NURBS baseline", baseline)):
+        base = getattr(baseline, "path", baseline)
+        # a baseline with tool axes of its own is compared with the job's program; one with
+        # the surface normals (as generated) with the T-spline path as generated
+        own_axes = hasattr(baseline, "path") or not np.allclose(base.axis, base.normal)
+        ours = final if own_axes else path
+        table, notes = {}, []
+        for label, p in (("T-spline path", ours), ("compound-NURBS baseline", base)):
             d = path_metrics(p).as_dict()
-            d["time_s"], how = _timed(p, machine, dialect)
+            if p is final and own_axes and posted is not None:
+                d["time_s"], how = posted.time.total_s, "the job's program"
+            else:
+                d["time_s"], how = _timed(p, machine, dialect)
             notes.append(f"{label}: {how}")
             table[label] = d
         src, figs = rep.picture("baseline", figures.baseline_figure, table)
@@ -357,16 +366,19 @@ def write_report(out_dir: str, *, model, path, processing_list=None, oriented=No
                 ("machining time (s)", "time_s", lambda x: _f(x, 1))]
         labels = list(table)
         rows = [(name, *(fmt(table[lb][k]) for lb in labels)) for name, k, fmt in keys]
+        axes_note = ("Both with tool axes of their own (the job's strategy), so the times are what the machine "
+                     "would run." if own_axes else "Both keep their surface-normal tool axes here, so the "
+                     "comparison is about the linking.")
+        tail = ""
+        if posted is not None and not own_axes:
+            tail = f" The job's program with its own tool axes takes {posted.time.total_s:,.1f} s."
         rep.sections.append(page.section(
             "baseline", "Against the compound-NURBS baseline",
             page.picture(src, "comparison with the baseline", "The same model cut as independent NURBS faces (each "
-                         "from its own corner, retracting between faces) against the T-spline path. Both keep "
-                         "their surface-normal tool axes here, so the comparison is about the linking.",
+                         "from its own corner, retracting between faces) against the T-spline path. " + axes_note,
                          figures.pixel_size("baseline")),
             page.row_table(("", *labels), rows, ident="baseline", numeric=(1, 2)),
-            page.note("Times: " + "; ".join(notes) + "."
-                      + (f" The job's program with its own tool axes takes {posted.time.total_s:,.1f} s."
-                         if posted is not None else ""))))
+            page.note("Times: " + "; ".join(notes) + "." + tail)))
 
     # -- header -------------------------------------------------------------------------------
     eps = [e for e in model.extraordinary if not e.boundary]

@@ -20,6 +20,7 @@ rotary travel and machining time.
 """
 from __future__ import annotations
 
+import weakref
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -165,6 +166,10 @@ def revolved_mesh(profiles, polygon_tolerance: float = 0.01):
     return np.concatenate(V), np.concatenate(T)
 
 
+# Grown tools of the clearance gauges, per checker (built once, kept while the checker lives).
+_GROWN = weakref.WeakKeyDictionary()
+
+
 class ClearanceGauge:
     """Distances between some tool parts and a checker's workpiece (its triangles: model,
     stock, fixtures), for plots along a path.
@@ -173,7 +178,8 @@ class ClearanceGauge:
     and holder). :meth:`measure` grows the parts (:func:`offset_profile`) and brackets each
     pose's distance by bisection over the growths of :func:`clearance_levels`: about eight BVH
     collision queries a pose instead of one fcl distance query (tens of ms) a pose. The grown
-    tools are built once per growth and kept, so later calls are cheaper."""
+    tools are built once per growth and kept with the checker, so later calls and later gauges
+    on the same checker are cheaper."""
 
     def __init__(self, checker, parts=None, top: float = 10.0, step: float = 0.01, ratio: float = 1.02):
         import fcl
@@ -190,16 +196,21 @@ class ClearanceGauge:
             mesh = checker.mesh
             self._wp = fcl.CollisionObject(_bvh(mesh.vertices, mesh.triangles), fcl.Transform())
         self._req = fcl.CollisionRequest()
-        self._tools: dict = {}
+        self._tools = _GROWN.setdefault(checker, {})
+        self._key = tuple(self.parts)
 
     def _tool(self, m: int):
-        if m not in self._tools:
+        g = float(self.levels[m])
+        key = (self._key, g)
+        if key not in self._tools:
             import fcl
-            g = float(self.levels[m])
-            # polygons as fine as the bracket needs: the checker's tolerance or 0.5 % of the growth
-            V, T = revolved_mesh([offset_profile(p, g) for p in self.parts], max(self.polygon_tolerance, 0.005 * g))
-            self._tools[m] = fcl.CollisionObject(_bvh(V, T), fcl.Transform())
-        return self._tools[m]
+            # as fine as the bracket needs: polygons within the checker's tolerance or 1 % of the
+            # growth, arcs within 0.005 mm or 1 % of it
+            arc = 2.0 * np.degrees(np.arccos(g / (g + max(0.005, 0.01 * g)))) if g > 0 else 15.0
+            V, T = revolved_mesh([offset_profile(p, g, max_angle=float(np.clip(arc, 15.0, 60.0))) for p in self.parts],
+                                 max(self.polygon_tolerance, 0.01 * g))
+            self._tools[key] = fcl.CollisionObject(_bvh(V, T), fcl.Transform())
+        return self._tools[key]
 
     def _collides(self, C, Q, idx, m: int) -> np.ndarray:
         import fcl
@@ -215,8 +226,8 @@ class ClearanceGauge:
         """Distance (mm) per pose (ball centre, unit axis), inf beyond the top level: the
         middle of the bracket, so within ``step / 2`` below 0.5 mm and ``(ratio - 1) / 2`` of the
         value above, less at most the polygon tolerance (circumscribed polygons: the checker's,
-        or 0.5 % of the growth when larger) and 0.9 % for the corner arcs of
-        :func:`offset_profile`. No margin is added: the distance itself."""
+        or 1 % of the growth when larger) and the corner arcs of :func:`offset_profile`
+        (0.005 mm or 1 % of the growth). No margin is added: the distance itself."""
         from ..orientation.collision import axis_quaternions
         C = np.asarray(centers, float).reshape(-1, 3)
         Q = axis_quaternions(np.asarray(axes, float).reshape(-1, 3))

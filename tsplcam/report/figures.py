@@ -238,12 +238,13 @@ def scallop_cells(model, heights, cell: float):
     return quads, value
 
 
-def scallop_figure(out: str, model, verification, limit: float, tool_radius: float) -> dict:
+def scallop_figure(out: str, model, verification, limit: float, tool_radius: float, known: bool = True) -> dict:
     """The scallop-height map measured on the surface (largest height per small cell, top and
     3D view) and the distribution of the measured heights, against the limit.
 
     A cell spans more than the flat side step ``sqrt(8 r h)``, so every cell holds a cusp and
-    the map shows the largest scallop near each place, not the stripes of the lines."""
+    the map shows the largest scallop near each place, not the stripes of the lines. ``known``:
+    False when the path does not say its limit (then ``limit`` only scales the colours)."""
     from matplotlib import colormaps
     from matplotlib.colors import Normalize
     hs = verification.heights
@@ -269,7 +270,8 @@ def scallop_figure(out: str, model, verification, limit: float, tool_radius: flo
         cb = fig.colorbar(ScalarMappable(norm, cmap), ax=axes[:2], orientation="horizontal", extend="both",
                           fraction=0.05, shrink=0.6, aspect=40)
         cb.set_label(f"largest scallop height in a {cell:.2f} mm cell (µm); red above the {limit * um:g} µm "
-                     "limit, blue a gouge")
+                     "limit, blue a gouge" if known else
+                     f"largest scallop height in a {cell:.2f} mm cell (µm); blue a gouge")
         ax = axes[2]
         grid_h = hs.height[~hs.ridge] * um
         cusp = np.asarray(verification.cusp_heights if verification.cusp_heights is not None else [], float) * um
@@ -279,7 +281,8 @@ def scallop_figure(out: str, model, verification, limit: float, tool_radius: flo
         if len(cusp):
             ax.hist(np.clip(cusp, bins[0], bins[-1]), bins=bins, color="#e08a2c", alpha=0.85,
                     label=f"cusp ridges between lines ({len(cusp):,})")
-        ax.axvline(limit * um, color=style.AIR, lw=2.0, label=f"limit {limit * um:g} µm")
+        if known:
+            ax.axvline(limit * um, color=style.AIR, lw=2.0, label=f"limit {limit * um:g} µm")
         ax.axvline(verification.max_scallop * um, color="black", lw=1.4, ls=(0, (4, 2)),
                    label=f"largest {verification.max_scallop * um:.2f} µm")
         ax.set_yscale("log")
@@ -289,9 +292,9 @@ def scallop_figure(out: str, model, verification, limit: float, tool_radius: flo
         ax.set_ylabel("count (log scale)")
         ax.set_title("Measured heights")
         ax.legend(loc="upper left", fontsize=8, framealpha=0.92)
-        fig.suptitle(f"Scallop height measured on the surface: largest {verification.max_scallop * um:.2f} µm "
-                     f"= {verification.max_scallop / limit:.2f} of the {limit * um:g} µm limit, mean cusp "
-                     f"{verification.cusp_mean * um:.2f} µm")
+        ratio = f" = {verification.max_scallop / limit:.2f} of the {limit * um:g} µm limit" if known else ""
+        fig.suptitle(f"Scallop height measured on the surface: largest {verification.max_scallop * um:.2f} µm"
+                     f"{ratio}, mean cusp {verification.cusp_mean * um:.2f} µm")
         style.save(fig, out)
     finite = value[np.isfinite(value)]
     return {"cells": int(len(value)), "cells_measured": int(len(finite)), "cell_mm": cell,

@@ -155,7 +155,7 @@ def write_report(out_dir: str, *, model, path, processing_list=None, oriented=No
         tool = checker.tool
     colours = style.patch_colours(len(model.patches))
     pm = path_metrics(final)
-    limit = float(path.info.get("settings", {}).get("scallop", float("nan")))
+    limit = float(path.info.get("settings", {}).get("scallop", float("nan")))   # unknown for a path read from CL data
     rep = _Report(out_dir)
     cards = []
 
@@ -209,7 +209,9 @@ def write_report(out_dir: str, *, model, path, processing_list=None, oriented=No
         v = verification
         parts = []
         if v.heights is not None and len(v.heights):
-            src, figs = rep.picture("scallop", figures.scallop_figure, model, v, limit, path.tool_radius)
+            shown = limit if np.isfinite(limit) else max(v.max_scallop, 1e-6)
+            src, figs = rep.picture("scallop", figures.scallop_figure, model, v, shown, path.tool_radius,
+                                    bool(np.isfinite(limit)))
             parts.append(page.picture(src, "scallop height map", "Material left on the surface, measured by the "
                                       "verification module (the swept ball against the surface, cusp ridges "
                                       "refined), as the largest height in each small cell: yellow is near the "
@@ -228,10 +230,10 @@ def write_report(out_dir: str, *, model, path, processing_list=None, oriented=No
                 ("gouge on chords (mm)", f"{v.gouge_chords:.2e}"), ("gouge in the air (mm)", f"{v.gouge_air:.2e}")]
         parts.append(page.key_values("Measured on the surface", rows, ident="scallop-figures"))
         rep.sections.append(page.section("scallop", "Scallop height", *parts))
-        over = v.max_scallop > limit * (1 + 1e-9)
+        over = bool(v.max_scallop > limit * (1 + 1e-9))
         cards.append(page.card("largest scallop", f"{v.max_scallop * 1000.0:.2f} µm",
-                               f"{v.max_scallop / limit:.2f} of the {limit * 1000.0:g} µm limit", bad=over,
-                               ident="h-scallop"))
+                               f"{v.max_scallop / limit:.2f} of the {limit * 1000.0:g} µm limit"
+                               if np.isfinite(limit) else "limit unknown", bad=over, ident="h-scallop"))
 
     # -- tool axis ----------------------------------------------------------------------------
     src, figs = rep.picture("axis", figures.axis_figure, final, colours)
@@ -417,7 +419,8 @@ def write_report(out_dir: str, *, model, path, processing_list=None, oriented=No
 
     title = f"{model.name}: five-axis finishing report"
     sub = (f"{len(model.patches)} patches, tool {tool.name if tool is not None else f'ball R{path.tool_radius:g}'}"
-           + (f", {machine.name}" if machine is not None else "") + f"; scallop limit {limit * 1000.0:g} µm")
+           + (f", {machine.name}" if machine is not None else "")
+           + (f"; scallop limit {limit * 1000.0:g} µm" if np.isfinite(limit) else ""))
     html = page.page(title, sub, cards, rep.sections,
                      f"Written by tsplcam {__version__}. The pictures are the PNG files in {FILES}/ beside this page.")
     out = os.path.join(out_dir, "report.html")

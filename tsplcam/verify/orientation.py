@@ -183,6 +183,8 @@ class ClearanceGauge:
 
     def __init__(self, checker, parts=None, top: float = 10.0, step: float = 0.01, ratio: float = 1.02):
         import fcl
+
+        from ..orientation.collision import _bvh
         names = [p.name for p in checker.tool.parts()]
         self.parts = [p for p in checker.tool.parts() if (p.name in parts if parts is not None else p.name != "flutes")]
         if not self.parts:
@@ -204,6 +206,8 @@ class ClearanceGauge:
         key = (self._key, g)
         if key not in self._tools:
             import fcl
+
+            from ..orientation.collision import _bvh
             # as fine as the bracket needs: polygons within the checker's tolerance or 1 % of the
             # growth, arcs within 0.005 mm or 1 % of it
             arc = 2.0 * np.degrees(np.arccos(g / (g + max(0.005, 0.01 * g)))) if g > 0 else 15.0
@@ -255,15 +259,6 @@ def clearance_profile(checker, centers, axes, parts=None, top: float = 10.0, ste
     """Distance (mm) of every pose between the tool parts (default: shank and holder) and the
     checker's workpiece, inf beyond ``top``; see :class:`ClearanceGauge`."""
     return ClearanceGauge(checker, parts, top, step, ratio).measure(centers, axes)
-
-
-def _bvh(V, T):
-    import fcl
-    m = fcl.BVHModel()
-    m.beginModel(len(T), len(V))
-    m.addSubModel(np.ascontiguousarray(V, float), np.ascontiguousarray(T, np.int64))
-    m.endModel()
-    return m
 
 
 def _simple_ac(axis):

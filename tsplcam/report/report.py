@@ -115,14 +115,12 @@ class _Report:
     def __init__(self, out_dir: str):
         self.out_dir = out_dir
         self.sections: list[str] = []
-        self.pictures: dict = {}
 
     def picture(self, name: str, draw, *args) -> tuple:
-        """Draw picture ``name`` with ``draw(path, *args)``; (html, figures it returns)."""
-        rel = f"{FILES}/{name}.png"
+        """Draw picture ``name`` with ``draw(file, *args)``: (its address relative to the page,
+        the figures ``draw`` returns)."""
         figs = draw(os.path.join(self.out_dir, FILES, f"{name}.png"), *args)
-        self.pictures[name] = rel
-        return rel, figs
+        return f"{FILES}/{name}.png", figs
 
 
 def write_report(out_dir: str, *, model, path, processing_list=None, oriented=None, machine=None,

@@ -7,7 +7,9 @@
 #
 # What it does:
 #  1. Debian packages: FreeCAD 0.20 (freecad-python3, freecad), numpy, scipy, pip, pytest,
-#     Xvfb + xauth for GUI tests, linuxcnc-uspace for LinuxCNC's own G-code interpreter (rs274).
+#     Xvfb + xauth for GUI tests, linuxcnc-uspace for LinuxCNC's own G-code interpreter (rs274),
+#     matplotlib for the report's pictures (Debian 12's 3.6.3, built against Debian's numpy:
+#     no wheel, so pip never replaces numpy; the check below asks for 3.5 or newer).
 #  2. python-fcl and elkai, and for the tests hypothesis (with sortedcontainers, its one
 #     dependency), into the system Python (/usr/bin/python3) that FreeCAD runs, pinned,
 #     with --no-deps so pip never replaces Debian's numpy.
@@ -18,7 +20,7 @@ set -euo pipefail
 REPO="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 PY=/usr/bin/python3
 APT_PACKAGES=(freecad-python3 freecad python3-numpy python3-scipy python3-pip python3-pytest
-              xvfb xauth linuxcnc-uspace)
+              xvfb xauth linuxcnc-uspace python3-matplotlib)
 PIP_PACKAGES=("python-fcl==0.7.0.11:fcl" "elkai==2.0.1:elkai"
               "sortedcontainers==2.4.0:sortedcontainers" "hypothesis==6.170.17:hypothesis")
 
@@ -51,6 +53,8 @@ for spec in "${PIP_PACKAGES[@]}"; do
   fi
 done
 $PY -c "import numpy, scipy, fcl, elkai, hypothesis" || { say "a Python dependency does not import"; exit 1; }
+$PY -c "import matplotlib, sys; sys.exit(tuple(map(int, matplotlib.__version__.split('.')[:2])) < (3, 5))" \
+  || { say "matplotlib 3.5 or newer is needed for the report (python3-matplotlib)"; exit 1; }
 
 # 3. Link the workbench -----------------------------------------------------------------
 link_into() {  # $1 = a FreeCAD Mod directory

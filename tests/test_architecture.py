@@ -20,7 +20,7 @@ REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 PACKAGE = "tsplcam"
 STAGES = ("model", "layout", "plan", "toolpath", "orientation", "post")
 BASE = {PACKAGE, f"{PACKAGE}.errors", f"{PACKAGE}.outfile", f"{PACKAGE}.inputfile"}  # importable from anywhere
-TOP = ("settings", "program", "job", "cli", "__main__", "workbench")  # may import anything
+TOP = ("settings", "program", "job", "report", "cli", "__main__", "workbench")  # may import anything
 FREECAD_MODULES = {"FreeCAD", "FreeCADGui", "Part", "Path", "CAM", "Mesh", "MeshPart", "Draft",
                    "Import", "ImportGui", "Sketcher", "pivy", "PySide", "PySide2", "PySide6"}
 

@@ -110,22 +110,29 @@ def _timed(p, machine, dialect):
 
 
 class _Report:
-    """Collects the sections while the pictures are written."""
+    """Collects the sections while the pictures are written; tells ``progress`` (stage
+    "report") after each of the ``total`` pictures."""
 
-    def __init__(self, out_dir: str):
+    def __init__(self, out_dir: str, progress=None, total: int = 1):
         self.out_dir = out_dir
         self.sections: list[str] = []
+        self.progress, self.total, self.done = progress, total, 0
+        if progress is not None:
+            progress("report", 0, total)
 
     def picture(self, name: str, draw, *args) -> tuple:
         """Draw picture ``name`` with ``draw(file, *args)``: (its address relative to the page,
         the figures ``draw`` returns)."""
         figs = draw(os.path.join(self.out_dir, FILES, f"{name}.png"), *args)
+        self.done += 1
+        if self.progress is not None:
+            self.progress("report", min(self.done, self.total), self.total)
         return f"{FILES}/{name}.png", figs
 
 
 def write_report(out_dir: str, *, model, path, processing_list=None, oriented=None, machine=None,
                  posted=None, verification=None, baseline=None, settings=None, tool=None, stock=None,
-                 checker=None) -> str:
+                 checker=None, progress=None) -> str:
     """Write ``out_dir/report.html`` and its pictures (``out_dir/report_files/*.png``);
     returns the page's path.
 
@@ -140,7 +147,8 @@ def write_report(out_dir: str, *, model, path, processing_list=None, oriented=No
     ``tool``: the Tool (header; with it the clearance is measured, against ``stock``
     (vertices, triangles) too); ``checker``: the orientation's CollisionChecker to reuse for
     that (default: ``oriented.checker`` if it has one, else one is built, which on a big
-    model takes as long as the orientation's did).
+    model takes as long as the orientation's did); ``progress``: a tsplcam.progress callback
+    told after each picture (stage "report").
     The same inputs give the same bytes."""
     os.makedirs(os.path.join(out_dir, FILES), exist_ok=True)
     final = oriented.path if oriented is not None else path
@@ -154,7 +162,9 @@ def write_report(out_dir: str, *, model, path, processing_list=None, oriented=No
     colours = style.patch_colours(len(model.patches))
     pm = path_metrics(final)
     limit = float(path.info.get("settings", {}).get("scallop", float("nan")))   # unknown for a path read from CL data
-    rep = _Report(out_dir)
+    pictures = 3 + (verification is not None and verification.heights is not None) + 2 * (posted is not None) \
+        + (tool is not None) + (baseline is not None)
+    rep = _Report(out_dir, progress, pictures)
     cards = []
 
     # -- layout -----------------------------------------------------------------------------
@@ -424,4 +434,6 @@ def write_report(out_dir: str, *, model, path, processing_list=None, oriented=No
     out = os.path.join(out_dir, "report.html")
     with open(out, "w", encoding="utf-8", newline="\n") as fh:
         fh.write(html)
+    if progress is not None and rep.done < rep.total:
+        progress("report", rep.total, rep.total)
     return out

@@ -9,7 +9,7 @@ import unittest
 
 import numpy as np
 
-from conftest import REPO_DIR
+from conftest import REPO_DIR, needs_freecad
 
 PY = "/usr/bin/python3"
 
@@ -238,3 +238,49 @@ class OneProgramBuilder(unittest.TestCase):
         self.assertGreaterEqual(figures["orientation"]["min_clearance"], 0.25 - 1e-6)
         self.assertIn(b"G43.4", job_program)             # Fanuc's tool centre point control
         self.assertEqual(figures["settings"]["feed"], 800.0)   # the value given, not computed
+
+
+@needs_freecad
+class JobUnderFreecadcmd(unittest.TestCase):
+    """`freecadcmd tsplcam/run_in_freecad.py -- job ...` as a user types it: FreeCAD's Python
+    runs the job, its exit code is the command's, and the program, CL data and report figures
+    are those of the same job run here."""
+
+    def test_job_through_freecadcmd(self):
+        import shutil
+        from tsplcam.job import run_job
+        from tsplcam.settings import JobSettings
+        exe = shutil.which("freecadcmd")
+        if exe is None:
+            self.skipTest("freecadcmd not on PATH")
+        script = os.path.join(REPO_DIR, "tsplcam", "run_in_freecad.py")
+        with tempfile.TemporaryDirectory() as tmp:
+            out = os.path.join(tmp, "fc")
+            res = subprocess.run([exe, script, "--", "job", "keycap", "--out", out, "--scallop", "0.2",
+                                  "--chord-tol", "0.01", "--machine", "linuxcnc_xyzac_trt"],
+                                 capture_output=True, text=True, timeout=600, cwd=tmp)
+            self.assertEqual(res.returncode, 0, res.stdout[-2000:] + res.stderr[-2000:])
+            self.assertIn("report: " + os.path.join(out, "report.html"), res.stdout)
+            self.assertEqual(sorted(os.listdir(out)), ["keycap.cl", "keycap.ngc", "processing-list.json",
+                                                       "report.html", "report.json", "report_files"])
+            self.assertEqual(len(os.listdir(os.path.join(out, "report_files"))), 7)
+            here = os.path.join(tmp, "here")
+            run_job(JobSettings(out=here, scallop=0.2, chord_tol=0.01, machine="linuxcnc_xyzac_trt"), log=None,
+                    progress=lambda stage, done, total: None)
+            for name in ("keycap.ngc", "keycap.cl", "processing-list.json"):
+                with open(os.path.join(out, name), "rb") as a, open(os.path.join(here, name), "rb") as b:
+                    self.assertEqual(a.read(), b.read(), name)
+            a, b = (json.load(open(os.path.join(d, "report.json"))) for d in (out, here))
+            self.assertLessEqual(a["verification"]["max_scallop"], 0.2 * (1 + 1e-9))
+            self.assertAlmostEqual(a["verification"]["max_scallop"], b["verification"]["max_scallop"], delta=1e-9)
+            self.assertEqual(a["path"]["points"], b["path"]["points"])
+            # a refusal: exit code 2 and one line, as from python3 -m tsplcam
+            res = subprocess.run([exe, script, "--", "job", "--out", os.path.join(tmp, "bad"), "--scallop", "-1"],
+                                 capture_output=True, text=True, timeout=300, cwd=tmp)
+            self.assertEqual(res.returncode, 2, res.stdout[-2000:] + res.stderr[-2000:])
+            self.assertIn("error: --scallop: must be a positive number (mm), not -1", res.stderr)
+            self.assertFalse(os.path.exists(os.path.join(tmp, "bad")))
+
+
+if __name__ == "__main__":
+    unittest.main()

@@ -235,15 +235,16 @@ def _dask_task(spec: dict) -> dict:
     return run_one(spec, workers=1, check_inputs=True)
 
 
-def run_dask(specs: list, address: str, done) -> None:
-    """Run ``specs`` as tasks on the Dask cluster at ``address``; ``done(row)`` as each ends."""
+def run_dask(specs: list, address: str, done, timeout: str = "10s") -> None:
+    """Run ``specs`` as tasks on the Dask cluster at ``address``; ``done(row)`` as each ends.
+    ``timeout``: how long to wait for the scheduler to answer."""
     try:
         from distributed import Client, as_completed
     except ImportError:
         raise InputError("needs the Dask 'distributed' package (bash scripts/install.sh installs it)",
                          item="--scheduler") from None
     try:
-        client = Client(address, timeout="10s", set_as_default=False)
+        client = Client(address, timeout=timeout, set_as_default=False)
     except (OSError, TimeoutError) as exc:
         raise InputError(f"no Dask scheduler answers at {address}: {exc}", item="--scheduler") from None
     with client:

@@ -153,10 +153,10 @@ def settings_from_args(args, command: str) -> JobSettings:
         given["model"] = model
     defaults = COMMANDS[command]["defaults"]
     config = getattr(args, "config", None)
+    if config:             # errors name the file and its key, or the option as typed
+        from .jobfile import job_settings
+        return job_settings(config, overrides=given, defaults=defaults, label=label_for(command))
     with named_options(command):
-        if config:
-            from .jobfile import job_settings
-            return job_settings(config, overrides=given, defaults=defaults, label=label_for(command))
         return JobSettings(**{**defaults, **given}).check(label_for(command))
 
 

@@ -75,8 +75,8 @@ def job_settings(path: str, overrides: dict | None = None, defaults: dict | None
                  label=None) -> JobSettings:
     """JobSettings of the job file ``path``: ``defaults`` (the command's), then the file's
     values, then ``overrides`` (options given on the command line), checked together. An
-    error about a value the file gave names the file and the key; one about an override is
-    named by ``label(field name)`` (how the command line spells it)."""
+    error about an override is named by ``label(field name)`` (how the command line spells
+    it); any other names the file and the key."""
     overrides = dict(overrides or {})
     try:
         data = read_job_file(path)
@@ -91,10 +91,9 @@ def job_settings(path: str, overrides: dict | None = None, defaults: dict | None
     try:
         return JobSettings(**merged).check(name)
     except InputError as exc:
-        item = exc.item
-        from_file = item in data and item not in overrides
-        if from_file and exc.path is None:
-            raise InputError(exc.message, path=path, line=exc.line, item=item) from None
+        typed = set(overrides) | {name(k) for k in overrides}
+        if exc.item not in typed and exc.path is None:          # about the file's values
+            raise InputError(exc.message, path=path, line=exc.line, item=exc.item) from None
         raise
 
 

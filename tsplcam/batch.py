@@ -257,7 +257,10 @@ def run_dask(specs: list, address: str, done, timeout: str = "10s") -> None:
             try:
                 row = f.result()
             except Exception as exc:                  # the worker died, or could not import tsplcam
-                row = row_of(spec, "failed", f"on the cluster: {type(exc).__name__}: {exc}", time.perf_counter() - t0)
+                text = " ".join(str(exc).split())
+                if "deserializ" in text or "No module named 'tsplcam" in text:
+                    text = "the scheduler or a worker cannot import tsplcam (start them with it importable: README)"
+                row = row_of(spec, "failed", f"on the cluster: {type(exc).__name__}: {text}", time.perf_counter() - t0)
             if row["status"] == "ok" and not os.path.exists(os.path.join(spec["out"], "report.json")):
                 row = row_of(spec, "failed", f"the worker wrote its files where this machine does not see them "
                                              f"({spec['out']}): DIR must be a shared folder", row["wall_s"])

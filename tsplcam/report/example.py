@@ -1,61 +1,37 @@
-"""The keycap job's stages in-process, for the README's example report and the report tests.
+"""The README's example report: the main job's own report.
 
-    /usr/bin/python3 -m tsplcam.report.example [--scallop 0.005] [--out docs/report-example]
+    /usr/bin/python3 -m tsplcam.report.example [--out docs/report-example] [--scallop 0.005]
 
-runs model -> processing list -> path -> smooth collision-free tool axes -> Heidenhain program
-(the main job's defaults), measures the scallop on the surface and builds the compound-NURBS
-baseline, then writes the report; it prints each stage's time, the report's time and its size.
+runs the job of ``tsplcam/data/jobs/keycap.json`` (the main job with the scallop measured on
+the surface and the compound-NURBS baseline oriented like the job) through
+:func:`tsplcam.job.run_job`, exactly as ``python3 -m tsplcam job --config`` does, and copies
+its ``report.html`` and ``report_files/`` into ``--out``; it prints each stage's time, the
+report's time and its size. :func:`job_objects` hands the report's inputs to tests.
 """
 from __future__ import annotations
 
 import argparse
 import os
-import time
+import shutil
+import tempfile
 
-DEFAULTS = {"model": "keycap", "tool": "ball1_keycap", "scallop": 0.005, "chord_tol": 0.001,
-            "orientation": "smooth", "machine": "mikron_ucp600_heidenhain", "dialect": None,
-            "holder_clearance": 0.3, "baseline_axes": "job"}
+JOB_FILE = os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), "data", "jobs", "keycap.json")
 
 
-def job_objects(log=None, **settings) -> dict:
-    """Everything :func:`tsplcam.report.write_report` takes, for the job ``settings`` (keys of
-    :data:`DEFAULTS`), made by the program builder (tsplcam.program) the job uses;
-    ``log(stage, seconds)`` is told each. ``baseline_axes``: "job" orients the baseline like
-    the job (what a shop would run), "normal" keeps its surface normals (quicker; compares
-    the linking only)."""
-    from ..program import (load_machine, load_model, load_stock, load_tool, make_baseline, make_path,
-                           make_program, processing_list)
-    from ..settings import JobSettings
-    from ..verify.scallop import measure
-    s = dict(DEFAULTS, **settings)
-    if s["baseline_axes"] not in ("job", "normal"):
-        raise ValueError(f"baseline_axes must be 'job' or 'normal', not {s['baseline_axes']!r}")
-    js = JobSettings(**{k: v for k, v in s.items() if k != "baseline_axes"}).check()
-    log = log or (lambda stage, seconds: None)
-    out = {"settings": s}
+def settings(**overrides):
+    """The example job's JobSettings: the shipped keycap job file, with ``overrides``."""
+    from ..jobfile import job_settings
+    return job_settings(JOB_FILE, overrides=overrides)
 
-    def stage(name, make):
-        t = time.perf_counter()
-        value = make()
-        log(name, time.perf_counter() - t)
-        return value
 
-    model = out["model"] = stage("model", lambda: load_model(js.model))
-    plist = out["processing_list"] = stage("processing list", lambda: processing_list(model, js))
-    tool = out["tool"] = load_tool(js)
-    out["machine"] = load_machine(js)
-    stock = out["stock"] = load_stock(js)
-    path = out["path"] = stage("path", lambda: make_path(model, plist, js, tool.ball_radius))
-    program = out["oriented"] = stage("tool axes and program", lambda: make_program(path, model, js, stock=stock,
-                                                                                      plist=plist))
-    out["posted"] = program.posted
-    out["checker"] = program.checker
-    out["verification"] = stage("scallop verification", lambda: measure(path, model, heights=True))
-    base = stage("baseline", lambda: make_baseline(model, plist, js, tool.ball_radius))
-    if s["baseline_axes"] == "job":
-        base = stage("baseline tool axes", lambda: make_program(base, model, js, stock=stock, post=False)).path
-    out["baseline"] = base
-    return out
+def job_objects(log=None, baseline_axes: str = "job", **overrides) -> dict:
+    """Everything :func:`tsplcam.report.write_report` takes, for the example job with
+    ``overrides`` (JobSettings fields), made by the job's own stages
+    (:func:`tsplcam.job.make_job`); ``log(text)`` is told each stage. ``baseline_axes``:
+    "job" orients the baseline like the job (what a shop would run), "normal" keeps its
+    surface normals (quicker; compares the linking only)."""
+    from ..job import make_job
+    return make_job(settings(**overrides), log=log, baseline_axes=baseline_axes).report_inputs()
 
 
 def folder_size(path: str) -> int:
@@ -64,20 +40,25 @@ def folder_size(path: str) -> int:
 
 
 def main(argv=None) -> int:
-    from .report import FILES, write_report
+    from ..job import run_job
+    from .report import FILES
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--out", default="docs/report-example")
-    for k, v in DEFAULTS.items():
-        ap.add_argument("--" + k.replace("_", "-"), type=type(v) if v is not None else str, default=v)
+    ap.add_argument("--scallop", type=float, default=None, help="mm (default: the job file's)")
     args = ap.parse_args(argv)
-    settings = {k: getattr(args, k) for k in DEFAULTS}
-    objects = job_objects(log=lambda stage, sec: print(f"{stage}: {sec:.2f} s"), **settings)
-    objects["settings"] = {k: v for k, v in objects["settings"].items() if k != "baseline_axes"}
-    t = time.perf_counter()
-    page = write_report(args.out, **objects)
-    took = time.perf_counter() - t
+    over = {} if args.scallop is None else {"scallop": args.scallop}
+    with tempfile.TemporaryDirectory() as tmp:
+        figures = run_job(settings(out=tmp, **over),       # its files are in a folder about to go
+                          log=lambda text: None if text.startswith(("wrote ", "report: ")) else print(text))
+        os.makedirs(args.out, exist_ok=True)
+        shutil.copyfile(os.path.join(tmp, "report.html"), os.path.join(args.out, "report.html"))
+        shutil.rmtree(os.path.join(args.out, FILES), ignore_errors=True)
+        shutil.copytree(os.path.join(tmp, FILES), os.path.join(args.out, FILES))
+    t = figures["timing"]
+    print("times: " + ", ".join(f"{k[:-2]} {v:.2f} s" for k, v in t.items()))
     pictures = os.path.join(args.out, FILES)
-    print(f"report: {took:.2f} s, {os.path.getsize(page) + folder_size(pictures):,d} bytes "
+    page = os.path.join(args.out, "report.html")
+    print(f"report: {t['report_s']:.2f} s, {os.path.getsize(page) + folder_size(pictures):,d} bytes "
           f"({len(os.listdir(pictures))} pictures): {page}")
     return 0
 

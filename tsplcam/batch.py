@@ -104,11 +104,12 @@ def job_hash(settings) -> str:
 
 
 def prepare(path: str, out: str) -> dict:
-    """A job's spec: its file, name, settings (``out`` = ``out/<name>``) and hash; a job file
-    that cannot be read gives a spec with its ``error``."""
+    """A job's spec: its file, name, settings (``out`` = ``out/<name>``, absolute: a Dask
+    worker runs in a folder of its own) and hash; a job file that cannot be read gives a
+    spec with its ``error``."""
     name = job_name(path)
-    spec = {"job": path, "name": name, "out": os.path.join(out, name), "settings": None, "hash": None,
-            "error": None}
+    spec = {"job": path, "name": name, "out": os.path.join(os.path.abspath(out), name), "settings": None,
+            "hash": None, "error": None}
     from .jobfile import job_settings
     try:
         s = job_settings(path, overrides={"out": spec["out"]})

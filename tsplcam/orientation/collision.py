@@ -113,9 +113,8 @@ def _patch_grid_error(patch, gu: np.ndarray, gv: np.ndarray) -> tuple[float, flo
     A, B, C, D = G[:-1, :-1], G[1:, :-1], G[1:, 1:], G[:-1, 1:]
     ec = 0.0
     for (fa, fb), tri in (((2 / 3, 1 / 3), (A, B, C)), ((1 / 3, 2 / 3), (A, C, D))):
-        uu = gu[:-1, None] + fa * np.diff(gu)[:, None] + 0 * gv[None, :-1]
-        vv = gv[None, :-1] + fb * np.diff(gv)[None, :] + 0 * gu[:-1, None]
-        P = patch.evaluate(uu.ravel(), vv.ravel()).P
+        # the points of every cell form a tensor grid: one grid evaluation
+        P = patch.evaluate_grid(gu[:-1] + fa * np.diff(gu), gv[:-1] + fb * np.diff(gv)).P
         ec = max(ec, _plane_distance(P, *(t.reshape(-1, 3) for t in tri)).max())
     return max(eu, ec), max(ev, ec)
 

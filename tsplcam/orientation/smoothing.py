@@ -144,16 +144,20 @@ def joint_transitions(grid: MeridianGrid, cost: SmoothingCost, ds: np.ndarray, m
         """The transitions into points i0 .. i1 - 1, (i1 - i0, M, M), element for element
         the same arithmetic as one point at a time."""
         a, b = TH[i0 - 1:i1 - 1], TH[i0:i1]
-        dots = np.cos(a)[:, :, None] * np.cos(b)[:, None, :] + (np.sin(a)[:, :, None] * np.sin(b)[:, None, :]) * cosD
+        dots = np.cos(a)[:, :, None] * np.cos(b)[:, None, :]
+        dots += (np.sin(a)[:, :, None] * np.sin(b)[:, None, :]) * cosD
         dt = a[:, :, None] - b[:, None, :]
-        t = alpha * (dt * dt + D2)
+        dt *= dt
+        dt += D2
+        t = np.multiply(alpha, dt, out=dt)
         if beta:
             t += beta * (2.0 - 2.0 * dots)
         t *= (L / ds[i0 - 1:i1 - 1])[:, None, None]
         hard = ~free_step[i0:i1]
-        t[hard[:, None, None] & (dots < cmax - 1e-12)] = np.inf
+        np.copyto(t, np.inf, where=hard[:, None, None] & (dots < cmax - 1e-12))
         short = (ds[i0 - 1:i1 - 1] < IN_PLACE[0]) & ~air[i0:i1]
-        t[short[:, None, None] & swing[None]] = np.inf
+        if short.any():
+            np.copyto(t, np.inf, where=short[:, None, None] & swing[None])
         return t
 
     def trans(i: int) -> np.ndarray:

@@ -18,7 +18,7 @@ from __future__ import annotations
 import numpy as np
 
 TIE = 1e-9
-BLOCK = 512              # transitions fetched this many points at a time
+BLOCK = 32               # transitions fetched this many points at a time (arrays that stay in cache)
 
 
 def first_min(v: np.ndarray, axis: int = 0) -> np.ndarray:

@@ -219,7 +219,7 @@ class DistanceGrid:
         axes = [self.origin[i] + self.h * np.arange(self.shape[i]) for i in range(3)]
         nodes = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, 3)
         self.cap = float(cap)
-        d, j = tree.query(nodes, distance_upper_bound=cap)
+        d, j = tree.query(nodes, distance_upper_bound=cap, workers=2)
         far = ~np.isfinite(d)
         self.lb = np.where(far, np.sqrt(max(cap * cap - e2, 0.0)), np.sqrt(np.maximum(d * d - e2, 0.0)))
         self.idx = np.where(far, -1, j)

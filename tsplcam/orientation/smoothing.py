@@ -281,6 +281,10 @@ def joint_programme(checker, C, grid: MeridianGrid, cost: SmoothingCost, pref, d
         checks += len(unknown)
         status[unknown[~hit], states[unknown[~hit]]] = 0
         bad = unknown[hit]
+        if len(bad) == 0:
+            # every chosen pose is now known free: the node costs of the states did not change
+            # (unknown and free cost the same), so the programme would choose them again
+            return states, rounds, checks, status
         if len(bad):
             # anchors of the stretches around colliding poses: every rotary position
             lo_a = (bad // anchor) * anchor

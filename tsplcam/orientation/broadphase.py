@@ -405,8 +405,9 @@ class BroadPhase:
             if len(rows):
                 tris = self.sample_tris[j[rows, cols]]
                 r2, t2 = np.nonzero(tris >= 0)
-                tt = self.T[tris[r2, t2]]
-                q = nw[rows[r2]]
+                # each triangle once per point (neighbouring samples share their triangles)
+                key = np.unique(nw[rows[r2]] * len(self.T) + tris[r2, t2])
+                q, tt = key // len(self.T), self.T[key % len(self.T)]
                 P = closest_on_triangles(o[q], self.V[tt[:, 0]], self.V[tt[:, 1]], self.V[tt[:, 2]])
                 np.minimum.at(out, q, np.linalg.norm(P - o[q], axis=1))
         return (out, near) if nearest else out

@@ -40,7 +40,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..errors import GeometryError, InputError
-from ..toolpath.parallel import worker_count
+from ..toolpath.parallel import map_pieces, worker_count
 from .broadphase import HIT, UNKNOWN, BroadPhase, Profile
 from .tool import Tool
 
@@ -148,14 +148,23 @@ def tessellate_patch(patch, tolerance: float, max_cells: int = 4000) -> tuple:
     return np.ascontiguousarray(sp.P), _grid_triangles(nu, nv), np.column_stack([sp.u, sp.v]), max(eu, ev)
 
 
+def _tessellate_piece(model, tolerance, patches, i):
+    V, T, _, err = tessellate_patch(model.patches[patches[i]], tolerance)
+    return V, T, err
+
+
 def tessellate_model(model, tolerance: float = 0.005, patches=None) -> TriangleMesh:
-    """Every patch of the model (or those listed) as triangles within ``tolerance`` (mm)."""
+    """Every patch of the model (or those listed) as triangles within ``tolerance`` (mm); the
+    patches in forked processes on the cores there are (the same triangles as in one)."""
     if not tolerance > 0:
         raise InputError(f"tessellation tolerance must be positive, not {tolerance!r}")
+    ks = list(range(len(model.patches)) if patches is None else patches)
+    size = [int(np.prod(model.patches[k].shape)) for k in ks]
+    pieces = map_pieces(_tessellate_piece, (model, tolerance, ks), len(ks), worker_count(None, len(ks)),
+                        order=np.argsort(size, kind="stable")[::-1])
     meshes = []
-    for k in (range(len(model.patches)) if patches is None else patches):
+    for k, (V, T, err) in zip(ks, pieces):
         p = model.patches[k]
-        V, T, _, err = tessellate_patch(p, tolerance)
         meshes.append(TriangleMesh(V, T, np.zeros(len(T), int), [f"patch {k} ({p.name})"], [k], err))
     return TriangleMesh.concat(meshes)
 

@@ -28,7 +28,9 @@ smaller sphere might still clear (its bound plus half the slab reaches the slab'
 and at most ``EXACT_LEVELS`` times. A pose is given up to fcl at its first sphere that cannot
 clear; the nearest samples of failing spheres are tried as hits. Where the last calls decided
 less than a pose per ``EXACT_COST`` spheres (deep in a cavity most poses collide, and fcl is
-cheaper there), and in cells where a wall already stopped poses, the pass is left out.
+cheaper there), and in cells where a wall already stopped poses, the pass is left out; after
+a pause it is tried again on a few poses. Nor does it run for a grown tool (the clearance
+measurement's poses lie within a hair of the surface, where it seldom decides).
 
 **Free cones.** Turning the axis by an angle phi about the ball centre moves a point at
 distance l from it by at most l phi. A pose cleared with that much to spare leaves a cone of

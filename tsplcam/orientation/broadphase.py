@@ -340,7 +340,6 @@ class BroadPhase:
         self._wit_cells = CentreTable()
         self._wit = np.zeros((0, WITNESSES), np.int64)
         self._exact_gain = (0.0, 0.0)             # poses decided, spheres asked (_exact_pass)
-        self._exact_calls = 0
         self.stats = {"poses": 0, "free": 0, "hit": 0, "unknown": 0, "cone": 0, "witness": 0,
                       "queries": 0, "exact": 0}
 
@@ -569,25 +568,35 @@ class BroadPhase:
         fcl, its parts as they were) at its first sphere that cannot clear; the nearest
         samples of failing spheres are tried as hits. Updates ``status``, ``unresolved`` and
         the free cones ``phi`` in place."""
-        prof = cov.prof
         # not next to a wall that stopped poses before (a hit witness in the centre's cell):
         # there most poses collide, and fcl settles them in fewer steps
         near_wall = (self._wit[cell] >= 0).any(axis=1)
         pose, part = np.nonzero(unresolved & ((status != HIT) & ~near_wall)[:, None])
         # only while it pays: a pose fcl answers costs about as much as EXACT_COST spheres
         # here; the pass stops while the last calls decided fewer poses per sphere (decayed
-        # sums, so it is tried again later; the answers are the same either way)
+        # sums, so it is tried again later; the answers are the same either way), and without
+        # such a measure (the first call, or after a pause) it tries a few poses first
         decided, asked = self._exact_gain
         if len(pose) == 0 or (asked > EXACT_PROBE and decided * EXACT_COST < asked):
             self._exact_gain = (0.5 * decided, 0.5 * asked)
             return
-        if asked <= EXACT_PROBE and self._exact_calls:      # tried again after a pause: a few poses
-            few = np.unique(pose)[:EXACT_PROBE // 10]
-            keep = np.isin(pose, few)
-            pose, part = pose[keep], part[keep]
-            near_wall = near_wall | ~np.isin(np.arange(len(C)), few)
-        self._exact_calls += 1
-        before = int((status == HIT).sum())
+        members = np.unique(pose)
+        few = EXACT_PROBE // 10
+        groups = [members[:few], members[few:]] if asked <= EXACT_PROBE and len(members) > few else [members]
+        got = spent = 0
+        for k, grp in enumerate(groups):
+            if k and got * EXACT_COST < spent:                 # the first few did not pay
+                break
+            sel = np.isin(pose, grp)
+            g, a = self._exact_run(C, A, cov, status, unresolved, phi, cell, pose[sel], part[sel], grp)
+            got, spent = got + g, spent + a
+        self._exact_gain = (0.5 * decided + got, 0.5 * asked + spent)
+
+    def _exact_run(self, C, A, cov, status, unresolved, phi, cell, pose, part, members):
+        """One run of the exact pass over the (pose, part) pairs given, all of the poses
+        ``members``; returns (poses decided, spheres asked)."""
+        prof = cov.prof
+        before = int((status[members] == HIT).sum())
         asked0 = self.stats["exact"]
         lost = np.zeros(len(C), bool)
         seg = np.zeros(len(pose), np.int64)
@@ -617,10 +626,9 @@ class BroadPhase:
             pose, part = np.repeat(pose[keep], 2), np.repeat(part[keep], 2)
             seg = 2 * np.repeat(seg[keep], 2) + np.tile([0, 1], m)
             level += 1
-        done = unresolved.any(axis=1) & ~lost & (status != HIT) & ~near_wall
+        done = members[unresolved[members].any(axis=1) & ~lost[members] & (status[members] != HIT)]
         unresolved[done] = False
-        gained = int(done.sum()) + int((status == HIT).sum()) - before
-        self._exact_gain = (0.5 * decided + gained, 0.5 * asked + self.stats["exact"] - asked0)
+        return len(done) + int((status[members] == HIT).sum()) - before, self.stats["exact"] - asked0
 
     def decide(self, C: np.ndarray, A: np.ndarray, grow: float = 0.0) -> np.ndarray:
         """FREE (0), HIT (1) or UNKNOWN (-1) per pose (ball centre, unit axis)."""

@@ -16,6 +16,7 @@ from dataclasses import dataclass, field
 
 from . import load_model
 from .errors import InputError
+from .numerics import one_blas_thread
 from .settings import PATH_KEYS, JobSettings
 
 __all__ = ["Program", "load_model", "load_stock", "load_tool", "make_baseline", "make_path", "make_program",
@@ -97,6 +98,7 @@ def make_path(model, plist, settings: JobSettings, radius: float | None = None, 
     """The finishing path (ToolPath) of ``model`` in the order of ``plist``: one zigzag per
     patch, linked at shared corners, tool axes along the surface normals. ``progress``: a
     tsplcam.progress callback (stage "path")."""
+    one_blas_thread()
     from .progress import report
     from .toolpath import zigzag_path
     radius = tool_radius(settings) if radius is None else radius
@@ -151,6 +153,7 @@ def make_program(path, model, settings: JobSettings, stock=None, progress=None, 
     False stops before the machine program; ``plist``: the processing list, whose steps may
     carry tool-axis settings for their patch. Raises InputError, CollisionError or
     KinematicsError naming the place; a path that collides is never returned."""
+    one_blas_thread()
     machine = load_machine(settings)
     t = time.perf_counter()
     if settings.orientation != "normal":

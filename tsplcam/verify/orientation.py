@@ -308,7 +308,11 @@ def orientation_metrics(path: ToolPath, checker=None, machine=None, v_rotary=(54
         if isinstance(machine, str):
             machine = load_machine(machine)
         sol, tip = solve_joints(machine, path.tip, K, radius=path.tool_radius, patch=path.patch, uv=path.uv)
-        J = sol.joints
+        # joints and tips to 1e-6 mm or deg, far below what a program writes: the time
+        # estimate's junction speeds and maxima would carry the inverse kinematics' last bits
+        # (which follow the floating-point path taken) into the report's figures
+        J = np.round(sol.joints, 6)
+        tip = np.round(tip, 6)
         t_min = np.linalg.norm(np.diff(tip, axis=0), axis=1) / path.feed * 60.0
         rep = estimate(J, t_min, machine.max_velocity, machine.max_acceleration,
                        axis_names=machine.axis_names, cut=cut)

@@ -30,7 +30,7 @@ from .outfile import check_folder, check_writable, write_texts
 from .progress import TerminalProgress, for_stage
 from .program import (load_machine, load_stock, load_tool, make_baseline, make_path, make_program,
                       processing_list, program_file_name, tool_radius)
-from .settings import GROUPS, JobSettings, choices_of, default_of, help_text
+from .settings import GROUPS, NUMBER_KINDS, JobSettings, choices_of, default_of, help_text
 
 # what differs between the two commands: the model is an argument of `path`, which also
 # needs the ball radius (or a tool) and the scallop and makes no tool axes or program unless
@@ -52,7 +52,6 @@ COMMANDS = {
                             "mm, feeds in mm/min. Exit code 0, or 2 with one line naming the option, file or "
                             "place."),
 }
-NUMBER_KINDS = ("length", "length0", "feed", "factor", "angle")
 VECTOR_KINDS = {"vector": 3, "pair": 2}
 
 
@@ -119,7 +118,7 @@ def add_options(parser, command: str) -> None:
             elif default is not None and "default:" not in text:
                 shown = (f"{default:g}" if isinstance(default, float) else
                          ",".join(f"{x:g}" for x in default) if isinstance(default, tuple) else str(default))
-                unit = text.endswith(("(mm)", "(mm/min)", "(deg)"))
+                unit = text.endswith(("(mm)", "(mm/min)", "(deg)", "(rpm)"))
                 text = text[:-1] + f", default {shown})" if unit else text + f" (default {shown})"
         if md["group"] not in groups:
             groups[md["group"]] = parser.add_argument_group(GROUPS[md["group"]])

@@ -192,8 +192,8 @@ class ToolPathCommand:
     def GetResources(self):
         return {"Pixmap": icon("toolpath"), "MenuText": "Tool path",
                 "ToolTip": "Isoparametric zigzags patch after patch in the order of the processing "
-                           "list, side steps under the scallop height; change ToolRadius, Scallop "
-                           "or ChordTolerance in its properties and recompute"}
+                           "list, stepover under the scallop height; double-click the path for its "
+                           "settings (mm, feed in mm/min), Generate with progress and Cancel"}
 
     def _plans(self):
         from tsplcam.workbench.planobject import is_plan_object
@@ -269,6 +269,54 @@ class SaveProgramCommand:
                 messages.info(f"{prog.Label}: wrote {path}")
 
 
+class CamJobCommand:
+    """Put the selected program's moves into a FreeCAD CAM Job (tool controller, stock, work
+    offset), where the CAM workbench's posts can read them."""
+
+    def GetResources(self):
+        return {"Pixmap": icon("camjob"), "MenuText": "CAM job from program",
+                "ToolTip": "A FreeCAD CAM Job holding the selected program's moves (G0/G1 with X Y Z and the "
+                           "rotary axes, feeds), with a tool controller (tool number, spindle speed), the stock "
+                           "and the work offset: the CAM workbench lists it and its posts read it"}
+
+    def _programs(self):
+        from tsplcam.workbench.programobject import is_program_object
+        return _selected_or_only(is_program_object)
+
+    def IsActive(self):
+        return FreeCAD.ActiveDocument is not None and bool(self._programs())
+
+    def Activated(self):
+        from tsplcam.workbench.camjob import make_cam_job
+        for prog in self._programs():
+            job = make_cam_job(prog)
+            if job is not None:
+                FreeCADGui.Selection.clearSelection()
+                FreeCADGui.Selection.addSelection(job)
+
+
+class EditCommand:
+    """Open the task panel of the selected processing list, tool path or program."""
+
+    def GetResources(self):
+        return {"Pixmap": icon("settings"), "MenuText": "Edit settings...",
+                "ToolTip": "Task panel of the selected processing list, tool path or program: every option "
+                           "with its unit, Generate with progress and Cancel (also by double-click)"}
+
+    def _objects(self):
+        from tsplcam.workbench import pathobject, planobject, programobject
+        kinds = (planobject.is_plan_object, pathobject.is_path_object, programobject.is_program_object)
+        return [o for o in FreeCADGui.Selection.getSelection() if any(k(o) for k in kinds)]
+
+    def IsActive(self):
+        return FreeCAD.ActiveDocument is not None and len(self._objects()) == 1 and \
+            not FreeCADGui.Control.activeDialog()
+
+    def Activated(self):
+        obj = self._objects()[0]
+        FreeCADGui.ActiveDocument.setEdit(obj.Name, 0)
+
+
 class _ToggleCommand:
     """Switch a display layer of the selected models (all models when none is selected)."""
     PROPERTY = ""
@@ -326,6 +374,8 @@ COMMANDS = {
     "Tsplcam_ToolPath": ToolPathCommand,
     "Tsplcam_Program": ProgramCommand,
     "Tsplcam_SaveProgram": SaveProgramCommand,
+    "Tsplcam_CamJob": CamJobCommand,
+    "Tsplcam_Edit": EditCommand,
     "Tsplcam_About": AboutCommand,
 }
 
@@ -349,6 +399,10 @@ def available() -> dict:
     except ImportError:
         out.pop("Tsplcam_Program")
         out.pop("Tsplcam_SaveProgram")
+        out.pop("Tsplcam_CamJob")
+    from tsplcam.workbench.camjob import cam_available
+    if not cam_available():
+        out.pop("Tsplcam_CamJob", None)
     return out
 
 

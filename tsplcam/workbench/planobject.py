@@ -70,7 +70,9 @@ class TsplcamProcessingList(FeatureProxy):
         if prop in ("ListText", "Model"):
             self._plist = None
 
-    def execute(self, obj):
+    TITLE = TITLE
+
+    def recompute(self, obj):
         self.update_info(obj, self.processing_list(obj))
 
     def _cache_key(self, obj):
@@ -143,6 +145,7 @@ def make_processing_list(model_obj, plist=None):
     obj = in_transaction(doc, TITLE, f"adding the processing list of {model_obj.Label}", work)
     if obj is None:
         return None
-    messages.info(f"{obj.Label}: {obj.Steps} steps, {obj.BoundaryLinks} boundary links, "
-                  f"{obj.CornerLinks} corner links, {obj.Retractions} retractions")
+    from .modelobject import plural
+    messages.info(f"{obj.Label}: {plural(obj.Steps, 'step')}, {plural(obj.BoundaryLinks, 'boundary link')}, "
+                  f"{plural(obj.CornerLinks, 'corner link')}, {plural(obj.Retractions, 'retraction')}")
     return obj

@@ -44,9 +44,15 @@ def set_read_only(obj, name: str, value) -> None:
 
 class FeatureProxy:
     """Proxy of an ``App::FeaturePython``; subclasses set TYPE and VERSION and add their
-    properties in ``ensure_properties`` (also called on restore, so old files gain new ones)."""
+    properties in ``ensure_properties`` (also called on restore, so old files gain new ones).
+
+    Recompute: ``execute`` refuses at once when an input failed (tsplcam.workbench.validity),
+    then calls the subclass's ``recompute``; what that raises is reported where the person
+    works (a message box naming the place, the Report view; see ``messages``) and raised on,
+    so FreeCAD marks the object Invalid with the reason."""
     TYPE = "TsplcamFeature"
     VERSION = 1
+    TITLE = "tsplcam"
 
     def __init__(self, obj):
         obj.Proxy = self
@@ -56,6 +62,27 @@ class FeatureProxy:
     @staticmethod
     def ensure_properties(obj) -> None:
         """Add the object's properties unless present (see :func:`add_property`)."""
+
+    def recompute(self, obj) -> None:
+        """The object's own recompute (subclasses)."""
+
+    def stale(self, obj) -> str | None:
+        """Why the stored result is older than the inputs, or None (subclasses)."""
+        return None
+
+    def execute(self, obj):
+        from ..progress import Cancelled
+        from . import messages, validity
+        validity.install()
+        validity.check_inputs(obj)
+        try:
+            self.recompute(obj)
+        except (validity.StaleInput, Cancelled) as exc:
+            messages.info(f"{obj.Label}: {exc}")
+            raise
+        except Exception as exc:
+            messages.exception(self.TITLE, exc, f"recomputing {obj.Label}")
+            raise
 
     # -- persistence (0.20 and 1.0 names) -----------------------------------------------
     def __getstate__(self):

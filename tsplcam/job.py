@@ -298,6 +298,9 @@ def run_job(s: JobSettings, log=print, progress=None) -> dict:
     if not s.machine:
         raise InputError("the job makes a machine program: give a machine", item="machine")
     check_folder(s.out, item="out")
+    if s.fcstd:
+        from .workbench.headless import check_fcstd
+        check_fcstd(s.fcstd)
     timing = {}
     t_all = t = time.perf_counter()
     model = load_model(s.model)
@@ -344,6 +347,9 @@ def run_job(s: JobSettings, log=print, progress=None) -> dict:
                  (os.path.join(s.out, "report.json"), json_text(figures), "report")])
     log(f"wrote {os.path.join(s.out, name)}, {os.path.join(s.out, cl_name)}, processing-list.json and "
         f"report.json in {s.out} ({timing['total_s']:.1f} s in all)")
+    if s.fcstd:
+        from .workbench.headless import write_fcstd
+        log(f"wrote {write_fcstd(s, plist, path, program)} (FreeCAD document with a CAM job)")
     return figures
 
 

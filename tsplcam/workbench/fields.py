@@ -10,6 +10,7 @@ for the largest tilt and the spindle speed, an enumeration entry for controller 
 """
 from __future__ import annotations
 
+import contextlib
 from dataclasses import dataclass, fields as dc_fields
 
 from ..errors import InputError
@@ -196,3 +197,15 @@ def checked(values: dict) -> JobSettings:
     except TypeError as exc:                     # an option JobSettings does not have
         raise InputError(str(exc)) from None
     return s.check(lambda name: PROPERTY_OF.get(name, name))
+
+
+@contextlib.contextmanager
+def named_properties():
+    """Engine errors about an option (InputError.item a JobSettings field) name the document
+    property that sets it instead (``feed`` -> ``Feed``)."""
+    try:
+        yield
+    except InputError as exc:
+        if exc.item in PROPERTY_OF and exc.item != PROPERTY_OF[exc.item]:
+            raise InputError(exc.message, path=exc.path, line=exc.line, item=PROPERTY_OF[exc.item]) from None
+        raise

@@ -184,7 +184,9 @@ def compute_path(model, plist, settings: dict, label: str):
     """The ToolPath by the path options ``settings`` (JobSettings names), through the
     runner (GUI: child process with progress and cancel; headless: here)."""
     from . import runner
-    return runner.run(f"Tool path of {label}", "path_task", model, plist, dict(settings))
+    from .fields import named_properties
+    with named_properties():
+        return runner.run(f"Tool path of {label}", "path_task", model, plist, dict(settings))
 
 
 def is_path_object(obj) -> bool:
@@ -208,15 +210,17 @@ def path_defaults(**settings) -> dict:
     return values
 
 
-def make_tool_path(plan_obj, **settings):
+def make_tool_path(plan_obj, computed=None, **settings):
     """A TsplcamToolPath for ``plan_obj``: computed first (seconds; in the GUI with progress and
     cancel), added only on success; None after reporting why not (e.g. a ball too large for
     a concave region, named by patch and (u, v)). ``settings``: path options (JobSettings
-    names: tool_radius, scallop, chord_tol, max_step, feed in mm/min, clearance, ...)."""
+    names: tool_radius, scallop, chord_tol, max_step, feed in mm/min, clearance, ...);
+    ``computed``: the ToolPath the engine already made with them (headless documents)."""
     doc = plan_obj.Document
     try:
         values = path_defaults(**settings)
-        tp = compute_path(model_of(plan_obj.Model), plan_of(plan_obj), values, plan_obj.Label)
+        tp = computed if computed is not None else compute_path(model_of(plan_obj.Model), plan_of(plan_obj),
+                                                                values, plan_obj.Label)
     except Exception as exc:
         messages.exception(TITLE, exc, f"computing the tool path of {plan_obj.Label}")
         return None

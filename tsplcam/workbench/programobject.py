@@ -311,8 +311,10 @@ def compute_program(toolpath, model, settings, stock=None, plist=None, label: st
     the model is the keycap_mold sample. Raises InputError, CollisionError or KinematicsError
     naming the place, Cancelled on request."""
     from . import runner
-    return runner.run(f"Program of {label}", "program_task", toolpath, model, settings.to_dict(),
-                      stock=stock, plist=plist)
+    from .fields import named_properties
+    with named_properties():
+        return runner.run(f"Program of {label}", "program_task", toolpath, model, settings.to_dict(),
+                          stock=stock, plist=plist)
 
 
 # -- motion blocks (for the CAM operation and the preview) ------------------------------------------
@@ -372,7 +374,6 @@ def program_defaults(path_obj, **settings) -> dict:
     from .prefs import defaults
     radius = float(path_obj.ToolRadius.Value)
     values = defaults(PROGRAM_FIELDS)
-    values["rotary_weight"] = ROTARY_WEIGHT if values.get("rotary_weight") is None else values["rotary_weight"]
     tool = values.get("tool")
     if tool in tool_names():
         from ..orientation import load_tool
@@ -380,6 +381,8 @@ def program_defaults(path_obj, **settings) -> dict:
             tool = None
     values["tool"] = tool or tool_for_radius(radius)
     values.update(settings)
+    if values.get("rotary_weight") is None:          # the engine's default, as the property shows it
+        values["rotary_weight"] = ROTARY_WEIGHT
     if values["tool"] is None and values.get("orientation", "smooth") != "normal":
         raise InputError(f"no shipped tool has a ball of radius {radius:g} mm: add a tool file "
                          "(tsplcam/orientation/TOOLS.md) or post with orientation 'normal'",
@@ -387,13 +390,15 @@ def program_defaults(path_obj, **settings) -> dict:
     return values
 
 
-def make_program(path_obj, **settings):
+def make_program(path_obj, computed=None, **settings):
     """A TsplcamProgram for the tool path ``path_obj``: oriented and posted first (seconds to
     minutes; in the GUI with progress and cancel), added only on success; None after
     reporting why not (a collision or a pose outside the machine's limits, named by point,
     patch and (u, v); a feed or spindle speed beyond them). ``settings``: program options
     (JobSettings names: tool, orientation, target, lead, side_tilt, ..., machine, dialect,
-    axes_form, spindle; defaults from the preferences), and stock (a document object)."""
+    axes_form, spindle; defaults from the preferences), and stock (a document object);
+    ``computed``: the tsplcam.program.Program the engine already made with them (headless
+    documents)."""
     doc = path_obj.Document
     stock_obj = settings.pop("stock", None)
     try:
@@ -401,8 +406,8 @@ def make_program(path_obj, **settings):
         model_obj = path_obj.ProcessingList.Model
         s = settings_of(None, path_obj, model_obj, **values)
         stock = triangles_of(stock_obj) if stock_obj is not None else None
-        program = compute_program(path_of(path_obj), model_of(model_obj), s, stock=stock,
-                                  plist=_plist_of(path_obj), label=path_obj.Label)
+        program = computed if computed is not None else compute_program(
+            path_of(path_obj), model_of(model_obj), s, stock=stock, plist=_plist_of(path_obj), label=path_obj.Label)
     except Exception as exc:
         messages.exception(TITLE, exc, f"posting {path_obj.Label}")
         return None

@@ -200,7 +200,9 @@ class ChildRun:
             result = pickle.load(f)
         if result[0] == "ok":
             return result[1]
-        _, exc, text = result
+        _, exc, text, attrs = result
+        for k, v in attrs.items():
+            setattr(exc, k, v)
         FreeCAD.Console.PrintMessage(f"tsplcam worker ({self.title}):\n{text}")
         raise exc
 

@@ -12,8 +12,9 @@ this process.
 Protocol of the child: it reads one pickled request ``(function name, args, kwargs,
 result file)`` from stdin, writes ``P<TAB>stage<TAB>done<TAB>total`` lines while it works
 (at most ten a second, and every stage's last call), and at the end pickles
-``("ok", result)`` or ``("error", exception, traceback text)`` into the result file and
-writes ``D``.
+``("ok", result)`` or ``("error", exception, traceback text, attributes)`` (an
+InputError's message, path, line and item, which pickling alone would fold into its text)
+into the result file and writes ``D``.
 """
 from __future__ import annotations
 
@@ -90,11 +91,12 @@ def _child() -> int:
         result = ("ok", globals()[name](*args, progress=PipeProgress(out), **kwargs))
     except Exception as exc:                    # handed to the parent, which raises it again
         text = "".join(traceback.format_exception(type(exc), exc, exc.__traceback__))
+        attrs = {k: getattr(exc, k) for k in ("message", "path", "line", "item") if hasattr(exc, k)}
         try:
-            pickle.dumps(exc)
+            pickle.loads(pickle.dumps(exc))
         except Exception:
             exc = RuntimeError(f"{type(exc).__name__}: {exc}")
-        result = ("error", exc, text)
+        result = ("error", exc, text, attrs)
     with open(result_file, "wb") as f:
         pickle.dump(result, f, protocol=pickle.HIGHEST_PROTOCOL)
     out.write("D\n")

@@ -311,5 +311,43 @@ class CamWorkflow(unittest.TestCase):
               f"test {time.perf_counter() - t_start:.1f} s", file=__import__('sys').__stdout__)
 
 
+
+class PreferencesPage(unittest.TestCase):
+    def setUp(self):
+        self._dialogs = messages.show_dialogs
+        messages.show_dialogs = False
+
+    def tearDown(self):
+        prefs.clear()
+        messages.show_dialogs = self._dialogs
+
+    def test_the_page_shows_and_stores_every_option_with_its_unit(self):
+        from tsplcam.workbench.fields import PREFS_FIELDS as ALL_FIELDS
+        from tsplcam.workbench.settingspanel import PreferencesPage as Page
+        prefs.clear()
+        page = Page()
+        page.loadSettings()
+        self.assertEqual(set(page.controls.controls), {f.name for f in ALL_FIELDS})
+        spin = page.controls.controls["feed"][1]
+        self.assertEqual(spin.suffix(), " mm/min")
+        self.assertEqual(spin.value(), 1000.0)
+        self.assertEqual(page.controls.controls["scallop"][1].suffix(), " mm")
+        self.assertEqual(page.controls.controls["lead"][1].suffix(), " °")
+        self.assertEqual(page.controls.controls["spindle"][1].suffix(), " rpm")
+        spin.setValue(1500.0)
+        page.controls.controls["point"][1].setText("1, 2, 3")
+        page.saveSettings()
+        self.assertEqual(prefs.stored(), {"feed": 1500.0, "point": (1.0, 2.0, 3.0)})
+        again = Page()
+        again.loadSettings()
+        self.assertEqual(again.controls.value("feed"), 1500.0)
+        self.assertEqual(again.controls.value("point"), (1.0, 2.0, 3.0))
+        # text that is not three numbers is refused, naming the control; nothing is stored
+        again.controls.controls["point"][1].setText("1, 2")
+        again.saveSettings()
+        self.assertIn("Point", messages.recorded[-1][1])
+        self.assertEqual(prefs.stored()["point"], (1.0, 2.0, 3.0))
+
+
 if __name__ == "__main__":
     unittest.main()

@@ -407,3 +407,7 @@ class ToolPathView(_GuiCase):
         navy = colour_pixel_counts(alone, [viewpath.MOVE_STYLE[0][0]], hue_tolerance=12,
                                    min_saturation=0.5, min_value=0.1)[0]
         self.assertGreater(navy, 5000)                 # the cutting lines
+        obj.ViewObject.ColourBy = "Patch"              # each patch's passes in its model colour
+        by_patch = render("keycap_tool_path_by_patch.png", azimuth=-60, elevation=45)
+        counts = colour_pixel_counts(by_patch, display.PALETTE[:5], hue_tolerance=6, min_saturation=0.45)
+        self.assertEqual(sum(n > 300 for n in counts), 5, counts)

@@ -20,7 +20,7 @@ TARGET_NEEDS = {"axis": ("axis",), "lead-tilt": ("lead", "side_tilt"), "toward-p
 TARGET_FIELDS = ("axis", "lead", "side_tilt", "point", "direction")
 AXIS_FIELDS = ("target", "axis", "lead", "side_tilt", "point", "direction", "max_tilt", "limit_axis",
                "tilt_range", "pole_tilt", "holder_clearance", "smoothing_length", "rotary_weight", "tool")
-SPECIAL = {"max_tilt": "machine's range", "spindle": "machine's"}
+SPECIAL = {"max_tilt": "machine's range", "spindle": "machine's", "tool_radius": "the tool's"}
 
 
 def _spin(f: Field) -> QtGui.QDoubleSpinBox:
@@ -29,7 +29,7 @@ def _spin(f: Field) -> QtGui.QDoubleSpinBox:
     kind = f.kind
     if kind in ("length", "length0"):
         w.setDecimals(4)
-        w.setRange(0.0 if kind == "length0" else 0.0001, 10000.0)
+        w.setRange(0.0 if kind == "length0" or f.unset == 0.0 else 0.0001, 10000.0)
         w.setSingleStep(0.001 if f.name in ("scallop", "chord_tol") else 0.1)
     elif kind == "feed":
         w.setDecimals(0)
@@ -174,7 +174,7 @@ class FieldControls:
                 elif isinstance(w, QtGui.QLineEdit):
                     w.setText("" if v is None else ", ".join(f"{float(x):g}" for x in v))
                 else:
-                    w.setValue(0.0 if v is None else float(v))
+                    w.setValue(float(to_property(f, v)) if v is not None or f.unset is not None else 0.0)
             finally:
                 w.blockSignals(False)
         self._update_enabled()

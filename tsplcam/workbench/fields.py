@@ -6,7 +6,8 @@ words a CAM programmer uses and the unit), and :func:`settings_of` how to read t
 into JobSettings. Feeds are plain numbers in mm/min (a FreeCAD speed property would show and
 take mm/s); spindle speeds in rpm; lengths and angles are FreeCAD lengths (mm) and angles
 (degrees). Optional options have an "unset" value: an empty text for points and ranges, 0
-for the largest tilt and the spindle speed, an enumeration entry for controller and axes form.
+for the largest tilt and the spindle speed, the engine's default weight for the rotary weight,
+an enumeration entry for controller and axes form.
 """
 from __future__ import annotations
 
@@ -14,6 +15,7 @@ import contextlib
 from dataclasses import dataclass, fields as dc_fields
 
 from ..errors import InputError
+from ..orientation.orient import ROTARY_WEIGHT
 from ..settings import JobSettings, choices_of, default_of, help_text
 
 CONTROLLER = "machine's controller"
@@ -40,10 +42,7 @@ class Field:
 
     @property
     def tip(self) -> str:
-        text = help_text(self.spec)
-        if self.unset is not None and self.unset != "":
-            text += f" ({self.unset!r} here: not given)" if not isinstance(self.unset, str) else ""
-        return text
+        return help_text(self.spec)
 
     @property
     def default(self):
@@ -78,7 +77,7 @@ PROGRAM_FIELDS = (
     Field("pole_tilt", "PoleTilt", "Pole tilt", "App::PropertyAngle", "°"),
     Field("holder_clearance", "HolderClearance", "Shank and holder clearance", "App::PropertyLength", "mm"),
     Field("smoothing_length", "SmoothingLength", "Smoothing length", "App::PropertyLength", "mm"),
-    Field("rotary_weight", "RotaryWeight", "Rotary (C) axis weight", "App::PropertyFloat"),
+    Field("rotary_weight", "RotaryWeight", "Rotary (C) axis weight", "App::PropertyFloat", "", ROTARY_WEIGHT),
     Field("machine", "Machine", "Machine", "App::PropertyEnumeration"),
     Field("dialect", "Dialect", "Controller", "App::PropertyEnumeration", "", CONTROLLER),
     Field("axes_form", "AxesForm", "Tool axes in the program", "App::PropertyEnumeration", "", MACHINE_CHOICE),
@@ -87,6 +86,9 @@ PROGRAM_FIELDS = (
 
 ALL_FIELDS = PATH_FIELDS + PROGRAM_FIELDS
 BY_NAME = {f.name: f for f in ALL_FIELDS}
+# the preferences page: a new path's ball radius may be left to the tool (0)
+PREFS_FIELDS = tuple(Field(f.name, f.prop, "Ball radius (0: the tool's)", f.ptype, f.unit, 0.0)
+                     if f.name == "tool_radius" else f for f in ALL_FIELDS)
 # option -> the property that sets it (errors name the property)
 PROPERTY_OF = {f.name: f.prop for f in ALL_FIELDS} | {"stock": "Stock", "model": "Model"}
 

@@ -197,6 +197,17 @@ def path_of(obj):
     return obj.Proxy.path(obj)
 
 
+def default_radius() -> float:
+    """The ball radius of the default tool (preferences, else JobSettings'), else 0.5 mm."""
+    from .fields import PROGRAM_FIELDS
+    from .prefs import defaults
+    try:
+        from ..orientation import load_tool
+        return float(load_tool(defaults(PROGRAM_FIELDS)["tool"]).ball_radius)
+    except Exception:
+        return DEFAULT_RADIUS
+
+
 def path_defaults(**settings) -> dict:
     """Path options: the preferences page's defaults (JobSettings' where none are set), the
     default tool's ball radius, then ``settings``; checked, errors naming the property."""
@@ -204,7 +215,7 @@ def path_defaults(**settings) -> dict:
     from .prefs import defaults
     values = defaults(PATH_FIELDS)
     if values.get("tool_radius") is None:
-        values["tool_radius"] = DEFAULT_RADIUS
+        values["tool_radius"] = default_radius()
     values.update(settings)
     checked(values)
     return values

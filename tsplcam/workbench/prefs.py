@@ -14,7 +14,7 @@ import json
 import FreeCAD
 
 from . import messages
-from .fields import ALL_FIELDS, checked
+from .fields import PREFS_FIELDS as ALL_FIELDS, checked
 
 PARAMS = "User parameter:BaseApp/Preferences/Mod/tsplcam/Defaults"
 

@@ -32,7 +32,6 @@ import numpy as np
 import FreeCAD
 
 from ..errors import InputError
-from ..orientation.orient import ROTARY_WEIGHT
 from ..post.timing import hms
 from ..program import program_file_name
 from ..settings import PROGRAM_KEYS
@@ -89,7 +88,7 @@ class TsplcamProgram(FeatureProxy):
     def ensure_properties(obj, values: dict | None = None) -> None:
         g = "Program"
         add_property(obj, "App::PropertyLink", "ToolPath", g, "The tool path this program runs")
-        add_properties(obj, PROGRAM_FIELDS, g, {"rotary_weight": ROTARY_WEIGHT, **(values or {})})
+        add_properties(obj, PROGRAM_FIELDS, g, values)
         add_property(obj, "App::PropertyFile", "ToolFile", g,
                      "A tool file of your own (.json or FreeCAD CAM .fctb); when set, used instead of Tool")
         add_property(obj, "App::PropertyLink", "Stock", g,
@@ -381,8 +380,6 @@ def program_defaults(path_obj, **settings) -> dict:
             tool = None
     values["tool"] = tool or tool_for_radius(radius)
     values.update(settings)
-    if values.get("rotary_weight") is None:          # the engine's default, as the property shows it
-        values["rotary_weight"] = ROTARY_WEIGHT
     if values["tool"] is None and values.get("orientation", "smooth") != "normal":
         raise InputError(f"no shipped tool has a ball of radius {radius:g} mm: add a tool file "
                          "(tsplcam/orientation/TOOLS.md) or post with orientation 'normal'",

@@ -20,7 +20,7 @@ from PySide import QtCore, QtGui
 
 from . import messages, prefs, validity
 from .controls import FieldControls
-from .fields import ALL_FIELDS, PATH_FIELDS, PROGRAM_FIELDS, PROPERTY_OF, checked, set_values, values_of
+from .fields import PATH_FIELDS, PREFS_FIELDS, PROGRAM_FIELDS, PROPERTY_OF, checked, set_values, values_of
 from .resources import icon
 
 ERROR_STYLE = "color: #b00000; font-weight: bold"
@@ -269,13 +269,13 @@ class PreferencesPage:
                             "changed here). Lengths in mm, feeds in mm/min, angles in degrees.")
         note.setWordWrap(True)
         lay.addWidget(note)
-        self.controls = FieldControls(ALL_FIELDS, prefs.defaults())
+        self.controls = FieldControls(PREFS_FIELDS, prefs.defaults())
         scroll = QtGui.QScrollArea()
         scroll.setWidgetResizable(True)
         scroll.setWidget(self.controls.widget)
         lay.addWidget(scroll, 1)
         reset = QtGui.QPushButton("Engine defaults")
-        reset.clicked.connect(lambda: self.controls.set_values({f.name: f.default for f in ALL_FIELDS}))
+        reset.clicked.connect(lambda: self.controls.set_values({f.name: f.default for f in PREFS_FIELDS}))
         lay.addWidget(reset)
 
     def loadSettings(self):

@@ -206,10 +206,8 @@ class ViewProviderProgram(EditableMixin, DrawnViewProxy):
         if getattr(vobj, "ShowStock", True):
             self._draw_stock(obj, group)
         if not valid:
-            from .validity import problem
-            group.addChild(coinutil.labels([f"NOT VALID: {problem(obj) or 'recompute'}"[:120]], C[:1], 14,
-                                           text_colour=(1.0, 1.0, 1.0), background=(0.75, 0.0, 0.0),
-                                           pull=0.05 * size))
+            group.addChild(coinutil.labels([invalid_label(obj)], C[:1], 14, text_colour=(1.0, 1.0, 1.0),
+                                           background=(0.75, 0.0, 0.0), pull=0.05 * size))
         from pivy import coin
         self.tool_switch = coinutil.switch(False, "tsplcam_tool")
         group.addChild(self.tool_switch)
@@ -329,6 +327,16 @@ def feature_edges(V, T, angle_deg: float = 20.0) -> np.ndarray:
     double = first[count == 2]
     sharp = double[np.einsum("ij,ij->i", n[face[double]], n[face[double + 1]]) < np.cos(np.radians(angle_deg))]
     return pairs[np.sort(np.r_[single, sharp])].reshape(-1, 2)
+
+
+def invalid_label(obj) -> str:
+    """A short banner for a program that is not valid: which object failed (the reason is in
+    the task panel, the tree's tooltip and the Report view)."""
+    from .validity import failed
+    chain = [o for o in [obj] + list(obj.OutListRecursive) if failed(o)]
+    root = min(chain, key=lambda o: len(o.OutListRecursive)) if chain else obj
+    what = "stopped" if "stopped on request" in (root.getStatusString() or "") else "failed"
+    return f"NOT VALID: {root.Label} {what}"[:70]
 
 
 def implicit_stock(obj):

@@ -26,7 +26,7 @@ import FreeCAD
 
 from ..errors import InputError
 from . import messages, validity
-from .proxy import FeatureProxy, add_property, set_read_only
+from .proxy import FeatureProxy, Stateless, add_property, set_read_only
 
 TITLE = "CAM job"
 COOLANT = {"flood": "Flood", "mist": "Mist"}
@@ -131,7 +131,7 @@ class TsplcamCamOperation(FeatureProxy):
             _set_tool_controller(tc, prog)
 
 
-class CamOperationView:
+class CamOperationView(Stateless):
     """Tree icon of the operation; FreeCAD's Path view draws its moves."""
 
     def __init__(self, vobj):
@@ -143,21 +143,6 @@ class CamOperationView:
     def getIcon(self):
         from .resources import icon
         return icon("program")
-
-    def claimChildren(self):
-        return []
-
-    def __getstate__(self):
-        return None
-
-    def __setstate__(self, state):
-        return None
-
-    def dumps(self):
-        return None
-
-    def loads(self, state):
-        return None
 
 
 def is_cam_operation(obj) -> bool:

@@ -27,6 +27,7 @@ from . import messages
 from .modelobject import model_of
 from .planobject import plan_of, replan
 from .resources import icon, ui_file
+from .settingspanel import TaskPanel
 
 COLUMNS = ("Patch", "Start", "Finish", "Crossfeed", "Retract", "Reached by", "Pins")
 TIPS = ("Patch machined in this step", "Start corner of the zigzag (u, v)",
@@ -51,7 +52,7 @@ def _widen_task_dock(table, extra: int = 110) -> None:
     widen_task_dock(width + extra)
 
 
-class ProcessingListPanel:
+class ProcessingListPanel(TaskPanel):
     """FreeCAD task panel (``form``, ``accept``, ``reject``) over a working copy of the list."""
 
     active = None        # the open panel (tests and the view provider reach it here)
@@ -308,9 +309,6 @@ class ProcessingListPanel:
             t.setVerticalHeaderItem(i, head)
 
     # -- FreeCAD task panel protocol ------------------------------------------------------------------
-    def getStandardButtons(self):
-        return int(QtGui.QDialogButtonBox.Ok | QtGui.QDialogButtonBox.Cancel)
-
     def accept(self):
         if not self._check():
             messages.error("Processing list", "not stored: " + self.status.text())
@@ -323,12 +321,7 @@ class ProcessingListPanel:
         self._close()
         return True
 
-    def reject(self):
-        self._close()
-        return True
-
-    def _close(self):
-        ProcessingListPanel.active = None
+    def closing(self):
         vp = self._view()
         if vp is not None and hasattr(vp, "show_list"):
             vp.step = None
@@ -336,7 +329,3 @@ class ProcessingListPanel:
         vobj = getattr(self.obj, "ViewObject", None)
         if vobj is not None and hasattr(vobj, "CurrentStep"):
             vobj.CurrentStep = 0
-        FreeCADGui.Control.closeDialog()
-        gdoc = FreeCADGui.getDocument(self.obj.Document.Name)
-        if gdoc is not None and gdoc.getInEdit() is not None:
-            gdoc.resetEdit()

@@ -19,6 +19,7 @@ import FreeCADGui
 from PySide import QtCore, QtGui
 
 from . import messages, prefs, validity
+from .proxy import close_task_panel
 from .controls import FieldControls
 from .fields import PATH_FIELDS, PREFS_FIELDS, PROGRAM_FIELDS, PROPERTY_OF, checked, set_values, values_of
 from .resources import icon
@@ -40,10 +41,32 @@ def widen_task_dock(width: int) -> None:
             mw.resizeDocks([dock], [width], QtCore.Qt.Horizontal)
 
 
-class SettingsPanel:
+class TaskPanel:
+    """What every tsplcam task panel shares: OK and Cancel, and closing (``closing`` clears
+    what the panel showed in the 3D view); ``active`` is the open panel of each kind (tests
+    reach it there)."""
+    active = None
+
+    def getStandardButtons(self):
+        return int(QtGui.QDialogButtonBox.Ok | QtGui.QDialogButtonBox.Cancel)
+
+    def reject(self):
+        self._close()
+        return True
+
+    def closing(self) -> None:
+        """Subclasses: undo what the panel showed in the view."""
+
+    def _close(self):
+        type(self).active = None
+        self.closing()
+        close_task_panel(self.obj)
+
+
+class SettingsPanel(TaskPanel):
     """FreeCAD task panel (``form``, ``accept``, ``reject``) over a tool path or program."""
 
-    active = None        # the open panel (tests reach it here)
+    active = None
 
     def __init__(self, obj):
         self.obj = obj
@@ -216,46 +239,16 @@ class SettingsPanel:
         messages.info(f"defaults of new {'programs' if self.program else 'tool paths'} stored")
 
     # -- FreeCAD task panel protocol ------------------------------------------------------------------
-    def getStandardButtons(self):
-        return int(QtGui.QDialogButtonBox.Ok | QtGui.QDialogButtonBox.Cancel)
-
     def accept(self):
         if self.dirty and not self.apply():
             return False
         self._close()
         return True
 
-    def reject(self):
-        self._close()
-        return True
-
-    def _close(self):
-        SettingsPanel.active = None
+    def closing(self):
         vobj = getattr(self.obj, "ViewObject", None)
         if vobj is not None and "ToolAt" in vobj.PropertiesList:
             vobj.ToolAt = -1
-        FreeCADGui.Control.closeDialog()
-        gdoc = FreeCADGui.getDocument(self.obj.Document.Name)
-        if gdoc is not None and gdoc.getInEdit() is not None:
-            gdoc.resetEdit()
-
-
-class EditableMixin:
-    """setEdit/doubleClicked of a view provider opening the SettingsPanel."""
-
-    def setEdit(self, vobj, mode=0):
-        if mode != 0:
-            return False
-        FreeCADGui.Control.showDialog(SettingsPanel(vobj.Object))
-        return True
-
-    def unsetEdit(self, vobj, mode=0):
-        FreeCADGui.Control.closeDialog()
-        return True
-
-    def doubleClicked(self, vobj):
-        FreeCADGui.ActiveDocument.setEdit(vobj.Object.Name, 0)
-        return True
 
 
 class PreferencesPage:

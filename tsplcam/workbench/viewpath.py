@@ -12,8 +12,7 @@ import numpy as np
 
 from . import coinutil, display
 from .pathobject import path_of
-from .proxy import DrawnViewProxy, add_property
-from .settingspanel import EditableMixin
+from .proxy import DrawnViewProxy, EditableMixin, add_property
 
 MOVE_STYLE = {      # Move value: (colour, width, pattern)
     0: ((0.05, 0.10, 0.45), 1.2, None),          # CUT
@@ -40,6 +39,11 @@ class ViewProviderToolPath(EditableMixin, DrawnViewProxy):
     ensure_view_properties = staticmethod(ensure_view_properties)
     DISPLAY_MODE = "Path"
     ICON = "toolpath"
+
+    @staticmethod
+    def panel():
+        from .settingspanel import SettingsPanel
+        return SettingsPanel
     CHILD = "ProcessingList"
     DATA_PROPS = ("PathFile",)
     VIEW_PROPS = ("Show", "ColourBy")

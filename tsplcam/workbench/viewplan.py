@@ -17,7 +17,7 @@ from pivy import coin
 from . import coinutil, display, messages
 from .modelobject import model_of
 from .planobject import plan_of
-from .proxy import ViewProxy, add_property
+from .proxy import EditableMixin, ViewProxy, add_property
 
 CURVE = (0.05, 0.12, 0.50)
 CURRENT = (1.0, 0.85, 0.0)
@@ -35,7 +35,7 @@ def ensure_view_properties(vobj) -> None:
                  "Highlight this step (1-based; 0: none)", 0)
 
 
-class ViewProviderProcessingList(ViewProxy):
+class ViewProviderProcessingList(EditableMixin, ViewProxy):
     ensure_view_properties = staticmethod(ensure_view_properties)
     DISPLAY_MODE = "Order"
     ICON = "plan"
@@ -73,23 +73,10 @@ class ViewProviderProcessingList(ViewProxy):
     def finishRestoring(self):
         self.rebuild(after_restore=True)
 
-    def setEdit(self, vobj, mode=0):
-        if mode != 0:
-            return False
-        import FreeCADGui
+    @staticmethod
+    def panel():
         from .planpanel import ProcessingListPanel
-        FreeCADGui.Control.showDialog(ProcessingListPanel(vobj.Object))
-        return True
-
-    def unsetEdit(self, vobj, mode=0):
-        import FreeCADGui
-        FreeCADGui.Control.closeDialog()
-        return True
-
-    def doubleClicked(self, vobj):
-        import FreeCADGui
-        FreeCADGui.ActiveDocument.setEdit(vobj.Object.Name, 0)
-        return True
+        return ProcessingListPanel
 
     # -- drawing -------------------------------------------------------------------------------
     def rebuild(self, after_restore: bool = False) -> bool:

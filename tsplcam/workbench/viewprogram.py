@@ -23,8 +23,7 @@ from __future__ import annotations
 import numpy as np
 
 from . import coinutil, display
-from .proxy import DrawnViewProxy, add_property
-from .settingspanel import EditableMixin
+from .proxy import DrawnViewProxy, EditableMixin, add_property
 
 PATH_COLOUR = (0.35, 0.35, 0.40)
 INVALID_COLOUR = (0.6, 0.6, 0.6)
@@ -153,6 +152,11 @@ class ViewProviderProgram(EditableMixin, DrawnViewProxy):
     ensure_view_properties = staticmethod(ensure_view_properties)
     DISPLAY_MODE = "Axes"
     ICON = "program"
+
+    @staticmethod
+    def panel():
+        from .settingspanel import SettingsPanel
+        return SettingsPanel
     CHILD = "ToolPath"
     DATA_PROPS = ("AxesFile", "MotionFile")
     VIEW_PROPS = ("Shafts", "ShaftLength", "ColourBy", "ShowStock")

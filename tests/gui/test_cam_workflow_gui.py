@@ -54,6 +54,18 @@ def grab_panel(name):
     return path
 
 
+def grab_tree(name):
+    """The document tree (Model tab of the Combo View), expanded, as a picture."""
+    mw = FreeCADGui.getMainWindow()
+    tree = next(t for t in mw.findChildren(QtGui.QTreeWidget))
+    tree.expandAll()
+    tree.resize(max(tree.width(), 480), 520)
+    FreeCADGui.updateGui()
+    path = artifact_path(name)
+    tree.grab().save(path)
+    return path
+
+
 def pixels_of(path, rgb, tol=0.06):
     img = image_rgb(path)
     return int((np.abs(img - np.asarray(rgb, float)).max(axis=2) < tol).sum())
@@ -220,6 +232,14 @@ class CamWorkflow(unittest.TestCase):
         self.assertGreater(float(np.mean(d < 0.5 * (on_screen[:, 1].max() - on_screen[:, 1].min()) + 40)), 0.9)
         sp.show_tool.setChecked(True)
         grab_panel("workflow_program_panel.png")
+        model_obj.ViewObject.ShowPatchNumbers = False
+        prog.ViewObject.ColourBy = "Patch"
+        tilt = np.degrees(np.arccos(np.clip(tp.axis[:, 2], -1, 1)))
+        k2 = int(np.argmin(np.abs(tilt - 25.0)))                      # a pose on a wall, seen from its side
+        sp.slider.setValue(k2)
+        side = np.degrees(np.arctan2(tp.axis[k2, 1], tp.axis[k2, 0])) + 90.0
+        render("workflow_program_preview.png", side, 20)            # the picture of the docs
+        prog.ViewObject.ColourBy = "Tilt"
 
         # -- cancel one run: it stops within a second and the program is not valid meanwhile -------------
         sp.controls.controls["smoothing_length"][1].setValue(7.0)
@@ -281,6 +301,7 @@ class CamWorkflow(unittest.TestCase):
         # -- FreeCAD CAM: a job holding the moves, with tool controller and work offset -----------------------
         self.run_command("Tsplcam_CamJob", prog)
         op = next(o for o in doc.Objects if camjob.is_cam_operation(o))
+        grab_tree("workflow_cam_job_tree.png")
         job = next(o for o in doc.Objects if hasattr(o, "Operations") and o.Operations is not None
                    and op in o.Operations.Group)
         motion = programobject.motion_of(prog)

@@ -214,6 +214,12 @@ def make_cam_job(program_obj):
             job.JobType = "Multiaxis"
         if stock is not None:
             _stock_box(job, Stock, np.asarray(stock[0], float))
+        for old in list(job.Tools.Group):           # the default tool controller a new job brings
+            bit = getattr(old, "Tool", None)
+            job.Tools.removeObject(old)
+            doc.removeObject(old.Name)
+            if bit is not None and hasattr(bit, "Name") and not bit.InList:
+                _remove_bit(doc, bit)
         bit = BitFactory.Create(f"Ball {2 * tool.ball_radius:g} mm", "ballend.fcstd")
         bit.Diameter = FreeCAD.Units.Quantity(f"{2 * tool.ball_radius} mm")
         for prop, value in (("ShankDiameter", tool.shank_diameter), ("Length", tool.shank_length),
@@ -253,6 +259,18 @@ def _tool_of(program_obj):
     if tool is None:
         raise InputError("the CAM job needs the program's tool (its ball radius and shank)", item="Tool")
     return tool
+
+
+def _remove_bit(doc, bit) -> None:
+    """A tool bit and the shape body it loaded."""
+    body = getattr(bit, "BitBody", None)
+    names = [bit.Name] + ([o.Name for o in body.OutListRecursive] + [body.Name] if body is not None else [])
+    for name in names:
+        if doc.getObject(name) is not None:
+            try:
+                doc.removeObject(name)
+            except Exception:
+                pass
 
 
 def _stock_box(job, Stock, V) -> None:

@@ -113,7 +113,7 @@ def tool_node(tool, segments: int = 24):
     for part in tool.parts():
         kind = "holder" if part.name.startswith("holder") else part.name
         sep.addChild(coinutil.material(TOOL_COLOURS.get(kind, TOOL_COLOURS["holder"]), diffuse=0.8, emissive=0.15,
-                                       specular=0.5, shininess=0.6, transparency=0.25 if kind == "holder" else 0.0))
+                                       specular=0.5, shininess=0.6, transparency=0.45 if kind == "holder" else 0.0))
         sep.addChild(revolved([(part.r0, part.z0), (part.r1, part.z1)], segments))
     return sep
 

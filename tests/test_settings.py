@@ -66,7 +66,7 @@ class Settings(unittest.TestCase):
         self.assertNotIn("gcode", job)
         self.assertIn("gcode", path)
         self.assertNotIn("out", path)
-        self.assertEqual(set(job) & set(path), set(job) - {"out"})
+        self.assertEqual(set(job) & set(path), set(job) - {"out", "fcstd"})
 
 
 if __name__ == "__main__":

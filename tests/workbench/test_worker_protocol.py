@@ -55,8 +55,8 @@ class ChildProcess(unittest.TestCase):
         self.tmp = tempfile.mkdtemp(prefix="tsplcam-worker-")
 
     def test_the_child_makes_the_same_path_and_reports_progress(self):
-        model = load_model("figure4")
-        s = JobSettings(model="figure4", tool=None, tool_radius=0.5, scallop=0.05)
+        model = load_model("keycap")
+        s = JobSettings(model="keycap", tool=None, tool_radius=0.5, scallop=0.1)
         plist = processing_list(model, s)
         here = make_path(model, plist, s)
         lines, result, _ = run_child("path_task", (model, plist, s.to_dict()), {}, self.tmp)
@@ -64,7 +64,7 @@ class ChildProcess(unittest.TestCase):
         np.testing.assert_array_equal(result[1].contact, here.contact)     # same code, same data
         np.testing.assert_array_equal(result[1].move, here.move)
         progress = [ln.split("\t") for ln in lines if ln.startswith("P\t")]
-        self.assertEqual(progress[-1], ["P", "path", "12", "12"])
+        self.assertEqual(progress[-1], ["P", "path", "5", "5"])
         self.assertGreaterEqual(len(progress), 2)
         self.assertEqual(lines[-1], "D")
 

@@ -128,12 +128,14 @@ class Program:
     ``report``: what the orientation did (None for surface-normal axes); ``metrics``: the
     axes measured again with the same collision checker (collisions, clearance, axis steps,
     rotary travel); ``posted``: the PostResult (program text, motion, time estimate);
-    ``seconds``: run time of each step (orientation, post)."""
+    ``seconds``: run time of each step (orientation, post); ``checker``: the collision checker
+    the axes were found and measured with (for more measurements, e.g. the report's)."""
     path: object
     report: object = None
     metrics: object = None
     posted: object = None
     seconds: dict = field(default_factory=dict)
+    checker: object = None
 
 
 def make_program(path, model, settings: JobSettings, stock=None, progress=None, post: bool = True,
@@ -197,7 +199,7 @@ def _orient(path, model, settings: JobSettings, tool, machine, stock, progress, 
     tick(progress, "checking axes", 0, 1)
     metrics = orientation_metrics(oriented, checker, machine)
     tick(progress, "checking axes", 1, 1)
-    return Program(oriented, report, metrics)
+    return Program(oriented, report, metrics, checker=checker)
 
 
 def program_file_name(model: str, dialect: str) -> str:

@@ -164,18 +164,23 @@ class JobSettings:
                                    choices=("angles", "vector"))
     # where the files go
     out: str = option("tsplcam-job", "outputs", "folder for the program (named after the model, with the "
-                      "controller's extension), the CL data, processing-list.json and report.json",
+                      "controller's extension), the CL data, processing-list.json, report.json and report.html",
                       "text", "DIR", command="job")
+    name: str | None = option(None, "outputs", "file name of the program and the CL data, without extension; "
+                              "default: the model's", "name", "NAME", command="job")
+    html_report: bool = option(True, "outputs", "write report.html with its pictures (report_files/) beside "
+                               "report.json", "flag", flags=("--html-report", "--no-html-report"), command="job")
     gcode: str | None = option(None, "outputs", "write the machine program (G-code) to this file; needs a "
                                "machine", "file", "FILE", command="path")
     cl: str | None = option(None, "outputs", "write the path as APT CL data: tool tip (mm) and unit tool axis "
                             "per point", "file", "FILE", command="path")
     report: str | None = option(None, "outputs", "write the path's figures (and what --verify measured) as "
                                 "JSON", "file", "FILE", flags=("--json",), command="path")
-    verify: bool = option(False, "outputs", "measure scallop height, cusps and gouges on the surface and "
-                          "report them (slow on fine paths)", "flag", command="path")
+    verify: bool = option(True, "outputs", "measure scallop height, cusps and gouges on the surface and "
+                          "report them, the report's scallop map (slow on fine paths: about 15 s on the main job)",
+                          "flag", flags=("--verify", "--no-verify"))
     baseline: bool = option(False, "outputs", "also machine each face on its own (compound NURBS, "
-                            "retracting between faces) and compare the two paths", "flag", command="path")
+                            "retracting between faces) and compare the two paths", "flag")
     baseline_cl: str | None = option(None, "outputs", "write that comparison path as CL data (implies "
                                      "--baseline)", "file", "FILE", command="path")
     fcstd: str | None = option(None, "outputs", "also write a FreeCAD document (.FCStd) with the model, "
@@ -211,6 +216,8 @@ class JobSettings:
             except InputError as exc:
                 item = {"strategy": "orientation"}.get(exc.item, exc.item)
                 raise InputError(exc.message, item=label(item) if item else None) from None
+        if self.name is not None and ("/" in self.name or "\\" in self.name or self.name.strip(".") == ""):
+            raise InputError(f"a file name without folder, not {self.name!r}", item=label("name"))
         if self.machine is None:
             for name in ("gcode", "dialect", "axes_form", "spindle"):
                 if getattr(self, name) is not None:

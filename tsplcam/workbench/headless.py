@@ -76,6 +76,8 @@ def write_fcstd(settings, plist, toolpath, program, path: str | None = None, tim
         if settings.stock:
             from ..program import load_stock
             stock = load_stock(settings)
+        from dataclasses import replace
+        program = replace(program, checker=None) if hasattr(program, "checker") else program
         with open(job, "wb") as f:
             pickle.dump({"settings": settings.to_dict(), "model_file": model_file(settings.model), "plist": plist,
                          "toolpath": toolpath, "program": program, "stock": stock}, f,

@@ -45,6 +45,7 @@ def program_task(path, model, settings: dict, stock=None, plist=None, progress=N
     from ..settings import JobSettings
     s = JobSettings(**settings)
     program = make_program(path, model, s, stock=stock, progress=progress, plist=plist)
+    program.checker = None                   # fcl objects do not cross processes; nothing here needs it
     program.collides = None
     if s.orientation == "normal" and s.tool:
         import numpy as np

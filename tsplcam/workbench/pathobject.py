@@ -251,6 +251,8 @@ def make_tool_path(plan_obj, computed=None, **settings):
     obj = in_transaction(doc, TITLE, f"adding the tool path of {plan_obj.Label}", work)
     if obj is None:
         return None
-    messages.info(f"{obj.Label}: {obj.Points} points, {obj.Lines} lines, {obj.Retractions} retractions, "
+    from .modelobject import plural
+    messages.info(f"{obj.Label}: {obj.Points} points, {plural(obj.Lines, 'line')}, "
+                  f"{plural(obj.Retractions, 'retraction')}, "
                   f"cut {obj.CutLength.Value:.1f} mm, links {obj.LinkLength.Value:.1f} mm")
     return obj

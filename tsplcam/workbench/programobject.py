@@ -430,7 +430,8 @@ def make_program(path_obj, computed=None, **settings):
     obj = in_transaction(doc, TITLE, f"adding the program of {path_obj.Label}", work)
     if obj is None:
         return None
+    from .modelobject import plural
     messages.info(f"{obj.Label}: {obj.Blocks} blocks for {obj.Machine}, machining time {obj.MachiningTime}, "
                   f"rotary travel {obj.RotaryTravel:.0f} deg, largest axis step "
-                  f"{obj.LargestAxisStep.Value:.2f} deg, {obj.Collisions} collisions")
+                  f"{obj.LargestAxisStep.Value:.2f} deg, {plural(obj.Collisions, 'collision')}")
     return obj

@@ -14,7 +14,6 @@ from __future__ import annotations
 
 import numpy as np
 
-import FreeCAD
 import FreeCADGui
 from PySide import QtCore, QtGui
 
@@ -22,6 +21,7 @@ from . import messages, prefs, validity
 from .proxy import close_task_panel
 from .controls import FieldControls
 from .fields import PATH_FIELDS, PREFS_FIELDS, PROGRAM_FIELDS, PROPERTY_OF, checked, set_values, values_of
+from .modelobject import plural
 from .resources import icon
 
 ERROR_STYLE = "color: #b00000; font-weight: bold"
@@ -196,10 +196,11 @@ class SettingsPanel(TaskPanel):
         if self.program:
             self.status.setText(f"{o.Blocks} blocks for {o.Machine}, machining time {o.MachiningTime}, "
                                 f"largest axis step {o.LargestAxisStep.Value:.2f} deg, "
-                                f"smallest clearance {o.SmallestClearance.Value:.3f} mm, {o.Collisions} collisions")
+                                f"smallest clearance {o.SmallestClearance.Value:.3f} mm, "
+                                f"{plural(o.Collisions, 'collision')}")
         else:
-            self.status.setText(f"{o.Points} points, {o.Lines} passes, largest stepover "
-                                f"{o.LargestStepover.Value:.4f} mm, {o.Retractions} retractions, "
+            self.status.setText(f"{o.Points} points, {plural(o.Lines, 'pass', 'passes')}, largest stepover "
+                                f"{o.LargestStepover.Value:.4f} mm, {plural(o.Retractions, 'retraction')}, "
                                 f"cut {o.CutLength.Value:.1f} mm")
 
     def apply(self) -> bool:

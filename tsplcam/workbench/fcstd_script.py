@@ -11,7 +11,8 @@ import sys
 import traceback
 
 
-def _build(data: dict, out: str) -> list:
+def build_document(data: dict, out: str) -> list:
+    """Make and save the document (module doc) in this FreeCAD; the objects' descriptions."""
     import FreeCAD
     from tsplcam.workbench import camjob, importer, messages, validity
     from tsplcam.workbench.fields import PATH_FIELDS, PROGRAM_FIELDS
@@ -69,7 +70,7 @@ def main() -> int:
         import pickle
         with open(os.environ["TSPLCAM_FCSTD_JOB"], "rb") as f:
             data = pickle.load(f)
-        objects = _build(data, os.environ["TSPLCAM_FCSTD_OUT"])
+        objects = build_document(data, os.environ["TSPLCAM_FCSTD_OUT"])
         doc = {"ok": True, "objects": objects}
     except Exception as exc:
         traceback.print_exc()

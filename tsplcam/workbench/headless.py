@@ -11,7 +11,9 @@ library lives differs between packagings (Debian's /usr/lib/freecad-python3/lib,
 other systems), and importing it into the job would run FreeCAD's start-up (every Mod
 folder's Init.py, its console redirection) inside the job's process. ``freecadcmd`` is
 FreeCAD's own headless interpreter, found on PATH (or given by ``TSPLCAM_FREECADCMD``), and
-it runs the same Python the workbench runs in. This module never imports FreeCAD.
+it runs the same Python the workbench runs in. When the command line itself runs inside
+FreeCAD (``freecadcmd tsplcam/run_in_freecad.py -- job ...``), the document is made in that
+process instead. This module never imports FreeCAD.
 """
 from __future__ import annotations
 
@@ -20,11 +22,17 @@ import os
 import pickle
 import shutil
 import subprocess
+import sys
 import tempfile
 
 from ..errors import InputError
 
 SCRIPT = os.path.join(os.path.dirname(os.path.abspath(__file__)), "fcstd_script.py")
+
+
+def inside_freecad() -> bool:
+    """True when this process is FreeCAD (freecadcmd or the GUI)."""
+    return "FreeCAD" in sys.modules
 
 
 def freecadcmd() -> str | None:
@@ -48,7 +56,7 @@ def check_fcstd(path: str, item: str = "fcstd") -> None:
     if os.path.isdir(path):
         raise InputError("cannot write the FreeCAD document: it is a folder", path=path, item=item)
     check_folder(os.path.dirname(os.path.abspath(path)), "folder of the FreeCAD document", item=item)
-    if freecadcmd() is None:
+    if not inside_freecad() and freecadcmd() is None:
         raise InputError("needs FreeCAD's freecadcmd (on PATH, or TSPLCAM_FREECADCMD)", item=item)
 
 
@@ -66,24 +74,33 @@ def write_fcstd(settings, plist, toolpath, program, path: str | None = None, tim
     """Write the document (module doc) to ``path`` (default ``settings.fcstd``); returns it.
     Raises InputError naming ``fcstd`` when freecadcmd fails, with its last words."""
     path = os.path.abspath(path or settings.fcstd)
-    exe = freecadcmd()
-    if exe is None:
+    exe = None if inside_freecad() else freecadcmd()
+    if exe is None and not inside_freecad():
         raise InputError("needs FreeCAD's freecadcmd (on PATH, or TSPLCAM_FREECADCMD)", item="fcstd")
     tmp = tempfile.mkdtemp(prefix="tsplcam-fcstd-")
     try:
-        job = os.path.join(tmp, "job.pickle")
         stock = None
         if settings.stock:
             from ..program import load_stock
             stock = load_stock(settings)
         from dataclasses import replace
         program = replace(program, checker=None) if hasattr(program, "checker") else program
-        with open(job, "wb") as f:
-            pickle.dump({"settings": settings.to_dict(), "model_file": model_file(settings.model), "plist": plist,
-                         "toolpath": toolpath, "program": program, "stock": stock}, f,
-                        protocol=pickle.HIGHEST_PROTOCOL)
-        result = os.path.join(tmp, "result.json")
+        data = {"settings": settings.to_dict(), "model_file": model_file(settings.model), "plist": plist,
+                "toolpath": toolpath, "program": program, "stock": stock}
         out = os.path.join(tmp, os.path.basename(path))
+        if exe is None:                          # already inside FreeCAD
+            from .fcstd_script import build_document
+            try:
+                build_document(data, out)
+            except Exception as exc:
+                raise InputError(f"the FreeCAD document was not written: {exc}", item="fcstd") from None
+            os.makedirs(os.path.dirname(path), exist_ok=True)
+            shutil.move(out, path)
+            return path
+        job = os.path.join(tmp, "job.pickle")
+        with open(job, "wb") as f:
+            pickle.dump(data, f, protocol=pickle.HIGHEST_PROTOCOL)
+        result = os.path.join(tmp, "result.json")
         env = dict(os.environ, TSPLCAM_FCSTD_JOB=job, TSPLCAM_FCSTD_OUT=out, TSPLCAM_FCSTD_RESULT=result)
         run = subprocess.run([exe, SCRIPT], env=env, cwd=tmp, capture_output=True, text=True, timeout=timeout)
         try:

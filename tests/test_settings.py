@@ -66,8 +66,8 @@ class Settings(unittest.TestCase):
         self.assertNotIn("gcode", job)
         self.assertIn("gcode", path)
         self.assertNotIn("out", path)
-        # the job's outputs are a folder, the program's name and the HTML report; the rest is shared
-        self.assertEqual(set(job) & set(path), set(job) - {"out", "name", "html_report"})
+        # the job's outputs are a folder, the program's name, the HTML report and the FreeCAD document; the rest is shared
+        self.assertEqual(set(job) & set(path), set(job) - {"out", "name", "html_report", "fcstd"})
         self.assertIn("verify", job)
         self.assertIn("baseline", job)
         self.assertNotIn("baseline_cl", job)

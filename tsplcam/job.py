@@ -36,7 +36,7 @@ from .outfile import check_folder, check_writable, make_folders, replace_folder,
 from .progress import TerminalProgress, for_stage, report
 from .program import (load_machine, load_stock, load_tool, make_baseline, make_path, make_program,
                       processing_list, program_file_name, tool_radius)
-from .settings import GROUPS, JobSettings, choices_of, default_of, help_text
+from .settings import GROUPS, NUMBER_KINDS, JobSettings, choices_of, default_of, help_text
 
 # what differs between the two commands: the model is an argument of `path`, which also
 # needs the ball radius (or a tool) and the scallop and makes no tool axes or program unless
@@ -59,7 +59,6 @@ COMMANDS = {
                             "as --model or in the job file. Lengths in mm, feeds in mm/min. Exit code 0, or 2 "
                             "with one line naming the option, file or place."),
 }
-NUMBER_KINDS = ("length", "length0", "feed", "factor", "angle")
 VECTOR_KINDS = {"vector": 3, "pair": 2}
 
 
@@ -132,7 +131,7 @@ def add_options(parser, command: str) -> None:
             elif default is not None and "default:" not in text:
                 shown = (f"{default:g}" if isinstance(default, float) else
                          ",".join(f"{x:g}" for x in default) if isinstance(default, tuple) else str(default))
-                unit = text.endswith(("(mm)", "(mm/min)", "(deg)"))
+                unit = text.endswith(("(mm)", "(mm/min)", "(deg)", "(rpm)"))
                 text = text[:-1] + f", default {shown})" if unit else text + f" (default {shown})"
         if md["group"] not in groups:
             groups[md["group"]] = parser.add_argument_group(GROUPS[md["group"]])
@@ -439,6 +438,9 @@ def run_job(s: JobSettings, log=print, progress=None) -> dict:
     progress = progress or TerminalProgress()
     s.check()
     check_folder(s.out, item="out")
+    if s.fcstd:
+        from .workbench.headless import check_fcstd
+        check_fcstd(s.fcstd)
     t_all = time.perf_counter()
     job = make_job(s, log, progress)
     timing = job.timing
@@ -481,6 +483,9 @@ def run_job(s: JobSettings, log=print, progress=None) -> dict:
         + (f"; report {timing['report_s']:.1f} s" if "report_s" in timing else "") + ")")
     if s.html_report:
         log(f"report: {os.path.abspath(os.path.join(s.out, 'report.html'))}")
+    if s.fcstd:
+        from .workbench.headless import write_fcstd
+        log(f"wrote {write_fcstd(s, job.plist, job.path, job.program)} (FreeCAD document with a CAM job)")
     return figures
 
 

@@ -453,15 +453,17 @@ class CollisionChecker:
             cache[key] = fcl.CollisionObject(_bvh(V, T[keep]), fcl.Transform())
         return cache[key]
 
-    def _decided(self, C, A, grow, ask=None):
+    def _decided(self, C, A, grow, ask=None, masks: bool = False):
         """Broad-phase decisions, with fcl for the poses it leaves open: ``ask(C, A)``, or by
         default the tool mesh reduced to the parts the broad phase could not clear. At zero
         growth those are first tried with the tool grown for a swing of ``SWING``: the ones it
         passes are free and leave a cone of free axes at their centre; only at centres asked
         about before (a new centre's cone would serve nobody), and reduced to the open parts
-        where the cleared ones keep that swing to spare."""
+        where the cleared ones keep that swing to spare. ``masks``: also return per pose the
+        bit mask of the parts not proven clear (0 free, -1 all)."""
         if self.broad is None:
-            return ask(C, A) if ask is not None else self._fcl(C, A, "tool", grow)
+            out = ask(C, A) if ask is not None else self._fcl(C, A, "tool", grow)
+            return (out, np.full(len(C), -1)) if masks else out
         st = self.broad.decide(C, A, grow)
         out = st == HIT
         open_ = np.nonzero(st == UNKNOWN)[0]
@@ -476,7 +478,10 @@ class CollisionChecker:
         if len(open_):
             out[open_] = (ask(C[open_], A[open_]) if ask is not None
                           else self._fcl(C[open_], A[open_], "tool", grow, mask[open_]))
-        return out
+        if not masks:
+            return out
+        # a pose the broad phase proved hit may have parts it never looked at
+        return out, np.where(st == HIT, -1, np.where(st == UNKNOWN, mask, 0))
 
     def swung(self):
         """The tool mesh grown for a swing of ``SWING`` (tool_mesh), as an fcl object."""
@@ -531,6 +536,37 @@ class CollisionChecker:
         if grow == 0.0:
             self.checks += len(C)
         return out
+
+    def collides_parts(self, centers, axes, grow: float, parts=None):
+        """:meth:`collides` for a grown tool, with what it found about the parts: (hits, per
+        pose the bit mask of the parts not proven clear, -1 all). ``parts``: such masks from
+        an earlier call at a larger growth; then only those parts are asked, of fcl directly
+        (poses that touch at a larger growth lie a hair from the workpiece, where the broad
+        phase seldom decides), with every part whose circumscribed frustum is not inside the
+        larger growth's (:meth:`parts_within`) added. The same answers as :meth:`collides`."""
+        C = np.asarray(centers, float).reshape(-1, 3)
+        A = np.asarray(axes, float).reshape(-1, 3)
+        C, A = (np.ascontiguousarray(x) for x in np.broadcast_arrays(C, A)) if len(C) != len(A) else (C, A)
+        grow = float(grow)
+        if parts is None:
+            return self._decided(C, A, grow, masks=True)
+        larger, masks = parts
+        masks = np.asarray(masks, np.int64)
+        every = (1 << len(self.tool.parts())) - 1
+        masks = np.where(masks == -1, -1, masks | (every & ~self.parts_within(grow, float(larger))))
+        out = np.zeros(len(C), bool)
+        ask = np.nonzero(masks != 0)[0]
+        if len(ask):
+            out[ask] = self._fcl(C[ask], A[ask], "tool", grow, masks[ask])
+        return out, masks
+
+    def parts_within(self, grow: float, larger: float) -> int:
+        """Bit mask of the tool parts whose circumscribed frustum grown by ``grow`` lies inside
+        the one grown by ``larger`` (so a part the broad phase cleared at ``larger`` is clear
+        at ``grow``): the polygons' corners move with the growth's side count."""
+        a, b = self.profile(grow), self.profile(larger)
+        ok = ((a.rout0 <= b.rout0) & (a.rout1 <= b.rout1) & (a.z0 >= b.z0) & (a.z1 <= b.z1))
+        return int(np.sum(ok.astype(np.int64) << np.arange(len(ok))))
 
     def collides_fcl(self, centers, axes, grow: float = 0.0) -> np.ndarray:
         """:meth:`collides` asked of fcl alone: one BVH-BVH query per pose."""

@@ -80,21 +80,24 @@ def min_clearance(checker, centers, axes, levels=(0.05, 0.1, 0.2, 0.5, 1.0, 2.0,
     A = np.asarray(axes, float)
     pick, lo, hi = None, 0.0, None
     for g in levels:
-        hit = checker.collides(C, A, grow=g)
+        hit, parts = checker.collides_parts(C, A, grow=g)
         if hit.any():
-            pick, hi = np.nonzero(hit)[0], g
+            pick, hi, parts = np.nonzero(hit)[0], g, parts[hit]
             break
         lo = g
     if pick is None:
         pick = np.arange(len(C))[:: max(1, len(C) // 200)]
     else:
+        # the parts not proven clear at the growth they touch are the only ones asked below it
+        # (the broad phase seldom decides a pose that close to touching)
+        top = hi
         for _ in range(20):
             if len(pick) <= exact or hi - lo < 1e-4:
                 break
             mid = 0.5 * (lo + hi)
-            hit = checker.collides(C[pick], A[pick], grow=mid)
+            hit, _ = checker.collides_parts(C[pick], A[pick], grow=mid, parts=(top, parts))
             if hit.any():
-                pick, hi = pick[hit], mid
+                pick, hi, parts = pick[hit], mid, parts[hit]
             else:
                 lo = mid
     if len(pick) > 400:

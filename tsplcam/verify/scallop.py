@@ -421,8 +421,11 @@ def gouges(path: ToolPath, model, grid: SurfaceGrid, k: int = 2):
             out.append(0.0)
             continue
         kk = min(k, len(grid.P))
-        dist, idx = tree.query(X, k=kk)
-        idx = idx.reshape(len(X), kk)
+        # only samples within r + 2 spacing can be refined (below), and a centre farther from
+        # every sample is farther than r from this patch: the tree need not look farther
+        # (a search far from the samples visits most of the tree); such rows get inf
+        dist, idx = tree.query(X, k=kk, distance_upper_bound=r + 2.0 * grid.spacing)
+        idx = np.minimum(idx.reshape(len(X), kk), len(grid.P) - 1)
         dist = dist.reshape(len(X), kk)
         best = dist[:, 0].copy()
         best_uv = grid.uv[idx[:, 0]].copy()

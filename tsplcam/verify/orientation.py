@@ -4,10 +4,12 @@ rotary travel and machining time.
 * collisions: poses whose flutes, shank or holder touch the workpiece, asked of fcl with
   the tool as primitives (``CollisionChecker.collides_exact``: Cylinder / Convex), and
   ball gouges (the shrunk-ball check); both must be 0.
-* smallest clearance: fcl distance between the tool parts and the tessellated workpiece
-  (plus the margin the checker grew the tool by). Computed exactly only on the poses that
-  come closest: the tool is grown by 0.05, 0.1, 0.2 ... mm until some pose touches, the
-  growth is bisected until a few dozen touch, and fcl.distance runs on those.
+* smallest clearance: fcl distance between the tool parts that keep the clearance (shank
+  and holder; the flutes cut, so next to the contact they come as close as the tilt puts
+  them) and the tessellated workpiece, plus the margin the checker grew them by. Computed
+  exactly only on the poses that come closest: the tool is grown by 0.05, 0.1, 0.2 ... mm
+  until some pose touches, the growth is bisected until a few dozen touch, and fcl.distance
+  runs on those.
 * angular change per block ``arccos(K_i . K_i+1)``: largest and mean over cutting blocks;
   total variation; per mm.
 * rotary travel for an A/C table machine: ``sum |dA| + |dC|`` with the machine poses of
@@ -70,17 +72,21 @@ class OrientationMetrics:
 
 def min_clearance(checker, centers, axes, levels=(0.05, 0.1, 0.2, 0.5, 1.0, 2.0, 5.0, 10.0, 20.0),
                   exact: int = 40):
-    """(smallest clearance in mm, index of the pose) over the poses, see the module.
+    """(smallest clearance in mm, index of the pose) over the poses, see the module: of the
+    parts that keep the clearance (every part but the flutes, :meth:`clearance_parts`), the
+    distance plus the margin they were grown by.
 
     The tool is grown level by level until some pose touches; between that level and the one
     before, the growth is bisected among the touching poses until at most ``exact`` are left
     (the closest pose touches at every growth above its clearance), and fcl.distance runs on
-    those only: each distance query costs tens of ms against a fine workpiece mesh."""
+    those only: each distance query costs tens of ms against a fine workpiece mesh. Below the
+    growth that touched only the parts the broad phase could not clear there are asked."""
     C = np.asarray(centers, float)
     A = np.asarray(axes, float)
+    only, margin = checker.clearance_parts()
     pick, lo, hi = None, 0.0, None
     for g in levels:
-        hit, parts = checker.collides_parts(C, A, grow=g)
+        hit, parts = checker.collides_parts(C, A, g, only=only)
         if hit.any():
             pick, hi, parts = np.nonzero(hit)[0], g, parts[hit]
             break
@@ -88,21 +94,19 @@ def min_clearance(checker, centers, axes, levels=(0.05, 0.1, 0.2, 0.5, 1.0, 2.0,
     if pick is None:
         pick = np.arange(len(C))[:: max(1, len(C) // 200)]
     else:
-        # the parts not proven clear at the growth they touch are the only ones asked below it
-        # (the broad phase seldom decides a pose that close to touching)
         top = hi
         for _ in range(20):
             if len(pick) <= exact or hi - lo < 1e-4:
                 break
             mid = 0.5 * (lo + hi)
-            hit, _ = checker.collides_parts(C[pick], A[pick], grow=mid, parts=(top, parts))
+            hit, _ = checker.collides_parts(C[pick], A[pick], mid, parts=(top, parts), only=only)
             if hit.any():
                 pick, hi, parts = pick[hit], mid, parts[hit]
             else:
                 lo = mid
     if len(pick) > 400:
         pick = pick[np.linspace(0, len(pick) - 1, 400).astype(int)]
-    d = checker.clearance_of(C[pick], A[pick]) + checker.margin
+    d = checker.clearance_of(C[pick], A[pick], only, smallest=True) + margin
     k = int(np.argmin(d))
     return float(d[k]), int(pick[k])
 

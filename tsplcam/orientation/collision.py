@@ -554,7 +554,7 @@ class CollisionChecker:
         elif self.broad is None:
             masks = np.full(len(C), only, np.int64)
         else:
-            st = self.broad.decide(C, A, grow)
+            st = self.broad.decide(C, A, grow, only)
             bits = self.broad.open_parts @ (1 << np.arange(self.broad.open_parts.shape[1]))
             # (a pose proved hit may have parts the broad phase never looked at)
             masks = np.where(st == FREE, 0, np.where(st == UNKNOWN, bits, every)) & only

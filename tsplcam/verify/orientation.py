@@ -7,9 +7,9 @@ rotary travel and machining time.
 * smallest clearance: fcl distance between the tool parts that keep the clearance (shank
   and holder; the flutes cut, so next to the contact they come as close as the tilt puts
   them) and the tessellated workpiece, plus the margin the checker grew them by. Computed
-  exactly only on the poses that come closest: the tool is grown by 0.05, 0.1, 0.2 ... mm
-  until some pose touches, the growth is bisected until a few dozen touch, and fcl.distance
-  runs on those.
+  exactly only on the poses that come closest: the smallest of the growths 0.05, 0.1, 0.2 ...
+  mm at which some pose touches is found, the growth is bisected until a few dozen touch, and
+  fcl.distance runs on those.
 * angular change per block ``arccos(K_i . K_i+1)``: largest and mean over cutting blocks;
   total variation; per mm.
 * rotary travel for an A/C table machine: ``sum |dA| + |dC|`` with the machine poses of
@@ -71,30 +71,39 @@ class OrientationMetrics:
 
 
 def min_clearance(checker, centers, axes, levels=(0.05, 0.1, 0.2, 0.5, 1.0, 2.0, 5.0, 10.0, 20.0),
-                  exact: int = 40):
+                  exact: int = 40, first: int = 3):
     """(smallest clearance in mm, index of the pose) over the poses, see the module: of the
     parts that keep the clearance (every part but the flutes, :meth:`clearance_parts`), the
     distance plus the margin they were grown by.
 
-    The tool is grown level by level until some pose touches; between that level and the one
-    before, the growth is bisected among the touching poses until at most ``exact`` are left
-    (the closest pose touches at every growth above its clearance), and fcl.distance runs on
-    those only: each distance query costs tens of ms against a fine workpiece mesh. Below the
-    growth that touched only the parts the broad phase could not clear there are asked."""
+    The smallest growth among ``levels`` at which some pose touches is found, the growth is
+    bisected between it and the level below among the touching poses until at most ``exact``
+    are left (the closest pose touches at every growth above its clearance), and fcl.distance
+    runs on those only: each distance query costs tens of ms against a fine workpiece mesh.
+    A pose that touches at some growth touches at every larger one, so the search asks every
+    pose only at ``levels[first]`` (and above while none touches there); below a growth where
+    poses touched, only those poses and the parts the broad phase could not clear there."""
     C = np.asarray(centers, float)
     A = np.asarray(axes, float)
+    levels = sorted(levels)
     only, margin = checker.clearance_parts()
-    pick, lo, hi = None, 0.0, None
-    for g in levels:
-        hit, parts = checker.collides_parts(C, A, g, only=only)
+    pick, lo, hi, top = None, 0.0, None, None
+    for i in range(min(first, len(levels) - 1), len(levels)):
+        hit, parts = checker.collides_parts(C, A, levels[i], only=only)
         if hit.any():
-            pick, hi, parts = np.nonzero(hit)[0], g, parts[hit]
+            pick, hi, parts, top = np.nonzero(hit)[0], levels[i], parts[hit], levels[i]
             break
-        lo = g
+        lo = levels[i]
+    if pick is not None and lo == 0.0:                # touched at the first growth tried: go down
+        for g in levels[:min(first, len(levels) - 1)][::-1]:
+            hit, _ = checker.collides_parts(C[pick], A[pick], g, parts=(top, parts), only=only)
+            if not hit.any():
+                lo = g
+                break
+            pick, hi, parts = pick[hit], g, parts[hit]
     if pick is None:
         pick = np.arange(len(C))[:: max(1, len(C) // 200)]
     else:
-        top = hi
         for _ in range(20):
             if len(pick) <= exact or hi - lo < 1e-4:
                 break

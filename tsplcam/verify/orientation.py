@@ -80,35 +80,57 @@ def min_clearance(checker, centers, axes, levels=(0.05, 0.1, 0.2, 0.5, 1.0, 2.0,
     bisected between it and the level below among the touching poses until at most ``exact``
     are left (the closest pose touches at every growth above its clearance), and fcl.distance
     runs on those only: each distance query costs tens of ms against a fine workpiece mesh.
-    A pose that touches at some growth touches at every larger one, so the search asks every
-    pose only at ``levels[first]`` (and above while none touches there); below a growth where
-    poses touched, only those poses and the parts the broad phase could not clear there."""
+    A pose that touches at some growth touches at every larger one, so every pose is asked
+    only at ``levels[first]`` (and above while none touches there), and below a growth where
+    poses touched only those poses, about the parts the broad phase could not clear there;
+    the bisection's first step is taken before the level below is asked (whatever touches
+    there touches at the step), so that level is asked of fewer poses."""
     C = np.asarray(centers, float)
     A = np.asarray(axes, float)
     levels = sorted(levels)
     only, margin = checker.clearance_parts()
-    pick, lo, hi, top = None, 0.0, None, None
-    for i in range(min(first, len(levels) - 1), len(levels)):
+    start = min(first, len(levels) - 1)
+    pick, lo, hi, steps = None, 0.0, None, 20
+    for i in range(start, len(levels)):
         hit, parts = checker.collides_parts(C, A, levels[i], only=only)
         if hit.any():
-            pick, hi, parts, top = np.nonzero(hit)[0], levels[i], parts[hit], levels[i]
+            pick, hi, parts, top, j = np.nonzero(hit)[0], levels[i], parts[hit], levels[i], i
             break
         lo = levels[i]
-    if pick is not None and lo == 0.0:                # touched at the first growth tried: go down
-        for g in levels[:min(first, len(levels) - 1)][::-1]:
-            hit, _ = checker.collides_parts(C[pick], A[pick], g, parts=(top, parts), only=only)
-            if not hit.any():
-                lo = g
-                break
-            pick, hi, parts = pick[hit], g, parts[hit]
+
+    def touching(sel, masks, g):
+        return checker.collides_parts(C[sel], A[sel], g, parts=(top, masks), only=only)[0]
+
+    if pick is not None and j == start:
+        while j > 0:
+            below = levels[j - 1]
+            if len(pick) > exact and hi - below >= 1e-4:
+                mid = 0.5 * (below + hi)
+                at_mid = touching(pick, parts, mid)
+                if not at_mid.any():                      # then none touches below either
+                    lo, steps = mid, steps - 1
+                    break
+                p2, m2 = pick[at_mid], parts[at_mid]
+                at_below = touching(p2, m2, below)
+                if not at_below.any():
+                    lo, hi, pick, parts, steps = below, mid, p2, m2, steps - 1
+                    break
+                pick, parts, hi = p2[at_below], m2[at_below], below
+            else:
+                at_below = touching(pick, parts, below)
+                if not at_below.any():
+                    lo = below
+                    break
+                pick, parts, hi = pick[at_below], parts[at_below], below
+            j -= 1
     if pick is None:
         pick = np.arange(len(C))[:: max(1, len(C) // 200)]
     else:
-        for _ in range(20):
+        for _ in range(steps):
             if len(pick) <= exact or hi - lo < 1e-4:
                 break
             mid = 0.5 * (lo + hi)
-            hit, _ = checker.collides_parts(C[pick], A[pick], mid, parts=(top, parts), only=only)
+            hit = touching(pick, parts, mid)
             if hit.any():
                 pick, hi, parts = pick[hit], mid, parts[hit]
             else:

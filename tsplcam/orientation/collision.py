@@ -677,11 +677,12 @@ class CollisionChecker:
 
     def _touches_grown(self, part, z, q, c, a, by: float) -> bool:
         """Whether the part's primitive grown by ``by`` mm more touches the workpiece: a frustum
-        whose radii grow by ``by / cos`` of the side's slope (the side's offset measured
-        across the axis) and whose length grows by ``by`` at both ends holds every point within
-        ``by`` of the part, so a part it clears lies farther than ``by``."""
+        whose length grows by ``by`` at both ends and whose end radii grow by ``by (1 / cos +
+        tan)`` of the side's slope (the side's offset measured across the axis, and what the
+        longer side loses at the wide end) holds every point within ``by`` of the part, so a
+        part it clears lies farther than ``by``."""
         slope = abs(part.r1 - part.r0) / max(part.z1 - part.z0, 1e-12)
-        g = _part_margin(part.name, self.margin, self.cutting_margin) + by * np.sqrt(1.0 + slope * slope)
+        g = _part_margin(part.name, self.margin, self.cutting_margin) + by * (np.sqrt(1.0 + slope * slope) + slope)
         grown = fcl.CollisionObject(frustum_shape(part.r0 + g, part.r1 + g, part.z1 - part.z0 + 2 * by,
                                                   self.polygon_tolerance), fcl.Transform())
         grown.setQuatRotation(q)

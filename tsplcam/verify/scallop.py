@@ -114,7 +114,7 @@ class Swept:
 
     def candidates(self, p: np.ndarray, n: np.ndarray, k: int = K_NEAR):
         kk = min(k, len(self.a))
-        _, idx = self.tree.query(p + self.r * n, k=kk, workers=2 if len(p) > 4000 else 1)
+        _, idx = self.tree.query(p + self.r * n, k=kk)
         return idx.reshape(len(p), kk)
 
     def entry(self, p: np.ndarray, n: np.ndarray, idx: np.ndarray) -> np.ndarray:
@@ -434,7 +434,7 @@ def gouges(path: ToolPath, model, grid: SurfaceGrid, k: int = 2):
         # only samples within r + 2 spacing can be refined (below), and a centre farther from
         # every sample is farther than r from this patch: the tree need not look farther
         # (a search far from the samples visits most of the tree); such rows get inf
-        dist, idx = tree.query(X, k=kk, distance_upper_bound=r + 2.0 * grid.spacing, workers=2 if len(X) > 4000 else 1)
+        dist, idx = tree.query(X, k=kk, distance_upper_bound=r + 2.0 * grid.spacing)
         idx = np.minimum(idx.reshape(len(X), kk), len(grid.P) - 1)
         dist = dist.reshape(len(X), kk)
         best = dist[:, 0].copy()

@@ -676,18 +676,30 @@ class CollisionChecker:
         return out
 
     def _touches_grown(self, part, z, q, c, a, by: float) -> bool:
-        """Whether the part's primitive grown by ``by`` mm more touches the workpiece: a frustum
-        whose length grows by ``by`` at both ends and whose end radii grow by ``by (1 / cos +
-        tan)`` of the side's slope (the side's offset measured across the axis, and what the
-        longer side loses at the wide end) holds every point within ``by`` of the part, so a
-        part it clears lies farther than ``by``."""
-        slope = abs(part.r1 - part.r0) / max(part.z1 - part.z0, 1e-12)
-        g = _part_margin(part.name, self.margin, self.cutting_margin) + by * (np.sqrt(1.0 + slope * slope) + slope)
-        grown = fcl.CollisionObject(frustum_shape(part.r0 + g, part.r1 + g, part.z1 - part.z0 + 2 * by,
-                                                  self.polygon_tolerance), fcl.Transform())
-        grown.setQuatRotation(q)
-        grown.setTranslation(c + z * a)
-        return bool(fcl.collide(grown, self._wp, self._req, fcl.CollisionResult()))
+        """Whether some point within ``by`` mm of the part's primitive lies in the workpiece
+        (a part it clears lies farther than ``by``): the points within ``by`` of a frustum lie
+        in the frustum whose radii grow by ``by / cos`` of the side's slope (the side's offset
+        measured across the axis), or in a disc of radius ``by`` more and thickness ``2 by`` at
+        either end; for a cylinder, one cylinder ``2 by`` longer."""
+        m = _part_margin(part.name, self.margin, self.cutting_margin)
+        length = part.z1 - part.z0
+        slope = abs(part.r1 - part.r0) / max(length, 1e-12)
+        if slope < 1e-12:
+            shapes = [(frustum_shape(part.r0 + m + by, part.r1 + m + by, length + 2 * by, self.polygon_tolerance), z)]
+        else:
+            side = m + by * np.sqrt(1.0 + slope * slope)
+            shapes = [(frustum_shape(part.r0 + side, part.r1 + side, length, self.polygon_tolerance), z),
+                      (frustum_shape(part.r0 + m + by, part.r0 + m + by, 2 * by, self.polygon_tolerance),
+                       z - 0.5 * length),
+                      (frustum_shape(part.r1 + m + by, part.r1 + m + by, 2 * by, self.polygon_tolerance),
+                       z + 0.5 * length)]
+        for shape, h in shapes:
+            grown = fcl.CollisionObject(shape, fcl.Transform())
+            grown.setQuatRotation(q)
+            grown.setTranslation(c + h * a)
+            if fcl.collide(grown, self._wp, self._req, fcl.CollisionResult()):
+                return True
+        return False
 
     # --- one pose, for messages ------------------------------------------------------------
     def hit(self, center, axis) -> Hit | None:

@@ -23,7 +23,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..errors import InputError
-from .quadmesh import QuadMesh
+from .quadmesh import INFINITE, QuadMesh
 
 # sub-patches of Stam's ring, in the order cells.EigenCells uses:
 # k = 0: s' >= 1/2, t' < 1/2; k = 1: both >= 1/2; k = 2: s' < 1/2, t' >= 1/2.
@@ -54,7 +54,8 @@ class SubdivisionScheme:
             child_cut.add((min(a, e), max(a, e)))
             child_cut.add((min(b, e), max(b, e)))
         cfg1 = child.config(4 * face + corner, 0)
-        if len(cfg1) != K or tainted[cfg1].any():
+        if (len(cfg1) != K or tainted[cfg1].any()
+                or not _same_features(template, config, cut_edges, child, cfg1, child_cut)):
             raise NotSelfSimilar(f"{label}: the neighbourhood of this irregular vertex does not "
                              f"subdivide into the same configuration")
         Rd = R.toarray()
@@ -165,6 +166,38 @@ class SubdivisionScheme:
         return n / length
 
 
+def _same_features(parent: QuadMesh, cfg0: list, cut0: set, child: QuadMesh, cfg1: list, cut1: set) -> bool:
+    """Whether the infinitely sharp edges and corners sit at the same places of the two
+    configurations (creases and corners that do not pass through the irregular vertex move
+    outward under refinement: such a neighbourhood is not yet self-similar). Edges where the
+    configuration was cut out of its mesh are not features."""
+    if not parent.creased and not child.creased:
+        return True
+
+    def sharp_edge(mesh, cut, a, b):
+        if mesh.is_boundary_edge(a, b):
+            return (min(a, b), max(a, b)) not in cut
+        return (mesh.sharpness or {}).get((min(a, b), max(a, b)), 0.0) >= INFINITE
+
+    def sharp_vertex(mesh, cut, v):
+        if (mesh.corner_sharpness or {}).get(v, 0.0) >= INFINITE:
+            return True
+        fan, boundary = mesh.fan(v)
+        if not (boundary and len(fan) == 1 and mesh.boundary_rule == "edge-and-corner"):
+            return False
+        nb = mesh.neighbours(v)
+        return not any((min(v, w), max(v, w)) in cut for w in (nb[0], nb[-1]))
+
+    for f in range(len(parent.faces)):
+        quad = parent.faces[f]
+        for k in range(4):
+            a, b = int(quad[k]), int(quad[(k + 1) % 4])
+            i, j = cfg0.index(a), cfg0.index(b)
+            if sharp_edge(parent, cut0, a, b) != sharp_edge(child, cut1, cfg1[i], cfg1[j]):
+                return False
+    return all(sharp_vertex(parent, cut0, a) == sharp_vertex(child, cut1, b) for a, b in zip(cfg0, cfg1))
+
+
 def _tangent_masks(A: np.ndarray, label: str) -> tuple[np.ndarray, np.ndarray]:
     """Two left eigenvectors of the largest eigenvalues below 1: masks whose application to
     the control points gives two tangent vectors at the limit point (Halstead et al. 1993
@@ -219,14 +252,28 @@ def scheme_for(mesh: QuadMesh, face: int, corner: int) -> tuple[SubdivisionSchem
             else:
                 cut.add(key)
     fi = faces.index(face)
-    signature = (mesh.boundary_rule, fi, corner, tuple(map(tuple, tfaces)), tuple(sorted(real_boundary)))
+    sharp, corners = {}, {}
+    if mesh.sharpness:
+        for g in faces:
+            quad = mesh.faces[g]
+            for k in range(4):
+                a, b = int(quad[k]), int(quad[(k + 1) % 4])
+                s = mesh.sharpness.get((min(a, b), max(a, b)), 0.0)
+                if s > 0.0:
+                    la, lb = local[a], local[b]
+                    sharp[(min(la, lb), max(la, lb))] = s
+    if mesh.corner_sharpness:
+        corners = {local[v]: s for v, s in mesh.corner_sharpness.items() if v in local}
+    signature = (mesh.boundary_rule, fi, corner, tuple(map(tuple, tfaces)), tuple(sorted(real_boundary)),
+                 tuple(sorted(sharp.items())), tuple(sorted(corners.items())))
     sch = _SCHEMES.get(signature)
     if sch is None:
         v = int(mesh.faces[face][corner])
         fan, boundary = mesh.fan(v)
         label = (f"{'boundary' if boundary else 'interior'} vertex of {len(fan)} faces "
                  f"({mesh.vertex_name(v)}{', ' + mesh.source if mesh.source else ''})")
-        template = QuadMesh(tfaces, len(config), mesh.boundary_rule, mesh.source)
+        template = QuadMesh(tfaces, len(config), mesh.boundary_rule, mesh.source,
+                            sharpness=sharp or None, corner_sharpness=corners or None)
         sch = SubdivisionScheme(template, fi, corner, cut, label)
         _SCHEMES[signature] = sch
     return sch, config

@@ -142,6 +142,34 @@ class RefMesh:
             out.Y[k::4] = at(ck + (cp - ck) / 2) - at(ck)
         return out
 
+    def subset(self, keep: np.ndarray) -> "RefMesh":
+        """The faces ``keep`` (mask) as a mesh of their own, with their places in the roots.
+        Rules at the cut are wrong: use only what lies well inside."""
+        F = self.F[keep]
+        used = np.unique(F)
+        new = np.full(len(self.P), -1)
+        new[used] = np.arange(len(used))
+        sharp = {}
+        for i in np.nonzero(self.s > 0)[0]:
+            a, b = self.E[i]
+            if new[a] >= 0 and new[b] >= 0:
+                sharp[(new[a], new[b])] = self.s[i]
+        corner = {int(new[v]): self.cs[v] for v in np.nonzero(self.cs > 0)[0] if new[v] >= 0}
+        out = RefMesh(new[F], self.P[used], sharp, corner, self.rule)
+        out.root, out.O, out.X, out.Y = self.root[keep], self.O[keep], self.X[keep], self.Y[keep]
+        out.ids = used
+        return out
+
+    def rings(self, v: int, count: int) -> np.ndarray:
+        """Mask of the faces within ``count`` rings of vertex v (faces sharing a vertex)."""
+        verts = np.zeros(len(self.P), bool)
+        verts[v] = True
+        faces = np.zeros(len(self.F), bool)
+        for _ in range(count):
+            faces |= verts[self.F].any(axis=1)
+            verts[self.F[faces].reshape(-1)] = True
+        return faces
+
     def start(self):
         nf = len(self.F)
         self.root = np.arange(nf)

@@ -16,7 +16,7 @@ import numpy as np
 from ..errors import InputError
 from .basis import BSPLINE_TO_BEZIER
 from .adaptive import AdaptiveCells, classify, resolve
-from .cells import BezierCells, EigenCells, LevelCells
+from .cells import BezierCells, LevelCells
 from .decompose import QuadDecomposition, decompose
 from .eigen import NotSelfSimilar
 from .model import ExtraordinaryPoint, FaceMap, Model, link_patches
@@ -120,9 +120,8 @@ def _build_patches(mesh: QuadMesh, H0: np.ndarray, dec: QuadDecomposition, level
             groups.append(AdaptiveCells(resolve(emesh, He, deep)))
         for n, (scheme, data, maps, where) in enumerate(eig.values()):
             gid[-4 - n] = len(groups)
-            cls = LevelCells if scheme.defective else EigenCells
             try:
-                groups.append(cls(scheme, np.array(data), np.array(maps)))
+                groups.append(LevelCells(scheme, np.array(data), np.array(maps)))
             except InputError:
                 _name_irregular_vertex(emesh, scheme, data, where)
                 raise

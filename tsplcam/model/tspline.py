@@ -27,7 +27,7 @@ import numpy as np
 
 from ..errors import InputError
 from .blending import bezier_1d, supports
-from .cells import BezierCells, EigenCells, LevelCells, _chain
+from .cells import BezierCells, LevelCells, _chain
 from .decompose import Decomposition, decompose_tmesh, region_links
 from .diffgeom import SurfacePoints
 from .extraordinary import extraordinary_cells, find_extraordinary
@@ -256,8 +256,7 @@ def _extract(walker: Walker, dec: Decomposition, knots: LocalKnots, support: lis
                              f"by its faces")
         groups = [BezierCells(np.array(bez))] if bez else []
         for scheme, C0s, maps, parents, boxes, cells in cc.values():
-            cls = LevelCells if scheme.defective else EigenCells
-            base = cls(scheme, np.array(C0s), np.array(maps))
+            base = LevelCells(scheme, np.array(C0s), np.array(maps))
             g = len(groups)
             groups.append(SubCells(base, parents, boxes))
             for n_cell, (iu, iv) in enumerate(cells):

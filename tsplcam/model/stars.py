@@ -227,12 +227,15 @@ class StarZone:
         return (h * np.array([-2 * b[j], -b[j], 0.0, d[j], 2 * d[j]]),
                 h * np.array([-2 * d[(j - 1) % n], -d[(j - 1) % n], 0.0, d[(j + 1) % n], 2 * d[(j + 1) % n]]))
 
-    def point_rules(self, rows: np.ndarray, e, gx, gy) -> np.ndarray:
+    def point_rules(self, rows: np.ndarray, e, gx, gy, uniform: bool = False) -> np.ndarray:
         """The next level's S, spoke and face points from this level's (``rows``: S, s_j,
         q_j, any trailing columns), by the NURCC rules (Sederberg et al. 1998; affine, and
         exact knot insertion wherever the knots are a tensor grid). ``e[j]``: the interval
-        beyond s_j along spoke j; ``gx[j]``, ``gy[j]``: beyond q_j along x and y of sector j."""
+        beyond s_j along spoke j; ``gx[j]``, ``gy[j]``: beyond q_j along x and y of sector j.
+        ``uniform``: every interval equal (Catmull-Clark's rules)."""
         n, d, b = self.n, self.d, self.b
+        if uniform:
+            d = b = e = gx = gy = np.ones(n)
         S, sp, fq = rows[0], rows[1:1 + n], rows[1 + n:1 + 2 * n]
         new = np.zeros_like(rows[:2 * n + 1])
         M = []
@@ -338,7 +341,7 @@ class StarZone:
             done += 1
         K = Wn + len(plain)
         A = np.zeros((K, K))
-        A[:Wn] = self.point_rules(np.eye(K)[:Wn], *self.self_similar())
+        A[:Wn] = self.point_rules(np.eye(K)[:Wn], *self.self_similar(), uniform=self.n != 4)
         for parent, child, coef in edges:
             if parent[0] == "w":
                 A[Wn + child, :Wn] += coef
@@ -573,6 +576,8 @@ def direct_functions(zone: StarZone, walker: Walker) -> dict:
         back = inverse(m)
         rows = []
         for f in cands:
+            if f.cx == 0.0 and f.cy == 0.0 and f.sector != j:
+                continue                    # the star's own function lives in each sector's chart
             k = to_chart(zone.n, f, j)
             if k is None or not overlaps(k[0], k[1], rect, tol):
                 continue

@@ -587,6 +587,85 @@ def direct_functions(zone: StarZone, walker: Walker) -> dict:
     return out
 
 
+@dataclass
+class _Pieces:
+    """What a star's subdivided part needs besides its points (the same for every star with
+    the same valence and spoke intervals, up to scale): the stationary matrix A, the
+    configuration's share of the limit point ``xinf``, the tangent masks, and the Bezier
+    matrices Z (cells, 16, K) of the level-2 functions on the ring faces of every sector."""
+    A: np.ndarray
+    xinf: np.ndarray
+    masks: tuple
+    spectrum: np.ndarray
+    face_index: dict
+    breaks: dict
+    first_cell: dict
+    Z: np.ndarray
+    Zinf: np.ndarray
+
+
+_PIECES: dict = {}
+
+
+def _pieces(zone: StarZone) -> _Pieces:
+    n = zone.n
+    key = (n, tuple(np.round(zone.d / zone.d.max(), 13)))
+    hit = _PIECES.get(key)
+    if hit is not None and abs(hit[0] - zone.d.max()) <= 1e-13 * zone.d.max():
+        return hit[1]
+    from .blending import bezier_1d
+    from .eigen import _tangent_masks
+    A, fns = zone.stationary()
+    K = A.shape[0]
+    Wn = 2 * n + 1
+    xinf = np.ones(K)
+    xinf[Wn:] = np.linalg.solve(np.eye(K - Wn) - A[Wn:, Wn:], A[Wn:, :Wn] @ np.ones(Wn))
+    AW = A[:Wn, :Wn]
+    masks = tuple(_tangent_masks(AW, f"extraordinary {zone.v}"))
+    spectrum = np.sort(np.abs(np.linalg.eigvals(AW)))[::-1]
+    # Bezier matrices of the level-2 functions on the ring faces of every sector, each face
+    # cut at the knot lines of the functions on it (those of functions next to the star fall
+    # between the grid lines where the spokes' intervals differ)
+    faces = [(p, q) for p in range(4) for q in range(4) if p >= 2 or q >= 2]
+    face_index = {pq: k for k, pq in enumerate(faces)}
+    tol = 1e-12 * float(zone.d.max())
+    breaks, first_cell, Zc = {}, {}, []
+    ncells = 0
+    for j in range(n):
+        hx, hy = zone.d[j] / 4, zone.d[(j + 1) % n] / 4
+        for k, (p, q) in enumerate(faces):
+            rect = (p * hx, (p + 1) * hx, q * hy, (q + 1) * hy)
+            cols, XK, YK = [], [], []
+            for f in fns:
+                if f.cx == 0.0 and f.cy == 0.0 and f.sector != j:
+                    continue                            # the star, in another sector's chart
+                kn = to_chart(n, f, j)
+                if kn is not None and overlaps(kn[0], kn[1], rect, tol):
+                    cols.append(int(np.argmax(f.row)))
+                    XK.append(kn[0])
+                    YK.append(kn[1])
+            XK, YK = np.array(XK, float).reshape(-1, 5), np.array(YK, float).reshape(-1, 5)
+            xs = np.array(sorted({0.0, 1.0} | {round((x - rect[0]) / hx, 12) for x in XK.ravel()
+                                                if rect[0] + tol < x < rect[1] - tol}))
+            ys = np.array(sorted({0.0, 1.0} | {round((y - rect[2]) / hy, 12) for y in YK.ravel()
+                                                if rect[2] + tol < y < rect[3] - tol}))
+            breaks[(j, k)] = (xs, ys)
+            first_cell[(j, k)] = ncells
+            Cx = bezier_1d(XK, rect[0] + xs[:-1] * hx, rect[0] + xs[1:] * hx)        # (m, cx, 4)
+            Cy = bezier_1d(YK, rect[2] + ys[:-1] * hy, rect[2] + ys[1:] * hy)        # (m, cy, 4)
+            onehot = np.zeros((len(cols), K))
+            np.add.at(onehot, (np.arange(len(cols)), cols), 1.0)
+            T = np.einsum("mbj,mai,mk->bajik", Cy, Cx, onehot)   # (cy, cx, 4 [y], 4 [x], K)
+            Zc.append(T.reshape(-1, 16, K))
+            ncells += T.shape[0] * T.shape[1]
+    Z = np.concatenate(Zc)                                       # (cells, 16, K)
+    out = _Pieces(A, xinf, masks, spectrum, face_index, breaks, first_cell, Z, Z @ xinf)
+    if len(_PIECES) > 64:
+        _PIECES.clear()
+    _PIECES[key] = (float(zone.d.max()), out)
+    return out
+
+
 class StarLevels:
     """The subdivided part of one star, levels 2 .. MAX_LEVEL: the configuration of every
     level (differences from its limit), the Bezier pieces of its functions on the twelve
@@ -595,7 +674,8 @@ class StarLevels:
     def __init__(self, zone: StarZone):
         n = zone.n
         self.zone = zone
-        A, fns = zone.stationary()
+        pieces = _pieces(zone)
+        A, xinf = pieces.A, pieces.xinf
         K = A.shape[0]
         Wn = 2 * n + 1
         X2 = np.zeros((K, zone.points.shape[1]))
@@ -604,58 +684,19 @@ class StarLevels:
         _, sv, vt = np.linalg.svd((AW - np.eye(Wn)).T)
         l0 = vt[-1] / vt[-1].sum()
         self.limit = l0 @ X2[:Wn]                                  # (4,)
-        xinf = np.ones(K)
-        AY = A[Wn:, Wn:]
-        xinf[Wn:] = np.linalg.solve(np.eye(K - Wn) - AY, A[Wn:, :Wn] @ np.ones(Wn))
         dm = np.empty((MAX_LEVEL + 1, K, X2.shape[1]))
         dm[2] = X2 - np.outer(xinf, self.limit)
         for m in range(3, MAX_LEVEL + 1):
             dm[m] = A @ dm[m - 1]
         self.d = dm
-        from .eigen import _tangent_masks
-        masks = _tangent_masks(AW, f"extraordinary {zone.v}")
         L = self.limit
         X = L[:3] / L[3]
-        t1, t2 = ((mk @ X2[:Wn])[:3] - X * (mk @ X2[:Wn])[3] for mk in masks)
+        t1, t2 = ((mk @ X2[:Wn])[:3] - X * (mk @ X2[:Wn])[3] for mk in pieces.masks)
         nrm = np.cross(t1, t2)
         self.normal = nrm / max(np.linalg.norm(nrm), 1e-300)
-        self.spectrum = np.sort(np.abs(np.linalg.eigvals(AW)))[::-1]
-        # Bezier matrices of the level-2 functions on the ring faces of every sector, each face
-        # cut at the knot lines of the functions on it (those of functions next to the
-        # star fall between the grid lines where the spokes' intervals differ)
-        faces = [(p, q) for p in range(4) for q in range(4) if p >= 2 or q >= 2]
-        self.face_index = {pq: k for k, pq in enumerate(faces)}
-        tol = 1e-12 * float(zone.d.max())
-        self.breaks = {}                    # (sector, face) -> (x breaks, y breaks) in [0, 1]
-        self.first_cell = {}                # (sector, face) -> index of its first sub-cell
-        Zc = []
-        for j in range(n):
-            hx, hy = zone.d[j] / 4, zone.d[(j + 1) % n] / 4
-            for k, (p, q) in enumerate(faces):
-                rect = (p * hx, (p + 1) * hx, q * hy, (q + 1) * hy)
-                on = []
-                for f in fns:
-                    if f.cx == 0.0 and f.cy == 0.0 and f.sector != j:
-                        continue                            # the star, in another sector's chart
-                    kn = to_chart(n, f, j)
-                    if kn is not None and overlaps(kn[0], kn[1], rect, tol):
-                        on.append((int(np.argmax(f.row)), np.asarray(kn[0]), np.asarray(kn[1])))
-                xs = sorted({0.0, 1.0} | {round((x - rect[0]) / hx, 12) for _, xk, _ in on for x in xk
-                                          if rect[0] + tol < x < rect[1] - tol})
-                ys = sorted({0.0, 1.0} | {round((y - rect[2]) / hy, 12) for _, _, yk in on for y in yk
-                                          if rect[2] + tol < y < rect[3] - tol})
-                self.breaks[(j, k)] = (np.array(xs), np.array(ys))
-                self.first_cell[(j, k)] = len(Zc)
-                for iy in range(len(ys) - 1):
-                    for ix in range(len(xs) - 1):
-                        sub = (rect[0] + xs[ix] * hx, rect[0] + xs[ix + 1] * hx,
-                               rect[2] + ys[iy] * hy, rect[2] + ys[iy + 1] * hy)
-                        Z = np.zeros((16, K))
-                        for c, xk, yk in on:
-                            Z[:, c] += bezier_of(xk, yk, *sub).reshape(16)
-                        Zc.append(Z)
-        self.Z = np.array(Zc)                                       # (cells, 16, K)
-        self.Zinf = self.Z @ xinf                                   # the limit's share per cell
+        self.spectrum = pieces.spectrum
+        self.face_index, self.breaks, self.first_cell = pieces.face_index, pieces.breaks, pieces.first_cell
+        self.Z, self.Zinf = pieces.Z, pieces.Zinf
 
     def evaluate(self, sector: np.ndarray, x: np.ndarray, y: np.ndarray):
         """Homogeneous value and derivatives (6, 4, n) with respect to the sector chart's

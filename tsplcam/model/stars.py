@@ -696,6 +696,9 @@ class StarLevels:
         self.normal = nrm / max(np.linalg.norm(nrm), 1e-300)
         self.spectrum = pieces.spectrum
         self.face_index, self.breaks, self.first_cell = pieces.face_index, pieces.breaks, pieces.first_cell
+        self.face_lut = np.full((4, 4), -1, dtype=int)          # (p, q) of the ring -> face index
+        for (pp, qq), k in self.face_index.items():
+            self.face_lut[pp, qq] = k
         self.Z, self.Zinf = pieces.Z, pieces.Zinf
 
     def evaluate(self, sector: np.ndarray, x: np.ndarray, y: np.ndarray):
@@ -720,7 +723,7 @@ class StarLevels:
         inner = (p < 2) & (q < 2)
         p = np.where(inner, 2, p)                  # rounding at the ring's inner edge
         a, b = np.clip(P - p, 0.0, 1.0), np.clip(Q - q, 0.0, 1.0)
-        face = np.array([self.face_index[(int(i), int(k))] for i, k in zip(p, q)]) if n else np.zeros(0, int)
+        face = self.face_lut[p, q]
         # the sub-cell of the face, and the point in it
         cell = np.empty(n, dtype=int)
         sxw, syw = np.ones(n), np.ones(n)
@@ -734,7 +737,10 @@ class StarLevels:
             syw[sel] = ys[iy + 1] - ys[iy]
             a[sel] = np.clip((a[sel] - xs[ix]) / sxw[sel], 0.0, 1.0)
             b[sel] = np.clip((b[sel] - ys[iy]) / syw[sel], 0.0, 1.0)
-        ctrl = np.einsum("npc,ncd->npd", self.Z[cell], self.d[level])                  # (n, 16, 4)
+        # one product per (cell, level) met, not per point
+        key, inv = np.unique(cell * (MAX_LEVEL + 1) + level, return_inverse=True)
+        uc, ul = np.divmod(key, MAX_LEVEL + 1)
+        ctrl = np.einsum("npc,ncd->npd", self.Z[uc], self.d[ul])[inv.reshape(-1)]      # (n, 16, 4)
         # the limit's share separately, relative to its first coefficient: where it is
         # constant its derivatives are exactly zero (no rounding of O(1) terms near S)
         zinf = self.Zinf[cell]
@@ -742,11 +748,14 @@ class StarLevels:
         bs = bernstein(3, a)                                       # (n, 3, 4)
         bt = bernstein(3, b)
         H = np.empty((6, 4, n))
-        c4 = ctrl.reshape(n, 4, 4, -1)                              # [j (y), i (x)]
-        z4 = (zinf - z0).reshape(n, 4, 4)
+        # the differences and the limit's share beyond the cell's first coefficient together
+        # (exactly the differences where that share is constant), then the Bernstein sums as
+        # batched 4 x 4 products: (n, c, j, i) @ (n, 1, i, 1) -> (n, c, j)
+        c4 = (ctrl + (zinf - z0)[:, :, None] * self.limit[None, None, :]).reshape(n, 4, 4, -1)
+        X = c4.transpose(0, 3, 1, 2)                                # (n, c, j [y], i [x])
+        along_x = [np.matmul(X, bs[:, da][:, None, :, None])[..., 0] for da in range(3)]   # (n, c, j)
         for k, (da, db) in enumerate(DERIVS):
-            H[k] = (np.einsum("ni,nj,njic->cn", bs[:, da], bt[:, db], c4)
-                    + np.einsum("ni,nj,nji->n", bs[:, da], bt[:, db], z4)[None, :] * self.limit[:, None])
+            H[k] = np.matmul(along_x[da], bt[:, db][:, :, None])[..., 0].T
         H[0] += z0[:, 0][None, :] * self.limit[:, None]
         sx, sy = scale / (dx * sxw), scale / (dy * syw)
         H[1] *= sx

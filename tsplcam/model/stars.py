@@ -20,7 +20,24 @@ spoke j+1; the first face F_j is [0, d_j] x [0, d_(j+1)], d_j the spoke's knot i
   intervals this is exactly Catmull-Clark.
 * The knot interval "behind" S along spoke j (which a ray through S would need) is
   b_j = (d_(j+2) + d_(j-2)) / 2, the mean of the spokes two steps away (the NURCC rule; for
-  valence 4 it is the opposite spoke).
+  valence 4 it is the opposite spoke). It serves the rules and the children on spoke j
+  itself; children on the rows through the neighbouring spokes' vertices cross those
+  spokes at regular vertices, where the T-mesh itself gives d_(j+2) and d_(j-2)
+  (``children``): so every child is the refined T-mesh's own B-spline and the functions
+  stay a partition of unity for any spoke intervals.
+* The NURCC rules with unequal spoke intervals can have two different subdominant
+  eigenvalues (valence 8, intervals in ratio 4: 0.72 and 0.57 with 0.52 next), so that the
+  normal at S converges too slowly or not at all (the defect that Li, Finnigan and
+  Sederberg 2016, "G1 non-uniform Catmull-Clark surfaces", address with eigen-polyhedra).
+  Here the NURCC rules make levels 1 and 2, and the star's own points follow
+  Catmull-Clark's rules from level 2 on: its stationary matrix then has Catmull-Clark's
+  double subdominant eigenvalue, so the limit is G1 at S whatever the intervals. Only the
+  points next to S change (the functions and their knots do not), so the surface stays C2
+  away from S, and uniform stars are still exactly Catmull-Clark. At valence 4 the rules
+  are knot insertion throughout (``tspline_model(subdivide_at=...)`` checks that the
+  construction then gives the T-spline's own surface).
+* The knot lines beyond the star's neighbours must run on across its second ring (one knot
+  vector per level-1 function); a T-junction that cuts them is refused by name.
 * W_k functions reach only 1.5 level-k intervals from S, so the two rings of faces around
   S (the zone) contain every piece that is not a plain B-spline: the surface there is
   the sum of plain B-splines (the other functions, and the children split off at every
@@ -32,8 +49,9 @@ spoke j+1; the first face F_j is [0, d_j] x [0, d_(j+1)], d_j the spoke's knot i
   within 5 intervals, 1 + 30 n functions) to level k+1. Configurations are precomputed
   level by level (as differences from the limit point, ``cells.LevelCells``' method).
 
-``star_zones(walker, ...)`` finds and checks the stars; ``StarZone`` holds one star's
-construction; ``StarCells`` evaluates the subdivided part on the star's first faces.
+``find_stars(walker)`` finds and checks the stars; ``build_zone`` makes one star's
+construction (``StarZone``); ``StarLevels`` holds its subdivided part, ``StarCells``
+evaluates it on the star's first faces (array calls: one product per cell and level met).
 """
 from __future__ import annotations
 

@@ -19,8 +19,7 @@ from tsplcam.model.cage import Cage, cage_model
 from tsplcam.model.stars import SumCells
 from tsplcam.model.tmesh import TMesh, quad_tmesh
 from tsplcam.model.tspline import tspline_model
-from conftest import ngon_prism
-from test_kernel_tspline import angle_between, brute_force, split_face, t_junction_mesh
+from conftest import angle_between, brute_force, faces_meet, ngon_prism, split_face, t_junction_mesh
 
 POS_TOL, DER_TOL = 1e-10, 1e-8        # of the model size, of the derivative's own size
 FAR_TOL = 1e-9                        # of the model size
@@ -89,24 +88,10 @@ def near_vertex(model, mesh, v, dist, count, rng):
     return f, np.abs(st[:, 0] - r[:, 0]), np.abs(st[:, 1] - r[:, 1])
 
 
-def faces_meet(model, mesh, tau=np.linspace(0.0, 1.0, 17)):
+def meet(model, mesh, tau=np.linspace(0.0, 1.0, 17)):
     """Every interior edge sampled from the faces on both sides: the largest position gap (of
     the model size) and normal angle (degrees)."""
-    topo = mesh.topology
-    fa, sa, ta, fb, sb, tb = [], [], [], [], [], []
-    for (a, b), (f, i) in topo.edge_at.items():
-        hit = topo.edge_at.get((b, a))
-        if hit is None or a > b or min(model.face_size[f]) <= 0 or min(model.face_size[hit[0]]) <= 0:
-            continue
-        g, j = hit
-        for face, k, ts, ss, tt in ((f, i, tau, sa, ta), (g, j, tau[::-1], sb, tb)):
-            W, H = model.face_size[face]
-            p0, p1 = topo.pos[face][k], topo.pos[face][(k + 1) % len(mesh.faces[face])]
-            ss.extend((p0[0].real + (p1[0].real - p0[0].real) * ts) / W)
-            tt.extend((p0[1].real + (p1[1].real - p0[1].real) * ts) / H)
-        fa += [f] * len(tau)
-        fb += [g] * len(tau)
-    A, B = model.evaluate_faces(fa, sa, ta), model.evaluate_faces(fb, sb, tb)
+    A, B = faces_meet(model, mesh, tau)
     gap = np.abs(A.P - B.P).max() / np.abs(mesh.points).max()
     return gap, np.degrees(angle_between(A.normal, B.normal)).max()
 
@@ -199,7 +184,7 @@ class NonUniformStars(unittest.TestCase):
 
     def test_watertight_and_tangent_continuous_across_edges(self):
         for n, (mesh, model) in self.models.items():
-            gap, angle = faces_meet(model, mesh)
+            gap, angle = meet(model, mesh)
             self.assertLess(gap, FAR_TOL, n)
             self.assertLess(angle, 1e-6, n)
 
@@ -259,7 +244,7 @@ class NextToTJunctions(unittest.TestCase):
             # the star's neighbours' functions beyond the second ring
             split = split_face(mesh, 2 * 5 + 1)
             model = tspline_model(split)
-            gap, angle = faces_meet(model, split)
+            gap, angle = meet(model, split)
             self.assertLess(gap, FAR_TOL, n)
             self.assertLess(angle, 1e-6, n)
             f, s, t = near_vertex(model, split, 0, 2.0 ** -30, 10, rng)

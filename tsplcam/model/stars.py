@@ -461,9 +461,9 @@ def find_stars(walker: Walker, extra=()) -> dict:
 
 def behind(d: np.ndarray) -> np.ndarray:
     """The interval behind a star point along each spoke: the mean of the spokes two steps
-    away on either side (Sederberg et al. 1998's rule; the opposite spoke at valence 4).
-    ``find_stars`` admits stars where the two are equal, so this is also the interval a
-    function next to the star sees when it crosses the neighbouring spokes."""
+    away on either side (the opposite spoke at valence 4). It serves the rules and the
+    functions on the spoke itself; off the spoke the T-mesh's own intervals apply
+    (``StarZone.behind_rows``)."""
     n = len(d)
     return np.array([0.5 * (d[(j + 2) % n] + d[(j - 2) % n]) for j in range(n)])
 

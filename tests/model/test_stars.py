@@ -15,6 +15,7 @@ import unittest
 import numpy as np
 
 from tsplcam.errors import InputError
+from tsplcam.model import samples
 from tsplcam.model.cage import Cage, cage_model
 from tsplcam.model.stars import SumCells
 from tsplcam.model.tmesh import TMesh, quad_tmesh
@@ -231,6 +232,27 @@ class NonUniformStars(unittest.TestCase):
                 for k, ref in zip(("Pu", "Pv", "Puu", "Puv", "Pvv"), fd):
                     got = getattr(c, k)
                     self.assertLess(np.abs(got - ref).max(), 1e-5 * (1.0 + np.abs(got).max()), (n, dist, k))
+
+
+class CloseStars(unittest.TestCase):
+    def test_two_edges_apart_on_a_cage_is_catmull_clark(self):
+        """Stars two edges apart (a cube of 2 x 2 faces a side) are closer than the T-NURCC
+        construction takes; a T-mesh that is a Catmull-Clark cage is evaluated by the
+        subdivision path instead. With a T-junction or unequal intervals it is refused."""
+        cage = samples.head(2)
+        mesh = quad_tmesh(cage.points, cage.mesh.faces, interval=1.5)
+        model = tspline_model(mesh)
+        self.assertIs(model.control, mesh)
+        self.assertEqual(sorted(e.valence for e in model.extraordinary), [3] * 8)
+        ref = cage_model(cage)
+        rng = np.random.default_rng(11)
+        f = rng.integers(0, len(mesh.faces), 500)
+        s, t = rng.random(500), rng.random(500)
+        a, b = model.evaluate_faces(f, s, t), ref.evaluate_faces(f, s, t)
+        self.assertLess(np.abs(a.P - b.P).max(), 1e-14 * np.abs(cage.points).max())
+        with self.assertRaises(InputError) as cm:
+            tspline_model(split_face(mesh, 0))
+        self.assertIn("extraordinary", str(cm.exception))
 
 
 class NextToTJunctions(unittest.TestCase):

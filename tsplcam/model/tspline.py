@@ -34,7 +34,7 @@ from .extraordinary import find_extraordinary
 from .knots import LocalKnots, check_clamped, local_knots
 from .model import ExtraordinaryPoint, Model, link_patches
 from .patch import CORNER_UV, Patch
-from .stars import StarCells, StarLevels, SumCells, build_zone, direct_functions, find_stars
+from .stars import StarCells, StarLevels, StarsTooClose, SumCells, build_zone, direct_functions, find_stars
 from .tmesh import TMesh
 from .twalk import Walker, apply, compose, inverse, map_knots, rot
 
@@ -127,7 +127,13 @@ def tspline_model(mesh: TMesh, name: str | None = None, subdivide_at=()) -> TSpl
     walker = Walker(mesh)
     Pw = mesh.homogeneous()
     check_clamped(mesh)
-    ep = find_extraordinary(mesh, walker)
+    try:
+        ep = find_extraordinary(mesh, walker)
+    except StarsTooClose:
+        cage = _as_cage(mesh)
+        if cage is None:
+            raise
+        return _cage_tspline(mesh, cage, name)
     knots = local_knots(walker, ep.interval)
     stars = dict(ep.stars)
     if subdivide_at:
@@ -138,6 +144,33 @@ def tspline_model(mesh: TMesh, name: str | None = None, subdivide_at=()) -> TSpl
     dec = decompose_tmesh(walker)
     patches, face_pieces = _extract(walker, dec, knots, support, zones, Pw)
     return _assemble(walker, dec, patches, face_pieces, ep.interval, name)
+
+
+def _as_cage(mesh: TMesh):
+    """The T-mesh as a Catmull-Clark cage when it is one (Sederberg et al. 2003): closed, no
+    T-junctions, one knot interval everywhere; None otherwise."""
+    from .cage import Cage
+    from .quadmesh import QuadMesh
+    topo = mesh.topology
+    if any(len(f) != 4 for f in mesh.faces) or any((b, a) not in topo.edge_at for a, b in topo.edge_at):
+        return None
+    d = np.concatenate(mesh.intervals)
+    if d.min() <= topo.tol or d.max() - d.min() > 1e-12 * d.max():
+        return None
+    return Cage(QuadMesh(np.array([[int(x) for x in f] for f in mesh.faces]), mesh.n_vertices), mesh.points,
+                mesh.weights)
+
+
+def _cage_tspline(mesh: TMesh, cage, name):
+    """Star points closer than the T-NURCC construction takes (``stars.py``), on a T-mesh that is
+    a Catmull-Clark cage: its limit surface by the subdivision path (``cage.py``, which takes
+    extraordinary points two edges apart), the T-mesh kept as the model's control mesh."""
+    from .cage import cage_model
+    model = cage_model(cage, name or mesh.name)
+    model.kind = "t-spline"
+    model.source = mesh.source
+    model.control = mesh
+    return model
 
 
 def _zone_faces(zones: list) -> dict:

@@ -12,7 +12,9 @@ from tsplcam.model import samples
 from tsplcam.model.cage import cage_model
 from tsplcam.model.tmesh import TMesh, bspline_tmesh, from_lines, quad_tmesh
 from tsplcam.model.knots import knot_vectors
+from tsplcam.model.stars import StarsTooClose, find_stars
 from tsplcam.model.tspline import homogeneous_parts, tspline_model
+from tsplcam.model.twalk import Walker
 from conftest import (needs_freecad, angle_between, assert_finite_everywhere, brute_force, clamped_grid,
                       curvature_gap, edge_pair, faces_meet, grid_knots, ngon_prism, require_freecad,
                       split_face, t_junction_mesh)
@@ -393,12 +395,15 @@ class ExtraordinaryPoints(unittest.TestCase):
             # non-uniform intervals at or near a star point: the NURCC rules (StarPoints)
             model = tspline_model(bad)
             self.assertEqual(len(model.extraordinary), 8)
-        # adjacent extraordinary points (two on one face)
+        # adjacent extraordinary points (two on one face): too close for the star construction
+        # (a closed T-mesh with one interval everywhere, a Catmull-Clark cage, then takes the
+        # subdivision path)
         prism = ngon_prism(5, noise=0.0)
         two = quad_tmesh(prism.points, prism.mesh.faces)
-        with self.assertRaises(InputError) as cm:
-            tspline_model(two)
+        with self.assertRaises(StarsTooClose) as cm:
+            find_stars(Walker(two))
         self.assertIn("two extraordinary corners", str(cm.exception))
+        self.assertEqual(len(tspline_model(two).extraordinary), 2 + 10)
 
 
 

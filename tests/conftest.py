@@ -725,28 +725,20 @@ def grid_knots(X, Y, hsegs, vsegs, i, j):
     """Local knot vectors of the vertex at grid node (i, j), by the definition (Sederberg
     2003): walk along row j (column i) and collect the columns (rows) whose segments cross
     it; past the last one the last knot repeats. Independent of the kernel's mesh walk."""
-    def crossing_cols(i, j, step):
-        out, c = [], i + step
-        while 0 <= c < len(X) and len(out) < 2:
-            if any(ci == c and min(a, b) <= j <= max(a, b) for ci, a, b in vsegs):
-                out.append(X[c])
+    def crossing(segs, values, at, other, step):
+        """The first two knot lines (from ``segs``) crossed walking from index ``at`` by
+        ``step`` along the line at index ``other``; the last repeats past the end."""
+        out, c = [], at + step
+        while 0 <= c < len(values) and len(out) < 2:
+            if any(ci == c and min(a, b) <= other <= max(a, b) for ci, a, b in segs):
+                out.append(values[c])
             c += step
         while len(out) < 2:
-            out.append(out[-1] if out else X[i])
+            out.append(out[-1] if out else values[at])
         return out
 
-    def crossing_rows(i, j, step):
-        out, r = [], j + step
-        while 0 <= r < len(Y) and len(out) < 2:
-            if any(rj == r and min(a, b) <= i <= max(a, b) for rj, a, b in hsegs):
-                out.append(Y[r])
-            r += step
-        while len(out) < 2:
-            out.append(out[-1] if out else Y[j])
-        return out
-
-    w, e = crossing_cols(i, j, -1), crossing_cols(i, j, 1)
-    s, n = crossing_rows(i, j, -1), crossing_rows(i, j, 1)
+    w, e = crossing(vsegs, X, i, j, -1), crossing(vsegs, X, i, j, 1)
+    s, n = crossing(hsegs, Y, j, i, -1), crossing(hsegs, Y, j, i, 1)
     return np.array([w[1], w[0], X[i], e[0], e[1]]), np.array([s[1], s[0], Y[j], n[0], n[1]])
 
 

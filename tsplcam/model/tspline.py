@@ -1,21 +1,23 @@
-"""T-spline surfaces: the surface of a T-mesh as patches of Bezier (and extraordinary) cells.
+"""T-spline surfaces: the surface of a T-mesh as patches of Bezier cells (and star cells).
 
 The surface of a T-mesh (``tmesh.py``) is S = sum w_i B_i P_i / sum w_i B_i
 (docs/method.md section 1.1; Sederberg et al. 2003, "T-splines and T-NURCCs").
 ``tspline_model`` builds it in steps, each in the module named for it:
 
 1. ``knots.check_clamped``: boundaries need zero outer knot intervals;
-2. ``extraordinary.find_extraordinary``: the extraordinary points (T-NURCC rule) and the
-   faces around them;
+2. ``extraordinary.find_extraordinary``: the star points (extraordinary points) and the
+   faces around them (``stars.find_stars``; stars closer than three edges on a T-mesh that is
+   a Catmull-Clark cage go to the subdivision path, ``cage.py``);
 3. ``knots.local_knots``: every blending function's local knot vectors, by ray casting on
    the mesh (``twalk.py`` walks the rays);
-4. ``blending.supports``: the faces each blending function is non-zero on;
-5. ``extraordinary.extraordinary_cells``: exact Catmull-Clark evaluation of the faces
-   around extraordinary points, with the check that the functions there are uniform;
+4. ``stars.build_zone``: per star, the T-NURCC construction on its two rings of faces (the
+   functions of the star and its neighbours by refinement to the regular level);
+5. ``blending.supports``: the faces each other blending function is non-zero on;
 6. ``decompose.decompose_tmesh``: four-sided patches between lines from extraordinary
    points and boundary corners (the same decomposition as for cages);
 7. Bezier extraction (here): every patch's cells are cut by the knot lines inside it and
-   each piece of each function becomes Bernstein coefficients (exact: a cubic per cell).
+   each piece of each function becomes Bernstein coefficients (exact: a cubic per cell);
+   cells on a star's first faces add its subdivided part (``stars.StarCells``).
 
 API: ``tspline_model(mesh)`` -> ``TSplineModel`` (a ``Model``; ``evaluate_faces`` in T-mesh
 face coordinates), ``knots.knot_vectors(mesh)`` (every vertex's local knot vectors),

@@ -68,6 +68,7 @@ class SmoothingCost:
     alpha: float = 1.0
     beta: float = 0.0
     feed: float = 0.0            # mm/s: > 0 weighs moves beyond an axis's speed at this feed more
+    travel: float = 0.0          # weight of the rotary travel |dphi| (rad) in the programme
     over: float = 4.0            # how much more (the polish, iteratively reweighted)
 
     @staticmethod
@@ -120,7 +121,7 @@ def meridian_grid(rot: Rotary, pref, normal, constraints, M: int, pole_tilt: flo
     return MeridianGrid(phis, th, lo, hi, tp, ok, th.copy(), np.zeros(th.shape, bool))
 
 
-IN_PLACE = (0.1, 10.0 * DEG)     # no rotary step above 10 deg while the contact moves less than 0.1 mm
+IN_PLACE = (0.1, 10.0 * DEG)
 
 
 def joint_transitions(grid: MeridianGrid, cost: SmoothingCost, ds: np.ndarray, max_step: float,
@@ -133,6 +134,7 @@ def joint_transitions(grid: MeridianGrid, cost: SmoothingCost, ds: np.ndarray, m
     phis = grid.phi
     dphi = np.pi - np.mod(np.pi - (phis[None, :] - phis[:, None]), 2 * np.pi)
     D2 = cost.w * dphi ** 2
+    D1 = cost.travel * np.abs(dphi)
     cosD = np.cos(dphi)
     cmax = np.cos(max_step)
     alpha, beta, L = cost.alpha, cost.beta, cost.length
@@ -153,6 +155,8 @@ def joint_transitions(grid: MeridianGrid, cost: SmoothingCost, ds: np.ndarray, m
         if beta:
             t += beta * (2.0 - 2.0 * dots)
         t *= (L / ds[i0 - 1:i1 - 1])[:, None, None]
+        if cost.travel:
+            t += D1
         hard = ~free_step[i0:i1]
         np.copyto(t, np.inf, where=hard[:, None, None] & (dots < cmax - 1e-12))
         short = (ds[i0 - 1:i1 - 1] < IN_PLACE[0]) & ~air[i0:i1]
@@ -684,3 +688,42 @@ def smooth_joints(path, rot: Rotary, theta0, phi0, pref, normal, cost: Smoothing
         phi[bad] = phi[bad] + t_lo * (ph_c[bad] - phi[bad])
     info["held_points"] = int(held.sum())
     return theta, phi, info
+
+
+# --- the rotary travel the cones force -----------------------------------------------------------
+
+def forced_rotary_travel(grid: MeridianGrid, status, ds, air=None):
+    """The least rotary (C) travel (rad) of any pose sequence over the grid's rotary values:
+    a Viterbi programme minimising sum |dphi| alone, over the meridians that meet the
+    admissible cone (lead/tilt limits, the controls' cones, the tilt axis's range) and are
+    not known to collide at every admissible tilt (``status`` 2 from the checks of
+    :func:`joint_programme`; meridians never checked count as free, so the figure is a lower
+    bound for that grid), with the same ban on rotary steps above ``IN_PLACE`` on short
+    blocks (``ds`` (n-1,) contact spacing; ``air`` (n,) points reached by a retract or rapid
+    are exempt). Tilts and the maximum axis step are left free: what remains is what the
+    cones, the collisions and the tilt range force, e.g. a half-turn of C where the tool
+    must lean further to the other side than the other branch allows. A finer grid
+    (``resolution``) finds narrower collision-free windows and can do with less. Returns
+    ``(travel, states)``, ``(nan, None)`` when no sequence exists."""
+    n, M = grid.theta.shape
+    phis = grid.phi
+    D = np.abs(np.pi - np.mod(np.pi - (phis[None, :] - phis[:, None]), 2 * np.pi))
+    swing = D > IN_PLACE[1] + 1e-9
+    air = np.zeros(n, bool) if air is None else np.asarray(air, bool)
+    node = np.where(grid.ok & (np.asarray(status) != 2), 0.0, np.inf)
+    short = (np.asarray(ds) < IN_PLACE[0]) & ~air[1:]
+
+    def block(i0: int, i1: int) -> np.ndarray:
+        t = np.broadcast_to(D, (i1 - i0, M, M)).copy()
+        s = short[i0 - 1:i1 - 1]
+        if s.any():
+            np.copyto(t, np.inf, where=s[:, None, None] & swing[None])
+        return t
+
+    def trans(i: int) -> np.ndarray:
+        return block(i, i + 1)[0]
+    trans.block = block
+    states, _ = viterbi(node, trans)
+    if states is None:
+        return np.nan, None
+    return float(D[states[:-1], states[1:]].sum()), states

@@ -40,7 +40,7 @@ from .controls import limit_halfspaces, point_settings, runs, target_axes
 from .settings import STRATEGIES, OrientationSettings  # noqa: F401 (STRATEGIES: orient.STRATEGIES)
 from .rotary import Rotary
 from .smoothing import (NoPath, SmoothingCost, cone_halfspaces, forced_rotary_travel, free_tilts,
-                        joint_programme, meridian_grid, smooth_joints)
+                        joint_programme, meridian_grid, resolve_meridians, smooth_joints)
 from ..toolpath.path import Move
 
 # The rotary axis's velocity counts twice its share of the tilt axis's time: with the squared
@@ -284,6 +284,32 @@ def orient_smooth(path, checker, preferred, limits: Limits, reach, feed, smoothi
                                   "dp_checks": checks, "c_travel_forced_deg": forced / DEG} | info
 
 
+def forced_c_travel(path, checker, machine=None, *, resolution: float = 10.0, lead_max: float = 60.0,
+                    tilt_max: float = 60.0, preferred=(0.0, 0.0, 1.0)) -> float:
+    """The C travel (deg) the cones force on ``path``, every pose of the grid checked: the
+    smooth strategy's grid (rotary values every ``resolution`` degrees, on each the admissible
+    tilts searched every ``resolution`` degrees from the one nearest ``preferred`` and the
+    boundary bisected), each rotary value collision-checked along its whole arc, then
+    :func:`~tsplcam.orientation.smoothing.forced_rotary_travel`. The reference for the figure
+    the smooth strategy reports from its lazy checks (``c_travel_forced_deg``), and, at a finer
+    resolution, how much of it the grid's coarseness makes. Costs about 100 checks a point."""
+    n = len(path)
+    rot = Rotary.from_machine(machine) if machine is not None else Rotary()
+    M = max(12, int(round(360.0 / resolution)))
+    feed = cutting_directions(path)
+    pref = unit(np.broadcast_to(np.asarray(preferred, float), (n, 3)).copy())
+    cons = [(h, np.zeros(n)) for h in cone_halfspaces(path.normal, feed, lead_max * DEG, tilt_max * DEG)]
+    grid = meridian_grid(rot, pref, path.normal, cons, M)
+    status = np.where(grid.ok, -1, 2).astype(np.int8)
+    pj, pk = np.nonzero(status == -1)
+    step = resolution * DEG
+    resolve_meridians(checker, path.center, rot, grid, status, pj, pk, step,
+                      count=int(np.ceil(np.pi / step)))
+    travel, _ = forced_rotary_travel(grid, status, _spacing(path),
+                                     air=np.isin(path.move, (Move.RETRACT, Move.RAPID)))
+    return travel / DEG
+
+
 def smoothing_cost(machine, reach, smoothing_length: float, rotary_weight: float | None,
                    feed: float, acceleration_weight: float = ACCELERATION_WEIGHT,
                    travel: float = 0.0) -> SmoothingCost:
@@ -489,7 +515,9 @@ def orient(path, model=None, tool=None, strategy: str | None = None, *, settings
                                     s.max_step * DEG, cost=cost, constraints=cons, pole_tilt=pole * DEG,
                                     tick=tick)
         axes[a:b] = ax
-        f = inf.pop("c_travel_forced_deg", None)
+        # the forced C travel from the smooth strategy's checks only: "closest" checks too few
+        # poses for its lazy figure to be near the grid's
+        f = inf.pop("c_travel_forced_deg", None) if kind == "smooth" else None
         forced = None if forced is None or f is None else forced + f
         for k, v in inf.items():
             info[k] = info.get(k, 0) + v if isinstance(v, (int, float)) else v

@@ -20,7 +20,8 @@ import unittest
 REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 PACKAGE = "tsplcam"
 STAGES = ("model", "layout", "plan", "toolpath", "orientation", "post")
-BASE = {PACKAGE, f"{PACKAGE}.errors", f"{PACKAGE}.outfile", f"{PACKAGE}.inputfile"}  # importable from anywhere
+BASE = {PACKAGE, f"{PACKAGE}.errors", f"{PACKAGE}.outfile", f"{PACKAGE}.inputfile", f"{PACKAGE}.progress",
+        f"{PACKAGE}.numerics"}  # importable from anywhere
 TOP = ("settings", "program", "job", "jobfile", "batch", "report", "cli", "__main__", "run_in_freecad",
        "workbench")  # may import anything
 FREECAD_MODULES = {"FreeCAD", "FreeCADGui", "Part", "Path", "CAM", "Mesh", "MeshPart", "Draft",

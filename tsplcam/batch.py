@@ -45,6 +45,7 @@ from multiprocessing.connection import wait as wait_for
 
 from .errors import InputError, TsplcamError
 from .outfile import check_folder, write_text
+from .numerics import BLAS_THREADS
 
 RECORD = "batch.json"          # DIR/<name>/batch.json: the hash and row of the last good run
 SUMMARY = "summary.json"
@@ -177,11 +178,6 @@ def _child(spec: dict, conn) -> None:
         row = row_of(spec, "failed", f"stopped: {type(exc).__name__}")
     conn.send(row)
     conn.close()
-
-
-#: one BLAS thread per job process, as Dask's workers have: N jobs on N cores do not
-#: oversubscribe them, and the sums BLAS splits by thread count come out the same everywhere
-BLAS_THREADS = {"OPENBLAS_NUM_THREADS": "1", "OMP_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}
 
 
 def run_local(specs: list, workers: int, done) -> None:

@@ -16,6 +16,9 @@ import re
 
 _DONE = False
 
+#: the environment that gives a process (and the processes it starts) one BLAS thread
+BLAS_THREADS = {"OPENBLAS_NUM_THREADS": "1", "OMP_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}
+
 
 def one_blas_thread() -> None:
     """Make the BLAS numpy is using run on one thread (OpenBLAS; a no-op for others, and
@@ -40,5 +43,4 @@ def one_blas_thread() -> None:
 
 def blas_environment() -> None:
     """Ask for one BLAS thread through the environment (read when numpy loads its BLAS)."""
-    for name in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS"):
-        os.environ[name] = "1"
+    os.environ.update(BLAS_THREADS)

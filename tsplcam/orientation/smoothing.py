@@ -51,7 +51,7 @@ import numpy as np
 from scipy.linalg import solveh_banded
 
 from .rotary import DEG, Rotary, angle_between
-from .viterbi import viterbi
+from .viterbi import from_blocks, viterbi
 
 
 @dataclass
@@ -163,11 +163,7 @@ def joint_transitions(grid: MeridianGrid, cost: SmoothingCost, ds: np.ndarray, m
         if short.any():
             np.copyto(t, np.inf, where=short[:, None, None] & swing[None])
         return t
-
-    def trans(i: int) -> np.ndarray:
-        return block(i, i + 1)[0]
-    trans.block = block
-    return trans
+    return from_blocks(block)
 
 
 def resolve_meridians(checker, C, rot: Rotary, grid: MeridianGrid, status, pts, ks, step: float,
@@ -719,11 +715,7 @@ def forced_rotary_travel(grid: MeridianGrid, status, ds, air=None):
         if s.any():
             np.copyto(t, np.inf, where=s[:, None, None] & swing[None])
         return t
-
-    def trans(i: int) -> np.ndarray:
-        return block(i, i + 1)[0]
-    trans.block = block
-    states, _ = viterbi(node, trans)
+    states, _ = viterbi(node, from_blocks(block))
     if states is None:
         return np.nan, None
     return float(D[states[:-1], states[1:]].sum()), states

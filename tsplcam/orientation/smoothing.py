@@ -5,6 +5,7 @@ The smooth strategy (orient.orient_smooth, after xu2013) minimises along the pat
     J = sum_i  L / ds_i * (dtheta_i^2 + w dphi_i^2)                      velocity
       + sum_i  L * ds_i * (l_t^2 k_theta,i^2 + w l_p^2 k_phi,i^2)          acceleration
       + sum_i  dev_i^2 * ds_i / L                                          tilt where needed
+      + tau sum_i |dphi_i|                                                 rotary travel
 
 over collision-free axes inside the admissible cone. ``theta``, ``phi`` are the signed tilt
 and the rotary angle of the machine's pose (orientation.rotary: joint values are affine in
@@ -17,7 +18,9 @@ velocity term is the time integral of (axis speed / its limit)^2, scaled; ``l = 
 (feed F, axis limits v, a) is the path length over which an axis reaches full speed, which
 puts (axis acceleration / its limit)^2 on the same scale. Without a machine a virtual A/C
 table with equal axis speeds stands in. With ``rotary_weight`` 0 the change of the tool
-axis direction replaces the rotary term (``beta``).
+axis direction replaces the rotary term (``beta``). The travel term (``tau``, the
+programme's only: the polish would hold C in the grid's steps) makes C move only where the
+cones and collisions make it; :func:`forced_rotary_travel` measures how much that is.
 
 Two stages:
 

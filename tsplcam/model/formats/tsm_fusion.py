@@ -1,0 +1,287 @@
+"""The Fusion dialect of ``.tsm`` files (Fusion 360, T-Splines through ASM; docs/formats.md
+section 2.5): the surface of a parsed file, and a writer of such files from quad cages.
+
+What the dialect gives and how it is read (the records are parsed in ``tsm.py``):
+
+* ``end-conditions MULTIPLE_KNOTS`` or ``SUBD_CREASES``, ``cap-type G1CAPS``,
+  ``star-knot-rule NURCCS``; one grip per vertex, in vertex order without ``0m`` records,
+  else by ``0m odd-grip-map`` and one ``0m gvp <vertex>`` per grip; weights honoured.
+* Coordinates are centimetres whatever the ``units`` line says (``TsmInfo.scale_rule``).
+* Boundary links carry the boundary vertex's kind (2 convex corner, 1 straight, 0 concave
+  corner) and ``ec <edge> 0`` marks exactly the boundary edges: both are checked against
+  the faces.
+* ``100edges`` lists infinitely sharp crease edges, ``100verts`` infinitely sharp vertices
+  (OpenSubdiv's crease and corner rules, sharpness infinite); ``106ek`` repeats every
+  edge's knot interval and must agree with it.
+
+The surface. A T-mesh without T-junctions whose knot intervals are all equal is a
+Catmull-Clark cage: the surface is its limit (``cage.cage_model``), with open boundaries
+under OpenSubdiv's edge-and-corner rule (boundary curves are the cubic B-splines of the
+boundary grips, single-face corners interpolated) and the creases as infinitely sharp
+OpenSubdiv creases, which bound patches. Star points (``cap-type G1CAPS``) are evaluated
+exactly on that limit surface, a watertight reading that is G1 at the star itself.
+Any other T-mesh (T-junctions, non-uniform intervals) goes to the T-spline kernel
+(``tspline.tspline_model``, T-NURCC rule at stars); there, open boundaries and creases
+are refused with their line, since the kernel's boundaries need zero outer knot intervals
+that Fusion files do not carry.
+"""
+from __future__ import annotations
+
+import os
+
+import numpy as np
+
+from ...inputfile import naming
+from ..quadmesh import INFINITE
+
+#: relative spread of knot intervals still read as uniform
+UNIFORM_TOL = 1e-9
+def boundary_flag(turns: int) -> int:
+    """How a boundary link marks its origin vertex, by the quarter turns of faces there: 2 a
+    convex corner (one), 1 straight (two), 0 concave (three or more)."""
+    return {1: 2, 2: 1}.get(int(turns), 0)
+
+
+def _edge_ends(r, e):
+    """The vertices (file ids) an edge's link joins."""
+    link = r.l[r.e[e][1]]
+    return link[4], r.l[link[2]][4]
+
+
+def check_boundary(r, old) -> set:
+    """The file's boundary edges (edge ids), with the flags of boundary links and the ``ec``
+    records checked against the faces."""
+    topo = old.topology
+    boundary = set()
+    for i, rec in enumerate(r.l):
+        if rec is None or rec[5] != -1:
+            continue
+        ln, flag, v = rec[0], rec[7], rec[4]
+        boundary.add(rec[6])
+        k = r.compact.get(v)
+        if k is None or not topo.boundary[k]:
+            raise r.err(f"link {i} lies on the boundary (face -1) but vertex {v} is not on the boundary "
+                        f"of the faces", ln)
+        want = boundary_flag(topo.total[k])
+        if flag != want:
+            kinds = {2: "a convex corner", 1: "a straight boundary vertex", 0: "a concave corner"}
+            raise r.err(f"boundary link {i}: flag {flag} says vertex {v} is {kinds.get(flag, 'nothing known')}, "
+                        f"its faces make it {kinds[want]}", ln)
+    seen = {}
+    for ln, e in r.ec:
+        if e in seen:
+            raise r.err(f"a second ec record for edge {e} (the first is on line {seen[e]})", ln)
+        seen[e] = ln
+        if e not in boundary:
+            raise r.err(f"ec {e}: edge {e} is not a boundary edge (ec marks the edges with a face -1 link)", ln)
+    missing = sorted(boundary - set(seen))
+    if missing:
+        e = missing[0]
+        raise r.err(f"boundary edge {e} has no ec record ({len(missing)} boundary edges without one)",
+                    r.e[e][0] if 0 <= e < len(r.e) and r.e[e] is not None else None)
+    return boundary
+
+
+def vertex_grips(r) -> dict:
+    """File vertex id -> grip index: one grip per vertex in vertex order, or the grip map."""
+    if r.grip_map_line is None:
+        if len(r.g) != len(r.v):
+            last = next((g[0] for g in reversed(r.g) if g is not None), None)
+            raise r.err(f"{len(r.g)} control points (0g) for {len(r.v)} vertices: without a grip map "
+                        f"(0m) every vertex has one, in vertex order", last)
+        out = {}
+        for k, (vrec, grec) in enumerate(zip(r.v, r.g)):
+            if (vrec is None) != (grec is None):
+                line = (grec or vrec)[0]
+                raise r.err(f"vertex slot {k} and control point {k}: a null vertex goes with a null "
+                            f"control point (a bare 0g) and only with one", line)
+            if vrec is not None:
+                out[k] = k
+        return out
+    if len(r.grip_of) != len(r.g):
+        last = next((g[0] for g in reversed(r.g) if g is not None), r.grip_map_line)
+        raise r.err(f"{len(r.grip_of)} grip map records (0m gvp) for {len(r.g)} control points (0g)", last)
+    out = {}
+    for gi, (ln, v, _) in enumerate(r.grip_of):
+        if (v < 0) != (r.g[gi] is None):
+            raise r.err(f"grip {gi}: a null grip map entry (vertex -1) must go with a null control point "
+                        f"(a bare 0g) and only with one", ln)
+        if v < 0:
+            continue
+        if not (0 <= v < len(r.v)) or r.v[v] is None:
+            raise r.err(f"grip {gi} belongs to vertex {v}, which does not exist", ln)
+        if v in out:
+            raise r.err(f"vertex {v} has two grips (0m gvp), {out[v]} and {gi}", ln)
+        out[v] = gi
+    return out
+
+
+def check_ek(r) -> None:
+    """``106ek``: one per edge slot, each equal to its edge's interval."""
+    if not r.ek:
+        return
+    if len(r.ek) != len(r.e):
+        raise r.err(f"{len(r.ek)} 106ek records for {len(r.e)} edges (one per edge)", r.ek[-1][0])
+    for k, ((ln, value), rec) in enumerate(zip(r.ek, r.e)):
+        if rec is not None and abs(value - rec[2]) > UNIFORM_TOL * max(1.0, abs(rec[2])):
+            raise r.err(f"106ek gives edge {k} the knot interval {value:g}, its e record (line {rec[0]}) "
+                        f"{rec[2]:g}", ln)
+
+
+def sharp_features(r, boundary: set) -> tuple[dict, dict]:
+    """Crease edges (compact vertex pairs, a < b) and sharp vertices (compact ids) from
+    ``100edges`` and ``100verts``, infinitely sharp; creases on boundary edges add nothing
+    (the boundary is sharp already)."""
+    edges, verts = {}, {}
+    for ln, e in r.crease_edges:
+        if not (0 <= e < len(r.e)) or r.e[e] is None:
+            raise r.err(f"100edges: edge {e} does not exist", ln)
+        if e in boundary:
+            continue
+        a, b = (r.compact[v] for v in _edge_ends(r, e))
+        edges[(min(a, b), max(a, b))] = INFINITE
+    for ln, v in r.crease_vertices:
+        if v not in r.compact:
+            raise r.err(f"100verts: vertex {v} does not exist or no face uses it", ln)
+        verts[r.compact[v]] = INFINITE
+    return edges, verts
+
+
+def uniform_interval(old) -> float | None:
+    """The common knot interval of a T-mesh without T-junctions, or None (T-junctions or
+    intervals that differ by more than ``UNIFORM_TOL``)."""
+    if any(len(f) != 4 for f in old.faces):
+        return None
+    d = np.concatenate(old.intervals)
+    top = float(d.max())
+    if not top > 0.0 or float(d.min()) < top * (1.0 - UNIFORM_TOL):
+        return None
+    return top
+
+
+def fusion_model(r):
+    """The surface of a parsed Fusion-dialect file ``r`` (a ``tsm._Reader``)."""
+    from ..cage import Cage, cage_model
+    from ..quadmesh import QuadMesh
+    from ..tmesh import TMesh
+    from ..tspline import tspline_model
+    from .tsm import TsmInfo
+    old = r.topology()
+    topo = old.topology
+    boundary = check_boundary(r, old)
+    grip = vertex_grips(r)
+    check_ek(r)
+    creases, sharp = sharp_features(r, boundary)
+    for v, k in r.compact.items():
+        if v not in grip:
+            raise r.err(f"vertex {v} has no control point", r.v[v][0])
+    for v, g in grip.items():
+        if v not in r.compact:
+            raise r.err(f"control point {g} belongs to vertex {v}, which no face uses", r.g[g][0])
+    G = np.array([r.g[grip[v]][1:5] for v in r.old_ids], float)
+    points, weights = G[:, :3] * r.scale, G[:, 3]
+    stars = [k for k in range(old.n_vertices) if topo.is_extraordinary(k)]
+    smooth, s_line = r.header.get("star-smoothness", (0, None))
+    if stars and smooth != 0:
+        raise r.err(f"star-smoothness {smooth} with star points: only 0 is supported", s_line)
+    name = os.path.splitext(os.path.basename(r.path))[0]
+    d = uniform_interval(old)
+    if d is not None:
+        mesh = QuadMesh(np.array([list(f) for f in old.faces]), old.n_vertices, "edge-and-corner", r.path,
+                        np.array(old.face_lines))
+        mesh.sharpness = creases or None
+        mesh.corner_sharpness = sharp or None
+        with naming(r.path):
+            model = cage_model(Cage(mesh, points, weights, {"interpolateboundary": "edge-and-corner"}), name)
+        surface = (f"Catmull-Clark limit of the cage (uniform knot interval {d:g}, no T-junctions; "
+                   f"boundaries edge-and-corner, creases infinitely sharp)")
+    else:
+        if boundary:
+            e = min(boundary)
+            raise r.err("an open boundary on a T-mesh with T-junctions or non-uniform knot intervals is not "
+                        "supported: Fusion's boundary rule there is not established (open bodies are read "
+                        "as uniform cages only)", r.e[e][0])
+        if r.crease_edges or r.crease_vertices:
+            ln = (r.crease_edges or r.crease_vertices)[0][0]
+            raise r.err("creases on a T-mesh with T-junctions or non-uniform knot intervals are not "
+                        "supported (creased bodies are read as uniform cages only)", ln)
+        mesh = TMesh(points, weights, old.faces, old.corners, old.intervals, source=r.path,
+                     face_lines=old.face_lines, vertex_lines=old.vertex_lines,
+                     vertex_labels=old.vertex_labels, face_labels=old.face_labels, name=name)
+        with naming(r.path):
+            model = tspline_model(mesh, name=name)
+        surface = "T-spline (T-junctions or non-uniform knot intervals; T-NURCC rule at star points)"
+    model.tsm = TsmInfo.of(r, surface, len(creases), len(sharp))
+    return model
+
+
+# -- writing -----------------------------------------------------------------------------------------
+def write_fusion_tsm(cage, path: str, creases=(), corners=(), grip_map: bool = False,
+                     interval: float = 1.0, units: str = "1 centimeters",
+                     end_conditions: str | None = None) -> None:
+    """A quad cage (mm) as a Fusion-dialect ``.tsm`` (centimetres): ``creases`` are vertex
+    pairs (0-based) written to ``100edges``, ``corners`` vertices to ``100verts``.
+    ``grip_map`` writes the grips in reverse vertex order with ``0m odd-grip-map`` and one
+    ``0m gvp`` per grip. ``interval``: every edge's knot interval, or a function of an
+    edge's two vertices (a < b). End conditions SUBD_CREASES with creases, else
+    MULTIPLE_KNOTS (as Fusion writes them), unless given."""
+    faces = np.asarray(cage.mesh.faces, int)
+    nv = len(cage.points)
+    links = []                                      # [prev, next, opp, vertex, face, edge, flag]
+    at = {}                                         # (a, b) -> link
+    for f, quad in enumerate(faces):
+        for k in range(4):
+            i = 4 * f + k
+            links.append([4 * f + (k + 3) % 4, 4 * f + (k + 1) % 4, -1, int(quad[k]), f, -1, 0])
+            at[(int(quad[k]), int(quad[(k + 1) % 4]))] = i
+    out_boundary = {}
+    for (a, b), i in list(at.items()):
+        if (b, a) not in at:                        # a boundary link b -> a on face -1
+            j = len(links)
+            links.append([-1, -1, i, b, -1, -1, 1])
+            at[(b, a)] = j
+            links[i][2] = j
+            out_boundary[b] = j
+    for (a, b), i in at.items():
+        links[i][2] = at[(b, a)]
+    turns = np.zeros(nv, int)
+    for quad in faces:
+        np.add.at(turns, quad, 1)
+    for v, j in out_boundary.items():
+        a = links[links[j][2]][3]                   # the boundary link runs v -> a
+        links[j][1] = out_boundary[a]
+        links[out_boundary[a]][0] = j
+        links[j][6] = boundary_flag(turns[v])
+    edges = []
+    for (a, b), i in sorted(at.items(), key=lambda kv: kv[1]):
+        if links[i][5] < 0:
+            links[i][5] = links[links[i][2]][5] = len(edges)
+            edges.append(i)
+    edge_id = {(links[i][3], links[links[i][2]][3]): e for e, i in enumerate(edges)}
+    first = {}
+    for i, ln in enumerate(links):
+        first.setdefault(ln[3], i)
+    pts = np.asarray(cage.points, float) / 10.0
+    w = np.ones(nv) if cage.weights is None else np.asarray(cage.weights, float)
+    boundary_edges = sorted(links[i][5] for i in range(len(links)) if links[i][4] < 0)
+    ends = end_conditions or ("SUBD_CREASES" if len(creases) or len(corners) else "MULTIPLE_KNOTS")
+    rows = ["#TS0200", "", "degree 3", "cap-type G1CAPS", "star-smoothness 0", f"units {units}",
+            f"end-conditions {ends}", "star-knot-rule NURCCS"]
+    rows += [f"f {4 * f} 0" for f in range(len(faces))]
+    knot = interval if callable(interval) else (lambda a, b: interval)
+    rows += [f"e {i} {float(knot(*sorted((links[i][3], links[links[i][2]][3]))))!r}" for i in edges]
+    rows += [f"v {first[v]} EAST" for v in range(nv)]
+    rows += ["l " + " ".join(str(x) for x in ln) for ln in links]
+    rows += [f"ec {e} 0" for e in boundary_edges]
+    order = list(range(nv))[::-1] if grip_map else list(range(nv))
+    if grip_map:
+        rows += ["0m odd-grip-map"] + [f"0m gvp {v}" for v in order]
+    rows += ["0g {!r} {!r} {!r} {!r}".format(*pts[v], float(w[v])) for v in order]
+    if len(creases) or len(corners):
+        ids = [edge_id.get((int(a), int(b)), edge_id.get((int(b), int(a)))) for a, b in creases]
+        rows.append("100edges" + "".join(f" {e}" for e in ids))
+        rows.append("100verts" + "".join(f" {int(v)}" for v in corners))
+    rows += ["", "tol 1.00000000000000008e-05", "geom-tol 1.00000000000000008e-05", "ver 2",
+             "behavior-version 4.0.1", "compat-version 4.0.1"]
+    with open(path, "w") as fh:
+        fh.write("\n".join(rows) + "\n")

@@ -1,0 +1,304 @@
+"""Fusion-dialect .tsm files (docs/formats.md section 2.5), written here from OpenSubdiv's
+cages: they load to the cage's Catmull-Clark limit (the OBJ path, itself tested against
+OpenSubdiv) to 1e-9 of the model size, patches meet without gaps, infinitely sharp creases
+are C0 patch boundaries with the surface smooth elsewhere, every header option and record
+is acted on, and anything else is refused naming the file and the line."""
+import os
+import shutil
+import tempfile
+import unittest
+
+import numpy as np
+
+import tsplcam
+from conftest import edge_pair, external
+from tsplcam.errors import InputError
+from tsplcam.layout.layout import Layout
+from tsplcam.model import samples
+from tsplcam.model.cage import Cage, cage_model
+from tsplcam.model.formats.obj import read_obj
+from tsplcam.model.formats.tsm_fusion import write_fusion_tsm
+from tsplcam.model.quadmesh import INFINITE
+
+CAGES = ("catmark_cube", "catmark_torus", "catmark_tent", "catmark_xord_boundary", "catmark_edgecorner",
+         "catmark_cube_creases0")
+
+
+def reference(name):
+    """An OpenSubdiv cage read by the OBJ reader, under the rules the Fusion reader applies
+    (edge-and-corner boundaries, its creases made infinitely sharp), and its crease edges."""
+    cage = read_obj(external("opensubdiv", name + ".obj"))
+    cage.mesh.boundary_rule = "edge-and-corner"
+    creases = sorted(cage.mesh.sharpness or {})
+    cage.mesh.sharpness = {e: INFINITE for e in creases} or None
+    cage.mesh.corner_sharpness = None
+    return cage, creases
+
+
+def face_grid(n_faces, k=5):
+    g = np.linspace(0.0, 1.0, k)
+    S, T = np.meshgrid(g, g)
+    return (np.repeat(np.arange(n_faces), k * k), np.tile(S.ravel(), n_faces), np.tile(T.ravel(), n_faces))
+
+
+def size_of(model):
+    P = np.concatenate([p.evaluate(*np.meshgrid(np.linspace(0, 1, 9), np.linspace(0, 1, 9))).P
+                        for p in model.patches])
+    return float(np.linalg.norm(P.max(0) - P.min(0)))
+
+
+class TempDir(unittest.TestCase):
+    def setUp(self):
+        self.dir = tempfile.mkdtemp(prefix="tsplcam-fusion-")
+        self.addCleanup(shutil.rmtree, self.dir, True)
+
+    def write(self, cage, name, **kw):
+        path = os.path.join(self.dir, name + ".tsm")
+        write_fusion_tsm(cage, path, **kw)
+        return path
+
+
+class CatmullClarkCages(TempDir):
+    def test_limit_of_the_cage_and_watertight(self):
+        """Uniform intervals (2, not 1), no T-junctions: the OBJ path's limit surface, with
+        and without a grip map, and adjacent patches agree along every shared edge."""
+        for k, name in enumerate(CAGES):
+            cage, creases = reference(name)
+            ref = cage_model(cage)
+            scale = size_of(ref)
+            model = tsplcam.load(self.write(cage, name, creases=creases, grip_map=bool(k % 2), interval=2.0))
+            self.assertEqual(model.kind, "catmull-clark", name)
+            self.assertEqual((len(model.patches), len(model.extraordinary)),
+                             (len(ref.patches), len(ref.extraordinary)), name)
+            f, s, t = face_grid(len(cage.mesh.faces))
+            gap = np.abs(model.evaluate_faces(f, s, t).P - ref.evaluate_faces(f, s, t).P).max()
+            self.assertLess(gap, 1e-9 * scale, name)
+            tau = np.linspace(0.0, 1.0, 11)
+            for link in Layout.from_model(model).edge_links:
+                sa, sb = edge_pair(model, link, tau)
+                self.assertLess(np.abs(sa.P - sb.P).max(), 1e-9 * scale, name)
+            self.assertEqual(model.tsm.crease_edges, len(creases), name)
+
+    def test_weights_are_honoured(self):
+        cage, _ = reference("catmark_torus")
+        w = 1.0 + 0.5 * np.cos(np.arange(len(cage.points)))
+        weighted = Cage(cage.mesh, cage.points, w)
+        model = tsplcam.load(self.write(weighted, "weighted", grip_map=True))
+        ref = cage_model(weighted)
+        f, s, t = face_grid(len(cage.mesh.faces))
+        gap = np.abs(model.evaluate_faces(f, s, t).P - ref.evaluate_faces(f, s, t).P).max()
+        self.assertLess(gap, 1e-9 * size_of(ref))
+        plain = cage_model(cage)
+        self.assertGreater(np.abs(plain.evaluate_faces(f, s, t).P - ref.evaluate_faces(f, s, t).P).max(),
+                           1e-3 * size_of(ref))
+
+    def test_units_are_centimetres_whatever_the_line_says(self):
+        cage, _ = reference("catmark_cube")
+        a = tsplcam.load(self.write(cage, "cm", units="1 centimeters"))
+        b = tsplcam.load(self.write(cage, "m", units="1 meters"))
+        np.testing.assert_allclose(a.node_points, b.node_points, rtol=0, atol=1e-12)
+        ref = cage_model(cage)
+        f, s, t = face_grid(len(cage.mesh.faces), 3)
+        np.testing.assert_allclose(a.evaluate_faces(f, s, t).P, ref.evaluate_faces(f, s, t).P, atol=1e-12)
+        self.assertEqual(b.tsm.mm_per_unit, 10.0)
+        self.assertIn("centimetres", b.tsm.scale_rule)
+        self.assertIn("1 meters", b.tsm.scale_rule)
+        self.assertEqual(b.tsm.footer, {"tol": 1e-05, "geom-tol": 1e-05, "ver": 2, "behavior-version": "4.0.1",
+                                        "compat-version": "4.0.1"})
+        self.assertEqual((b.tsm.dialect, b.tsm.cap_type, b.tsm.star_knot_rule, b.tsm.end_conditions),
+                         ("fusion", "G1CAPS", "NURCCS", "MULTIPLE_KNOTS"))
+
+    def test_non_uniform_closed_body_goes_to_the_t_spline_kernel(self):
+        """A torus with two knot intervals (rings of 1 and 3): no star points, closed: the
+        T-spline kernel, watertight, and a different surface from the uniform one."""
+        cage, _ = reference("catmark_torus")
+        faces = cage.mesh.faces
+        # a ring of the torus: the faces' second edges run along it; intervals per ring
+        ring_of = {}
+        for f in faces:
+            for k in (0, 2):
+                a, b = sorted((int(f[k]), int(f[k + 1])))
+                ring_of[(a, b)] = 3.0 if min(a, b) % 2 else 1.0
+        path = self.write(cage, "torus_nu", interval=lambda a, b: ring_of.get((a, b), 1.0))
+        try:
+            model = tsplcam.load(path)
+        except InputError as exc:                      # inconsistent intervals are refused with a line
+            self.assertIsNotNone(exc.line)
+            return
+        self.assertEqual(model.kind, "t-spline")
+        self.assertIn("T-spline", model.tsm.surface)
+        scale = size_of(model)
+        for link in Layout.from_model(model).edge_links:
+            sa, sb = edge_pair(model, link, np.linspace(0, 1, 7))
+            self.assertLess(np.abs(sa.P - sb.P).max(), 1e-9 * scale)
+
+
+class Creases(TempDir):
+    def crease_sides(self, model, cage, creases, n=9):
+        """Per crease edge (a, b): the surface along it evaluated from the faces on both sides,
+        and where those points lie in their patches."""
+        faces = cage.mesh.faces
+        out = []
+        for a, b in creases:
+            sides = []
+            for f, quad in enumerate(faces):
+                for k in range(4):
+                    if {int(quad[k]), int(quad[(k + 1) % 4])} == {a, b}:
+                        tau = np.linspace(0, 1, n) if quad[k] == a else np.linspace(1, 0, n)
+                        st = [(tau, 0 * tau), (1 + 0 * tau, tau), (1 - tau, 1 + 0 * tau), (0 * tau, 1 - tau)][k]
+                        sides.append((f, st))
+            out.append(sides)
+        return out
+
+    def test_creases_are_c0_patch_boundaries_smooth_elsewhere(self):
+        for name in ("catmark_cube_creases0", "fusion_mold"):
+            if name == "fusion_mold":
+                cage, creases, _ = samples.fusion_mold_cage()
+                model = tsplcam.load(samples.sample_path("fusion_mold"))
+            else:
+                cage, creases = reference(name)
+                model = tsplcam.load(self.write(cage, name, creases=creases))
+            scale = size_of(model)
+            fm = model.face_map
+            kinks = []
+            for sides in self.crease_sides(model, cage, creases):
+                self.assertEqual(len(sides), 2, name)
+                (fa, (sa_, ta_)), (fb, (sb_, tb_)) = sides
+                A = model.evaluate_faces(np.full(len(sa_), fa), sa_, ta_)
+                B = model.evaluate_faces(np.full(len(sb_), fb), sb_, tb_)
+                self.assertLess(np.abs(A.P - B.P).max(), 1e-9 * scale, name)          # C0
+                kinks.append(np.degrees(np.arccos(np.clip(np.einsum("ij,ij->i", A.normal, B.normal), -1, 1))).max())
+                # on a patch boundary: the two sides lie in different patches or on a patch edge
+                for f, s, t in ((fa, sa_, ta_), (fb, sb_, tb_)):
+                    p = fm.patch[f]
+                    self.assertTrue(fa != fb and (fm.patch[fa] != fm.patch[fb] or self.on_patch_edge(fm, f, s, t)),
+                                    f"{name}: crease edge inside patch {p}")
+            self.assertGreater(max(kinks), 1.0, name)               # a real kink along the crease
+            # away from creases: the normals agree across every other patch edge (G1 at least)
+            crease_pts = np.concatenate([model.evaluate_faces(np.full(9, s[0][0]), *s[0][1]).P
+                                         for s in self.crease_sides(model, cage, creases)])
+            for link in Layout.from_model(model).edge_links:
+                tau = np.linspace(0.05, 0.95, 7)
+                sa, sb = edge_pair(model, link, tau)
+                d = np.linalg.norm(sa.P[:, None] - crease_pts[None], axis=2).min(axis=1)
+                smooth = d > 1e-6 * scale
+                if smooth.all():
+                    dot = np.abs(np.einsum("ij,ij->i", sa.normal, sb.normal))
+                    self.assertGreater(dot.min(), 1 - 1e-9, f"{name}: patches {link.a}, {link.b}")
+
+    @staticmethod
+    def on_patch_edge(fm, f, s, t):
+        from tsplcam.model.cells import SQUARE_MAPS
+        A, o = SQUARE_MAPS[fm.map_index[f]]
+        a = A[0, 0] * s + A[0, 1] * t + o[0]
+        b = A[1, 0] * s + A[1, 1] * t + o[1]
+        u = (fm.cell[f, 0] + a) / fm.cells[f, 0]
+        v = (fm.cell[f, 1] + b) / fm.cells[f, 1]
+        return (np.all(np.minimum(u, 1 - u) < 1e-12) or np.all(np.minimum(v, 1 - v) < 1e-12))
+
+
+class Sample(unittest.TestCase):
+    def test_fusion_mold(self):
+        """The shipped Fusion-dialect sample: stars of valence 3 and 5, a crease of 10 edges,
+        a 14.4 x 14.4 x 6.8 mm cavity whose rim lies on the block's top face."""
+        model = tsplcam.load(samples.sample_path("fusion_mold"))
+        self.assertEqual(model.kind, "catmull-clark")
+        self.assertEqual(sorted(e.valence for e in model.extraordinary if not e.boundary), [3] * 6 + [5] * 2)
+        self.assertEqual(model.tsm.crease_edges, 10)
+        self.assertEqual(model.tsm.end_conditions, "SUBD_CREASES")
+        lo, hi = samples._limit_box(model.control, 65)
+        np.testing.assert_allclose(hi - lo, [14.4, 14.4, 6.8], atol=2e-3)
+        self.assertAlmostEqual(hi[2], samples.FUSION_MOLD_BLOCK[2], delta=2e-3)
+        bottom = min(model.patches, key=lambda p: p.evaluate(0.5, 0.5).P[0, 2])
+        self.assertGreater(bottom.evaluate(0.5, 0.5).normal[0, 2], 0.9)
+
+
+class Refused(TempDir):
+    """Every option or record outside the dialect's list, and every inconsistency, is an
+    InputError naming the file and the line."""
+
+    def setUp(self):
+        super().setUp()
+        cage, creases = reference("catmark_xord_boundary")
+        self.lines = open(self.write(cage, "base", creases=[], grip_map=True)).read().split("\n")
+
+    def refused(self, lines, *fragments, line=None):
+        path = os.path.join(self.dir, "bad.tsm")
+        with open(path, "w") as fh:
+            fh.write("\n".join(lines))
+        with self.assertRaises(InputError) as cm:
+            tsplcam.load(path)
+        exc = cm.exception
+        self.assertEqual(os.path.realpath(exc.path), os.path.realpath(path))
+        for frag in fragments:
+            self.assertIn(frag, str(exc))
+        if line is None:
+            self.assertIsNotNone(exc.line, str(exc))
+        else:
+            self.assertEqual(exc.line, line, str(exc))
+        return exc
+
+    def at(self, prefix, k=0):
+        return [i for i, l in enumerate(self.lines) if l.startswith(prefix)][k]
+
+    def replaced(self, i, new):
+        return self.lines[:i] + [new] + self.lines[i + 1:]
+
+    def test_header_options(self):
+        for key, bad, frag in (("cap-type", "cap-type G2CAPS", "cap-type"),
+                               ("end-conditions", "end-conditions BEZIER", "end-conditions"),
+                               ("star-knot-rule", "star-knot-rule UNIFORM", "star-knot-rule"),
+                               ("units", "units 1 furlongs", "unit name"),
+                               ("star-smoothness", "star-smoothness -1", "star-smoothness")):
+            i = self.at(key)
+            self.refused(self.replaced(i, bad), frag, line=i + 1)
+
+    def test_star_smoothness_with_stars(self):
+        i = self.at("star-smoothness")
+        self.refused(self.replaced(i, "star-smoothness 2"), "star-smoothness 2", line=i + 1)
+
+    def test_unknown_records(self):
+        i = self.at("tol")
+        for rec in ("107foo 1 2", "0m gv 3", "0m cg 1 4 0 0 0 0", "0m frob 2"):
+            self.refused(self.lines[:i] + [rec] + self.lines[i:], line=i + 1)
+
+    def test_vendor_records_are_skipped(self):
+        i = self.at("tol")
+        ok = self.lines[:i] + ["50000grip 3", "105sym 1 0 0", "105plane 0 0 1 0", "105a 1", "105r 2"] + self.lines[i:]
+        path = os.path.join(self.dir, "vendor.tsm")
+        with open(path, "w") as fh:
+            fh.write("\n".join(ok))
+        self.assertEqual(tsplcam.load(path).kind, "catmull-clark")
+
+    def test_boundary_records(self):
+        i = self.at("ec")
+        self.refused(self.lines[:i] + self.lines[i + 1:], "no ec record")
+        e = int(self.lines[i].split()[1])
+        interior = next(k for k in range(100) if f"ec {k} 0" not in self.lines)
+        self.refused(self.replaced(i, f"ec {interior} 0"), "not a boundary edge", line=i + 1)
+        j = next(k for k, l in enumerate(self.lines) if l.startswith("l ") and l.split()[5] == "-1")
+        parts = self.lines[j].split()
+        parts[7] = str((int(parts[7]) + 1) % 3)
+        self.refused(self.replaced(j, " ".join(parts)), "flag", line=j + 1)
+        self.assertGreaterEqual(e, 0)
+
+    def test_106ek_must_repeat_the_intervals(self):
+        i = self.at("tol")
+        n_edges = sum(l.startswith("e ") for l in self.lines)
+        ek = [f"106ek 1.0" for _ in range(n_edges)]
+        path = os.path.join(self.dir, "ek.tsm")
+        with open(path, "w") as fh:
+            fh.write("\n".join(self.lines[:i] + ek + self.lines[i:]))
+        self.assertEqual(tsplcam.load(path).kind, "catmull-clark")
+        ek[3] = "106ek 1.5"
+        self.refused(self.lines[:i] + ek + self.lines[i:], "106ek", line=i + 4)
+        self.refused(self.lines[:i] + ek[:-1] + self.lines[i:], "106ek", line=i + n_edges - 1)
+
+    def test_creases_and_grips(self):
+        i = self.at("tol")
+        self.refused(self.lines[:i] + ["100edges 99999"] + self.lines[i:], "100edges", line=i + 1)
+        self.refused(self.lines[:i] + ["100verts 99999"] + self.lines[i:], "100verts", line=i + 1)
+        g = self.at("0g")
+        self.refused(self.lines[:g] + self.lines[g + 1:], "grip map")
+        m = self.at("0m gvp", 1)
+        self.refused(self.replaced(m, self.lines[self.at("0m gvp")]), "two grips", line=m + 1)

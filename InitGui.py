@@ -14,10 +14,13 @@ class TsplcamWorkbench(FreeCADGui.Workbench):
         self.__class__.Icon = os.path.join(tsplcam.resource_dir(), "icons", "tsplcam.svg")
 
     def Initialize(self):
-        from tsplcam.workbench import commands
+        from tsplcam.workbench import commands, validity
+        from tsplcam.workbench.settingspanel import PreferencesPage
         names = commands.register()
         self.appendToolbar("tsplcam", [n for n in names if n != "Tsplcam_About"])
         self.appendMenu("T-spline CAM", names)
+        FreeCADGui.addPreferencePage(PreferencesPage, "T-spline CAM")
+        validity.install()
 
     def Activated(self):
         pass

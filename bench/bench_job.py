@@ -208,7 +208,8 @@ def search_figures(name, scallop, machine_name, stock, repeat, fcl_calls=None):
     print(f"  {name}: {poses} poses asked in {len(calls)} batches by the smooth strategy")
     print(f"    broad phase + fcl   {poses / t_bp:10.0f} poses/s  ({t_bp:.2f} s; decided by the broad phase "
           f"{(st['free'] + st['hit']) / poses:.0%}: free cones {st['cone'] / poses:.0%}, hit witnesses "
-          f"{st['witness'] / poses:.0%}; fcl {ch.fcl_checks} queries incl. swing cones)")
+          f"{st['witness'] / poses:.0%}, {st.get('exact', 0)} spheres of the exact pass; fcl {ch.fcl_checks} "
+          f"queries incl. swing cones)")
     print(f"    fcl alone           {ref_poses / t_fcl:10.0f} poses/s  ({t_fcl:.2f} s"
           f"{'' if fcl_calls is None else f' on the first {len(ref_calls)} batches, {ref_poses} poses'})")
     print(f"    ratio {poses / t_bp / (ref_poses / t_fcl):.1f}")
@@ -292,6 +293,10 @@ def main(argv=None) -> int:
     print(f"  tsplcam job (report.json seconds {rep['seconds']:.2f} s, {points} points, smooth five-axis, "
           f"collision-checked, G-code): {rate:8.0f} points/s")
     print(f"  ratio {rate / ocl:.2f} (target 10); job {rep['seconds']:.2f} s (target 1)")
+    tm = rep["timing"]
+    print("  stages: " + ", ".join(f"{k[:-2]} {tm[k]:.2f} s" for k in ("model_s", "plan_s", "path_s", "orientation_s",
+                                                                       "post_s") if k in tm)
+          + " (tool axes: checker, smoothing, checks again)")
 
     if not args.quick:
         print("\n3. keycap_mold sample by the job's clock (ball 0.5 mm, scallop 0.02 mm, linuxcnc_xyzac_trt)")

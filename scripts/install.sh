@@ -7,10 +7,16 @@
 #
 # What it does:
 #  1. Debian packages: FreeCAD 0.20 (freecad-python3, freecad), numpy, scipy, pip, pytest,
-#     Xvfb + xauth for GUI tests, linuxcnc-uspace for LinuxCNC's own G-code interpreter (rs274).
+#     Xvfb + xauth for GUI tests, linuxcnc-uspace for LinuxCNC's own G-code interpreter (rs274),
+#     matplotlib for the report's pictures (Debian 12's 3.6.3, built against Debian's numpy:
+#     no wheel, so pip never replaces numpy; the check below asks for 3.5 or newer).
 #  2. python-fcl and elkai, and for the tests hypothesis (with sortedcontainers, its one
 #     dependency), into the system Python (/usr/bin/python3) that FreeCAD runs, pinned,
-#     with --no-deps so pip never replaces Debian's numpy.
+#     with --no-deps so pip never replaces Debian's numpy. For `batch --scheduler` (Dask):
+#     distributed and dask, pinned, with --no-deps; their dependencies come from Debian where
+#     Debian 12's version meets theirs (click, fsspec, jinja2, locket, msgpack, packaging,
+#     psutil, pyyaml, tblib, toolz, tornado, zipp) and from pip, pinned, where it does not
+#     (cloudpickle >= 3, partd >= 1.4, zict >= 3, importlib_metadata >= 4.13).
 #  3. Links this checkout as the workbench "tsplcam" into an isolated FreeCAD user home
 #     ($TSPLCAM_FC_HOME, default <repo>/build/fchome, used as FREECAD_USER_HOME); the user's real home only with --user.
 set -euo pipefail
@@ -18,9 +24,14 @@ set -euo pipefail
 REPO="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 PY=/usr/bin/python3
 APT_PACKAGES=(freecad-python3 freecad python3-numpy python3-scipy python3-pip python3-pytest
-              xvfb xauth linuxcnc-uspace)
+              xvfb xauth linuxcnc-uspace python3-matplotlib
+              python3-click python3-fsspec python3-jinja2 python3-locket python3-msgpack python3-packaging
+              python3-psutil python3-yaml python3-tblib python3-toolz python3-tornado python3-zipp)
 PIP_PACKAGES=("python-fcl==0.7.0.11:fcl" "elkai==2.0.1:elkai"
-              "sortedcontainers==2.4.0:sortedcontainers" "hypothesis==6.170.17:hypothesis")
+              "sortedcontainers==2.4.0:sortedcontainers" "hypothesis==6.170.17:hypothesis"
+              "cloudpickle==3.1.2:cloudpickle" "partd==1.4.2:partd" "zict==3.0.0:zict"
+              "importlib_metadata==8.0.0:importlib_metadata" "dask==2026.8.0:dask"
+              "distributed==2026.8.0:distributed")
 
 SUDO=""
 if [ "$(id -u)" -ne 0 ]; then SUDO="sudo"; fi
@@ -50,7 +61,11 @@ for spec in "${PIP_PACKAGES[@]}"; do
     $SUDO $PY -m pip install -q --break-system-packages --no-deps --root-user-action=ignore "$req"
   fi
 done
-$PY -c "import numpy, scipy, fcl, elkai, hypothesis" || { say "a Python dependency does not import"; exit 1; }
+$PY -c "import numpy, scipy, fcl, elkai, hypothesis, distributed" || { say "a Python dependency does not import"; exit 1; }
+$PY -c "import numpy, sys; sys.exit(not numpy.__file__.startswith('/usr/lib/python3/dist-packages/'))" \
+  || { say "numpy is not Debian's python3-numpy any more (a wheel replaced it)"; exit 1; }
+$PY -c "import matplotlib, sys; sys.exit(tuple(map(int, matplotlib.__version__.split('.')[:2])) < (3, 5))" \
+  || { say "matplotlib 3.5 or newer is needed for the report (python3-matplotlib)"; exit 1; }
 
 # 3. Link the workbench -----------------------------------------------------------------
 link_into() {  # $1 = a FreeCAD Mod directory

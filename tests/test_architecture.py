@@ -5,8 +5,9 @@ post: a stage imports its own package and the stages before it. ``verify`` measu
 stages' results, so it may import all of them, and no stage imports it. ``tsplcam`` itself
 (the package's ``load``, ``data_dir``), ``tsplcam.errors`` and the file helpers
 ``tsplcam.outfile`` (atomic writes) and ``tsplcam.inputfile`` (reading text and JSON) are below
-everything. The settings, the program builder, the job and the command line (``settings``,
-``program``, ``job``, ``cli``, ``__main__``) and the FreeCAD workbench sit on top. FreeCAD and its GUI modules are imported under ``tsplcam/workbench`` only.
+everything. The settings, the program builder, the job, job files, batch runs and the command line
+(``settings``, ``program``, ``job``, ``jobfile``, ``batch``, ``cli``, ``__main__``,
+``run_in_freecad``) and the FreeCAD workbench sit on top. FreeCAD and its GUI modules are imported under ``tsplcam/workbench`` only.
 
 Every import counts: module level and inside functions, absolute and relative, and
 ``importlib.import_module`` with a constant name.
@@ -19,8 +20,10 @@ import unittest
 REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 PACKAGE = "tsplcam"
 STAGES = ("model", "layout", "plan", "toolpath", "orientation", "post")
-BASE = {PACKAGE, f"{PACKAGE}.errors", f"{PACKAGE}.outfile", f"{PACKAGE}.inputfile"}  # importable from anywhere
-TOP = ("settings", "program", "job", "cli", "__main__", "workbench")  # may import anything
+BASE = {PACKAGE, f"{PACKAGE}.errors", f"{PACKAGE}.outfile", f"{PACKAGE}.inputfile", f"{PACKAGE}.progress",
+        f"{PACKAGE}.numerics"}  # importable from anywhere
+TOP = ("settings", "program", "job", "jobfile", "batch", "report", "cli", "__main__", "run_in_freecad",
+       "workbench")  # may import anything
 FREECAD_MODULES = {"FreeCAD", "FreeCADGui", "Part", "Path", "CAM", "Mesh", "MeshPart", "Draft",
                    "Import", "ImportGui", "Sketcher", "pivy", "PySide", "PySide2", "PySide6"}
 

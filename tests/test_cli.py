@@ -6,6 +6,7 @@ import contextlib
 import io
 import json
 import os
+import shutil
 import subprocess
 import tempfile
 import unittest
@@ -15,7 +16,7 @@ from tsplcam.cli import main
 from tsplcam.model.samples import sample_path
 from tsplcam.plan import save
 from tsplcam.plan.steps import ProcessingList, Step
-from conftest import REPO_DIR
+from conftest import REPO_DIR, artifact_path
 from tsplcam.toolpath.cldata import read_cl
 from tsplcam.toolpath.path import Move
 
@@ -241,7 +242,8 @@ class ModelArgument(unittest.TestCase):
 
 class Determinism(unittest.TestCase):
     """The same command twice, under different PYTHONHASHSEED: the program, CL data,
-    processing list and report are the same bytes, apart from the report's timing block."""
+    processing list, report.json (apart from its timing block), report.html and its pictures
+    are the same bytes."""
     JOB = ["job", "--out", "out", "--scallop", "0.2", "--chord-tol", "0.01", "--max-step", "2",
            "--machine", "linuxcnc_xyzac_trt"]
     PATH = ["path", "keycap", "--tool-radius", "0.5", "--scallop", "0.2", "--chord-tol", "0.01", "--tool",
@@ -260,6 +262,11 @@ class Determinism(unittest.TestCase):
         self.assertEqual(sorted(os.listdir(a)), names)
         self.assertEqual(sorted(os.listdir(b)), names)
         for name in names:
+            if os.path.isdir(os.path.join(a, name)):         # the report's pictures
+                inner = sorted(os.listdir(os.path.join(a, name)))
+                self.assertGreater(len(inner), 0, name)
+                self.assert_same_files(os.path.join(a, name), os.path.join(b, name), inner, None)
+                continue
             with open(os.path.join(a, name), "rb") as fa, open(os.path.join(b, name), "rb") as fb:
                 da, db = fa.read(), fb.read()
             if name != report:
@@ -282,9 +289,15 @@ class Determinism(unittest.TestCase):
             for r in results:
                 self.assertEqual(r.returncode, 0, r.stderr)
             job_a, job_b, path_a, path_b = (os.path.join(cwd, "out") for cwd, _, _ in runs)
-            self.assert_same_files(job_a, job_b, ["keycap.cl", "keycap.ngc", "processing-list.json",
-                                                  "report.json"], "report.json")
-            self.assert_same_files(path_a, path_b, ["k.cl", "k.json", "k.mpf"], "k.json")
+            try:
+                self.assert_same_files(job_a, job_b, ["keycap.cl", "keycap.ngc", "processing-list.json",
+                                                      "report.html", "report.json", "report_files"], "report.json")
+                self.assert_same_files(path_a, path_b, ["k.cl", "k.json", "k.mpf"], "k.json")
+            except AssertionError:         # keep both runs' files for a look
+                keep = artifact_path("determinism-failure")
+                shutil.rmtree(keep, ignore_errors=True)
+                shutil.copytree(tmp, keep)
+                raise
 
 class FusionSampleJob(unittest.TestCase):
     def test_fusion_tsm_job_end_to_end(self):

@@ -9,7 +9,7 @@ import unittest
 
 import numpy as np
 
-from conftest import REPO_DIR
+from conftest import REPO_DIR, needs_freecad
 
 PY = "/usr/bin/python3"
 
@@ -79,20 +79,131 @@ class PathCommand(unittest.TestCase):
         self.assertIn("no_such_model.obj", res.stderr)
 
 
+def html_tables(text: str) -> dict:
+    """Tables of report.html by id: rows of cell texts (tags stripped, entities unescaped)."""
+    import html
+    import re
+    out = {}
+    for ident, body in re.findall(r'<table[^>]*id="([^"]+)"[^>]*>(.*?)</table>', text, flags=re.S):
+        out[ident] = [[html.unescape(re.sub(r"<[^>]+>", "", c)).strip()
+                       for c in re.findall(r"<t[hd][^>]*>(.*?)</t[hd]>", row, flags=re.S)]
+                      for row in re.findall(r"<tr>(.*?)</tr>", body, flags=re.S)]
+    return out
+
+
+def number(text: str) -> float:
+    return float(text.replace(",", ""))
+
+
 class MainJob(unittest.TestCase):
-    def test_job_writes_program_list_and_report(self):
+    """`job MODEL --out DIR` writes the program, CL data, processing list, report.json and
+    report.html with its pictures; the page carries report.json's measured figures."""
+
+    @classmethod
+    def setUpClass(cls):
+        cls.tmp = tempfile.mkdtemp(prefix="tsplcam-job-")
+        cls.out = os.path.join(cls.tmp, "new", "job")          # two folders to make
+        cls.res = run("job", "keycap", "--out", cls.out, "--scallop", "0.2", "--chord-tol", "0.01", "--baseline")
+
+    @classmethod
+    def tearDownClass(cls):
+        import shutil
+        shutil.rmtree(cls.tmp, ignore_errors=True)
+
+    def test_files_program_and_figures(self):
+        self.assertEqual(self.res.returncode, 0, self.res.stderr)
+        self.assertEqual(sorted(os.listdir(self.out)), ["keycap.cl", "keycap.h", "processing-list.json",
+                                                        "report.html", "report.json", "report_files"])
+        report = json.load(open(os.path.join(self.out, "report.json")))
+        self.assertEqual(report["path"]["retractions"], 0)
+        self.assertEqual(report["orientation"]["collisions"], 0)
+        self.assertEqual(report["files"], {"program": "keycap.h", "cl": "keycap.cl"})
+        self.assertNotIn("out", report["settings"])          # the report does not depend on where it is
+        program = open(os.path.join(self.out, "keycap.h")).read()
+        self.assertTrue(program.startswith("0 BEGIN PGM"))
+        self.assertIn("FUNCTION TCPM", program)
+        self.assertIn("machining time", self.res.stdout)
+        # the scallop measured on the surface stays under the limit, and not far under it
+        v = report["verification"]
+        self.assertLessEqual(v["max_scallop"], 0.2 * (1 + 1e-9))
+        self.assertGreater(v["max_scallop"], 0.8 * 0.2)
+        self.assertLess(v["gouge_points"], 1e-6)
+        # the baseline retracts between faces, the T-spline path does not
+        self.assertGreater(report["baseline"]["path"]["retractions"], 0)
+        timing = report["timing"]
+        for k in ("model_s", "path_s", "orientation_s", "post_s", "verify_s", "baseline_s", "report_s", "total_s"):
+            self.assertGreater(timing[k], 0.0, k)
+        parts = sum(v for k, v in timing.items() if k != "total_s")
+        self.assertLessEqual(parts, timing["total_s"] * (1 + 1e-6))
+
+    def test_report_page_carries_the_figures(self):
+        self.assertEqual(self.res.returncode, 0, self.res.stderr)
+        page = os.path.join(self.out, "report.html")
+        self.assertIn(f"report: {os.path.abspath(page)}", self.res.stdout)
+        report = json.load(open(os.path.join(self.out, "report.json")))
+        text = open(page, encoding="utf-8").read()
+        pictures = sorted(os.listdir(os.path.join(self.out, "report_files")))
+        self.assertEqual(pictures, sorted(f"{n}.png" for n in ("layout", "path", "scallop", "axis", "machine",
+                                                               "clearance", "time", "baseline")))
+        for name in pictures:
+            self.assertIn(f'src="report_files/{name}"', text)
+            with open(os.path.join(self.out, "report_files", name), "rb") as fh:
+                self.assertEqual(fh.read(8), b"\x89PNG\r\n\x1a\n", name)
+        tables = html_tables(text)
+        kv = {r[0]: r[1] for r in tables["scallop-figures"] if len(r) == 2}
+        self.assertAlmostEqual(number(kv["largest scallop (µm)"]), report["verification"]["max_scallop"] * 1000,
+                               delta=5e-4)
+        self.assertEqual(number(kv["surface samples"]), report["verification"]["samples"])
+        kv = {r[0]: r[1] for r in tables["path-figures"] if len(r) == 2}
+        self.assertEqual(number(kv["points"]), report["path"]["points"])
+        baseline = {r[0]: r[1:] for r in tables["baseline"][1:]}
+        self.assertEqual(number(baseline["retractions"][1]), report["baseline"]["path"]["retractions"])
+        settings = {r[0]: r[1] for r in tables["job-settings"]}
+        self.assertEqual(settings["scallop"], "0.2")
+        self.assertEqual(settings["baseline"], "True")
+        clearance = {r[0]: number(r[1]) for r in tables["clearance"][1:]}
+        self.assertGreaterEqual(min(clearance.values()), 0.3 - 0.01)      # the holder clearance kept
+        # a bar per stage on stderr, the verification and report among them
+        for stage in ("path", "tool axes", "program", "scallop", "baseline", "baseline axes", "report"):
+            self.assertRegex(self.res.stderr, rf"(?m)^{stage} +\[#+\] 100 %")
+        self.assertEqual([n for n in os.listdir(self.out) if n.startswith(".")], [])   # no draft left
+
+    def test_without_report_or_verification(self):
+        from tsplcam.job import run_job
+        from tsplcam.settings import JobSettings
         with tempfile.TemporaryDirectory() as tmp:
-            res = run("job", "--out", tmp, "--scallop", "0.05")
-            self.assertEqual(res.returncode, 0, res.stderr)
-            names = sorted(os.listdir(tmp))
-            self.assertEqual(names, ["keycap.cl", "keycap.h", "processing-list.json", "report.json"])
-            report = json.load(open(os.path.join(tmp, "report.json")))
-            self.assertEqual(report["path"]["retractions"], 0)
-            self.assertEqual(report["orientation"]["collisions"], 0)
-            program = open(os.path.join(tmp, "keycap.h")).read()
-            self.assertTrue(program.startswith("0 BEGIN PGM"))
-            self.assertIn("FUNCTION TCPM", program)
-            self.assertIn("machining time", res.stdout)
+            figures = run_job(JobSettings(out=tmp, scallop=0.2, chord_tol=0.01, orientation="normal",
+                                          html_report=False, verify=False), log=None,
+                              progress=lambda stage, done, total: None)
+            self.assertEqual(sorted(os.listdir(tmp)), ["keycap.cl", "keycap.h", "processing-list.json",
+                                                       "report.json"])
+            self.assertNotIn("verification", figures)
+            self.assertNotIn("verify_s", figures["timing"])
+            self.assertNotIn("report_s", figures["timing"])
+
+    def test_a_failed_report_leaves_no_file(self):
+        """The report is drawn before any file is written: when it fails, the folders the
+        job made are gone and an existing folder keeps what it had."""
+        from unittest import mock
+        from tsplcam.errors import InputError
+        from tsplcam.job import run_job
+        from tsplcam.settings import JobSettings
+        with tempfile.TemporaryDirectory() as tmp:
+            with open(os.path.join(tmp, "keep.txt"), "w") as fh:
+                fh.write("x")
+            for out in (os.path.join(tmp, "a", "b"), tmp):
+                with mock.patch("tsplcam.report.write_report", side_effect=InputError("disk full")):
+                    with self.assertRaises(InputError):
+                        run_job(JobSettings(out=out, scallop=0.3, chord_tol=0.02, orientation="normal", verify=False),
+                                log=None, progress=lambda stage, done, total: None)
+                self.assertEqual(sorted(os.listdir(tmp)), ["keep.txt"])
+
+    def test_model_given_twice(self):
+        res = run("job", "keycap", "--model", "head", "--out", os.path.join(self.tmp, "twice"))
+        self.assertEqual(res.returncode, 2)
+        self.assertIn("--model", res.stderr)
+        self.assertIn("twice", res.stderr)
+        self.assertEqual(len(res.stderr.strip().split("\n")), 1, res.stderr)
 
 
 class OneProgramBuilder(unittest.TestCase):
@@ -127,3 +238,49 @@ class OneProgramBuilder(unittest.TestCase):
         self.assertGreaterEqual(figures["orientation"]["min_clearance"], 0.25 - 1e-6)
         self.assertIn(b"G43.4", job_program)             # Fanuc's tool centre point control
         self.assertEqual(figures["settings"]["feed"], 800.0)   # the value given, not computed
+
+
+@needs_freecad
+class JobUnderFreecadcmd(unittest.TestCase):
+    """`freecadcmd tsplcam/run_in_freecad.py -- job ...` as a user types it: FreeCAD's Python
+    runs the job, its exit code is the command's, and the program, CL data and report figures
+    are those of the same job run here."""
+
+    def test_job_through_freecadcmd(self):
+        import shutil
+        from tsplcam.job import run_job
+        from tsplcam.settings import JobSettings
+        exe = shutil.which("freecadcmd")
+        if exe is None:
+            self.skipTest("freecadcmd not on PATH")
+        script = os.path.join(REPO_DIR, "tsplcam", "run_in_freecad.py")
+        with tempfile.TemporaryDirectory() as tmp:
+            out = os.path.join(tmp, "fc")
+            res = subprocess.run([exe, script, "--", "job", "keycap", "--out", out, "--scallop", "0.2",
+                                  "--chord-tol", "0.01", "--machine", "linuxcnc_xyzac_trt"],
+                                 capture_output=True, text=True, timeout=600, cwd=tmp)
+            self.assertEqual(res.returncode, 0, res.stdout[-2000:] + res.stderr[-2000:])
+            self.assertIn("report: " + os.path.join(out, "report.html"), res.stdout)
+            self.assertEqual(sorted(os.listdir(out)), ["keycap.cl", "keycap.ngc", "processing-list.json",
+                                                       "report.html", "report.json", "report_files"])
+            self.assertEqual(len(os.listdir(os.path.join(out, "report_files"))), 7)
+            here = os.path.join(tmp, "here")
+            run_job(JobSettings(out=here, scallop=0.2, chord_tol=0.01, machine="linuxcnc_xyzac_trt"), log=None,
+                    progress=lambda stage, done, total: None)
+            for name in ("keycap.ngc", "keycap.cl", "processing-list.json"):
+                with open(os.path.join(out, name), "rb") as a, open(os.path.join(here, name), "rb") as b:
+                    self.assertEqual(a.read(), b.read(), name)
+            a, b = (json.load(open(os.path.join(d, "report.json"))) for d in (out, here))
+            self.assertLessEqual(a["verification"]["max_scallop"], 0.2 * (1 + 1e-9))
+            self.assertAlmostEqual(a["verification"]["max_scallop"], b["verification"]["max_scallop"], delta=1e-9)
+            self.assertEqual(a["path"]["points"], b["path"]["points"])
+            # a refusal: exit code 2 and one line, as from python3 -m tsplcam
+            res = subprocess.run([exe, script, "--", "job", "--out", os.path.join(tmp, "bad"), "--scallop", "-1"],
+                                 capture_output=True, text=True, timeout=300, cwd=tmp)
+            self.assertEqual(res.returncode, 2, res.stdout[-2000:] + res.stderr[-2000:])
+            self.assertIn("error: --scallop: must be a positive number (mm), not -1", res.stderr)
+            self.assertFalse(os.path.exists(os.path.join(tmp, "bad")))
+
+
+if __name__ == "__main__":
+    unittest.main()

@@ -66,7 +66,11 @@ class Settings(unittest.TestCase):
         self.assertNotIn("gcode", job)
         self.assertIn("gcode", path)
         self.assertNotIn("out", path)
-        self.assertEqual(set(job) & set(path), set(job) - {"out"})
+        # the job's outputs are a folder, the program's name, the HTML report and the FreeCAD document; the rest is shared
+        self.assertEqual(set(job) & set(path), set(job) - {"out", "name", "html_report", "fcstd"})
+        self.assertIn("verify", job)
+        self.assertIn("baseline", job)
+        self.assertNotIn("baseline_cl", job)
 
 
 if __name__ == "__main__":

@@ -5,8 +5,13 @@ numpy/scipy and never imports FreeCAD. Pipeline, one subpackage per stage:
 model -> layout -> plan -> toolpath -> orientation -> post, with verify beside.
 """
 import os
+import sys
 
 __version__ = "0.1.0"
+
+if "numpy" not in sys.modules:          # one BLAS thread: same bytes on any machine (numerics.py)
+    from .numerics import blas_environment
+    blas_environment()
 
 _PKG_DIR = os.path.dirname(os.path.abspath(__file__))
 

@@ -1,7 +1,8 @@
 """Command line of the engine: ``python3 -m tsplcam <command> ...``; runs without FreeCAD.
 
-Commands: ``info``, ``job`` and ``path`` (:mod:`tsplcam.job`), ``plan``
-(:mod:`tsplcam.plan.commands`), ``machines`` (:mod:`tsplcam.post.commands`).
+Commands: ``info``, ``job`` and ``path`` (:mod:`tsplcam.job`), ``batch``
+(:mod:`tsplcam.batch`), ``plan`` (:mod:`tsplcam.plan.commands`), ``machines``
+(:mod:`tsplcam.post.commands`).
 Exit codes: 0 success, 2 bad input or a geometric refusal: one line on stderr naming the
 option, file and line, or place on the part; no traceback, no file written.
 """
@@ -18,7 +19,7 @@ def dependency_versions() -> dict[str, str]:
     """Versions of the Python packages the engine uses (or 'missing')."""
     import importlib.metadata as md
     out = {"python": sys.version.split()[0]}
-    for dist in ("numpy", "scipy", "python-fcl", "elkai"):
+    for dist in ("numpy", "scipy", "python-fcl", "elkai", "matplotlib", "distributed"):
         try:
             out[dist] = md.version(dist)
         except md.PackageNotFoundError:
@@ -54,6 +55,8 @@ def build_parser() -> argparse.ArgumentParser:
     from .plan.commands import register as register_plan
     register_plan(sub)
     register(sub, "path")
+    from .batch import register as register_batch
+    register_batch(sub)
     from .post.commands import register as register_post
     register_post(sub)
     return parser

@@ -5,9 +5,13 @@
 files asked for (``--cl``, ``--gcode``, ``--json``), tool axes by ``--orientation``
 (default: the surface normal), a program when ``--machine`` and ``--gcode`` are given.
 
-``python3 -m tsplcam job [--out DIR] [...]``: model -> processing list -> path -> tool axes
--> program with every default of :class:`tsplcam.settings.JobSettings` (the main job);
-writes the program, the CL data, ``processing-list.json`` and ``report.json`` into DIR.
+``python3 -m tsplcam job [MODEL] [--config JOB.json] [--out DIR] [...]``: model ->
+processing list -> path -> tool axes -> program with every default of
+:class:`tsplcam.settings.JobSettings` (the main job), the surface verification
+(``--no-verify`` skips it) and the compound-NURBS baseline on request (``--baseline``);
+writes the program, the CL data, ``processing-list.json``, ``report.json`` and
+``report.html`` with its pictures (:mod:`tsplcam.report`) into DIR. ``--config`` reads a
+job file (:mod:`tsplcam.jobfile`); options given beside it override its values.
 
 Both commands take the options of :class:`JobSettings`, generated from its fields. Every
 option is checked and every input read before the long work starts; the files are written
@@ -21,23 +25,25 @@ import argparse
 import contextlib
 import json
 import os
+import shutil
+import tempfile
 import time
-from dataclasses import fields
+from dataclasses import dataclass, field, fields
 
 from . import load_model
 from .errors import InputError
-from .outfile import check_folder, check_writable, write_texts
-from .progress import TerminalProgress, for_stage
+from .outfile import check_folder, check_writable, make_folders, replace_folder, write_texts
+from .progress import TerminalProgress, for_stage, report
 from .program import (load_machine, load_stock, load_tool, make_baseline, make_path, make_program,
                       processing_list, program_file_name, tool_radius)
-from .settings import GROUPS, JobSettings, choices_of, default_of, help_text
+from .settings import GROUPS, NUMBER_KINDS, JobSettings, choices_of, default_of, help_text
 
 # what differs between the two commands: the model is an argument of `path`, which also
 # needs the ball radius (or a tool) and the scallop and makes no tool axes or program unless
 # asked for
 COMMANDS = {
     "path": dict(positional="model", required=("scallop",),
-                 defaults=dict(tool=None, machine=None, orientation="normal"),
+                 defaults=dict(tool=None, machine=None, orientation="normal", verify=False),
                  help="finishing path over the whole part without retractions; CL data, tool axes and G-code "
                       "on request",
                  description="A ball-end finishing path over every patch of the part, patch after patch in "
@@ -45,14 +51,14 @@ COMMANDS = {
                              "with one line naming the option, file or place on bad input or a refused "
                              "geometry."),
     "job": dict(positional=None, required=(), defaults={},
-                help="the whole job, model to machine program (default: keycap, 1 mm ball, 0.005 mm scallop, "
-                     "smooth collision-free axes, Heidenhain)",
-                description="Model, processing list, path, tool axes and machine program in one run; writes "
-                            "the program, CL data, processing-list.json and report.json into --out. Lengths in "
-                            "mm, feeds in mm/min. Exit code 0, or 2 with one line naming the option, file or "
-                            "place."),
+                help="the whole job, model to machine program and report (default: keycap, 1 mm ball, 0.005 mm "
+                     "scallop, smooth collision-free axes, Heidenhain)",
+                description="Model, processing list, path, tool axes and machine program in one run, the "
+                            "scallop measured on the surface; writes the program, CL data, processing-list.json, "
+                            "report.json and report.html with its pictures into --out. MODEL may also be given "
+                            "as --model or in the job file. Lengths in mm, feeds in mm/min. Exit code 0, or 2 "
+                            "with one line naming the option, file or place."),
 }
-NUMBER_KINDS = ("length", "length0", "feed", "factor", "angle")
 VECTOR_KINDS = {"vector": 3, "pair": 2}
 
 
@@ -105,8 +111,14 @@ def add_options(parser, command: str) -> None:
             parser.add_argument(f.name, metavar=md["metavar"], help=text)
             continue
         kw = dict(dest=f.name, default=argparse.SUPPRESS)
+        flags = flags_of(f)
         if md["kind"] == "flag":
-            kw["action"] = "store_false" if default else "store_true"
+            if len(flags) == 2 and flags[1] == "--no-" + flags[0][2:]:       # --verify / --no-verify
+                kw["action"] = argparse.BooleanOptionalAction
+                flags = flags[:1]
+                text += f" (default: {'on' if default else 'off'})"
+            else:
+                kw["action"] = "store_false" if default else "store_true"
         else:
             kind = md["kind"]
             kw.update(metavar=md["metavar"], type=_number if kind in NUMBER_KINDS
@@ -119,20 +131,32 @@ def add_options(parser, command: str) -> None:
             elif default is not None and "default:" not in text:
                 shown = (f"{default:g}" if isinstance(default, float) else
                          ",".join(f"{x:g}" for x in default) if isinstance(default, tuple) else str(default))
-                unit = text.endswith(("(mm)", "(mm/min)", "(deg)"))
+                unit = text.endswith(("(mm)", "(mm/min)", "(deg)", "(rpm)"))
                 text = text[:-1] + f", default {shown})" if unit else text + f" (default {shown})"
         if md["group"] not in groups:
             groups[md["group"]] = parser.add_argument_group(GROUPS[md["group"]])
-        groups[md["group"]].add_argument(*flags_of(f), help=text, **kw)
+        groups[md["group"]].add_argument(*flags, help=text, **kw)
 
 
 def settings_from_args(args, command: str) -> JobSettings:
-    """JobSettings of the parsed arguments over the command's defaults, checked; errors name
-    the option as the command line spells it."""
+    """JobSettings of the parsed arguments over the command's defaults (and, for ``job``, over
+    the job file of ``--config``), checked; errors name the option as the command line spells
+    it, or the job file and its key."""
     names = set(JobSettings.option_names(command))
     given = {k: v for k, v in vars(args).items() if k in names}
+    model = getattr(args, "model_arg", None)
+    if model is not None:
+        if "model" in given and given["model"] != model:
+            raise InputError(f"the model is given twice, as MODEL {model!r} and as --model {given['model']!r}",
+                             item="--model")
+        given["model"] = model
+    defaults = COMMANDS[command]["defaults"]
+    config = getattr(args, "config", None)
+    if config:             # errors name the file and its key, or the option as typed
+        from .jobfile import job_settings
+        return job_settings(config, overrides=given, defaults=defaults, label=label_for(command))
     with named_options(command):
-        return JobSettings(**{**COMMANDS[command]["defaults"], **given}).check(label_for(command))
+        return JobSettings(**{**defaults, **given}).check(label_for(command))
 
 
 @contextlib.contextmanager
@@ -288,19 +312,53 @@ def path_report(path, verification=None, baseline=None) -> str:
 
 
 # -- the job ----------------------------------------------------------------------------------
-def run_job(s: JobSettings, log=print, progress=None) -> dict:
-    """Model -> processing list -> path -> tool axes -> program, with a report; the files go
-    into ``s.out`` (made when missing), all written at the end. Returns the report.
-    ``progress``: a tsplcam.progress callback (default: a bar on stderr)."""
-    progress = progress or TerminalProgress()
-    from .plan.listfile import dumps as list_text
+@dataclass
+class JobResult:
+    """What the job's stages made, before any file is written: the inputs read, the path as
+    generated, the Program (tool axes, metrics, posted program, collision checker), and the
+    verification and baseline when asked for. ``timing``: seconds per stage."""
+    settings: JobSettings
+    model: object
+    plist: object
+    tool: object
+    machine: object
+    stock: object
+    path: object
+    program: object
+    verification: object = None
+    baseline: object = None
+    timing: dict = field(default_factory=dict)
+
+    def report_inputs(self) -> dict:
+        """The keyword arguments of :func:`tsplcam.report.write_report` (the orientation's
+        collision checker is handed on, so the report builds none of its own)."""
+        return dict(model=self.model, path=self.path, processing_list=self.plist, oriented=self.program,
+                    machine=self.machine, posted=self.program.posted, verification=self.verification,
+                    baseline=self.baseline, settings=report_settings(self.settings),
+                    tool=self.tool, stock=self.stock, checker=self.program.checker)
+
+
+def report_settings(s: JobSettings) -> dict:
+    """The job's settings as its reports show them: every option of the job but the folder
+    the reports are in, so that a report does not depend on where it was written."""
+    return s.to_dict([k for k in JobSettings.option_names("job") if k != "out"])
+
+
+def make_job(s: JobSettings, log=None, progress=None, baseline_axes: str = "job") -> JobResult:
+    """Model -> processing list -> path -> tool axes -> program, then the surface
+    verification (``s.verify``, heights kept for the report's map) and the compound-NURBS
+    baseline (``s.baseline``; ``baseline_axes`` "job" gives it tool axes by the job's
+    strategy, "normal" keeps its surface normals). ``log(text)`` is told each stage's result;
+    ``progress``: a tsplcam.progress callback. Writes nothing."""
     from .verify.metrics import path_metrics
+    log = log or (lambda text: None)
+    if baseline_axes not in ("job", "normal"):
+        raise ValueError(f"baseline_axes must be 'job' or 'normal', not {baseline_axes!r}")
     s.check()
     if not s.machine:
         raise InputError("the job makes a machine program: give a machine", item="machine")
-    check_folder(s.out, item="out")
     timing = {}
-    t_all = t = time.perf_counter()
+    t = time.perf_counter()
     model = load_model(s.model)
     timing["model_s"] = time.perf_counter() - t
     log(f"model {s.model}: {len(model.patches)} patches, "
@@ -312,7 +370,7 @@ def run_job(s: JobSettings, log=print, progress=None) -> dict:
         f"{plist.corner_links} corner links ({timing['plan_s']:.2f} s)")
     tool = load_tool(s)
     radius = tool_radius(s, tool)
-    load_machine(s)
+    machine = load_machine(s)
     stock = load_stock(s)
     t = time.perf_counter()
     path = make_path(model, plist, s, radius, progress=progress)
@@ -320,31 +378,114 @@ def run_job(s: JobSettings, log=print, progress=None) -> dict:
     m = path_metrics(path)
     log(f"path: {m.lines} lines, {m.points} points, {m.length:.1f} mm, {m.retractions} retractions "
         f"({timing['path_s']:.2f} s)")
-    program = make_program(path, model, s, stock=stock,
-                           progress=progress)
+    program = make_program(path, model, s, stock=stock, progress=progress, plist=plist)
     timing.update(program.seconds)
     if program.metrics is not None:
         log(f"tool axes ({s.orientation}): {program.metrics.summary()} ({timing['orientation_s']:.2f} s)")
-    post = program.posted
-    log(post.summary())
+    log(program.posted.summary())
+    job = JobResult(s, model, plist, tool, machine, stock, path, program, timing=timing)
+    if s.verify:
+        from .verify.scallop import measure
+        t = time.perf_counter()
+        job.verification = measure(path, model, heights=True, progress=for_stage(progress, "scallop"))
+        timing["verify_s"] = time.perf_counter() - t
+        v = job.verification
+        log(f"scallop measured on {v.samples:,d} surface samples + {v.ridges:,d} ridges: largest "
+            f"{v.max_scallop:.5f} mm of {s.scallop:g} mm, gouge at points {v.gouge_points:.1e} mm "
+            f"({timing['verify_s']:.2f} s)")
+    if s.baseline:
+        t = time.perf_counter()
+        report(progress, "baseline", 0, 1)
+        base = make_baseline(model, plist, s, radius)
+        report(progress, "baseline", 1, 1)
+        if baseline_axes == "job" and s.orientation != "normal":
+            renamed = None if progress is None else (
+                lambda stage, done, total: progress("baseline axes" if stage == "tool axes" else stage, done, total))
+            base = make_program(base, model, s, stock=stock, progress=renamed, post=False)
+        job.baseline = base
+        timing["baseline_s"] = time.perf_counter() - t
+        b = path_metrics(getattr(base, "path", base))
+        log(f"compound-NURBS baseline: {b.retractions} retractions, {b.air_moves} air moves, "
+            f"{b.length:.1f} mm ({timing['baseline_s']:.2f} s)")
+    return job
+
+
+def job_figures(job: JobResult) -> dict:
+    """report.json of a job (its timing block apart)."""
+    from .verify.metrics import path_metrics
     from .verify.orientation import machine_motion
-    motion = machine_motion(post, program.path)
-    log(motion_summary(motion))
-    figures = {"settings": s.to_dict(JobSettings.option_names("job")), "path": m.as_dict(),
-               "machining_time_s": post.time.total_s, "machine_motion": motion}
+    s, program = job.settings, job.program
+    figures = {"settings": report_settings(s), "path": path_metrics(program.path).as_dict(),
+               "machining_time_s": program.posted.time.total_s,
+               "machine_motion": machine_motion(program.posted, program.path)}
     if program.metrics is not None:
         figures["orientation"] = program.metrics.as_dict()
-    name = program_file_name(s.model, post.dialect)
+    if job.verification is not None:
+        figures["verification"] = job.verification.as_dict()
+    if job.baseline is not None:
+        figures["baseline"] = {"path": path_metrics(getattr(job.baseline, "path", job.baseline)).as_dict()}
+    return figures
+
+
+def run_job(s: JobSettings, log=print, progress=None) -> dict:
+    """The job (:func:`make_job`) and its files in ``s.out`` (made when missing), all written
+    at the end: program, CL data, processing list, report.json and, with ``s.html_report``,
+    report.html with its pictures. Returns report.json's content. ``progress``: a
+    tsplcam.progress callback (default: a bar on stderr)."""
+    from .plan.listfile import dumps as list_text
+    from .post.dialects import extension
+    log = log or (lambda text: None)
+    progress = progress or TerminalProgress()
+    s.check()
+    check_folder(s.out, item="out")
+    if s.fcstd:
+        from .workbench.headless import check_fcstd
+        check_fcstd(s.fcstd)
+    t_all = time.perf_counter()
+    job = make_job(s, log, progress)
+    timing = job.timing
+    figures = job_figures(job)
+    log(motion_summary(figures["machine_motion"]))
+    post = job.program.posted
+    name = s.name + extension(post.dialect) if s.name else program_file_name(s.model, post.dialect)
     cl_name = os.path.splitext(name)[0] + ".cl"
-    timing["total_s"] = time.perf_counter() - t_all
-    figures["timing"] = timing
-    os.makedirs(s.out, exist_ok=True)
-    write_texts([(os.path.join(s.out, name), post.text, "program", "ascii"),
-                 (os.path.join(s.out, cl_name), cl_text(program.path), "CL file", "ascii"),
-                 (os.path.join(s.out, "processing-list.json"), list_text(plist), "processing list"),
-                 (os.path.join(s.out, "report.json"), json_text(figures), "report")])
-    log(f"wrote {os.path.join(s.out, name)}, {os.path.join(s.out, cl_name)}, processing-list.json and "
-        f"report.json in {s.out} ({timing['total_s']:.1f} s in all)")
+    figures["files"] = {"program": name, "cl": cl_name}
+    files = [(os.path.join(s.out, name), post.text, "program", "ascii"),
+             (os.path.join(s.out, cl_name), cl_text(job.program.path), "CL file", "ascii"),
+             (os.path.join(s.out, "processing-list.json"), list_text(job.plist), "processing list")]
+    made = make_folders(s.out)
+    draft = None
+    try:
+        if s.html_report:
+            from .report import write_report
+            t = time.perf_counter()
+            draft = tempfile.mkdtemp(prefix=".report-", dir=s.out)
+            page = write_report(draft, progress=progress, **job.report_inputs())
+            with open(page, encoding="utf-8") as fh:
+                files.append((os.path.join(s.out, "report.html"), fh.read(), "report"))
+            timing["report_s"] = time.perf_counter() - t
+        timing["total_s"] = time.perf_counter() - t_all
+        figures["timing"] = timing
+        files.append((os.path.join(s.out, "report.json"), json_text(figures), "report"))
+        written = write_texts(files)
+        if draft is not None:
+            replace_folder(os.path.join(draft, "report_files"), os.path.join(s.out, "report_files"),
+                           "report's pictures")
+    except BaseException:
+        for folder in reversed(made):          # a failed run leaves no folder it made
+            shutil.rmtree(folder, ignore_errors=True)
+        raise
+    finally:
+        if draft is not None:
+            shutil.rmtree(draft, ignore_errors=True)
+    names = [os.path.basename(f) for f in written]
+    log(f"wrote {', '.join(names[:-1])} and {names[-1]} in {s.out} ({timing['total_s']:.1f} s in all"
+        + (f"; report {timing['report_s']:.1f} s" if "report_s" in timing else "") + ")")
+    if s.html_report:
+        log(f"report: {os.path.abspath(os.path.join(s.out, 'report.html'))}")
+    if s.fcstd:
+        from .workbench.headless import write_fcstd
+        log(f"wrote {write_fcstd(s, job.plist, job.path, job.program)} (FreeCAD document with a CAM job)")
     return figures
 
 
@@ -372,5 +513,11 @@ def register(subparsers, command: str) -> None:
     """Add ``command`` (``path`` or ``job``) to the tsplcam command line."""
     spec = COMMANDS[command]
     p = subparsers.add_parser(command, help=spec["help"], description=spec["description"])
+    if command == "job":
+        p.add_argument("model_arg", nargs="?", metavar="MODEL", default=None,
+                       help="the part, as --model (give it once)")
+        p.add_argument("--config", metavar="JOB.json", help="read the job's settings from a job file (keys: the "
+                       "options' names, file names relative to the file; tsplcam/JOBFILE.md); options given "
+                       "beside it override its values")
     add_options(p, command)
     p.set_defaults(func={"path": _cmd_path, "job": _cmd_job}[command])

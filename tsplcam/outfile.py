@@ -1,4 +1,4 @@
-"""Output files written whole or not at all.
+"""Output files (and folders) written whole or not at all.
 
 Every file tsplcam writes for a user (G-code, CL data, processing list, report) goes
 through :func:`write_text`: the text is written to a hidden temporary file in the same
@@ -6,10 +6,13 @@ folder and renamed over the target with ``os.replace``, which is atomic on one f
 system. A failure (full disk, missing or read-only folder, interrupted run) leaves the old
 file or no file, never a truncated program a machine could run. :func:`write_texts`
 writes several files so that none of them is replaced before all of them are written.
+A folder made elsewhere (the report's pictures) is put in place by :func:`replace_folder`.
 """
 from __future__ import annotations
 
 import os
+import shutil
+import tempfile
 
 from .errors import InputError
 
@@ -98,3 +101,33 @@ def write_text(path, text: str, encoding: str = "utf-8", what: str = "file") -> 
     """Write ``text`` to ``path`` atomically (see the module doc); errors are InputErrors
     naming the file."""
     write_texts([(path, text, what, encoding)])
+
+
+def make_folders(folder: str) -> list[str]:
+    """Make ``folder`` and its missing parents; returns the ones made, outermost first (to
+    remove them again when the run fails)."""
+    made, probe = [], os.path.abspath(os.fspath(folder))
+    while not os.path.exists(probe):
+        made.append(probe)
+        probe = os.path.dirname(probe)
+    os.makedirs(folder, exist_ok=True)
+    return made[::-1]
+
+
+def replace_folder(new: str, target: str, what: str = "folder") -> None:
+    """Put the folder ``new`` where ``target`` is (both on one file system): an old
+    ``target`` is renamed away first and removed after, so ``target`` is never a mix of the
+    two; on a failure the old one is put back."""
+    old = None
+    if os.path.lexists(target):
+        old = tempfile.mkdtemp(prefix=".old-", dir=os.path.dirname(os.path.abspath(target)))
+        os.replace(target, os.path.join(old, "x"))
+    try:
+        os.replace(new, target)
+    except OSError as exc:
+        if old is not None:
+            os.replace(os.path.join(old, "x"), target)
+        raise InputError(f"cannot write the {what}: {exc.strerror}", path=target) from None
+    finally:
+        if old is not None:
+            shutil.rmtree(old, ignore_errors=True)

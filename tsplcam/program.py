@@ -16,6 +16,7 @@ from dataclasses import dataclass, field
 
 from . import load_model
 from .errors import InputError
+from .numerics import one_blas_thread
 from .settings import PATH_KEYS, JobSettings
 
 __all__ = ["Program", "load_model", "load_stock", "load_tool", "make_baseline", "make_path", "make_program",
@@ -70,12 +71,16 @@ def tool_radius(settings: JobSettings, tool=None) -> float:
 
 
 def load_machine(settings: JobSettings):
-    """The Machine of ``settings.machine``, or None."""
+    """The Machine of ``settings.machine``, or None; the feed and the spindle speed of
+    ``settings`` are checked against its limits (before any long work starts)."""
     if not settings.machine:
         return None
     from .post import load_machine as load
     with _option("machine"):
-        return load(settings.machine)
+        machine = load(settings.machine)
+    machine.check_feed(settings.feed, "feed")
+    machine.check_spindle(settings.spindle, "spindle")
+    return machine
 
 
 def load_stock(settings: JobSettings):
@@ -97,14 +102,11 @@ def make_path(model, plist, settings: JobSettings, radius: float | None = None, 
     """The finishing path (ToolPath) of ``model`` in the order of ``plist``: one zigzag per
     patch, linked at shared corners, tool axes along the surface normals. ``progress``: a
     tsplcam.progress callback (stage "path")."""
-    from .progress import report
+    one_blas_thread()
     from .toolpath import zigzag_path
     radius = tool_radius(settings) if radius is None else radius
     options = _path_options(settings, radius)
-    report(progress, "path", 0, 1)
-    path = zigzag_path(model, plist, radius, **options)
-    report(progress, "path", 1, 1)
-    return path
+    return zigzag_path(model, plist, radius, progress=progress, **options)
 
 
 def make_baseline(model, plist, settings: JobSettings, radius: float):
@@ -128,12 +130,14 @@ class Program:
     ``report``: what the orientation did (None for surface-normal axes); ``metrics``: the
     axes measured again with the same collision checker (collisions, clearance, axis steps,
     rotary travel); ``posted``: the PostResult (program text, motion, time estimate);
-    ``seconds``: run time of each step (orientation, post)."""
+    ``seconds``: run time of each step (orientation, post); ``checker``: the collision checker
+    the axes were found and measured with (for more measurements, e.g. the report's)."""
     path: object
     report: object = None
     metrics: object = None
     posted: object = None
     seconds: dict = field(default_factory=dict)
+    checker: object = None
 
 
 def make_program(path, model, settings: JobSettings, stock=None, progress=None, post: bool = True,
@@ -149,6 +153,7 @@ def make_program(path, model, settings: JobSettings, stock=None, progress=None, 
     False stops before the machine program; ``plist``: the processing list, whose steps may
     carry tool-axis settings for their patch. Raises InputError, CollisionError or
     KinematicsError naming the place; a path that collides is never returned."""
+    one_blas_thread()
     machine = load_machine(settings)
     t = time.perf_counter()
     if settings.orientation != "normal":
@@ -167,13 +172,12 @@ def make_program(path, model, settings: JobSettings, stock=None, progress=None, 
         program = Program(path)
     if post and machine is not None:
         from .post import post_program
-        from .progress import report
         t = time.perf_counter()
-        report(progress, "program", 0, 1)
         options = {} if settings.axes_form is None else {"orientation": settings.axes_form}
-        program.posted = post_program(program.path, machine, settings.dialect, **options)
+        if settings.spindle is not None:
+            options["spindle"] = settings.spindle
+        program.posted = post_program(program.path, machine, settings.dialect, progress=progress, **options)
         program.seconds["post_s"] = time.perf_counter() - t
-        report(progress, "program", 1, 1)
     return program
 
 
@@ -192,9 +196,13 @@ def _orient(path, model, settings: JobSettings, tool, machine, stock, progress, 
         per_patch = step_settings(base, blocks) if blocks else None
     meshes = [] if stock is None else [("stock", stock[0], stock[1])]
     checker = CollisionChecker(model, tool, meshes=meshes, clearance=settings.holder_clearance)
+    from .progress import report as tick
     oriented, report = orient(path, model, tool, settings=base, per_patch=per_patch, checker=checker,
                               machine=machine, progress=for_stage(progress, "tool axes"))
-    return Program(oriented, report, orientation_metrics(oriented, checker, machine))
+    tick(progress, "checking axes", 0, 1)
+    metrics = orientation_metrics(oriented, checker, machine)
+    tick(progress, "checking axes", 1, 1)
+    return Program(oriented, report, metrics, checker=checker)
 
 
 def program_file_name(model: str, dialect: str) -> str:

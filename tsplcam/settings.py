@@ -33,7 +33,10 @@ PATH_KEYS = ("scallop", "chord_tol", "max_step", "feed", "clearance", "clearance
 AXIS_KEYS = ("target", "axis", "lead", "side_tilt", "point", "direction", "max_tilt", "limit_axis",
              "tilt_range", "pole_tilt")
 PROGRAM_KEYS = ("tool", "orientation", "holder_clearance", "smoothing_length", "rotary_weight",
-                "machine", "dialect", "axes_form") + AXIS_KEYS
+                "machine", "dialect", "axes_form", "spindle") + AXIS_KEYS
+# kinds of option whose value is one number, and the unit their messages name
+NUMBER_KINDS = ("length", "length0", "feed", "factor", "angle", "rpm")
+UNITS = {"length": "mm", "length0": "mm", "feed": "mm/min", "angle": "deg", "rpm": "rpm"}
 
 
 def _orientations():
@@ -70,7 +73,7 @@ def option(default, group: str, help: str, kind: str, metavar: str | None = None
     """A field with what the command line and the checks need to know about it.
 
     ``kind``: ``length`` (a number > 0, mm), ``length0`` (>= 0, mm), ``feed`` (> 0, mm/min),
-    ``factor`` (>= 0), ``angle`` (degrees; its range is the stage's to check), ``vector``
+    ``rpm`` (> 0, revolutions per minute), ``factor`` (>= 0), ``angle`` (degrees; its range is the stage's to check), ``vector``
     (three numbers, x,y,z), ``pair`` (two numbers, min,max), ``choice`` (one of ``choices()``), ``flag`` (true/false), ``text`` (a
     name or file, required), ``name`` (a name or file, or nothing), ``file`` (a file name, or
     nothing when the default is nothing). ``flags``: command-line
@@ -153,26 +156,37 @@ class JobSettings:
     dialect: str | None = option(None, "machine", "controller syntax of the program: {dialects}; default: "
                                  "the machine's controller", "choice", "DIALECT", choices=_dialects,
                                  flags=("--dialect", "--post"))
+    spindle: float | None = option(None, "machine", "spindle speed (rpm); default: the machine file's; "
+                                   "refused outside the machine's spindle range", "rpm", "RPM")
     axes_form: str | None = option(None, "machine", "tool axes in the program as machine angles or as the "
                                    "tool vector (Heidenhain LN TX TY TZ, Sinumerik A3 B3 C3, Fanuc G43.5 I J K); "
                                    "default: the machine file's choice, else angles", "choice", "FORM",
                                    choices=("angles", "vector"))
     # where the files go
     out: str = option("tsplcam-job", "outputs", "folder for the program (named after the model, with the "
-                      "controller's extension), the CL data, processing-list.json and report.json",
+                      "controller's extension), the CL data, processing-list.json, report.json and report.html",
                       "text", "DIR", command="job")
+    name: str | None = option(None, "outputs", "file name of the program and the CL data, without extension; "
+                              "default: the model's", "name", "NAME", command="job")
+    html_report: bool = option(True, "outputs", "write report.html with its pictures (report_files/) beside "
+                               "report.json", "flag", flags=("--html-report", "--no-html-report"), command="job")
     gcode: str | None = option(None, "outputs", "write the machine program (G-code) to this file; needs a "
                                "machine", "file", "FILE", command="path")
     cl: str | None = option(None, "outputs", "write the path as APT CL data: tool tip (mm) and unit tool axis "
                             "per point", "file", "FILE", command="path")
     report: str | None = option(None, "outputs", "write the path's figures (and what --verify measured) as "
                                 "JSON", "file", "FILE", flags=("--json",), command="path")
-    verify: bool = option(False, "outputs", "measure scallop height, cusps and gouges on the surface and "
-                          "report them (slow on fine paths)", "flag", command="path")
+    verify: bool = option(True, "outputs", "measure scallop height, cusps and gouges on the surface and "
+                          "report them, the report's scallop map (slow on fine paths: about 15 s on the main job)",
+                          "flag", flags=("--verify", "--no-verify"))
     baseline: bool = option(False, "outputs", "also machine each face on its own (compound NURBS, "
-                            "retracting between faces) and compare the two paths", "flag", command="path")
+                            "retracting between faces) and compare the two paths", "flag")
     baseline_cl: str | None = option(None, "outputs", "write that comparison path as CL data (implies "
                                      "--baseline)", "file", "FILE", command="path")
+    fcstd: str | None = option(None, "outputs", "also write a FreeCAD document (.FCStd) with the model, "
+                               "processing list, tool path, program and a FreeCAD CAM job holding the "
+                               "program's moves (made by freecadcmd, which must be installed)", "file",
+                               "FILE", command="job")
 
     # -- checks -------------------------------------------------------------------------------
     def check(self, label=None) -> "JobSettings":
@@ -202,8 +216,10 @@ class JobSettings:
             except InputError as exc:
                 item = {"strategy": "orientation"}.get(exc.item, exc.item)
                 raise InputError(exc.message, item=label(item) if item else None) from None
+        if self.name is not None and ("/" in self.name or "\\" in self.name or self.name.strip(".") == ""):
+            raise InputError(f"a file name without folder, not {self.name!r}", item=label("name"))
         if self.machine is None:
-            for name in ("gcode", "dialect", "axes_form"):
+            for name in ("gcode", "dialect", "axes_form", "spindle"):
                 if getattr(self, name) is not None:
                     raise InputError(f"needs {label('machine')} (see `python3 -m tsplcam machines`)",
                                      item=label(name))
@@ -288,11 +304,11 @@ def _check_value(f, value, name: str) -> None:
                 isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x) for x in value):
             raise InputError(f"must be {n} finite numbers, not {value!r}", item=name)
         return
-    if kind in ("length", "length0", "feed", "factor", "angle"):
+    if kind in NUMBER_KINDS:
         if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
             raise InputError(f"must be a finite number, not {value!r}", item=name)
-        unit = {"length": " (mm)", "length0": " (mm)", "feed": " (mm/min)"}.get(kind, "")
-        if kind in ("length", "feed") and value <= 0:
+        unit = f" ({UNITS[kind]})" if kind in UNITS and kind != "angle" else ""
+        if kind in ("length", "feed", "rpm") and value <= 0:
             raise InputError(f"must be a positive number{unit}, not {value:g}", item=name)
         if kind in ("length0", "factor") and value < 0:
             raise InputError(f"must not be negative{unit}, not {value:g}", item=name)

@@ -361,7 +361,7 @@ class ProcessingListView(_GuiCase):
             panel.table.selectRow([s.patch for s in panel.plist.steps].index(9))
             panel.buttons["up"].click()
         self.assertEqual(panel.plist.steps[0].patch, 9)
-        self.assertIn("P", panel.table.item(0, 5).text())
+        self.assertIn("P", panel.table.item(0, 6).text())
         panel.buttons["solve"].click()
         self.assertTrue(panel.valid, panel.status.text())
         self.assertEqual(panel.plist.steps[0].patch, 9)
@@ -407,65 +407,7 @@ class ToolPathView(_GuiCase):
         navy = colour_pixel_counts(alone, [viewpath.MOVE_STYLE[0][0]], hue_tolerance=12,
                                    min_saturation=0.5, min_value=0.1)[0]
         self.assertGreater(navy, 5000)                 # the cutting lines
-
-
-class ProgramView(_GuiCase):
-    def test_mold_program_shows_its_tilted_axes(self):
-        """The mold cavity's program: tool axes drawn as shafts coloured by tilt, the post
-        command active once a path exists, the program selected after posting."""
-        from tsplcam.workbench import commands, pathobject, planobject, programobject, viewprogram
-        if not pathobject.toolpath_available():
-            self.skipTest("the path generator is absent")
-        FreeCADGui.activateWorkbench("TsplcamWorkbench")
-        model_obj = importer.open(sample_path("keycap_mold"))
-        plan = planobject.make_processing_list(model_obj)
-        path = pathobject.make_tool_path(plan, scallop=0.1)
-        self.assertIsNotNone(path, messages.recorded[-1:])
-        FreeCADGui.Selection.clearSelection()
-        FreeCADGui.Selection.addSelection(path)
-        cmd = commands.ProgramCommand()
-        self.assertTrue(cmd.IsActive())
-        cmd.Activated()
-        progs = [o for o in FreeCAD.ActiveDocument.Objects if programobject.is_program_object(o)]
-        self.assertEqual(len(progs), 1, messages.recorded[-1:])
-        prog = progs[0]
-        self.assertEqual(FreeCADGui.Selection.getSelection(), [prog])
-        self.assertTrue(commands.SaveProgramCommand().IsActive())
-        self.assertEqual(prog.Collisions, 0)
-        self.assertIsInstance(prog.ViewObject.Proxy, viewprogram.ViewProviderProgram)
-        # one shaft per sampled point, in tilt bands
-        tp = prog.Proxy.oriented_path(prog)
-        idx = viewprogram.shaft_sample(len(tp), prog.ViewObject.Shafts)
-        group = prog.ViewObject.Proxy.group
-        drawn = sum(group.getChild(i).getNumChildren() > 0 for i in range(1, group.getNumChildren()))
-        tilt = np.degrees(np.arccos(np.clip(tp.axis[idx, 2], -1, 1)))
-        bands = len(np.unique(np.minimum((tilt / tilt.max() * viewprogram.TILT_BANDS).astype(int),
-                                         viewprogram.TILT_BANDS - 1)))
-        self.assertEqual(drawn, bands)
-        self.assertGreaterEqual(bands, 3)
-        FreeCADGui.Selection.clearSelection()
-        for o in (plan, path):
-            o.ViewObject.Visibility = False
-        model_obj.ViewObject.ShowPatchNumbers = False
-        shot = render("keycap_mold_program.png", azimuth=-60, elevation=55)
-        red = colour_pixel_counts(shot, [viewprogram.tilt_colour(1.0)], hue_tolerance=15, min_saturation=0.6)[0]
-        self.assertGreater(red, 50)                    # the most tilted shafts, near the walls
-        prog.ViewObject.Shafts = 50
-        FreeCADGui.updateGui()
-        fewer = render("keycap_mold_program_50.png", azimuth=-60, elevation=55)
-        self.assertLess(colour_pixel_counts(fewer, [viewprogram.tilt_colour(1.0)], hue_tolerance=15,
-                                            min_saturation=0.6)[0], red)
-        prog_time = prog.MachiningTime
-        prog.ViewObject.Shafts = 400
-        # kept in the document: reloaded, the shafts are drawn again from the stored axes
-        saved = os.path.join(self.tmp, "mold_program.FCStd")
-        prog.Document.saveAs(saved)
-        FreeCAD.closeDocument(prog.Document.Name)
-        FreeCADGui.updateGui()
-        doc = FreeCAD.openDocument(saved)
-        FreeCADGui.updateGui()
-        again = [o for o in doc.Objects if programobject.is_program_object(o)][0]
-        self.assertEqual(again.MachiningTime, prog_time)
-        group = again.ViewObject.Proxy.group
-        self.assertEqual(sum(group.getChild(i).getNumChildren() > 0 for i in range(1, group.getNumChildren())),
-                         bands)
+        obj.ViewObject.ColourBy = "Patch"              # each patch's passes in its model colour
+        by_patch = render("keycap_tool_path_by_patch.png", azimuth=-60, elevation=45)
+        counts = colour_pixel_counts(by_patch, display.PALETTE[:5], hue_tolerance=6, min_saturation=0.45)
+        self.assertEqual(sum(n > 300 for n in counts), 5, counts)

@@ -5,8 +5,9 @@ keycap: ball centres on and off the path's centres, axes anywhere within 80 deg 
 normal, several tool growths. Every pose the broad phase calls free must be free for fcl
 (the tool mesh and the primitives), every pose it calls a hit must collide for fcl, and
 every gouge ball it proves clear must be clear for fcl. It must also decide most poses, or
-it is no broad phase. The free cones (axes within the swing of a pose fcl passed with the
-grown tool) hold for random axes inside them.
+it is no broad phase; near the walls too, where the exact pass (samples and triangles)
+decides what the distance grids cannot. The free cones (axes within the swing of a pose fcl
+passed with the grown tool) hold for random axes inside them.
 """
 import unittest
 
@@ -76,6 +77,24 @@ class AgreesWithFcl(unittest.TestCase):
                 self.assertLess(mesh.mean(), 0.95)
         self.assertGreater(np.mean(decided), 0.6)
 
+    def test_near_wall_poses(self):
+        """Poses on the mold's path with the axis tilted far toward the walls (the tool's flat
+        ends and the holder close to the cavity): the exact pass decides some of what the
+        grids leave open, and every decision is fcl's."""
+        rng = np.random.default_rng(11)
+        C, A = random_poses(self.mold_path, 2500, rng, spread=0.02, tilt=np.radians(75))
+        ch = self.mold
+        ch.broad._exact_gain = (0.0, 0.0)                 # the pass runs whatever came before
+        asked = ch.broad.stats["exact"]
+        st = ch.broad.decide(C, A, 0.0)
+        self.assertGreater(ch.broad.stats["exact"], asked)
+        mesh = ch.collides_fcl(C, A)
+        self.assertEqual(int(((st == FREE) & mesh).sum()), 0)
+        self.assertEqual(int(((st == HIT) & ~mesh).sum()), 0)
+        prim = ch.collides_primitives(C, A)
+        self.assertEqual(int(((st == FREE) & prim).sum()), 0)
+        self.assertGreater(np.mean(st != UNKNOWN), 0.6)
+
     def test_keycap_poses(self):
         st, mesh = self.check(self.keycap, self.keycap_path, 0.0, 5)
         self.assertGreater(np.mean(st != UNKNOWN), 0.6)
@@ -135,6 +154,34 @@ class Geometry(unittest.TestCase):
             best = np.linalg.norm(pts - P[k], axis=1).min()
             self.assertLessEqual(np.linalg.norm(got[k] - P[k]), best + 1e-12)
             self.assertGreater(np.linalg.norm(got[k] - P[k]), best - 5e-3)
+
+    def test_exact_bound(self):
+        """exact_bound never exceeds the distance to the mesh, and equals it below R where a
+        narrow band holds fewer than BAND samples (brute force over every triangle)."""
+        from tsplcam.orientation.broadphase import BroadPhase
+        rng = np.random.default_rng(2)
+        g = np.linspace(0, 4, 9)
+        X, Y = np.meshgrid(g, g, indexing="ij")
+        V = np.column_stack([X.ravel(), Y.ravel(), 0.3 * np.sin(X.ravel()) * np.cos(Y.ravel())])
+        T = np.concatenate([[[i * 9 + j, i * 9 + j + 9, i * 9 + j + 10], [i * 9 + j, i * 9 + j + 10, i * 9 + j + 1]]
+                            for i in range(8) for j in range(8)])
+        from tsplcam.orientation.broadphase import Profile
+        one = np.ones(1)
+        bp = BroadPhase(V, T, lambda grow: Profile(0 * one, one, one, one, one, one), 0.1, 0.3)
+        x = rng.random((1500, 3)) * [4, 4, 1.5] - [0, 0, 0.5]
+        R = rng.random(1500) * 1.2
+        got, near = bp.exact_bound(x, R, nearest=True)
+        true = np.full(len(x), np.inf)
+        for t in T:
+            w = closest_on_triangles(x, *(np.repeat(V[t[i]][None], len(x), axis=0) for i in range(3)))
+            true = np.minimum(true, np.linalg.norm(x - w, axis=1))
+        self.assertTrue(np.all(got <= true + 1e-12))
+        d, _ = bp.tree.query(x, k=8)
+        # (narrow bands: wider ones than 4 e take the nearest sample's bound)
+        few = (d[:, -1] >= np.sqrt(R * R + bp.e2)) & (true < R) & (R <= 4 * bp.e)
+        self.assertGreater(few.sum(), 20)
+        np.testing.assert_allclose(got[few], true[few], atol=1e-12)
+        self.assertTrue(np.all((near >= 0) == (d[:, 0] < np.sqrt(R * R + bp.e2))))
 
     def test_sample_bound(self):
         """Every point of a triangle lies at least sqrt(d^2 - e^2/3) from a point whose

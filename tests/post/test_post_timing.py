@@ -68,6 +68,24 @@ class HandComputed(unittest.TestCase):
         self.assertEqual(list(r.limiting_blocks), [0, 0, 0, 0, 1])
         self.assertAlmostEqual(r.average_speed[4], 90 / r.total_s * 60, places=9)
 
+    def test_time_by_limit_names_what_sets_each_block(self):
+        # Block 1: X 1 mm in at least 1 s, cruising at the feed's pace after its ramp (the
+        # ramps make X the limit, as above); block 2: C 90 deg, no feed minimum: C sets it.
+        # An axis exactly at the feed's pace, no ramp (the middle of a chain): the feed.
+        r = run([[0, 0, 0, 0, 0], [1, 0, 0, 0, 0], [1, 0, 0, 0, 90]], t_min=[1.0, 0.0])
+        by = r.time_by_limit()
+        self.assertAlmostEqual(sum(by.values()), r.total_s, places=12)
+        self.assertAlmostEqual(by["X"], r.block_time[0], places=12)
+        self.assertAlmostEqual(by["C"], r.block_time[1], places=12)
+        x = np.linspace(0, 10, 11)
+        j = np.zeros((11, 5))
+        j[:, 0] = x
+        r = run(j, t_min=np.full(10, 0.5))            # 2 mm/s: the ramps take 2 um, within block 1
+        by = r.time_by_limit()
+        self.assertEqual(list(r.block_limit[1:-1]), [-1] * 8)
+        self.assertAlmostEqual(by["feed"], 0.5 * 8, places=9)
+        self.assertAlmostEqual(sum(by.values()), r.total_s, places=12)
+
     def test_vectorised_passes_match_a_plain_loop(self):
         rng = np.random.default_rng(3)
         d = rng.normal(size=400) * rng.uniform(0, 3, 400)

@@ -163,6 +163,27 @@ class Tuning(unittest.TestCase):
             path = build_path(model, [PathStep(0, 0, finish, "u")], PathSettings(r, h))
             self.assertTrue(np.allclose(path.uv[-1], CORNER_UV[finish]))
 
+    def test_batched_gaps_are_measured_gaps(self):
+        """Lines placed a batch at a time (predicted, kept up to the first miss): every gap
+        but the last lies in the accept window, and the ratio recorded for each gap is the one
+        measured again on the placed lines, one gap at a time (keycap patch 4, next to four
+        extraordinary points, and its steeper side patch)."""
+        from tsplcam.toolpath.lines import ACCEPT, FIT
+        model = load(sample_path("keycap"))
+        for patch, crossfeed in ((4, "u"), (0, "v")):
+            fr = LineFrame(model.patches[patch], crossfeed, 0)
+            target = Target(0.5, 0.005, 0.0005, 1.0)
+            placer = Placer(fr, target)
+            pos, ratios, full = placer.place(target)
+            self.assertEqual(len(ratios), len(pos) - 1)
+            self.assertTrue(np.all(ratios[:-1] >= ACCEPT) and np.all(ratios <= FIT), ratios)
+            again = Placer(fr, target)
+            for k in range(len(pos) - 1):
+                g1 = again.line(pos[k])
+                r = again.ratio(g1, pos[k + 1] - pos[k], target.at(g1))
+                self.assertAlmostEqual(r, ratios[k], delta=1e-6 * r)
+            self.assertGreaterEqual(full, 1.0 - pos[-2] - 1e-12)
+
     def test_unreachable_finish_is_refused(self):
         model = plane(10, 10)
         with self.assertRaises(InputError) as cm:

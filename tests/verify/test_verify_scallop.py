@@ -51,6 +51,24 @@ class FlatCusps(unittest.TestCase):
         cls.h = cls.r - np.sqrt(cls.r ** 2 - cls.w ** 2 / 4)
         cls.rep = measure(cls.path, cls.model, scallop=cls.h)
 
+    def test_kept_heights_are_the_measured_ones(self):
+        # measure(heights=True) keeps every sample and ridge it measured, and changes nothing
+        rep = measure(self.path, self.model, scallop=self.h, heights=True)
+        self.assertEqual(rep.as_dict(), self.rep.as_dict())
+        hs = rep.heights
+        self.assertEqual(int(np.count_nonzero(~hs.ridge)), rep.samples - rep.uncovered)
+        self.assertEqual(int(np.count_nonzero(hs.ridge)), rep.ridges)
+        self.assertEqual(float(hs.height.max()), rep.max_scallop)
+        self.assertTrue(np.all(hs.patch == 0))
+        self.assertTrue(np.all((hs.uv >= 0) & (hs.uv <= 1)))
+        # the heights at grid samples follow the circle between two lines: h(x) = r - sqrt(r^2 - d^2)
+        grid = ~hs.ridge
+        P = self.model.patches[0].evaluate(hs.uv[grid, 0], hs.uv[grid, 1]).P
+        d = np.abs((P[:, 0] + 0.5 * self.w) % self.w - 0.5 * self.w)
+        inside = (P[:, 1] > 0.6) & (P[:, 1] < 5.4) & (P[:, 0] > 0.5) & (P[:, 0] < 9.5)
+        expect = self.r - np.sqrt(self.r ** 2 - d ** 2)
+        self.assertLess(float(np.abs(hs.height[grid][inside] - expect[inside]).max()), 1e-9)
+
     def test_cusp_heights_match_closed_form(self):
         rep = self.rep
         self.assertEqual(rep.uncovered, 0)

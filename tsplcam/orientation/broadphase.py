@@ -17,8 +17,20 @@ at least sqrt(d^2 - e^2/3) from x, e the longest edge of the (sub)triangles the 
 |x - w|^2 = sum l_i |x - v_i|^2 - sum_{i<j} l_i l_j |v_i - v_j|^2 >= d^2 - e^2/3). The bound
 is kept at the nodes of two grids (fine near the mesh, coarse over the tool's reach) and
 read at the eight nodes around x, less the distance to each (the distance to a set is
-1-Lipschitz). Spheres cover flat ends badly (a sphere round a thin slab bulges below it by
-nearly its radius), so poses whose flutes or holder face the surface closely stay unknown.
+1-Lipschitz). That read loses up to half a cell's diagonal, too much next to the surface
+(the flutes sit a ball radius from it at the contact) and under a wide holder.
+
+**Exact pass.** The parts the grids leave open are asked again (:meth:`BroadPhase.exact_bound`):
+the samples in the band sqrt(R^2 + e^2/3) around each sphere centre from the KD-tree, and
+where fewer than eight lie there, the exact distances to their triangles (every triangle that
+reaches within R has a corner or sample in that band), from one sphere per part, split while a
+smaller sphere might still clear (its bound plus half the slab reaches the slab's narrow end)
+and at most ``EXACT_LEVELS`` times. A pose is given up to fcl at its first sphere that cannot
+clear; the nearest samples of failing spheres are tried as hits. Where the last calls decided
+less than a pose per ``EXACT_COST`` spheres (deep in a cavity most poses collide, and fcl is
+cheaper there), and in cells where a wall already stopped poses, the pass is left out; after
+a pause it is tried again on a few poses. Nor does it run for a grown tool (the clearance
+measurement's poses lie within a hair of the surface, where it seldom decides).
 
 **Free cones.** Turning the axis by an angle phi about the ball centre moves a point at
 distance l from it by at most l phi. A pose cleared with that much to spare leaves a cone of
@@ -35,9 +47,8 @@ samples tried are the nearest samples of the grid nodes around spheres that did 
 and the *witnesses* of earlier hits near the same ball centre (a wall that stops one axis
 stops its neighbours).
 
-The gouge check's ball B(c, r0) is proven clear when no sample lies within sqrt(r0^2 + e^2/3)
-of c, or the triangles of the few samples that do are measured exactly and lie beyond r0
-(every triangle that reaches into the ball has a corner or sample within that bound).
+The gouge check's ball B(c, r0) is proven clear by the same exact bound, once per ball
+centre and only when asked (:meth:`BroadPhase.ball_free`).
 
 Every comparison keeps ``EPS`` (1e-6 mm) on the safe side, for fcl's own rounding. The tests
 compare the decisions with fcl on random poses (tests/orientation).
@@ -62,6 +73,10 @@ COARSE = (2.0, 150_000)       # coarse grid, over the tool's reach around the me
 CONES = 2                     # free cones kept per ball centre
 WITNESSES = 6                 # hit witnesses kept per cell of ball centres
 WITNESS_CELL = 1.0            # mm
+CONE_WANT = np.radians(2.0)   # free cones the bounds are refined for
+EXACT_LEVELS = 3              # the exact pass splits a part's sphere this often at most
+EXACT_COST = 3                # spheres of the exact pass that cost about as much as one fcl query
+EXACT_PROBE = 2000            # spheres the exact pass is tried on before its gain counts
 _CORNERS = np.array([(i, j, k) for i in (0, 1) for j in (0, 1) for k in (0, 1)], np.int64)
 DIRECTIONS = np.array([(i, j, k) for i in (-1, 0, 1) for j in (-1, 0, 1) for k in (-1, 0, 1)
                        if (i, j, k) != (0, 0, 0)], float)
@@ -206,11 +221,12 @@ class DistanceGrid:
         axes = [self.origin[i] + self.h * np.arange(self.shape[i]) for i in range(3)]
         nodes = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, 3)
         self.cap = float(cap)
-        d, j = tree.query(nodes, distance_upper_bound=cap)
+        d, j = tree.query(nodes, distance_upper_bound=cap, workers=2)
         far = ~np.isfinite(d)
         self.lb = np.where(far, np.sqrt(max(cap * cap - e2, 0.0)), np.sqrt(np.maximum(d * d - e2, 0.0)))
         self.idx = np.where(far, -1, j)
         self.stride = np.array([self.shape[1] * self.shape[2], self.shape[2], 1])
+        self._offsets = _CORNERS @ self.stride
 
     def __call__(self, x: np.ndarray):
         """(lower bound, sample index or -1, inside the grid) at points x: the best over the
@@ -221,11 +237,14 @@ class DistanceGrid:
         ins = np.all((k0 >= 0) & (k0 < self.shape - 1), axis=1)
         k0 = np.minimum(np.maximum(k0, 0), self.shape - 2)
         r = f - k0                                                    # (n, 3) in [0, 1)
-        flat = (k0 @ self.stride)[:, None] + _CORNERS @ self.stride   # (n, 8)
-        d = r[:, None, :] - _CORNERS[None]
-        dist = self.h * np.sqrt(d[..., 0] * d[..., 0] + d[..., 1] * d[..., 1] + d[..., 2] * d[..., 2])
-        lb = (self.lb[flat] - dist).max(axis=1)
-        near = flat[np.arange(len(x)), np.argmin(dist, axis=1)]
+        base = k0 @ self.stride
+        # squared distances to the eight nodes, axis by axis: r^2 to the lower node, (1-r)^2
+        # to the upper one (corner order i, j, k as _CORNERS)
+        sq = np.stack([r * r, (1.0 - r) * (1.0 - r)], axis=2)        # (n, 3, 2)
+        d2 = sq[:, 0, :, None, None] + sq[:, 1, None, :, None] + sq[:, 2, None, None, :]
+        dist = self.h * np.sqrt(d2.reshape(len(x), 8))
+        lb = (self.lb[base[:, None] + self._offsets] - dist).max(axis=1)
+        near = base + (r >= 0.5).astype(np.int64) @ self.stride
         return np.where(ins, lb, 0.0), np.where(ins, self.idx[near], -1), ins
 
 
@@ -315,25 +334,31 @@ class BroadPhase:
                                          10 * COARSE[0], COARSE[1])]
         self._covers: dict[float, SphereCover] = {}
         self.centres = CentreTable()
-        self._gouge = np.zeros(0, bool)
+        self._gouge = np.zeros(0, np.int8)        # per centre: 1 clear, 0 not proven, -1 not asked yet
         self._cone_a = {}                         # per grow: (slots, CONES, 3) axes
         self._cone_c = {}                         # per grow: (slots, CONES) cos of the cone angle
         self._wit_cells = CentreTable()
         self._wit = np.zeros((0, WITNESSES), np.int64)
+        self._exact_gain = (0.0, 0.0)             # poses decided, spheres asked (_exact_pass)
         self.stats = {"poses": 0, "free": 0, "hit": 0, "unknown": 0, "cone": 0, "witness": 0,
-                      "queries": 0}
+                      "queries": 0, "exact": 0}
 
     # --- distances ------------------------------------------------------------------------
-    def lower_bound(self, x: np.ndarray):
+    def lower_bound(self, x: np.ndarray, need=None):
         """(lower bound of the distance to the mesh, a sample near x or -1, x inside the fine
         grid) at points x: the best bound of the two grids and the box of the mesh; the sample
-        is the nearest one to x's nearest node in the fine grid, else in the coarse grid."""
+        is the nearest one to x's nearest node in the fine grid, else in the coarse grid.
+        ``need``: where the fine grid's bound reaches it, the coarse grid is not asked."""
         lo, hi = self.box
         o = np.maximum(np.maximum(lo - x, x - hi), 0.0)
         lb = np.sqrt(o[:, 0] * o[:, 0] + o[:, 1] * o[:, 1] + o[:, 2] * o[:, 2])
         lbf, idx, ins = self.grids[0](x)
-        lbc, idc, _ = self.grids[1](x)
-        return np.maximum(lb, np.maximum(lbf, lbc)), np.where(idx >= 0, idx, idc), ins
+        lb = np.maximum(lb, lbf)
+        ask = slice(None) if need is None else np.nonzero(lb < need)[0]
+        lbc, idc, _ = self.grids[1](x[ask])
+        lb[ask] = np.maximum(lb[ask], lbc)
+        idx[ask] = np.where(idx[ask] >= 0, idx[ask], idc)
+        return lb, idx, ins
 
     def nearest(self, x: np.ndarray, ub: np.ndarray, k: int = 1):
         """(distances, indices) of the k nearest samples to each x, inf / n where none is
@@ -348,38 +373,57 @@ class BroadPhase:
         grp = np.floor(np.log2(np.clip(ub, 1e-9, 1e12))).astype(int)
         for g in np.unique(grp):
             sel = np.nonzero(grp == g)[0]
-            d[sel], j[sel] = self.tree.query(x[sel], k=k, distance_upper_bound=float(ub[sel].max()))
+            d[sel], j[sel] = self.tree.query(x[sel], k=k, distance_upper_bound=float(ub[sel].max()),
+                                             workers=2 if len(sel) > 4000 else 1)
         return d, j
 
-    def _clear_exact(self, o: np.ndarray, R: np.ndarray) -> np.ndarray:
-        """True where the ball B(o, R) is shown to hold no part of the mesh: no sample in the
-        band the sample bound leaves open, or the triangles of the (fewer than ``BAND``)
-        samples there measured exactly."""
+    def exact_bound(self, o: np.ndarray, R: np.ndarray, nearest: bool = False):
+        """Lower bounds of the distance from points o to the mesh, exact below R: every
+        triangle that reaches within R of o has a corner or sample in the band
+        sqrt(R^2 + e^2/3) (module doc); with none there the distance is at least R, with
+        fewer than ``BAND`` there their triangles are measured exactly, with more the nearest
+        sample's bound stands. ``nearest``: also the nearest sample in the band (or -1)."""
+        R = np.asarray(R, float)
         ub = np.sqrt(R * R + self.e2)
-        d, j = self.nearest(o, ub, k=BAND)
-        inb = d < ub[:, None]
-        out = ~inb.any(axis=1)
-        rows, cols = np.nonzero(inb & ~inb.all(axis=1)[:, None])
-        if len(rows):
-            tris = self.sample_tris[j[rows, cols]]
-            r2, t2 = np.nonzero(tris >= 0)
-            tt = self.T[tris[r2, t2]]
-            q = rows[r2]
-            P = closest_on_triangles(o[q], self.V[tt[:, 0]], self.V[tt[:, 1]], self.V[tt[:, 2]])
-            low = np.full(len(o), np.inf)
-            np.minimum.at(low, q, np.linalg.norm(P - o[q], axis=1))
-            ok = np.zeros(len(o), bool)
-            ok[rows] = True
-            out |= ok & (low >= R + EPS)
-        return out
+        out = R.copy()
+        near = np.full(len(o), -1, np.int64)
+        # a band wider than a few sample spacings holds more than BAND samples wherever it
+        # meets the mesh: there the nearest sample is enough
+        wide = R > 4.0 * self.e
+        if wide.any():
+            w = np.nonzero(wide)[0]
+            d1, j1 = self.nearest(o[w], ub[w])
+            inb = d1 < ub[w]
+            out[w] = np.where(inb, np.sqrt(np.maximum(d1 * d1 - self.e2, 0.0)), R[w])
+            near[w] = np.where(inb, j1, -1)
+        nw = np.nonzero(~wide)[0]
+        if len(nw):
+            d, j = self.nearest(o[nw], ub[nw], k=BAND)
+            inb = d < ub[nw, None]
+            near[nw] = np.where(inb[:, 0], j[:, 0], -1)
+            full = inb.all(axis=1)
+            out[nw[full]] = np.sqrt(np.maximum(d[full, 0] ** 2 - self.e2, 0.0))
+            rows, cols = np.nonzero(inb & ~full[:, None])
+            if len(rows):
+                tris = self.sample_tris[j[rows, cols]]
+                r2, t2 = np.nonzero(tris >= 0)
+                # each triangle once per point (neighbouring samples share their triangles)
+                key = np.unique(nw[rows[r2]] * len(self.T) + tris[r2, t2])
+                q, tt = key // len(self.T), self.T[key % len(self.T)]
+                P = closest_on_triangles(o[q], self.V[tt[:, 0]], self.V[tt[:, 1]], self.V[tt[:, 2]])
+                np.minimum.at(out, q, np.linalg.norm(P - o[q], axis=1))
+        return (out, near) if nearest else out
+
+    def _clear_exact(self, o: np.ndarray, R: np.ndarray) -> np.ndarray:
+        """True where the ball B(o, R) is shown to hold no part of the mesh."""
+        return self.exact_bound(o, R + EPS) >= R + EPS
 
     # --- per ball centre: gouge check, cones ----------------------------------------------------
     def _slots(self, C: np.ndarray) -> np.ndarray:
         """Slots of the centres C, with the gouge verdicts of the new ones."""
         slot, first = self.centres.slots(C)
         if len(first):
-            Cn = np.asarray(C, float)[first]
-            self._gouge = np.concatenate([self._gouge, self._clear_exact(Cn, np.full(len(Cn), self.r0))])
+            self._gouge = np.concatenate([self._gouge, np.full(len(first), -1, np.int8)])
             for g in self._cone_a:
                 self._grow_cones(g)
         return slot
@@ -394,8 +438,14 @@ class BroadPhase:
 
     def ball_free(self, C: np.ndarray) -> np.ndarray:
         """True where the gouge check's ball (radius r0) at C is proven clear of the mesh."""
+        C = np.asarray(C, float).reshape(-1, 3)
         slot = self._slots(C)
-        return self._gouge[slot]
+        ask = self._gouge[slot] < 0
+        if ask.any():                             # measured once per centre, when first asked
+            su, first = np.unique(slot[ask], return_index=True)
+            Cn = C[np.nonzero(ask)[0][first]]
+            self._gouge[su] = self._clear_exact(Cn, np.full(len(Cn), self.r0))
+        return self._gouge[slot] == 1
 
     # --- poses ---------------------------------------------------------------------------------
     def _cover(self, grow: float) -> SphereCover:
@@ -510,6 +560,76 @@ class BroadPhase:
             if len(slot) == 0:
                 break
 
+    def _exact_pass(self, C, A, cov: SphereCover, status, unresolved, phi, cell):
+        """The parts the grids left unresolved, asked again with exact bounds
+        (:meth:`exact_bound`: the samples, and near the mesh their triangles), level by level
+        from one sphere per part: a sphere is split while no smaller one is known to fail
+        (its bound plus half the slab below the slab's narrow end). A pose is given up (to
+        fcl, its parts as they were) at its first sphere that cannot clear; the nearest
+        samples of failing spheres are tried as hits. Updates ``status``, ``unresolved`` and
+        the free cones ``phi`` in place."""
+        # not next to a wall that stopped poses before (a hit witness in the centre's cell):
+        # there most poses collide, and fcl settles them in fewer steps
+        near_wall = (self._wit[cell] >= 0).any(axis=1)
+        pose, part = np.nonzero(unresolved & ((status != HIT) & ~near_wall)[:, None])
+        # only while it pays: a pose fcl answers costs about as much as EXACT_COST spheres
+        # here; the pass stops while the last calls decided fewer poses per sphere (decayed
+        # sums, so it is tried again later; the answers are the same either way), and without
+        # such a measure (the first call, or after a pause) it tries a few poses first
+        decided, asked = self._exact_gain
+        if len(pose) == 0 or (asked > EXACT_PROBE and decided * EXACT_COST < asked):
+            self._exact_gain = (0.5 * decided, 0.5 * asked)
+            return
+        members = np.unique(pose)
+        few = EXACT_PROBE // 10
+        groups = [members[:few], members[few:]] if asked <= EXACT_PROBE and len(members) > few else [members]
+        got = spent = 0
+        for k, grp in enumerate(groups):
+            if k and got * EXACT_COST < spent:                 # the first few did not pay
+                break
+            sel = np.isin(pose, grp)
+            g, a = self._exact_run(C, A, cov, status, unresolved, phi, cell, pose[sel], part[sel], grp)
+            got, spent = got + g, spent + a
+        self._exact_gain = (0.5 * decided + got, 0.5 * asked + spent)
+
+    def _exact_run(self, C, A, cov, status, unresolved, phi, cell, pose, part, members):
+        """One run of the exact pass over the (pose, part) pairs given, all of the poses
+        ``members``; returns (poses decided, spheres asked)."""
+        prof = cov.prof
+        before = int((status[members] == HIT).sum())
+        asked0 = self.stats["exact"]
+        lost = np.zeros(len(C), bool)
+        seg = np.zeros(len(pose), np.int64)
+        level = 0
+        while len(pose):
+            zc, s, _ = cov.spheres(part, level, seg)
+            half = 0.5 * (prof.z1[part] - prof.z0[part]) / 2 ** level
+            rmin = np.minimum(prof.rout(part, zc - half), prof.rout(part, zc + half))
+            x = C[pose] + zc[:, None] * A[pose]
+            eb, near = self.exact_bound(x, s + EPS, nearest=True)
+            self.stats["exact"] += len(x)
+            cert = eb >= s + EPS
+            ok = np.nonzero(cert)[0]
+            np.minimum.at(phi, pose[ok], (eb[ok] - s[ok] - EPS) / zc[ok])
+            bad = np.nonzero(~cert)[0]
+            has = bad[near[bad] >= 0]
+            if len(has):
+                found = self._hits(status, self.samples[near[has]], near[has], pose[has], C, A, prof)
+                self._remember(cell, found)
+            hopeless = bad[(eb[bad] + half[bad] < rmin[bad] + EPS)
+                           | (level >= np.minimum(cov.max_level[part[bad]], EXACT_LEVELS))]
+            lost[pose[hopeless]] = True
+            keep = np.zeros(len(pose), bool)
+            keep[bad] = True
+            keep &= ~lost[pose] & (status[pose] != HIT)
+            m = int(keep.sum())
+            pose, part = np.repeat(pose[keep], 2), np.repeat(part[keep], 2)
+            seg = 2 * np.repeat(seg[keep], 2) + np.tile([0, 1], m)
+            level += 1
+        done = members[unresolved[members].any(axis=1) & ~lost[members] & (status[members] != HIT)]
+        unresolved[done] = False
+        return len(done) + int((status[members] == HIT).sum()) - before, self.stats["exact"] - asked0
+
     def decide(self, C: np.ndarray, A: np.ndarray, grow: float = 0.0) -> np.ndarray:
         """FREE (0), HIT (1) or UNKNOWN (-1) per pose (ball centre, unit axis)."""
         C = np.asarray(C, float).reshape(-1, 3)
@@ -553,17 +673,19 @@ class BroadPhase:
         while len(pose):
             zc, s, rmax = cov.spheres(part, level, seg)
             x = C[pose] + zc[:, None] * A[pose]
-            bound, jg, _ = self.lower_bound(x)
+            # (the coarse grid only where the fine one leaves less than a cone of CONE_WANT)
+            bound, jg, _ = self.lower_bound(x, s + EPS + CONE_WANT * zc)
             cert = bound >= s + EPS
             split = np.zeros(len(pose), bool)
             rest = np.nonzero(~cert)[0]
             if len(rest):
-                # the grid node's sample: inside the tool (hit); the sphere is split while it
-                # can be, and a pose left with spheres the grid cannot clear goes to fcl
+                # the grid node's sample: inside the tool (hit)
                 jr = jg[rest]
                 has = jr >= 0
                 found = self._hits(status, self.samples[jr[has]], jr[has], pose[rest[has]], C, A, prof)
                 self._remember(cell, found)
+                # the sphere is split while it can be, and a pose left with spheres the grids
+                # cannot clear is asked again with exact bounds (_exact_pass), else of fcl
                 hopeless = bound[rest] < rmax[rest] + EPS      # no smaller sphere can clear
                 unresolved[pose[rest[hopeless]], part[rest[hopeless]]] = True
                 split[rest[~hopeless]] = True
@@ -577,6 +699,10 @@ class BroadPhase:
             pose, part = np.repeat(pose[keep], 2), np.repeat(part[keep], 2)
             seg = 2 * np.repeat(seg[keep], 2) + np.tile([0, 1], m)
             level += 1
+        if grow == 0.0:
+            # (a grown tool is what the clearance measurement asks, of poses within a hair
+            # of the surface by construction: there the pass decided one pose in 70 spheres)
+            self._exact_pass(C, A, cov, status, unresolved, phi, cell)
         free = np.zeros(n, bool)
         free[todo] = True
         free &= (status != HIT) & ~unresolved.any(axis=1)

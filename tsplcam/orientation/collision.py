@@ -40,7 +40,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..errors import GeometryError, InputError
-from ..toolpath.parallel import worker_count
+from ..toolpath.parallel import map_pieces, worker_count
 from .broadphase import HIT, UNKNOWN, BroadPhase, Profile
 from .tool import Tool
 
@@ -113,9 +113,8 @@ def _patch_grid_error(patch, gu: np.ndarray, gv: np.ndarray) -> tuple[float, flo
     A, B, C, D = G[:-1, :-1], G[1:, :-1], G[1:, 1:], G[:-1, 1:]
     ec = 0.0
     for (fa, fb), tri in (((2 / 3, 1 / 3), (A, B, C)), ((1 / 3, 2 / 3), (A, C, D))):
-        uu = gu[:-1, None] + fa * np.diff(gu)[:, None] + 0 * gv[None, :-1]
-        vv = gv[None, :-1] + fb * np.diff(gv)[None, :] + 0 * gu[:-1, None]
-        P = patch.evaluate(uu.ravel(), vv.ravel()).P
+        # the points of every cell form a tensor grid: one grid evaluation
+        P = patch.evaluate_grid(gu[:-1] + fa * np.diff(gu), gv[:-1] + fb * np.diff(gv)).P
         ec = max(ec, _plane_distance(P, *(t.reshape(-1, 3) for t in tri)).max())
     return max(eu, ec), max(ev, ec)
 
@@ -149,14 +148,23 @@ def tessellate_patch(patch, tolerance: float, max_cells: int = 4000) -> tuple:
     return np.ascontiguousarray(sp.P), _grid_triangles(nu, nv), np.column_stack([sp.u, sp.v]), max(eu, ev)
 
 
+def _tessellate_piece(model, tolerance, patches, i):
+    V, T, _, err = tessellate_patch(model.patches[patches[i]], tolerance)
+    return V, T, err
+
+
 def tessellate_model(model, tolerance: float = 0.005, patches=None) -> TriangleMesh:
-    """Every patch of the model (or those listed) as triangles within ``tolerance`` (mm)."""
+    """Every patch of the model (or those listed) as triangles within ``tolerance`` (mm); the
+    patches in forked processes on the cores there are (the same triangles as in one)."""
     if not tolerance > 0:
         raise InputError(f"tessellation tolerance must be positive, not {tolerance!r}")
+    ks = list(range(len(model.patches)) if patches is None else patches)
+    size = [int(np.prod(model.patches[k].shape)) for k in ks]
+    pieces = map_pieces(_tessellate_piece, (model, tolerance, ks), len(ks), worker_count(None, len(ks)),
+                        order=np.argsort(size, kind="stable")[::-1])
     meshes = []
-    for k in (range(len(model.patches)) if patches is None else patches):
+    for k, (V, T, err) in zip(ks, pieces):
         p = model.patches[k]
-        V, T, _, err = tessellate_patch(p, tolerance)
         meshes.append(TriangleMesh(V, T, np.zeros(len(T), int), [f"patch {k} ({p.name})"], [k], err))
     return TriangleMesh.concat(meshes)
 

@@ -140,19 +140,29 @@ def joint_transitions(grid: MeridianGrid, cost: SmoothingCost, ds: np.ndarray, m
     swing = np.abs(dphi) > IN_PLACE[1] + 1e-9
     air = np.zeros(len(TH), bool) if air is None else air
 
-    def trans(i: int) -> np.ndarray:
-        a, b = TH[i - 1], TH[i]
-        dots = np.cos(a)[:, None] * np.cos(b)[None, :] + (np.sin(a)[:, None] * np.sin(b)[None, :]) * cosD
-        dt = a[:, None] - b[None, :]
-        t = alpha * (dt * dt + D2)
+    def block(i0: int, i1: int) -> np.ndarray:
+        """The transitions into points i0 .. i1 - 1, (i1 - i0, M, M), element for element
+        the same arithmetic as one point at a time."""
+        a, b = TH[i0 - 1:i1 - 1], TH[i0:i1]
+        dots = np.cos(a)[:, :, None] * np.cos(b)[:, None, :]
+        dots += (np.sin(a)[:, :, None] * np.sin(b)[:, None, :]) * cosD
+        dt = a[:, :, None] - b[:, None, :]
+        dt *= dt
+        dt += D2
+        t = np.multiply(alpha, dt, out=dt)
         if beta:
             t += beta * (2.0 - 2.0 * dots)
-        t *= L / ds[i - 1]
-        if not free_step[i]:
-            t[dots < cmax - 1e-12] = np.inf
-        if ds[i - 1] < IN_PLACE[0] and not air[i]:
-            t[swing] = np.inf
+        t *= (L / ds[i0 - 1:i1 - 1])[:, None, None]
+        hard = ~free_step[i0:i1]
+        np.copyto(t, np.inf, where=hard[:, None, None] & (dots < cmax - 1e-12))
+        short = (ds[i0 - 1:i1 - 1] < IN_PLACE[0]) & ~air[i0:i1]
+        if short.any():
+            np.copyto(t, np.inf, where=short[:, None, None] & swing[None])
         return t
+
+    def trans(i: int) -> np.ndarray:
+        return block(i, i + 1)[0]
+    trans.block = block
     return trans
 
 
@@ -271,6 +281,10 @@ def joint_programme(checker, C, grid: MeridianGrid, cost: SmoothingCost, pref, d
         checks += len(unknown)
         status[unknown[~hit], states[unknown[~hit]]] = 0
         bad = unknown[hit]
+        if len(bad) == 0:
+            # every chosen pose is now known free: the node costs of the states did not change
+            # (unknown and free cost the same), so the programme would choose them again
+            return states, rounds, checks, status
         if len(bad):
             # anchors of the stretches around colliding poses: every rotary position
             lo_a = (bad // anchor) * anchor

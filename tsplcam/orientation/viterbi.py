@@ -15,11 +15,10 @@ sums may differ in the last bits with memory alignment from run to run, and no d
 """
 from __future__ import annotations
 
-from typing import Callable
-
 import numpy as np
 
 TIE = 1e-9
+BLOCK = 32               # transitions fetched this many points at a time (arrays that stay in cache)
 
 
 def first_min(v: np.ndarray, axis: int = 0) -> np.ndarray:
@@ -83,18 +82,25 @@ def viterbi(node: np.ndarray, transition) -> tuple:
     if n == 1:
         return np.array([int(first_min(node[0]))], np.int64), None
     if callable(transition):
-        get: Callable = transition
+        # a function with a ``block(i0, i1)`` attribute gives the transitions into points
+        # i0 .. i1 - 1 at once, (i1 - i0, S, S): one array call per block instead of per point
+        block = getattr(transition, "block", None) or (lambda i0, i1: np.stack([transition(i) for i in range(i0, i1)]))
     else:
         trans = np.asarray(transition, float)
         if S == 2:
             return _two_states(node, trans)
-        get = lambda i: trans[i - 1]                      # noqa: E731
+        block = lambda i0, i1: trans[i0 - 1:i1 - 1]      # noqa: E731
     acc = node[0].copy()
     back = np.zeros((n, S), np.int32)
     cols = np.arange(S)
+    T, lo = np.zeros((0, S, S)), 1
     for i in range(1, n):
-        tot = acc[:, None] + get(i)
-        b = first_min(tot, axis=0)
+        if i >= lo + len(T):
+            lo = i
+            T = block(i, min(n, i + BLOCK))
+        tot = acc[:, None] + T[i - lo]
+        m = tot.min(axis=0)
+        b = np.argmax(tot <= m + TIE * np.maximum(1.0, np.abs(m)), axis=0)      # first_min
         acc = tot[b, cols] + node[i]
         back[i] = b
         if not np.isfinite(acc).any():

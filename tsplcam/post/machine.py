@@ -119,6 +119,8 @@ class Machine:
     post: dict = field(default_factory=dict)
     linuxcnc: dict | None = None
     path: str | None = None      # the file it was read from
+    max_feed: float | None = None          # mm/min, the largest programmed feed; None: the slowest linear axis
+    spindle_range: tuple | None = None     # (min, max) rpm the spindle runs at; None: not checked
 
     # --- derived -----------------------------------------------------------------------
     @property
@@ -158,6 +160,31 @@ class Machine:
         return np.array([self.linear[n].max_acceleration for n in LINEAR_NAMES]
                         + [self.tilt.max_acceleration, self.rotary.max_acceleration], float)
 
+    @property
+    def feed_limit(self) -> float:
+        """The largest feed (mm/min) a program may ask for: ``max_feed`` from the file, else the
+        slowest linear axis's velocity (no tool-tip feed along that axis could be faster)."""
+        if self.max_feed is not None:
+            return float(self.max_feed)
+        return float(min(a.max_velocity for a in self.linear.values()))
+
+    def check_feed(self, feed, item: str = "feed") -> None:
+        """Refuse a feed (mm/min) above :attr:`feed_limit`, naming the limit and the machine."""
+        limit = self.feed_limit
+        if feed is not None and float(feed) > limit + 1e-9:
+            where = "max_feed in its file" if self.max_feed is not None else "its slowest linear axis"
+            raise InputError(f"{float(feed):g} mm/min is above the largest feed of machine {self.name}: "
+                             f"{limit:g} mm/min ({where})", item=item)
+
+    def check_spindle(self, rpm, item: str = "spindle") -> None:
+        """Refuse a spindle speed (rpm) outside ``spindle_range``, naming the range."""
+        if rpm is None or self.spindle_range is None:
+            return
+        lo, hi = self.spindle_range
+        if not lo - 1e-9 <= float(rpm) <= hi + 1e-9:
+            raise InputError(f"{float(rpm):g} rpm is outside the spindle range of machine {self.name}: "
+                             f"{lo:g} to {hi:g} rpm (spindle_range in its file)", item=item)
+
     def to_dict(self) -> dict:
         """The machine as a version-1 JSON document (the LinuxCNC form is kept as written)."""
         def rot(ax: RotaryAxis) -> dict:
@@ -184,6 +211,10 @@ class Machine:
             out["linuxcnc"] = dict(self.linuxcnc)
         out.update(tool_length=self.tool_length, safe_z=self.safe_z,
                    part_origin=[float(v) for v in self.part_origin])
+        if self.max_feed is not None:
+            out["max_feed"] = self.max_feed
+        if self.spindle_range is not None:
+            out["spindle_range"] = [float(v) for v in self.spindle_range]
         if self.post:
             out["post"] = dict(self.post)
         return out
@@ -208,6 +239,9 @@ class Machine:
             lines.append(f"  linuxcnc: {pins}")
         lines.append(f"  tool length {self.tool_length:g} mm, safe Z {self.safe_z:g}, "
                      f"part origin {tuple(float(v) for v in self.part_origin)}")
+        spindle = ("not checked" if self.spindle_range is None
+                   else f"{self.spindle_range[0]:g} to {self.spindle_range[1]:g} rpm")
+        lines.append(f"  largest feed {self.feed_limit:g} mm/min, spindle {spindle}")
         if self.path:
             lines.append(f"  file {self.path}")
         return "\n".join(lines)
@@ -291,7 +325,8 @@ def machine_from_dict(doc: dict, path: str | None = None) -> Machine:
     if doc.get("version") != VERSION:
         r.fail("version", f"version {doc.get('version')!r} is not supported (this tsplcam reads {VERSION})")
     r.check_keys(doc, "", {"format", "version", "name", "title", "kind", "controller", "linear_axes",
-                           "rotary_axes", "linuxcnc", "tool_length", "safe_z", "part_origin", "post"},
+                           "rotary_axes", "linuxcnc", "tool_length", "safe_z", "part_origin", "post",
+                           "max_feed", "spindle_range"},
                  required=("name", "kind", "controller", "linear_axes", "rotary_axes"))
     name = doc["name"]
     if not isinstance(name, str) or not name.strip():
@@ -396,15 +431,39 @@ def machine_from_dict(doc: dict, path: str | None = None) -> Machine:
     for k in post:
         if k not in POST_KEYS and k != "comment":
             r.fail(f"post.{k}", f"unknown key (allowed: {', '.join(sorted(POST_KEYS))})")
+    max_feed = r.num(doc, "", "max_feed", positive=True, allow_none=True)
+    spindle_range = None
+    if doc.get("spindle_range") is not None:
+        v = doc["spindle_range"]
+        if (not isinstance(v, list) or len(v) != 2 or not all(
+                isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x) and 0 <= x <= 1e6
+                for x in v) or v[0] >= v[1]):
+            r.fail("spindle_range", f"must be [min, max] rpm with 0 <= min < max, not {v!r}")
+        spindle_range = (float(v[0]), float(v[1]))
     title = doc.get("title", "")
     comment = doc.get("comment", "")
-    return Machine(name=name.strip(), kind=kind, controller=controller, linear=linear, tilt=tilt,
+    machine = Machine(name=name.strip(), kind=kind, controller=controller, linear=linear, tilt=tilt,
                    rotary=rot, tool_length=r.num(doc, "", "tool_length", default=100.0),
                    safe_z=r.num(doc, "", "safe_z", default=linear["Z"].max),
                    part_origin=r.vec3(doc, "", "part_origin", default=(0.0, 0.0, 0.0)),
                    title=title if isinstance(title, str) else "",
                    comment=comment if isinstance(comment, str) else "",
-                   post=dict(post), linuxcnc=dict(lc) if lc is not None else None, path=path)
+                   post=dict(post), linuxcnc=dict(lc) if lc is not None else None, path=path,
+                   max_feed=max_feed, spindle_range=spindle_range)
+    for k in ("approach_feed", "link_feed", "retract_feed"):
+        if isinstance(post.get(k), (int, float)) and not isinstance(post.get(k), bool):
+            _refused(r, machine.check_feed, post[k], f"post.{k}")
+    if isinstance(post.get("spindle"), (int, float)) and not isinstance(post.get("spindle"), bool):
+        _refused(r, machine.check_spindle, post["spindle"], "post.spindle")
+    return machine
+
+
+def _refused(r: "_Reader", check, value, key: str) -> None:
+    """A post default the machine's own limits refuse: an error naming the file and key."""
+    try:
+        check(value)
+    except InputError as exc:
+        r.fail(key, exc.message)
 
 
 # Keys a machine's "post" section may set (defaults for post_program's options).

@@ -146,7 +146,8 @@ def _approach_height(machine, tip0, axis0, q0, L, origin, d):
     return max(h, d)
 
 
-def post_program(toolpath: ToolPath, machine, dialect: str | None = None, **options) -> PostResult:
+def post_program(toolpath: ToolPath, machine, dialect: str | None = None, progress=None,
+                 **options) -> PostResult:
     """Post ``toolpath`` for ``machine`` (a Machine, a shipped name or a file) in ``dialect``
     (heidenhain, sinumerik, fanuc, linuxcnc; default: the machine's controller).
 
@@ -158,13 +159,22 @@ def post_program(toolpath: ToolPath, machine, dialect: str | None = None, **opti
     program_name, inverse_time_max, work_offset, tool_length, part_origin, decimals
     ({"linear", "angle", "vector", "feed"}).
 
+    ``progress``: a tsplcam.progress callback, called for stage "program" as the poses are
+    solved, linearised and written (it may raise Cancelled to stop).
+
     Raises KinematicsError for a pose outside the machine's limits (naming the point) and
-    InputError for bad options.
+    InputError for bad options, or for a feed or spindle speed beyond the machine's limits.
     """
+    def report(progress, stage, done, total):
+        if progress is not None:
+            progress(stage, done, total)
     machine = load_machine(machine)
     name = dialect or machine.post.get("dialect") or machine.controller
     mod = dialects.get(name)
     s = resolve_settings(machine, mod, options)
+    for key in ("approach_feed", "link_feed", "retract_feed"):
+        machine.check_feed(s[key], key)
+    machine.check_spindle(s["spindle"], "spindle")
     if not isinstance(toolpath, ToolPath):
         raise InputError("post_program needs a ToolPath")
     n = len(toolpath)
@@ -178,6 +188,9 @@ def post_program(toolpath: ToolPath, machine, dialect: str | None = None, **opti
     feed = float(toolpath.feed)
     if not np.isfinite(feed) or feed <= 0:
         raise InputError(f"the tool path's feed must be > 0 mm/min, not {feed!r}")
+    machine.check_feed(feed, "feed")
+    steps = 4 if mod.JOINT_SPACE else 3
+    report(progress, "program", 0, steps)
     f_app = float(s["approach_feed"] or feed)
     f_link = float(s["link_feed"] or feed)
     f_ret = float(s["retract_feed"] or feed)
@@ -187,6 +200,7 @@ def post_program(toolpath: ToolPath, machine, dialect: str | None = None, **opti
     sol, tip = solve_joints(machine, tip_in, axis_in, tool_length=L, part_origin=origin,
                             singular_cone=s["singular_cone"], radius=R, patch=toolpath.patch,
                             uv=toolpath.uv, move=toolpath.move, swing_limit=s["swing_limit"])
+    report(progress, "program", 1, steps)
     joints = sol.joints.copy()
     da = int(s["decimals"]["angle"])
     if mod.JOINT_SPACE:
@@ -292,6 +306,7 @@ def post_program(toolpath: ToolPath, machine, dialect: str | None = None, **opti
                                                   np.where(src1 >= 0, src1, src0)), source[lo])
         axes = _axes_of(machine, J, axes, owner, frac, L, origin)
         rapid, fmm, move, source = rapid[owner], fmm[owner], move[owner], new_source
+        report(progress, "program", 2, steps)
 
     # Block times: tip length over feed, or longer where an axis velocity limit says so.
     vmax_min = machine.max_velocity * 60.0                      # per minute
@@ -312,6 +327,7 @@ def post_program(toolpath: ToolPath, machine, dialect: str | None = None, **opti
     time = estimate(J, np.where(rapid, 0.0, t_feed)[1:] * 60.0, machine.max_velocity,
                     machine.max_acceleration, axis_names=machine.axis_names,
                     cut=(move[1:] == Move.CUT), rapid=rapid[1:])
+    report(progress, "program", steps - 1, steps)
 
     blank_pts = np.vstack([toolpath.contact, tip_in])
     lo, hi = blank_pts.min(axis=0) - R, blank_pts.max(axis=0) + R
@@ -327,6 +343,7 @@ def post_program(toolpath: ToolPath, machine, dialect: str | None = None, **opti
     job = Job(machine=machine, settings=s, motion=motion, header=header,
               preposition=(float(J[0, 3]), float(J[0, 4])), blank=(lo, hi), tool_radius=R)
     text = mod.write(job)
+    report(progress, "program", steps, steps)
     notes = []
     if dropped:
         notes.append(f"{dropped} repeated poses left out (zero-length blocks)")

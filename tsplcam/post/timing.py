@@ -79,6 +79,20 @@ class TimeReport:
     limiting_blocks: np.ndarray  # blocks whose time a given axis sets (feed-limited ones not counted)
     feed_limited_blocks: int
     block_time: np.ndarray = field(repr=False, default=None)
+    block_limit: np.ndarray = field(repr=False, default=None)   # per block: axis setting its time, -1 the feed
+
+    def time_by_limit(self) -> dict:
+        """Seconds of the blocks whose time the feed (key "feed") or each axis sets; the values
+        add up to ``total_s``. An axis sets a block's time when its velocity and acceleration
+        limits make it need longer than the programmed feed; an axis cruising at exactly the
+        feed's pace counts as the feed (``block_limit`` allows a relative 1e-9 for rounding,
+        ``limiting_blocks`` does not)."""
+        if self.block_limit is None:
+            raise ValueError("this TimeReport was made without per-block limits")
+        out = {"feed": float(self.block_time[self.block_limit < 0].sum())}
+        for j, n in enumerate(self.axis_names):
+            out[n] = float(self.block_time[self.block_limit == j].sum())
+        return out
 
     def as_dict(self) -> dict:
         axes = {n: {"travel": float(self.travel[j]), "average_speed_per_min": float(self.average_speed[j]),
@@ -135,4 +149,6 @@ def estimate(joints: np.ndarray, t_min: np.ndarray, vmax: np.ndarray, amax: np.n
     return TimeReport(total_s=total, cut_s=float(t[cut].sum()), air_s=float(t[~cut].sum()),
                       feed_only_s=feed_only, blocks=m, axis_names=tuple(axis_names), travel=travel,
                       average_speed=avg, peak_speed=peak, limiting_blocks=limiting,
-                      feed_limited_blocks=int(np.count_nonzero(feed_lim & (t_min > 0))), block_time=t)
+                      feed_limited_blocks=int(np.count_nonzero(feed_lim & (t_min > 0))), block_time=t,
+                      block_limit=np.where(t_min >= (1.0 - 1e-9) * per_axis.max(axis=1), -1, axis_lim)
+                      if m else np.zeros(0, int))

@@ -40,19 +40,30 @@ def _run(index):
         return index, None, repr(exc)
 
 
-def map_pieces(fn, shared: tuple, count: int, workers: int, order=None) -> list:
+def map_pieces(fn, shared: tuple, count: int, workers: int, order=None, tick=None) -> list:
     """[fn(*shared, i) for i in range(count)], in forked processes when ``workers`` > 1.
     ``order``: the indices to hand out first (largest pieces first balances the cores). A
     piece that fails in a worker is run again here, so its error is raised as it would be
-    without workers."""
+    without workers. ``tick(done, count)``, when given, is called in this process as each
+    piece is made (for progress; it may raise to stop the work)."""
     if workers <= 1 or count <= 1:
-        return [fn(*shared, i) for i in range(count)]
+        out = []
+        for i in range(count):
+            out.append(fn(*shared, i))
+            if tick is not None:
+                tick(i + 1, count)
+        return out
     global _TASK
     _TASK = (fn, shared)
     try:
         ctx = multiprocessing.get_context("fork")
         with ctx.Pool(min(workers, count)) as pool:
-            got = pool.map(_run, list(order) if order is not None else range(count), chunksize=1)
+            got, made = [], 0
+            for g in pool.imap_unordered(_run, list(order) if order is not None else range(count)):
+                got.append(g)
+                made += g[2] is None
+                if tick is not None and g[2] is None:
+                    tick(made, count)
     finally:
         _TASK = None
     out = [None] * count

@@ -232,18 +232,23 @@ def _step_piece(model, steps, settings, i):
     return sp, time.perf_counter() - t0
 
 
-def build_path(model, steps, settings: PathSettings, name: str = "", workers: int | None = None) -> ToolPath:
+def build_path(model, steps, settings: PathSettings, name: str = "", workers: int | None = None,
+               progress=None) -> ToolPath:
     """The whole path for ``steps``: objects with patch, start, finish (None: free),
     crossfeed and retract_before (a ProcessingList's steps, or the baseline's). The steps'
     points are made in ``workers`` processes (default: one per core, see
-    :mod:`tsplcam.toolpath.parallel`), the same points as in one."""
+    :mod:`tsplcam.toolpath.parallel`), the same points as in one. ``progress``: a
+    tsplcam.progress callback, stage "path", one unit per step made."""
     settings.check()
     t_start = time.perf_counter()
     r = settings.tool_radius
     steps = list(steps)
     size = [int(np.prod(model.patches[st.patch].shape)) for st in steps]
+    tick = None if progress is None else (lambda done, total: progress("path", done, total))
+    if tick is not None:
+        tick(0, len(steps))
     pieces = map_pieces(_step_piece, (model, steps, settings), len(steps),
-                        worker_count(workers, len(steps)), order=np.argsort(size)[::-1])
+                        worker_count(workers, len(steps)), order=np.argsort(size)[::-1], tick=tick)
     clearance = None
     rows = []                 # per chunk: (P, n, axis, move, patch, uv, line)
     per_patch = []
@@ -301,7 +306,8 @@ def zigzag_path(model, plist=None, tool_radius: float = 0.5, scallop: float = 0.
                 chord_tol: float = 0.001, **options) -> ToolPath:
     """The paper's finishing path: ``model`` (tsplcam Model), ``plist`` (ProcessingList;
     default: planned here), ball radius and scallop limit in mm. ``options``: the other
-    fields of :class:`PathSettings`."""
+    fields of :class:`PathSettings`, and ``progress`` (a tsplcam.progress callback)."""
+    progress = options.pop("progress", None)
     settings = PathSettings(tool_radius=tool_radius, scallop=scallop, chord_tol=chord_tol, **options)
     settings.check()
     if plist is None:
@@ -315,6 +321,6 @@ def zigzag_path(model, plist=None, tool_radius: float = 0.5, scallop: float = 0.
             raise InputError("the step is incomplete (start, finish and crossfeed are needed; "
                              "complete the list with `tsplcam plan --complete`)",
                              item=f"step {i + 1} (patch {s.patch})")
-    tp = build_path(model, plist.steps, settings, getattr(model, "name", ""))
+    tp = build_path(model, plist.steps, settings, getattr(model, "name", ""), progress=progress)
     tp.info["plan"] = {"order": plist.order, "retractions": plist.retractions}
     return tp

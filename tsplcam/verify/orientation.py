@@ -20,6 +20,7 @@ rotary travel and machining time.
 """
 from __future__ import annotations
 
+import weakref
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -103,6 +104,163 @@ def min_clearance(checker, centers, axes, levels=(0.05, 0.1, 0.2, 0.5, 1.0, 2.0,
     return float(d[k]), int(pick[k])
 
 
+def clearance_levels(top: float = 10.0, step: float = 0.01, ratio: float = 1.02) -> np.ndarray:
+    """Growths (mm) :func:`clearance_profile` tries: every ``step`` up to 0.5 mm, then
+    geometric by ``ratio`` up to ``top``."""
+    fine = np.arange(0.0, 0.5, step)
+    coarse = 0.5 * ratio ** np.arange(int(np.ceil(np.log(top / 0.5) / np.log(ratio))) + 1)
+    return np.unique(np.concatenate([fine, np.minimum(coarse, top)]))
+
+
+def offset_profile(part, grow: float, max_angle: float = 15.0):
+    """The (radius, height) profile of a tool part (a frustum about the axis) grown by ``grow``
+    mm in every direction, i.e. of its Minkowski sum with a ball: from the axis at the bottom
+    to the axis at the top, the corners rounded by arcs drawn as circumscribed polylines of
+    at most ``max_angle`` degrees a segment. A body of revolution is closest to a point in the
+    point's meridian plane, so offsetting the profile offsets the solid; the polyline contains
+    the arcs and strays from them by at most ``grow * (1 / cos(max_angle / 2) - 1)``."""
+    if grow <= 0:
+        return np.array([0.0, part.r0, part.r1, 0.0]), np.array([part.z0, part.z0, part.z1, part.z1])
+    normal = -np.arctan2(part.r1 - part.r0, part.z1 - part.z0)     # the side's outward normal
+    r, z = [0.0], [part.z0 - grow]
+    for (cr, cz), a0, a1 in (((part.r0, part.z0), -0.5 * np.pi, normal), ((part.r1, part.z1), normal, 0.5 * np.pi)):
+        n = max(1, int(np.ceil(np.degrees(a1 - a0) / max_angle)))
+        step = (a1 - a0) / n
+        mid = a0 + (np.arange(n) + 0.5) * step                     # tangents at a0, a0 + step, ... meet here
+        ends = np.array([a0, a1])
+        g = grow / np.cos(0.5 * step)
+        r += [cr + grow * np.cos(ends[0]), *(cr + g * np.cos(mid)), cr + grow * np.cos(ends[1])]
+        z += [cz + grow * np.sin(ends[0]), *(cz + g * np.sin(mid)), cz + grow * np.sin(ends[1])]
+    r.append(0.0)
+    z.append(part.z1 + grow)
+    return np.array(r), np.array(z)
+
+
+def revolved_mesh(profiles, polygon_tolerance: float = 0.01):
+    """Closed triangle meshes (vertices, triangles) of profiles (radius, height) revolved about
+    +z, one per profile, joined: each ring a polygon circumscribing its circle within
+    ``polygon_tolerance``, the first and last profile points on the axis."""
+    from ..orientation.collision import polygon_segments
+    V, T = [], []
+    base = 0
+    for r, z in profiles:
+        r, z = np.asarray(r, float), np.asarray(z, float)
+        n = polygon_segments(float(r.max()), polygon_tolerance)
+        a = np.arange(n) * 2.0 * np.pi / n
+        ring = np.column_stack([np.cos(a), np.sin(a)]) / np.cos(np.pi / n)
+        m = len(r) - 2                                             # rings
+        rings = np.concatenate([(ring[None, :, :] * r[1:-1, None, None]).reshape(-1, 2),
+                                np.repeat(z[1:-1], n)[:, None]], axis=1)
+        pts = np.vstack([[0.0, 0.0, z[0]], rings, [0.0, 0.0, z[-1]]])
+        k = np.arange(n)
+        k1 = (k + 1) % n
+        tri = [np.column_stack([np.zeros(n, int), 1 + k1, 1 + k])]
+        for i in range(m - 1):
+            lo, hi = 1 + i * n, 1 + (i + 1) * n
+            tri += [np.column_stack([lo + k, lo + k1, hi + k1]), np.column_stack([lo + k, hi + k1, hi + k])]
+        top = 1 + m * n
+        tri.append(np.column_stack([np.full(n, top), 1 + (m - 1) * n + k, 1 + (m - 1) * n + k1]))
+        V.append(pts)
+        T.append(np.concatenate(tri) + base)
+        base += len(pts)
+    return np.concatenate(V), np.concatenate(T)
+
+
+# Grown tools of the clearance gauges, per checker (built once, kept while the checker lives).
+_GROWN = weakref.WeakKeyDictionary()
+
+
+class ClearanceGauge:
+    """Distances between some tool parts and a checker's workpiece (its triangles: model,
+    stock, fixtures), for plots along a path.
+
+    ``parts``: names of the tool parts measured (default every part but the flutes: the shank
+    and holder). :meth:`measure` grows the parts (:func:`offset_profile`) and brackets each
+    pose's distance by bisection over the growths of :func:`clearance_levels`: about eight BVH
+    collision queries a pose instead of one fcl distance query (tens of ms) a pose. The grown
+    tools are built once per growth and kept with the checker, so later calls and later gauges
+    on the same checker are cheaper."""
+
+    def __init__(self, checker, parts=None, top: float = 10.0, step: float = 0.01, ratio: float = 1.02):
+        import fcl
+
+        from ..orientation.collision import _bvh
+        names = [p.name for p in checker.tool.parts()]
+        self.parts = [p for p in checker.tool.parts() if (p.name in parts if parts is not None else p.name != "flutes")]
+        if not self.parts:
+            raise ValueError(f"no tool part named {parts!r} (parts: {names})")
+        self.levels = clearance_levels(top, step, ratio)
+        self.polygon_tolerance = checker.polygon_tolerance
+        # the checker's own workpiece object (its BVH takes seconds to build on big models),
+        # else one built from its triangles
+        self._wp = getattr(checker, "_wp", None)
+        if self._wp is None:
+            mesh = checker.mesh
+            self._wp = fcl.CollisionObject(_bvh(mesh.vertices, mesh.triangles), fcl.Transform())
+        self._req = fcl.CollisionRequest()
+        self._tools = _GROWN.setdefault(checker, {})
+        self._key = tuple(self.parts)
+
+    def _tool(self, m: int):
+        g = float(self.levels[m])
+        key = (self._key, g)
+        if key not in self._tools:
+            import fcl
+
+            from ..orientation.collision import _bvh
+            # as fine as the bracket needs: polygons within the checker's tolerance or 1 % of the
+            # growth, arcs within 0.005 mm or 1 % of it
+            arc = 2.0 * np.degrees(np.arccos(g / (g + max(0.005, 0.01 * g)))) if g > 0 else 15.0
+            V, T = revolved_mesh([offset_profile(p, g, max_angle=float(np.clip(arc, 15.0, 60.0))) for p in self.parts],
+                                 max(self.polygon_tolerance, 0.01 * g))
+            self._tools[key] = fcl.CollisionObject(_bvh(V, T), fcl.Transform())
+        return self._tools[key]
+
+    def _collides(self, C, Q, idx, m: int) -> np.ndarray:
+        import fcl
+        obj, wp, req = self._tool(m), self._wp, self._req
+        hit = np.zeros(len(idx), bool)
+        for j, i in enumerate(idx.tolist()):
+            obj.setQuatRotation(Q[i])
+            obj.setTranslation(C[i])
+            hit[j] = fcl.collide(obj, wp, req, fcl.CollisionResult()) > 0
+        return hit
+
+    def measure(self, centers, axes) -> np.ndarray:
+        """Distance (mm) per pose (ball centre, unit axis), inf beyond the top level: the
+        middle of the bracket, so within ``step / 2`` below 0.5 mm and ``(ratio - 1) / 2`` of the
+        value above, less at most the polygon tolerance (circumscribed polygons: the checker's,
+        or 1 % of the growth when larger) and the corner arcs of :func:`offset_profile`
+        (0.005 mm or 1 % of the growth). No margin is added: the distance itself."""
+        from ..orientation.collision import axis_quaternions
+        C = np.asarray(centers, float).reshape(-1, 3)
+        Q = axis_quaternions(np.asarray(axes, float).reshape(-1, 3))
+        k = len(self.levels)
+        lo = np.full(len(C), -1)
+        hi = np.full(len(C), k)
+        while True:
+            act = np.nonzero(hi - lo > 1)[0]
+            if len(act) == 0:
+                break
+            mid = (lo[act] + hi[act]) // 2
+            for m in np.unique(mid):
+                sel = act[mid == m]
+                hit = self._collides(C, Q, sel, int(m))
+                hi[sel[hit]] = m
+                lo[sel[~hit]] = m
+        out = np.full(len(C), np.inf)
+        got = hi < k
+        out[got] = 0.5 * (self.levels[np.maximum(lo[got], 0)] + self.levels[hi[got]])
+        return out
+
+
+def clearance_profile(checker, centers, axes, parts=None, top: float = 10.0, step: float = 0.01,
+                      ratio: float = 1.02) -> np.ndarray:
+    """Distance (mm) of every pose between the tool parts (default: shank and holder) and the
+    checker's workpiece, inf beyond ``top``; see :class:`ClearanceGauge`."""
+    return ClearanceGauge(checker, parts, top, step, ratio).measure(centers, axes)
+
+
 def _simple_ac(axis):
     """ISO A/C angles (deg) (docs/post.md section 1), C unwound, held through the pole."""
     K = np.asarray(axis, float)
@@ -150,7 +308,11 @@ def orientation_metrics(path: ToolPath, checker=None, machine=None, v_rotary=(54
         if isinstance(machine, str):
             machine = load_machine(machine)
         sol, tip = solve_joints(machine, path.tip, K, radius=path.tool_radius, patch=path.patch, uv=path.uv)
-        J = sol.joints
+        # joints and tips to 1e-6 mm or deg, far below what a program writes: the time
+        # estimate's junction speeds and maxima would carry the inverse kinematics' last bits
+        # (which follow the floating-point path taken) into the report's figures
+        J = np.round(sol.joints, 6)
+        tip = np.round(tip, 6)
         t_min = np.linalg.norm(np.diff(tip, axis=0), axis=1) / path.feed * 60.0
         rep = estimate(J, t_min, machine.max_velocity, machine.max_acceleration,
                        axis_names=machine.axis_names, cut=cut)

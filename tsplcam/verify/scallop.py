@@ -170,6 +170,20 @@ class Swept:
 
 
 @dataclass
+class HeightSamples:
+    """Every material height :func:`measure` found, for maps: the grid samples and the
+    refined ridge points, each with its patch and (u, v); heights in mm (negative inside the
+    swept volume; samples no ball comes near are left out)."""
+    patch: np.ndarray            # (n,) int
+    uv: np.ndarray               # (n, 2)
+    height: np.ndarray           # (n,) mm
+    ridge: np.ndarray            # (n,) bool: a refined cusp ridge, not a grid sample
+
+    def __len__(self) -> int:
+        return len(self.height)
+
+
+@dataclass
 class ScallopReport:
     """Measured on the surface (mm). ``max_scallop`` is the largest material height found
     (grid and ridges); ``cusp_*`` are ridge heights between consecutive lines of a patch;
@@ -189,9 +203,10 @@ class ScallopReport:
     gouge_at: tuple
     spacing: float
     cusp_heights: np.ndarray = field(default=None, repr=False)
+    heights: HeightSamples | None = field(default=None, repr=False)   # with measure(heights=True)
 
     def as_dict(self) -> dict:
-        d = {k: getattr(self, k) for k in self.__dataclass_fields__ if k != "cusp_heights"}
+        d = {k: getattr(self, k) for k in self.__dataclass_fields__ if k not in ("cusp_heights", "heights")}
         return d
 
 
@@ -237,7 +252,8 @@ def _refine_ridges(sw: Swept, model, grid: SurfaceGrid, i, j, A, B, iterations: 
 
 
 def measure(path: ToolPath, model, scallop: float | None = None, spacing: float | None = None,
-            patches=None, region=None, piece: float | None = None, progress=None) -> ScallopReport:
+            patches=None, region=None, piece: float | None = None, progress=None,
+            heights: bool = False) -> ScallopReport:
     """Scallop, cusps and gouges of ``path`` on ``model`` (see the module doc).
 
     ``scallop``: the limit the path was made for (default: the path's settings); it sets
@@ -245,6 +261,7 @@ def measure(path: ToolPath, model, scallop: float | None = None, spacing: float 
     length. ``patches`` / ``region`` restrict the sampled surface (tests on parts of a model).
     The surface is measured one patch at a time, so memory stays bounded by the largest
     patch's grid however big the model; ``progress(done, total)`` is called after each.
+    ``heights``: keep every sample's height in the report (:class:`HeightSamples`, for maps).
     """
     r = path.tool_radius
     if scallop is None:
@@ -261,7 +278,7 @@ def measure(path: ToolPath, model, scallop: float | None = None, spacing: float 
     todo = list(range(len(model.patches)) if patches is None else patches)
     parts = []
     for k, p in enumerate(todo):
-        part = _measure_patches(sw, model, spacing, [p], region, line_patch, r)
+        part = _measure_patches(sw, model, spacing, [p], region, line_patch, r, heights)
         if part is not None:
             parts.append(part)
         if progress is not None:
@@ -281,10 +298,18 @@ def measure(path: ToolPath, model, scallop: float | None = None, spacing: float 
         cusp_mean=float(cusp.mean()) if len(cusp) else np.nan, cusp_max=float(cusp.max()) if len(cusp) else np.nan,
         cusps=int(len(cusp)), ridges=sum(x["ridges"] for x in parts), samples=samples, uncovered=uncovered,
         gouge_points=gp, gouge_chords=gc, gouge_air=ga, gouge_at=gat, spacing=float(spacing),
-        cusp_heights=cusp)
+        cusp_heights=cusp, heights=_height_samples(parts) if heights else None)
 
 
-def _measure_patches(sw: "Swept", model, spacing: float, patches, region, line_patch: dict, r: float):
+def _height_samples(parts) -> HeightSamples:
+    kept = [x["heights"] for x in parts]
+    if not kept:
+        return HeightSamples(np.zeros(0, int), np.zeros((0, 2)), np.zeros(0), np.zeros(0, bool))
+    return HeightSamples(*(np.concatenate([k[i] for k in kept]) for i in range(4)))
+
+
+def _measure_patches(sw: "Swept", model, spacing: float, patches, region, line_patch: dict, r: float,
+                     keep: bool = False):
     """The figures of one grid (one patch), to be aggregated by :func:`measure`."""
     grid = surface_grid(model, spacing, patches, region)
     if len(grid) == 0:
@@ -331,7 +356,14 @@ def _measure_patches(sw: "Swept", model, spacing: float, patches, region, line_p
             at = (int(grid.patch[gi]), float(ridge_uv[ri, 0]), float(ridge_uv[ri, 1]))
         hmax = float(all_h[k])
     finite = hgt[np.isfinite(hgt)]
-    return {"samples": len(grid), "uncovered": uncovered, "cusp": cusp, "hmax": hmax, "at": at,
+    kept = None
+    if keep:
+        g, rf = np.isfinite(hgt), np.isfinite(ridge_h)
+        rp = grid.patch[pairs[:, 0]] if len(pairs) else np.zeros(0, int)
+        kept = (np.concatenate([grid.patch[g], rp[rf]]), np.concatenate([grid.uv[g], ridge_uv[rf]]),
+                np.concatenate([hgt[g], ridge_h[rf]]),
+                np.concatenate([np.zeros(int(g.sum()), bool), np.ones(int(rf.sum()), bool)]))
+    return {"heights": kept, "samples": len(grid), "uncovered": uncovered, "cusp": cusp, "hmax": hmax, "at": at,
             "finite": len(finite), "material_sum": float(np.sum(np.maximum(finite, 0.0))),
             "ridges": int(len(ridge_h)), "gouge": gouges(sw.path, model, grid)}
 

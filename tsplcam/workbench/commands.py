@@ -186,52 +186,53 @@ class PlanCommand:
                 FreeCADGui.Selection.addSelection(obj)
 
 
-class ToolPathCommand:
+class _MakeCommand:
+    """Make an object of each selected input (or of the document's only one) and select it.
+    Subclasses name the input kind and the maker as (module, function) of tsplcam.workbench."""
+    KIND = ("", "")
+    MAKER = ("", "")
+
+    def _inputs(self):
+        import importlib
+        module, name = self.KIND
+        return _selected_or_only(getattr(importlib.import_module("tsplcam.workbench." + module), name))
+
+    def IsActive(self):
+        return FreeCAD.ActiveDocument is not None and bool(self._inputs())
+
+    def Activated(self):
+        import importlib
+        module, name = self.MAKER
+        make = getattr(importlib.import_module("tsplcam.workbench." + module), name)
+        for source in self._inputs():
+            obj = make(source)
+            if obj is not None:
+                FreeCADGui.Selection.clearSelection()
+                FreeCADGui.Selection.addSelection(obj)
+
+
+class ToolPathCommand(_MakeCommand):
     """Compute the finishing path of the selected processing list (or the only one)."""
+    KIND = ("planobject", "is_plan_object")
+    MAKER = ("pathobject", "make_tool_path")
 
     def GetResources(self):
         return {"Pixmap": icon("toolpath"), "MenuText": "Tool path",
                 "ToolTip": "Isoparametric zigzags patch after patch in the order of the processing "
-                           "list, side steps under the scallop height; change ToolRadius, Scallop "
-                           "or ChordTolerance in its properties and recompute"}
-
-    def _plans(self):
-        from tsplcam.workbench.planobject import is_plan_object
-        return _selected_or_only(is_plan_object)
-
-    def IsActive(self):
-        return FreeCAD.ActiveDocument is not None and bool(self._plans())
-
-    def Activated(self):
-        from tsplcam.workbench.pathobject import make_tool_path
-        for plan in self._plans():
-            obj = make_tool_path(plan)
-            if obj is not None:
-                FreeCADGui.Selection.clearSelection()
+                           "list, stepover under the scallop height; double-click the path for its "
+                           "settings (mm, feed in mm/min), Generate with progress and Cancel"}
 
 
-class ProgramCommand:
+class ProgramCommand(_MakeCommand):
     """Orient the tool and post the program of the selected tool path (or the only one)."""
+    KIND = ("pathobject", "is_path_object")
+    MAKER = ("programobject", "make_program")
 
     def GetResources(self):
         return {"Pixmap": icon("program"), "MenuText": "Post program",
                 "ToolTip": "Collision-free tool axes (smooth by default) and the machine program of the "
-                           "tool path; pick tool, machine and controller in its properties and recompute"}
-
-    def _paths(self):
-        from tsplcam.workbench.pathobject import is_path_object
-        return _selected_or_only(is_path_object)
-
-    def IsActive(self):
-        return FreeCAD.ActiveDocument is not None and bool(self._paths())
-
-    def Activated(self):
-        from tsplcam.workbench.programobject import make_program
-        for path in self._paths():
-            obj = make_program(path)
-            if obj is not None:
-                FreeCADGui.Selection.clearSelection()
-                FreeCADGui.Selection.addSelection(obj)
+                           "tool path; double-click the program for its settings, Generate with progress "
+                           "and Cancel"}
 
 
 class SaveProgramCommand:
@@ -267,6 +268,41 @@ class SaveProgramCommand:
                 messages.exception("Save G-code", exc, f"writing {path}")
             else:
                 messages.info(f"{prog.Label}: wrote {path}")
+
+
+class CamJobCommand(_MakeCommand):
+    """Put the selected program's moves into a FreeCAD CAM Job (tool controller, stock, work
+    offset), where the CAM workbench's posts can read them."""
+    KIND = ("programobject", "is_program_object")
+    MAKER = ("camjob", "make_cam_job")
+
+    def GetResources(self):
+        return {"Pixmap": icon("camjob"), "MenuText": "CAM job from program",
+                "ToolTip": "A FreeCAD CAM Job holding the selected program's moves (G0/G1 with X Y Z and the "
+                           "rotary axes, feeds), with a tool controller (tool number, spindle speed), the stock "
+                           "and the work offset: the CAM workbench lists it and its posts read it"}
+
+
+class EditCommand:
+    """Open the task panel of the selected processing list, tool path or program."""
+
+    def GetResources(self):
+        return {"Pixmap": icon("settings"), "MenuText": "Edit settings...",
+                "ToolTip": "Task panel of the selected processing list, tool path or program: every option "
+                           "with its unit, Generate with progress and Cancel (also by double-click)"}
+
+    def _objects(self):
+        from tsplcam.workbench import pathobject, planobject, programobject
+        kinds = (planobject.is_plan_object, pathobject.is_path_object, programobject.is_program_object)
+        return [o for o in FreeCADGui.Selection.getSelection() if any(k(o) for k in kinds)]
+
+    def IsActive(self):
+        return FreeCAD.ActiveDocument is not None and len(self._objects()) == 1 and \
+            not FreeCADGui.Control.activeDialog()
+
+    def Activated(self):
+        obj = self._objects()[0]
+        FreeCADGui.ActiveDocument.setEdit(obj.Name, 0)
 
 
 class _ToggleCommand:
@@ -326,6 +362,8 @@ COMMANDS = {
     "Tsplcam_ToolPath": ToolPathCommand,
     "Tsplcam_Program": ProgramCommand,
     "Tsplcam_SaveProgram": SaveProgramCommand,
+    "Tsplcam_CamJob": CamJobCommand,
+    "Tsplcam_Edit": EditCommand,
     "Tsplcam_About": AboutCommand,
 }
 
@@ -349,6 +387,10 @@ def available() -> dict:
     except ImportError:
         out.pop("Tsplcam_Program")
         out.pop("Tsplcam_SaveProgram")
+        out.pop("Tsplcam_CamJob")
+    from tsplcam.workbench.camjob import cam_available
+    if not cam_available():
+        out.pop("Tsplcam_CamJob", None)
     return out
 
 

@@ -357,3 +357,31 @@ def segments_by_move(points: np.ndarray, move: np.ndarray) -> dict:
     for a, b in zip(starts, stops):              # segments a..b-1 join points a..b
         out.setdefault(int(kind[a]), []).append(points[a:b + 1])
     return out
+
+
+def step_highlight(model, step, samples: int = 33, lift: float | None = None):
+    """What shows one step of a processing list: the outline of its patch (four lifted
+    edge polylines), its start and finish corner points (or None where not chosen yet), and
+    its start -> finish curve (or None)."""
+    size = model_size(model)
+    lift = 0.006 * size if lift is None else lift
+    patch = model.patches[step.patch]
+    t = np.linspace(0.0, 1.0, samples)
+    outline = []
+    for k in range(4):
+        a, b = CORNER_UV[k], CORNER_UV[(k + 1) % 4]
+        uv = a[None, :] * (1 - t)[:, None] + b[None, :] * t[:, None]
+        sp = patch.evaluate(uv[:, 0], uv[:, 1])
+        outline.append(np.asarray(sp.P, float) + lift * _finite_unit(sp.normal))
+
+    def corner(c):
+        if c is None:
+            return None
+        sp = patch.evaluate(np.array([CORNER_UV[c][0]]), np.array([CORNER_UV[c][1]]))
+        return np.asarray(sp.P, float) + lift * _finite_unit(sp.normal)
+    curve = None
+    if step.start is not None and step.finish is not None:
+        uv = _quadratic_uv(CORNER_UV[step.start], (0.5, 0.5), CORNER_UV[step.finish], t)
+        sp = patch.evaluate(uv[:, 0], uv[:, 1])
+        curve = np.asarray(sp.P, float) + 1.5 * lift * _finite_unit(sp.normal)
+    return outline, corner(step.start), corner(step.finish), curve

@@ -41,8 +41,8 @@ def import_file(filename: str, doc=None, fmt: str | None = None, new_document: s
                          on_failure=(lambda: FreeCAD.closeDocument(doc.Name)) if created else None)
     if obj is None:
         return None
-    messages.info(f"imported {os.path.basename(filename)}: {obj.Patches} patches, "
-                  f"{obj.ExtraordinaryPoints} extraordinary points ({obj.Valences or 'none'})")
+    from .modelobject import describe
+    messages.info(f"imported {os.path.basename(filename)}: {describe(obj)}")
     return obj
 
 

@@ -20,6 +20,7 @@ from ..errors import TsplcamError
 show_dialogs = True
 recorded: list[tuple[str, str, bool]] = []
 _MAX_RECORDED = 200
+_panels: list = []          # task panels showing errors themselves, innermost last
 
 
 def describe(exc: BaseException, action: str = "") -> str:
@@ -43,11 +44,14 @@ def _record(title: str, text: str, is_error: bool) -> None:
 
 
 def error(title: str, text: str) -> str:
-    """Print ``text`` as an error and show it in a box (GUI, unless dialogs are off)."""
+    """Print ``text`` as an error and show it where the person works: in the open task
+    panel that asked for the work (``in_panel``), else in a box (GUI, unless dialogs are off)."""
     text = printable(text)
     _record(title, text, True)
     FreeCAD.Console.PrintError(f"tsplcam: {text}\n")
-    if show_dialogs and FreeCAD.GuiUp:
+    if _panels:
+        _panels[-1](title, text)
+    elif show_dialogs and FreeCAD.GuiUp:
         import FreeCADGui
         from PySide import QtGui
         QtGui.QMessageBox.critical(FreeCADGui.getMainWindow(), title, text)
@@ -75,6 +79,17 @@ def exception(title: str, exc: BaseException, action: str = "") -> str:
     if not isinstance(exc, TsplcamError):
         FreeCAD.Console.PrintMessage("".join(traceback.format_exception(type(exc), exc, exc.__traceback__)))
     return error(title, describe(exc, action))
+
+
+@contextlib.contextmanager
+def in_panel(show):
+    """Inside the block errors go to ``show(title, text)`` (a task panel's error line next to
+    the control or step concerned) instead of a message box; the Report view gets them too."""
+    _panels.append(show)
+    try:
+        yield
+    finally:
+        _panels.remove(show)
 
 
 @contextlib.contextmanager

@@ -154,9 +154,13 @@ class TsplcamModel(FeatureProxy):
                      "How the surface is defined (catmull-clark cage, T-spline, NURBS, ...)", read_only=True)
         add_property(obj, "App::PropertyInteger", "Patches", g, "Number of patches", read_only=True)
         add_property(obj, "App::PropertyInteger", "ExtraordinaryPoints", g,
-                     "Extraordinary points inside the surface", read_only=True)
+                     "Extraordinary points inside the surface (valence other than 4)", read_only=True)
+        add_property(obj, "App::PropertyInteger", "BoundaryExtraordinary", g,
+                     "Extraordinary points on the boundary (valence other than 3, marked b in Valences)",
+                     read_only=True)
         add_property(obj, "App::PropertyString", "Valences", g,
-                     "Valences of the extraordinary points (boundary ones marked b)", read_only=True)
+                     "Valences of the extraordinary points, inside first, then those on the boundary "
+                     "(marked b)", read_only=True)
         add_property(obj, "App::PropertyVector", "Size", g,
                      "Extent of the model along x, y, z (mm)", read_only=True)
         add_property(obj, "App::PropertyString", "Units", g, "Length unit of the model", "mm",
@@ -170,7 +174,9 @@ class TsplcamModel(FeatureProxy):
             self._model = None
             self._model_key = None
 
-    def execute(self, obj):
+    TITLE = "tsplcam model"
+
+    def recompute(self, obj):
         """Recompute: (re)read the model if its file changed, refresh the information."""
         self.update_info(obj, self.model(obj))
 
@@ -201,15 +207,37 @@ class TsplcamModel(FeatureProxy):
     @staticmethod
     def update_info(obj, model) -> None:
         interior = [e for e in model.extraordinary if not e.boundary]
+        boundary = [e for e in model.extraordinary if e.boundary]
         set_read_only(obj, "Kind", str(model.kind))
         set_read_only(obj, "Patches", len(model.patches))
         set_read_only(obj, "ExtraordinaryPoints", len(interior))
-        vals = [str(e.valence) + ("b" if e.boundary else "") for e in model.extraordinary]
-        set_read_only(obj, "Valences", " ".join(vals))
+        set_read_only(obj, "BoundaryExtraordinary", len(boundary))
+        set_read_only(obj, "Valences", valences_text(model))
         lo, hi = model.bounding_box(9)
         size = FreeCAD.Vector(*[float(x) for x in (hi - lo)])
         if obj.Size != size:
             obj.Size = size
+
+
+def plural(n: int, word: str, many: str | None = None) -> str:
+    """'1 patch', '2 patches', '0 extraordinary points'."""
+    return f"{n} {word if n == 1 else many or (word + ('es' if word.endswith(('ch', 'sh', 's', 'x')) else 's'))}"
+
+
+def valences_text(model) -> str:
+    """Valences of the extraordinary points, inside first, then the boundary ones marked b."""
+    eps = sorted(model.extraordinary, key=lambda e: bool(e.boundary))
+    return " ".join(str(e.valence) + ("b" if e.boundary else "") for e in eps)
+
+
+def describe(obj) -> str:
+    """'5 patches, 4 extraordinary points (3 3 3 3)' with boundary ones counted apart, so a
+    boundary valence never stands next to an interior count of 0."""
+    text = f"{plural(obj.Patches, 'patch')}, {plural(obj.ExtraordinaryPoints, 'extraordinary point')}"
+    nb = int(getattr(obj, "BoundaryExtraordinary", 0))
+    if nb:
+        text += f" inside and {nb} on the boundary"
+    return text + (f" ({obj.Valences})" if obj.Valences else "")
 
 
 def is_model_object(obj) -> bool:

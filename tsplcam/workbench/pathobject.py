@@ -1,9 +1,11 @@
 """The tool-path document object (``TsplcamToolPath``): the finishing path of a processing list.
 
-Inputs are a linked TsplcamProcessingList (which links its model) and the settings
-(ball radius, scallop height, chord tolerance, feed) as properties. The path comes from
-``tsplcam.toolpath.zigzag_path`` on recompute, and only when an input changed: it takes
-seconds. It is kept inside the .FCStd as a .npz of the ToolPath arrays (``PathFile``) so
+Inputs are a linked TsplcamProcessingList (which links its model) and the path options of
+:class:`tsplcam.settings.JobSettings` as properties (``fields.PATH_FIELDS``: ball radius,
+scallop height, chord tolerance, longest move, feed in mm/min, retract clearance and mode,
+balance). The path comes from the engine's ``tsplcam.program.make_path`` on recompute, and
+only when an input changed: it takes seconds (in the GUI in a child process, with progress
+and cancel: ``runner``). It is kept inside the .FCStd as a .npz of the ToolPath arrays (``PathFile``) so
 that a reloaded document shows it at once; ``InputsKey`` records what it was made from.
 """
 from __future__ import annotations
@@ -23,9 +25,11 @@ from . import messages
 from .transaction import in_transaction
 from .modelobject import model_of
 from .planobject import is_plan_object, plan_of
+from .fields import PATH_FIELDS, add_properties, set_values, values_of
 from .proxy import FeatureProxy, add_property, set_read_only
 
 TITLE = "Tool path"
+DEFAULT_RADIUS = 0.5        # mm: the default tool's ball (ball1_keycap)
 ARRAYS = ("contact", "normal", "axis", "move", "patch", "uv", "line")
 
 
@@ -56,40 +60,39 @@ def load_npz(path: str):
 class TsplcamToolPath(FeatureProxy):
     """Finishing path: zigzags patch after patch in the order of the processing list."""
     TYPE = "TsplcamToolPath"
-    VERSION = 1
+    VERSION = 2
+    TITLE = TITLE
 
     _path = None
     _path_file = None
 
     @staticmethod
-    def ensure_properties(obj) -> None:
+    def ensure_properties(obj, values: dict | None = None) -> None:
         g = "Tool path"
         add_property(obj, "App::PropertyLink", "ProcessingList", g, "The processing list this path follows")
-        add_property(obj, "App::PropertyLength", "ToolRadius", g, "Ball-end radius", 0.5)
-        add_property(obj, "App::PropertyLength", "Scallop", g, "Largest scallop height left", 0.01)
-        add_property(obj, "App::PropertyLength", "ChordTolerance", g,
-                     "Largest distance between the path's chords and the surface", 0.001)
-        add_property(obj, "App::PropertySpeed", "Feed", g, "Cutting feed", "1000 mm/min")
+        add_properties(obj, PATH_FIELDS, g, {"tool_radius": DEFAULT_RADIUS, **(values or {})})
         add_property(obj, "App::PropertyFileIncluded", "PathFile", g,
                      "The computed path (numpy .npz), kept inside the document", hidden=True)
         add_property(obj, "App::PropertyString", "InputsKey", g,
                      "What the stored path was computed from", hidden=True)
-        add_property(obj, "App::PropertyInteger", "Points", g, "Points of the path", read_only=True)
-        add_property(obj, "App::PropertyInteger", "Lines", g, "Isoparametric lines", read_only=True)
-        add_property(obj, "App::PropertyInteger", "Retractions", g, "Retractions", read_only=True)
-        add_property(obj, "App::PropertyLength", "CutLength", g, "Length of the cutting moves",
+        r = "Result"
+        add_property(obj, "App::PropertyInteger", "Points", r, "Points of the path", read_only=True)
+        add_property(obj, "App::PropertyInteger", "Lines", r, "Isoparametric lines (passes)", read_only=True)
+        add_property(obj, "App::PropertyInteger", "Retractions", r, "Retractions", read_only=True)
+        add_property(obj, "App::PropertyLength", "CutLength", r, "Length of the cutting moves",
                      read_only=True)
-        add_property(obj, "App::PropertyLength", "LinkLength", g,
+        add_property(obj, "App::PropertyLength", "LinkLength", r,
                      "Length of the links between lines and patches", read_only=True)
+        add_property(obj, "App::PropertyLength", "LargestStepover", r,
+                     "Largest distance between neighbouring passes on the surface", read_only=True)
 
     def onDocumentRestored(self, obj):
         self.ensure_properties(obj)
 
     # -- inputs -----------------------------------------------------------------------------------
     def settings(self, obj) -> dict:
-        return dict(tool_radius=float(obj.ToolRadius.Value), scallop=float(obj.Scallop.Value),
-                    chord_tol=float(obj.ChordTolerance.Value),
-                    feed=float(obj.Feed.getValueAs("mm/min")))
+        """The path's options (JobSettings field names, lengths in mm, feed in mm/min)."""
+        return values_of(obj, PATH_FIELDS)
 
     def inputs_key(self, obj) -> str:
         plan = obj.ProcessingList
@@ -101,6 +104,16 @@ class TsplcamToolPath(FeatureProxy):
         h.update(json.dumps(self.settings(obj), sort_keys=True).encode())
         return h.hexdigest()
 
+    def stale(self, obj) -> str | None:
+        if not obj.PathFile or not os.path.isfile(obj.PathFile):
+            return "the tool path has not been computed (recompute)"
+        try:
+            if self.inputs_key(obj) != obj.InputsKey:
+                return "the stored tool path is older than its inputs (recompute)"
+        except Exception as exc:
+            return str(exc)
+        return None
+
     def _check_inputs(self, obj):
         plan = obj.ProcessingList
         if plan is None or not is_plan_object(plan):
@@ -109,12 +122,12 @@ class TsplcamToolPath(FeatureProxy):
 
     # -- computing -----------------------------------------------------------------------------------
     def compute(self, obj):
-        """Run the path generator; returns the ToolPath (raises InputError/GeometryError)."""
-        from ..toolpath import zigzag_path
+        """Run the path generator (in the GUI with progress and cancel); returns the ToolPath
+        (raises InputError/GeometryError naming the place, Cancelled on request)."""
         model, plist = self._check_inputs(obj)
-        return zigzag_path(model, plist, **self.settings(obj))
+        return compute_path(model, plist, self.settings(obj), obj.Label)
 
-    def execute(self, obj):
+    def recompute(self, obj):
         self._check_inputs(obj)
         key = self.inputs_key(obj)
         if key != obj.InputsKey or not obj.PathFile or not os.path.isfile(obj.PathFile):
@@ -150,10 +163,30 @@ class TsplcamToolPath(FeatureProxy):
         set_read_only(obj, "Retractions", tp.retractions)
         cut = float(seg[kind == Move.CUT].sum())
         link = float(seg[kind == Move.LINK].sum())
-        if abs(obj.CutLength.Value - cut) > 1e-9:
-            obj.CutLength = cut
-        if abs(obj.LinkLength.Value - link) > 1e-9:
-            obj.LinkLength = link
+        stepover = largest_stepover(tp)
+        for name, value in (("CutLength", cut), ("LinkLength", link), ("LargestStepover", stepover)):
+            if abs(getattr(obj, name).Value - value) > 1e-9:
+                setattr(obj, name, value)
+
+
+def largest_stepover(tp) -> float:
+    """Largest distance between the first points of neighbouring lines of one patch (mm): the
+    side step at the start edge, where the zigzag turns."""
+    first = np.nonzero(np.r_[True, np.diff(tp.line) != 0] & (tp.line >= 0))[0]
+    if len(first) < 2:
+        return 0.0
+    same = (tp.patch[first[1:]] == tp.patch[first[:-1]])
+    d = np.linalg.norm(tp.contact[first[1:]] - tp.contact[first[:-1]], axis=1)[same]
+    return float(d.max()) if len(d) else 0.0
+
+
+def compute_path(model, plist, settings: dict, label: str):
+    """The ToolPath by the path options ``settings`` (JobSettings names), through the
+    runner (GUI: child process with progress and cancel; headless: here)."""
+    from . import runner
+    from .fields import named_properties
+    with named_properties():
+        return runner.run(f"Tool path of {label}", "path_task", model, plist, dict(settings))
 
 
 def is_path_object(obj) -> bool:
@@ -164,32 +197,51 @@ def path_of(obj):
     return obj.Proxy.path(obj)
 
 
-def make_tool_path(plan_obj, **settings):
-    """A TsplcamToolPath for ``plan_obj``: computed first (seconds), added only on success;
-    None after reporting why not (e.g. a ball too large for a concave region, named by
-    patch and (u, v))."""
-    doc = plan_obj.Document
-    defaults = dict(tool_radius=0.5, scallop=0.01, chord_tol=0.001, feed=1000.0)
-    defaults.update(settings)
-    busy = _busy()
+def default_radius() -> float:
+    """The ball radius of the default tool (preferences, else JobSettings'), else 0.5 mm."""
+    from .fields import PROGRAM_FIELDS
+    from .prefs import defaults
     try:
-        from ..toolpath import zigzag_path
-        tp = zigzag_path(model_of(plan_obj.Model), plan_of(plan_obj), **defaults)
+        from ..orientation import load_tool
+        return float(load_tool(defaults(PROGRAM_FIELDS)["tool"]).ball_radius)
+    except Exception:
+        return DEFAULT_RADIUS
+
+
+def path_defaults(**settings) -> dict:
+    """Path options: the preferences page's defaults (JobSettings' where none are set), the
+    default tool's ball radius, then ``settings``; checked, errors naming the property."""
+    from .fields import checked
+    from .prefs import defaults
+    values = defaults(PATH_FIELDS)
+    if values.get("tool_radius") is None:
+        values["tool_radius"] = default_radius()
+    values.update(settings)
+    checked(values)
+    return values
+
+
+def make_tool_path(plan_obj, computed=None, **settings):
+    """A TsplcamToolPath for ``plan_obj``: computed first (seconds; in the GUI with progress and
+    cancel), added only on success; None after reporting why not (e.g. a ball too large for
+    a concave region, named by patch and (u, v)). ``settings``: path options (JobSettings
+    names: tool_radius, scallop, chord_tol, max_step, feed in mm/min, clearance, ...);
+    ``computed``: the ToolPath the engine already made with them (headless documents)."""
+    doc = plan_obj.Document
+    try:
+        values = path_defaults(**settings)
+        tp = computed if computed is not None else compute_path(model_of(plan_obj.Model), plan_of(plan_obj),
+                                                                values, plan_obj.Label)
     except Exception as exc:
         messages.exception(TITLE, exc, f"computing the tool path of {plan_obj.Label}")
         return None
-    finally:
-        busy()
 
     def work():
         obj = doc.addObject("App::FeaturePython", "ToolPath")
         TsplcamToolPath(obj)
         obj.Label = f"{plan_obj.Model.Label} tool path"
         obj.ProcessingList = plan_obj
-        obj.ToolRadius = defaults["tool_radius"]
-        obj.Scallop = defaults["scallop"]
-        obj.ChordTolerance = defaults["chord_tol"]
-        obj.Feed = f"{defaults['feed']} mm/min"
+        set_values(obj, PATH_FIELDS, values)
         obj.Proxy.store(obj, tp, obj.Proxy.inputs_key(obj))
         TsplcamToolPath.update_info(obj, tp)
         if FreeCAD.GuiUp:
@@ -199,15 +251,8 @@ def make_tool_path(plan_obj, **settings):
     obj = in_transaction(doc, TITLE, f"adding the tool path of {plan_obj.Label}", work)
     if obj is None:
         return None
-    messages.info(f"{obj.Label}: {obj.Points} points, {obj.Lines} lines, {obj.Retractions} retractions, "
+    from .modelobject import plural
+    messages.info(f"{obj.Label}: {obj.Points} points, {plural(obj.Lines, 'line')}, "
+                  f"{plural(obj.Retractions, 'retraction')}, "
                   f"cut {obj.CutLength.Value:.1f} mm, links {obj.LinkLength.Value:.1f} mm")
     return obj
-
-
-def _busy():
-    """A wait cursor while the generator runs (GUI only); returns the function that ends it."""
-    if not FreeCAD.GuiUp:
-        return lambda: None
-    from PySide import QtCore, QtGui
-    QtGui.QApplication.setOverrideCursor(QtCore.Qt.WaitCursor)
-    return QtGui.QApplication.restoreOverrideCursor

@@ -70,19 +70,23 @@ class TsplcamProcessingList(FeatureProxy):
         if prop in ("ListText", "Model"):
             self._plist = None
 
-    def execute(self, obj):
+    TITLE = TITLE
+
+    def recompute(self, obj):
         self.update_info(obj, self.processing_list(obj))
 
     def _cache_key(self, obj):
+        """The list text's hash and the model itself (held, so that a model read again is
+        never mistaken for the old one at the same address)."""
         model = model_of(obj.Model)
-        return (hashlib.sha1(obj.ListText.encode()).hexdigest(), id(model))
+        return (hashlib.sha1(obj.ListText.encode()).hexdigest(), model)
 
     def processing_list(self, obj):
         """The ProcessingList, read from ListText and checked against the model's layout."""
         if obj.Model is None or not is_model_object(obj.Model):
             raise InputError("the processing list has no model", item=obj.Label)
         key = self._cache_key(obj)
-        if self._plist is None or self._key != key:
+        if self._plist is None or self._key is None or self._key[0] != key[0] or self._key[1] is not key[1]:
             from ..plan import loads
             self._plist = loads(obj.ListText, Layout.from_model(model_of(obj.Model)), path=obj.Label)
             self._key = key
@@ -143,6 +147,7 @@ def make_processing_list(model_obj, plist=None):
     obj = in_transaction(doc, TITLE, f"adding the processing list of {model_obj.Label}", work)
     if obj is None:
         return None
-    messages.info(f"{obj.Label}: {obj.Steps} steps, {obj.BoundaryLinks} boundary links, "
-                  f"{obj.CornerLinks} corner links, {obj.Retractions} retractions")
+    from .modelobject import plural
+    messages.info(f"{obj.Label}: {plural(obj.Steps, 'step')}, {plural(obj.BoundaryLinks, 'boundary link')}, "
+                  f"{plural(obj.CornerLinks, 'corner link')}, {plural(obj.Retractions, 'retraction')}")
     return obj

@@ -1,16 +1,21 @@
 """Task panel of the processing list: accept or edit the plan, re-solve around pins.
 
-A table of the steps (patch, start, finish, crossfeed, how each step is reached, pins).
-Changing a start, finish or crossfeed pins that field; Up/Down moves a step and pins its
-position; "Pin order" pins or frees the position of the selected steps. "Solve" keeps the
-pins and lets the planner do the rest (``tsplcam plan --complete``). Every edit is
-checked at once against the model's layout (``tsplcam.plan.listfile.check``); the status
-line says what is wrong (step and reason) or sums the list up. OK stores only a valid list.
+A table of the steps (patch, start, finish, crossfeed, retract before, how each step is
+reached, pins). Changing a start, finish or crossfeed pins that field; dragging a step's
+number, or Up/Down, moves the step and pins its position; "Pin order" pins or frees the
+position of the selected steps; the Retract box makes a step start with a retraction.
+"Solve" keeps the pins and lets the planner do the rest (``tsplcam plan --complete``).
+Every edit is checked at once against the model's layout (``tsplcam.plan.listfile.check``,
+also "Validate"): the step at fault turns red with the reason beside it, and the status line
+says it too, or sums the list up. The 3D view draws the working list and outlines the
+selected step's patch with its start (green) and finish (red) corners. OK stores only a
+valid list.
 """
 from __future__ import annotations
 
 import copy
 import os
+import re
 
 import FreeCAD
 import FreeCADGui
@@ -22,33 +27,32 @@ from . import messages
 from .modelobject import model_of
 from .planobject import plan_of, replan
 from .resources import icon, ui_file
+from .settingspanel import TaskPanel
 
-COLUMNS = ("Patch", "Start", "Finish", "Feed", "Link", "Pins")
+COLUMNS = ("Patch", "Start", "Finish", "Crossfeed", "Retract", "Reached by", "Pins")
 TIPS = ("Patch machined in this step", "Start corner of the zigzag (u, v)",
         "Finish corner of the zigzag (u, v)",
-        "Crossfeed: u = lines of constant u stepped across u; v = lines of constant v",
+        "Crossfeed: the direction the passes step over; u = passes along v, stepped across u; "
+        "v = passes along u, stepped across v",
+        "Retract before this step (to the clearance height) instead of linking on the surface",
         "How the step is reached: first, boundary (corner of a shared edge), corner (a corner "
         "shared without an edge), RETRACT",
         "Pinned fields Solve keeps: P position, S start, F finish, C crossfeed")
+BAD_ROW = QtGui.QColor(255, 200, 200) if hasattr(QtGui, "QColor") else None
 CORNERS = ("LL (0,0)", "LR (1,0)", "UR (1,1)", "UL (0,1)")      # CORNER_NAMES, short
 PIN_LETTERS = {"position": "P", "start": "S", "finish": "F", "crossfeed": "C"}
 
 
 def _widen_task_dock(table, extra: int = 110) -> None:
     """Widen the dock holding the task panel so every column of ``table`` and every button
-    shows (a fresh FreeCAD opens the Combo View about 250 px wide)."""
-    mw = FreeCADGui.getMainWindow()
-    docks = [d for d in mw.findChildren(QtGui.QDockWidget) if d.objectName() in ("Combo View", "Tasks")]
-    if not docks:
-        return
+    shows."""
+    from .settingspanel import widen_task_dock
     table.resizeColumnsToContents()
     width = table.verticalHeader().width() + sum(table.columnWidth(k) for k in range(table.columnCount()))
-    for dock in docks:
-        if dock.width() < width + extra:
-            mw.resizeDocks([dock], [width + extra], QtCore.Qt.Horizontal)
+    widen_task_dock(width + extra)
 
 
-class ProcessingListPanel:
+class ProcessingListPanel(TaskPanel):
     """FreeCAD task panel (``form``, ``accept``, ``reject``) over a working copy of the list."""
 
     active = None        # the open panel (tests and the view provider reach it here)
@@ -59,6 +63,8 @@ class ProcessingListPanel:
         self.layout = Layout.from_model(self.model)
         self.plist = copy.deepcopy(plan_of(obj))
         self.valid = True
+        self.bad_row = None
+        self.bad_text = ""
         self.form = self._build()
         self._fill()
         _widen_task_dock(self.table)
@@ -76,8 +82,13 @@ class ProcessingListPanel:
         self.table.verticalHeader().setVisible(True)
         self.table.horizontalHeader().setSectionResizeMode(QtGui.QHeaderView.ResizeToContents)
         self.table.itemSelectionChanged.connect(self._selection_changed)
+        header = self.table.verticalHeader()
+        header.setSectionsMovable(True)
+        header.setToolTip("Drag a step's number to move the step (pins its position)")
+        header.sectionMoved.connect(self._dragged)
+        self.bad_row = None
         self.buttons = {}
-        for key in ("up", "down", "pin", "clear", "solve", "load", "save"):
+        for key in ("up", "down", "pin", "clear", "solve", "load", "save", "validate"):
             b = w.findChild(QtGui.QPushButton, key)
             b.clicked.connect(getattr(self, "_on_" + key))
             self.buttons[key] = b
@@ -108,26 +119,56 @@ class ProcessingListPanel:
             t.setCellWidget(i, 3, self._combo(("u", "v"), ("u", "v").index(s.crossfeed)
                                               if s.crossfeed in ("u", "v") else None,
                                               lambda k, i=i: self._edit(i, "crossfeed", k)))
+            box = QtGui.QCheckBox()
+            box.setChecked(bool(s.retract_before))
+            box.setEnabled(i > 0)
+            box.setToolTip(TIPS[4])
+            box.toggled.connect(lambda on, i=i: self._edit(i, "retract_before", bool(on)))
+            t.setCellWidget(i, 4, box)
             reached = "RETRACT" if s.retract_before else (s.link or "")
             pins = "".join(PIN_LETTERS[f] for f in PIN_LETTERS if f in s.pinned)
-            for col, text in ((4, reached), (5, pins)):
+            for col, text in ((5, reached), (6, pins)):
                 it = QtGui.QTableWidgetItem(text)
                 it.setFlags(it.flags() & ~QtCore.Qt.ItemIsEditable)
                 t.setItem(i, col, it)
+        self._mark_rows()
         t.blockSignals(False)
         t.resizeColumnsToContents()
+        self._show_in_view()
 
     # -- editing ----------------------------------------------------------------------------------
-    def _edit(self, i: int, field: str, index: int) -> None:
-        if index < 0:
+    def _edit(self, i: int, field: str, index) -> None:
+        if field != "retract_before" and index < 0:
             return
         s = self.plist.steps[i]
         value = ("u", "v")[index] if field == "crossfeed" else index
         if getattr(s, field) == value:
             return
         setattr(s, field, value)
-        s.pinned = frozenset(s.pinned | {field})
+        if field != "retract_before":
+            s.pinned = frozenset(s.pinned | {field})
         self._fill()
+        self.table.selectRow(i)
+
+    def _dragged(self, logical: int, old: int, new: int) -> None:
+        """A step's number dragged from row ``old`` to row ``new``: move the step there (its
+        position pinned), and put the header back in order for the refilled table."""
+        header = self.table.verticalHeader()
+        header.blockSignals(True)
+        header.moveSection(new, old)
+        header.blockSignals(False)
+        self.move_step(old, new)
+
+    def move_step(self, i: int, j: int) -> None:
+        """Move the step of row ``i`` to row ``j`` and pin its position."""
+        steps = self.plist.steps
+        if i == j or not (0 <= i < len(steps) and 0 <= j < len(steps)):
+            return
+        step = steps.pop(i)
+        steps.insert(j, step)
+        step.pinned = frozenset(step.pinned | {"position"})
+        self._fill()
+        self.table.selectRow(j)
 
     def _selected_rows(self) -> list[int]:
         return sorted({ix.row() for ix in self.table.selectionModel().selectedRows()})
@@ -137,13 +178,7 @@ class ProcessingListPanel:
         if len(rows) != 1:
             return
         i, j = rows[0], rows[0] + delta
-        steps = self.plist.steps
-        if not 0 <= j < len(steps):
-            return
-        steps[i], steps[j] = steps[j], steps[i]
-        steps[j].pinned = frozenset(steps[j].pinned | {"position"})
-        self._fill()
-        self.table.selectRow(j)
+        self.move_step(i, j)
 
     def _on_up(self):
         self._move(-1)
@@ -206,11 +241,31 @@ class ProcessingListPanel:
         messages.info(f"wrote {os.path.basename(path)}")
         return True
 
+    def _view(self):
+        vobj = getattr(self.obj, "ViewObject", None)
+        return getattr(vobj, "Proxy", None) if vobj is not None else None
+
+    def _show_in_view(self) -> None:
+        vp = self._view()
+        if vp is not None and hasattr(vp, "show_list"):
+            vp.show_list(self.plist)
+            self._selection_changed()
+
     def _selection_changed(self):
         rows = self._selected_rows()
-        vobj = getattr(self.obj, "ViewObject", None)
-        if vobj is not None and hasattr(vobj, "CurrentStep"):
-            vobj.CurrentStep = rows[0] + 1 if len(rows) == 1 else 0
+        vp = self._view()
+        if vp is not None and hasattr(vp, "show_step"):
+            vp.show_step(self.plist.steps[rows[0]] if len(rows) == 1 else None)
+
+    def selected_step(self):
+        rows = self._selected_rows()
+        return self.plist.steps[rows[0]] if len(rows) == 1 else None
+
+    def _on_validate(self):
+        self._fill()
+        if not self.valid and self.bad_row is not None:
+            self.table.selectRow(self.bad_row)
+            self.table.scrollToItem(self.table.item(self.bad_row, 0))
 
     # -- checking ---------------------------------------------------------------------------------
     def _set_status(self, text: str, ok: bool) -> None:
@@ -220,20 +275,40 @@ class ProcessingListPanel:
 
     def _check(self) -> bool:
         from ..plan.listfile import check
+        self.bad_row = None
+        for s in self.plist.steps:           # how a step is reached follows from the order
+            s.link = None
         try:
             check(self.plist, self.layout)
         except InputError as exc:
             self._set_status(str(exc), ok=False)
+            m = re.match(r"step (\d+)", exc.item or "")
+            if m:
+                self.bad_row = int(m.group(1)) - 1
+                self.bad_text = exc.message
             return False
         p = self.plist
         self._set_status(f"{len(p.steps)} steps: {p.boundary_links} boundary links, "
                          f"{p.corner_links} corner links, {p.retractions} retractions", ok=True)
         return True
 
-    # -- FreeCAD task panel protocol ------------------------------------------------------------------
-    def getStandardButtons(self):
-        return int(QtGui.QDialogButtonBox.Ok | QtGui.QDialogButtonBox.Cancel)
+    def _mark_rows(self) -> None:
+        """The step at fault red, with the reason as its tooltip; the others plain."""
+        t = self.table
+        for i in range(t.rowCount()):
+            bad = i == self.bad_row
+            for col in (0, 5, 6):
+                it = t.item(i, col)
+                if it is None:
+                    continue
+                it.setBackground(QtGui.QBrush(BAD_ROW) if bad else QtGui.QBrush())
+                it.setToolTip(self.bad_text if bad else "")
+            head = t.verticalHeaderItem(i) or QtGui.QTableWidgetItem(str(i + 1))
+            head.setText(f"{i + 1} !" if bad else str(i + 1))
+            head.setToolTip(self.bad_text if bad else "")
+            t.setVerticalHeaderItem(i, head)
 
+    # -- FreeCAD task panel protocol ------------------------------------------------------------------
     def accept(self):
         if not self._check():
             messages.error("Processing list", "not stored: " + self.status.text())
@@ -246,16 +321,11 @@ class ProcessingListPanel:
         self._close()
         return True
 
-    def reject(self):
-        self._close()
-        return True
-
-    def _close(self):
-        ProcessingListPanel.active = None
+    def closing(self):
+        vp = self._view()
+        if vp is not None and hasattr(vp, "show_list"):
+            vp.step = None
+            vp.show_list(None)
         vobj = getattr(self.obj, "ViewObject", None)
         if vobj is not None and hasattr(vobj, "CurrentStep"):
             vobj.CurrentStep = 0
-        FreeCADGui.Control.closeDialog()
-        gdoc = FreeCADGui.getDocument(self.obj.Document.Name)
-        if gdoc is not None and gdoc.getInEdit() is not None:
-            gdoc.resetEdit()

@@ -44,9 +44,15 @@ def set_read_only(obj, name: str, value) -> None:
 
 class FeatureProxy:
     """Proxy of an ``App::FeaturePython``; subclasses set TYPE and VERSION and add their
-    properties in ``ensure_properties`` (also called on restore, so old files gain new ones)."""
+    properties in ``ensure_properties`` (also called on restore, so old files gain new ones).
+
+    Recompute: ``execute`` refuses at once when an input failed (tsplcam.workbench.validity),
+    then calls the subclass's ``recompute``; what that raises is reported where the person
+    works (a message box naming the place, the Report view; see ``messages``) and raised on,
+    so FreeCAD marks the object Invalid with the reason."""
     TYPE = "TsplcamFeature"
     VERSION = 1
+    TITLE = "tsplcam"
 
     def __init__(self, obj):
         obj.Proxy = self
@@ -56,6 +62,27 @@ class FeatureProxy:
     @staticmethod
     def ensure_properties(obj) -> None:
         """Add the object's properties unless present (see :func:`add_property`)."""
+
+    def recompute(self, obj) -> None:
+        """The object's own recompute (subclasses)."""
+
+    def stale(self, obj) -> str | None:
+        """Why the stored result is older than the inputs, or None (subclasses)."""
+        return None
+
+    def execute(self, obj):
+        from ..progress import Cancelled
+        from . import messages, validity
+        validity.install()
+        validity.check_inputs(obj)
+        try:
+            self.recompute(obj)
+        except (validity.StaleInput, Cancelled) as exc:
+            messages.info(f"{obj.Label}: {exc}")
+            raise
+        except Exception as exc:
+            messages.exception(self.TITLE, exc, f"recomputing {obj.Label}")
+            raise
 
     # -- persistence (0.20 and 1.0 names) -----------------------------------------------
     def __getstate__(self):
@@ -73,7 +100,58 @@ class FeatureProxy:
         return self.__setstate__(state)
 
 
-class ViewProxy:
+class Stateless:
+    """A view proxy nothing of which is saved (0.20 and 1.0 names)."""
+
+    def __getstate__(self):
+        return None
+
+    def __setstate__(self, state):
+        return None
+
+    def dumps(self):
+        return None
+
+    def loads(self, state):
+        return None
+
+
+class EditableMixin:
+    """setEdit/doubleClicked of a view provider opening its task panel: ``panel()`` returns the
+    panel class (imported late: panels import the GUI)."""
+
+    @staticmethod
+    def panel():
+        raise NotImplementedError
+
+    def setEdit(self, vobj, mode=0):
+        if mode != 0:
+            return False
+        import FreeCADGui
+        FreeCADGui.Control.showDialog(self.panel()(vobj.Object))
+        return True
+
+    def unsetEdit(self, vobj, mode=0):
+        import FreeCADGui
+        FreeCADGui.Control.closeDialog()
+        return True
+
+    def doubleClicked(self, vobj):
+        import FreeCADGui
+        FreeCADGui.ActiveDocument.setEdit(vobj.Object.Name, 0)
+        return True
+
+
+def close_task_panel(obj) -> None:
+    """Close the task dialog and leave edit mode of ``obj``'s document."""
+    import FreeCADGui
+    FreeCADGui.Control.closeDialog()
+    gdoc = FreeCADGui.getDocument(obj.Document.Name)
+    if gdoc is not None and gdoc.getInEdit() is not None:
+        gdoc.resetEdit()
+
+
+class ViewProxy(Stateless):
     """Proxy of a ``Gui::ViewProviderPythonFeature``: nothing of it is saved but its type.
     Subclasses name their one display mode, their icon (resources/icons) and, in CHILD, the
     link property whose object shows under them in the tree."""
@@ -133,18 +211,6 @@ class ViewProxy:
             except Exception:          # the document may have been closed meanwhile
                 pass
         QtCore.QTimer.singleShot(0, run)
-
-    def __getstate__(self):
-        return None
-
-    def __setstate__(self, state):
-        return None
-
-    def dumps(self):
-        return None
-
-    def loads(self, state):
-        return None
 
 
 class DrawnViewProxy(ViewProxy):

@@ -66,8 +66,8 @@ def model_from_object(obj, subnames=(), doc=None):
         return None
     if FreeCAD.GuiUp and hasattr(obj, "ViewObject") and obj.ViewObject is not None:
         obj.ViewObject.Visibility = False
-    messages.info(f"model from {label}: {made.Patches} patches, {made.ExtraordinaryPoints} "
-                  f"extraordinary points")
+    from .modelobject import describe
+    messages.info(f"model from {label}: {describe(made)}")
     return made
 
 

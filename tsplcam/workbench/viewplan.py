@@ -4,8 +4,11 @@ As in shang2020 figure 8: per step a curve across its patch from the start corne
 finish corner (navy on a white halo, with an arrow head), the step number near its start
 (white on navy, unlike the patch numbers), the transit points where one patch hands over
 to the next, retractions as dashed red arcs above the surface, the start of the whole
-list green and its end black. ``CurrentStep`` highlights one step (the task panel sets it
-for the selected row). Double-click opens the task panel.
+list green and its end black. ``CurrentStep`` highlights one step of the stored list. While
+the task panel edits a working copy, the view draws that copy (``show_list``) and highlights
+the selected row's step (``show_step``): its patch outlined in yellow, its start corner green,
+its finish corner red, so the 3D view always matches the row. Double-click opens the task
+panel.
 """
 from __future__ import annotations
 
@@ -14,13 +17,14 @@ from pivy import coin
 from . import coinutil, display, messages
 from .modelobject import model_of
 from .planobject import plan_of
-from .proxy import ViewProxy, add_property
+from .proxy import EditableMixin, ViewProxy, add_property
 
 CURVE = (0.05, 0.12, 0.50)
 CURRENT = (1.0, 0.85, 0.0)
 RETRACT = (0.85, 0.08, 0.08)
 START = (0.10, 0.75, 0.20)
 FINISH = (0.0, 0.0, 0.0)
+STEP_FINISH = (0.90, 0.10, 0.10)
 LAYERS = ("curves", "numbers", "retractions", "markers", "current")
 
 
@@ -31,7 +35,7 @@ def ensure_view_properties(vobj) -> None:
                  "Highlight this step (1-based; 0: none)", 0)
 
 
-class ViewProviderProcessingList(ViewProxy):
+class ViewProviderProcessingList(EditableMixin, ViewProxy):
     ensure_view_properties = staticmethod(ensure_view_properties)
     DISPLAY_MODE = "Order"
     ICON = "plan"
@@ -39,6 +43,8 @@ class ViewProviderProcessingList(ViewProxy):
     root = None
     layers = None
     _drawn = None
+    override = None          # the task panel's working list, drawn instead of the stored one
+    step = None              # the task panel's selected step
 
     def attach(self, vobj):
         super().attach(vobj)
@@ -67,23 +73,10 @@ class ViewProviderProcessingList(ViewProxy):
     def finishRestoring(self):
         self.rebuild(after_restore=True)
 
-    def setEdit(self, vobj, mode=0):
-        if mode != 0:
-            return False
-        import FreeCADGui
+    @staticmethod
+    def panel():
         from .planpanel import ProcessingListPanel
-        FreeCADGui.Control.showDialog(ProcessingListPanel(vobj.Object))
-        return True
-
-    def unsetEdit(self, vobj, mode=0):
-        import FreeCADGui
-        FreeCADGui.Control.closeDialog()
-        return True
-
-    def doubleClicked(self, vobj):
-        import FreeCADGui
-        FreeCADGui.ActiveDocument.setEdit(vobj.Object.Name, 0)
-        return True
+        return ProcessingListPanel
 
     # -- drawing -------------------------------------------------------------------------------
     def rebuild(self, after_restore: bool = False) -> bool:
@@ -100,7 +93,7 @@ class ViewProviderProcessingList(ViewProxy):
             return False
         try:
             model = model_of(obj.Model)
-            plist = plan_of(obj)
+            plist = self.override if self.override is not None else plan_of(obj)
             drawing = display.plan_drawing(model, plist)
         except Exception as exc:
             messages.exception("Processing list", exc, f"drawing {obj.Label}")
@@ -126,14 +119,38 @@ class ViewProviderProcessingList(ViewProxy):
         self._draw_current()
         return True
 
+    def show_list(self, plist) -> None:
+        """Draw ``plist`` (the task panel's working copy) instead of the stored list; None: back
+        to the stored one."""
+        self.override = plist
+        self.rebuild(after_restore=True)
+
+    def show_step(self, step) -> None:
+        """Highlight ``step`` (a plan Step: its patch, start and finish corners); None: none."""
+        self.step = step
+        if self.layers is not None:
+            self._draw_current()
+
     def _draw_current(self) -> None:
         sw = self.layers["current"]
         sw.removeAllChildren()
         if self._drawn is None:
             return
-        k = int(getattr(self.ViewObject, "CurrentStep", 0)) - 1
-        curves = self._drawn[2].curves
-        if 0 <= k < len(curves):
-            size = display.model_size(self._drawn[0])
-            sw.addChild(coinutil.haloed_polylines([curves[k]], CURRENT, 6.0, halo=(0.0, 0.0, 0.0),
+        model, plist, drawing = self._drawn
+        size = display.model_size(model)
+        step = self.step
+        if step is None:
+            k = int(getattr(self.ViewObject, "CurrentStep", 0)) - 1
+            step = plist.steps[k] if 0 <= k < len(plist.steps) else None
+        if step is None:
+            return
+        outline, start, finish, curve = display.step_highlight(model, step)
+        sw.addChild(coinutil.haloed_polylines(outline, CURRENT, 5.0, halo=(0.0, 0.0, 0.0), halo_width=8.0,
+                                              pull=0.004 * size))
+        if curve is not None:
+            sw.addChild(coinutil.haloed_polylines([curve], CURRENT, 6.0, halo=(0.0, 0.0, 0.0),
                                                   halo_width=9.0, pull=0.004 * size))
+        if start is not None:
+            sw.addChild(coinutil.spheres(start, 0.022 * size, START))
+        if finish is not None:
+            sw.addChild(coinutil.spheres(finish, 0.022 * size, STEP_FINISH))

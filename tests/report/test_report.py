@@ -1,0 +1,242 @@
+"""The HTML report of the keycap job (coarse: scallop 0.1 mm) checked for content: every
+picture referenced and there, of its size, not blank, in the patch colours; the tables carry
+the figures of the metrics objects; nothing external; the same inputs give the same bytes."""
+import os
+import re
+import shutil
+import tempfile
+import unittest
+from html.parser import HTMLParser
+
+import numpy as np
+from PIL import Image
+
+from tsplcam.report import figures, report, style, write_report
+from tsplcam.report.example import job_objects
+from tsplcam.verify.metrics import path_metrics
+
+PICTURES = ("layout", "path", "scallop", "axis", "machine", "clearance", "time", "baseline")
+
+
+class Page(HTMLParser):
+    """Images, links, scripts, tables (by id: rows of cell texts) and headline cards."""
+
+    def __init__(self, text):
+        super().__init__()
+        self.images, self.links, self.scripts, self.tables, self.cards = [], [], 0, {}, {}
+        self._table = self._row = self._cell = None
+        self._card = None
+        self._div = []
+        self.feed(text)
+
+    def handle_starttag(self, tag, attrs):
+        a = dict(attrs)
+        if tag == "img":
+            self.images.append(a)
+        elif tag in ("a", "link"):
+            self.links.append(a)
+        elif tag == "script":
+            self.scripts += 1
+        elif tag == "table":
+            self._table = self.tables.setdefault(a.get("id", f"anon{len(self.tables)}"), [])
+        elif tag == "tr" and self._table is not None:
+            self._row = []
+            self._table.append(self._row)
+        elif tag in ("td", "th") and self._row is not None:
+            self._cell = ""
+        elif tag == "div":
+            cls = a.get("class", "")
+            self._div.append(cls)
+            if cls.startswith("card"):
+                self._card = [a.get("id"), []]
+            elif self._card is not None and cls in ("k", "v", "n"):
+                self._card[1].append("")
+
+    def handle_endtag(self, tag):
+        if tag in ("td", "th") and self._cell is not None:
+            self._row.append(self._cell.strip())
+            self._cell = None
+        elif tag == "table":
+            self._table = self._row = None
+        elif tag == "div" and self._div:
+            cls = self._div.pop()
+            if cls.startswith("card") and self._card is not None:
+                self.cards[self._card[0]] = self._card[1]
+                self._card = None
+
+    def handle_data(self, data):
+        if self._cell is not None:
+            self._cell += data
+        elif self._card is not None and self._card[1] and self._div and self._div[-1] in ("k", "v", "n"):
+            self._card[1][-1] += data
+
+    def key_values(self, ident):
+        return {r[0]: r[1] for r in self.tables[ident] if len(r) == 2}
+
+
+def num(text: str) -> float:
+    return float(text.replace(",", ""))
+
+
+class KeycapReport(unittest.TestCase):
+    @classmethod
+    def setUpClass(cls):
+        cls.tmp = tempfile.mkdtemp(prefix="tsplcam-report-")
+        cls.job = job_objects(scallop=0.1, baseline_axes="normal")
+        cls.saved = report.CLEARANCE_POSES
+        report.CLEARANCE_POSES = 600                      # a shorter clearance sweep for the test
+        cls.out = [os.path.join(cls.tmp, k) for k in ("a", "b")]
+        cls.html = [write_report(d, **cls.job) for d in cls.out]
+        with open(cls.html[0], encoding="utf-8") as fh:
+            cls.text = fh.read()
+        cls.page = Page(cls.text)
+        cls._colours = {}
+
+    @classmethod
+    def tearDownClass(cls):
+        report.CLEARANCE_POSES = cls.saved
+        shutil.rmtree(cls.tmp, ignore_errors=True)
+
+    def picture(self, name):
+        return np.asarray(Image.open(os.path.join(self.out[0], report.FILES, f"{name}.png")).convert("RGB"), int)
+
+    def test_every_picture_referenced_present_sized_and_drawn(self):
+        srcs = [im["src"] for im in self.page.images]
+        self.assertEqual(sorted(srcs), sorted(f"{report.FILES}/{n}.png" for n in PICTURES))
+        self.assertEqual(sorted(os.listdir(os.path.join(self.out[0], report.FILES))),
+                         sorted(f"{n}.png" for n in PICTURES))
+        for im in self.page.images:
+            name = im["src"].split("/")[-1][:-4]
+            px = self.picture(name)
+            w, h = figures.pixel_size(name)
+            self.assertEqual(px.shape[:2], (h, w), name)
+            self.assertEqual((int(im["width"]), int(im["height"])), (w, h), name)
+            ink = np.count_nonzero((px < 235).any(axis=2)) / (w * h)
+            self.assertGreater(ink, 0.05, f"{name}: only {ink:.1%} of the picture is drawn")
+            self.assertTrue(im.get("alt"), name)
+
+    def colour_pixels(self, name, rgba, tol=40):
+        """Pixels within ``tol`` (0..255, each channel) of a colour."""
+        if name not in self._colours:
+            px = self.picture(name).reshape(-1, 3)
+            packed, counts = np.unique((px[:, 0] << 16) | (px[:, 1] << 8) | px[:, 2], return_counts=True)
+            self._colours[name] = (np.column_stack([packed >> 16, (packed >> 8) & 255, packed & 255]), counts)
+        colours, counts = self._colours[name]
+        c = np.asarray(rgba[:3]) * 255
+        return int(counts[np.abs(colours - c).max(axis=1) <= tol].sum())
+
+    def test_patch_colours_in_the_pictures(self):
+        colours = style.patch_colours(len(self.job["model"].patches))
+        for name in ("path", "axis", "machine", "clearance", "time"):
+            counts = [self.colour_pixels(name, c) for c in colours]
+            self.assertTrue(all(n > 40 for n in counts), f"{name}: patch colour pixels {counts}")
+        # the layout: every extraordinary point a red dot in both views
+        self.assertGreater(self.colour_pixels("layout", (0.839, 0.153, 0.157, 1.0), tol=30), 8 * 40)
+
+    def test_offline(self):
+        self.assertEqual(self.page.scripts, 0)
+        self.assertEqual(self.page.links, [])
+        self.assertNotRegex(self.text, r"(?i)(https?:|//|file:)")
+        for im in self.page.images:
+            self.assertFalse(os.path.isabs(im["src"]))
+        self.assertNotIn(self.tmp, self.text)
+
+    def test_tables_carry_the_metrics(self):
+        j = self.job
+        pm = path_metrics(j["oriented"].path)
+        kv = self.page.key_values("path-figures")
+        self.assertEqual(num(kv["points"]), pm.points)
+        self.assertEqual(num(kv["lines"]), pm.lines)
+        self.assertEqual(num(kv["retractions"]), pm.retractions)
+        self.assertAlmostEqual(num(kv["total length (mm)"]), pm.length, delta=0.05)
+        self.assertAlmostEqual(num(kv["cutting length (mm)"]), pm.cut_length, delta=0.05)
+        v = j["verification"]
+        kv = self.page.key_values("scallop-figures")
+        self.assertAlmostEqual(num(kv["largest scallop (µm)"]), v.max_scallop * 1000, delta=5e-4)
+        self.assertAlmostEqual(num(kv["mean cusp height (µm)"]), v.cusp_mean * 1000, delta=5e-4)
+        self.assertEqual(num(kv["surface samples"]), v.samples)
+        m = j["oriented"].metrics
+        kv = self.page.key_values("orientation-figures")
+        self.assertEqual(num(kv["collisions (flutes, shank, holder)"]), m.collisions)
+        self.assertAlmostEqual(num(kv["largest axis step (deg)"]), m.max_step_deg, delta=5e-4)
+        self.assertAlmostEqual(num(kv["rotary travel (deg)"]), m.rotary_travel_deg, delta=0.05)
+        tr = j["posted"].time
+        kv = self.page.key_values("time-figures")
+        self.assertIn(f"({tr.total_s:,.1f} s)", kv["total"])
+        self.assertIn(f"({tr.feed_only_s:,.1f} s)", kv["length over feed alone"])
+        rows = self.page.tables["time-axes"][1:]
+        self.assertEqual([r[0] for r in rows], list(tr.axis_names))
+        for r, travel, limits in zip(rows, tr.travel, tr.limiting_blocks):
+            self.assertAlmostEqual(num(r[2]), travel, delta=0.05)
+            self.assertEqual(num(r[6]), limits)
+        self.assertAlmostEqual(sum(num(r[7]) for r in rows) + num(kv["set by the feed (s)"]), tr.total_s, delta=0.4)
+        joints = j["posted"].joints
+        for r, k in zip(self.page.tables["machine-axes"][1:], range(5)):
+            lo = joints[:, k].min() + (j["posted"].settings["tool_length"] if k == 2 else 0.0)
+            self.assertAlmostEqual(num(r[2]), lo, delta=5e-4)
+        steps = self.page.tables["processing-list"][1:]
+        self.assertEqual([int(r[1]) for r in steps], j["processing_list"].order)
+        base = path_metrics(j["baseline"])
+        table = {r[0]: r[1:] for r in self.page.tables["baseline"][1:]}
+        self.assertEqual([num(x) for x in table["retractions"]], [path_metrics(j["path"]).retractions, base.retractions])
+        self.assertEqual([num(x) for x in table["air moves"]], [path_metrics(j["path"]).air_moves, base.air_moves])
+        self.assertAlmostEqual(num(table["total length (mm)"][1]), base.length, delta=0.05)
+        self.assertGreater(base.retractions, 0)
+        clearance = {r[0]: num(r[1]) for r in self.page.tables["clearance"][1:]}
+        self.assertEqual(sorted(clearance), ["holder", "shank"])
+        # the orientation kept 0.3 mm between shank/holder and the part
+        self.assertGreaterEqual(min(clearance.values()), 0.3 - 0.01)
+
+    def test_baseline_with_its_own_axes_is_timed_against_the_program(self):
+        from tsplcam.program import Program as Oriented
+        j = dict(self.job)
+        base = j["baseline"]
+        j["baseline"] = Oriented(base.with_axis(np.tile([0.0, 0.0, 1.0], (len(base), 1))))   # three-axis
+        for k in ("verification", "checker", "tool"):
+            j.pop(k)
+        html = write_report(os.path.join(self.tmp, "own-axes"), **j)
+        with open(html, encoding="utf-8") as fh:
+            page = Page(fh.read())
+        table = {r[0]: r[1:] for r in page.tables["baseline"][1:]}
+        self.assertEqual(num(table["machining time (s)"][0]), round(j["posted"].time.total_s, 1))
+        self.assertEqual(num(table["points"][0]), len(j["oriented"].path))
+
+    def test_headline(self):
+        j = self.job
+        c = self.page.cards
+        self.assertEqual(num(c["h-points"][1]), len(j["oriented"].path))
+        self.assertEqual(num(c["h-retractions"][1]), 0)
+        self.assertEqual(num(c["h-collisions"][1]), 0)
+        self.assertEqual(c["h-scallop"][1], f"{j['verification'].max_scallop * 1000:.2f} µm")
+        self.assertIn(f"{j['posted'].time.feed_only_s:,.1f} s", c["h-time"][2])
+        title = re.search(r"<title>(.*?)</title>", self.text).group(1)
+        self.assertIn(j["model"].name, title)
+        for ident in ("model", "tool", "machine-info", "path-settings", "job-settings"):
+            self.assertIn(ident, self.page.tables)
+        self.assertEqual(self.page.key_values("tool")["name"], "ball1_keycap")
+        self.assertEqual(self.page.key_values("job-settings")["scallop"], "0.1")
+
+    def test_same_inputs_same_bytes(self):
+        a, b = self.out
+        with open(self.html[1], encoding="utf-8") as fh:
+            self.assertEqual(fh.read(), self.text)
+        for n in PICTURES:
+            with open(os.path.join(a, report.FILES, f"{n}.png"), "rb") as fa, \
+                    open(os.path.join(b, report.FILES, f"{n}.png"), "rb") as fb:
+                self.assertEqual(fa.read(), fb.read(), n)
+
+    def test_missing_pieces_leave_their_sections_out(self):
+        out = os.path.join(self.tmp, "bare")
+        html = write_report(out, model=self.job["model"], path=self.job["path"])
+        with open(html, encoding="utf-8") as fh:
+            page = Page(fh.read())
+        self.assertEqual(sorted(im["src"] for im in page.images),
+                         sorted(f"{report.FILES}/{n}.png" for n in ("layout", "path", "axis")))
+        self.assertEqual(sorted(os.listdir(os.path.join(out, report.FILES))), ["axis.png", "layout.png", "path.png"])
+        self.assertIn("h-time", page.cards)                 # length over feed stands in for the time
+        for ident in ("scallop-figures", "machine-axes", "clearance", "time-axes", "baseline"):
+            self.assertNotIn(ident, page.tables)
+
+
+if __name__ == "__main__":
+    unittest.main()

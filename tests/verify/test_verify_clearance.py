@@ -1,0 +1,164 @@
+"""The shank/holder clearance gauge against closed forms and fcl's own distance.
+
+A ball-end tool touching a plane z = 0 at the origin with its axis tilted by theta from the
+normal: every tool part is a frustum about the axis, whose lowest point lies on one of its
+two rims, so the distance from part k to the plane is
+``r + min(z cos(theta) - R sin(theta))`` over the rims (height z above the ball centre,
+radius R). The gauge grows the parts until they touch the tessellated plane.
+"""
+import unittest
+
+import numpy as np
+
+import fcl
+
+from conftest import cylinder_patch, one_patch_model
+from tsplcam.model.bspline import bspline_patch
+from tsplcam.orientation import CollisionChecker, load_tool
+from tsplcam.orientation.collision import axis_quaternions, tool_primitives
+from tsplcam.orientation.tool import ToolPart
+from tsplcam.verify.orientation import (ClearanceGauge, clearance_levels, clearance_profile, offset_profile,
+                                        revolved_mesh)
+
+
+def big_plane(half=120.0):
+    poles = np.array([[[-half, -half, 0], [-half, half, 0]], [[half, -half, 0], [half, half, 0]]], float)
+    return one_patch_model(bspline_patch(poles, None, [0, 0, 1, 1], [0, 0, 1, 1], 1, 1))
+
+
+def within_bounds(got, want):
+    """The gauge's stated accuracy: the bisection bracket (0.005 mm below 0.5 mm, 1 % above)
+    above and below, and below also the circumscribed polygons (0.01 mm or 1 % of the growth)
+    and corner arcs (0.005 mm or 1 % of the growth)."""
+    half = np.maximum(0.005, 0.01 * want) + 1e-9
+    return (got <= want + half) & (got >= want - half - np.maximum(0.01, 0.01 * want) - np.maximum(0.005, 0.01 * want))
+
+
+def closed_form(tool, parts, theta):
+    """Distance from the named parts to the plane for a tilt theta (rad)."""
+    r = tool.ball_radius
+    rims = [(p.z0, p.r0) for p in tool.parts() if p.name in parts] + \
+           [(p.z1, p.r1) for p in tool.parts() if p.name in parts]
+    return r + min(z * np.cos(theta) - R * np.sin(theta) for z, R in rims)
+
+
+class PlaneClearance(unittest.TestCase):
+    @classmethod
+    def setUpClass(cls):
+        cls.tool = load_tool("ball1_keycap")
+        cls.checker = CollisionChecker(big_plane(), cls.tool)
+        theta = np.radians(np.linspace(2.0, 50.0, 13))
+        phi = np.radians(np.linspace(0.0, 330.0, 13))          # the azimuth changes nothing
+        cls.theta = theta
+        cls.axes = np.column_stack([np.sin(theta) * np.cos(phi), np.sin(theta) * np.sin(phi), np.cos(theta)])
+        cls.centers = np.tile([0.0, 0.0, cls.tool.ball_radius], (len(theta), 1))
+
+    def check(self, parts, got, top=10.0):
+        want = np.array([closed_form(self.tool, parts, t) for t in self.theta])
+        far = want > top
+        self.assertTrue(np.all(np.isinf(got[far])), (got[far], want[far]))
+        near = ~far
+        err = got[near] - want[near]
+        self.assertTrue(np.all(within_bounds(got[near], want[near])), (got[near], want[near]))
+        return want
+
+    def test_shank(self):
+        got = clearance_profile(self.checker, self.centers, self.axes, parts=["shank"])
+        want = self.check(["shank"], got)
+        self.assertLess(want.min(), 0.8)                  # the steep poses come close
+
+    def test_holder(self):
+        names = [p.name for p in self.tool.parts() if p.name.startswith("holder")]
+        gauge = ClearanceGauge(self.checker, names)
+        got = gauge.measure(self.centers, self.axes)
+        self.check(names, got)
+        again = gauge.measure(self.centers, self.axes)    # grown tools kept: same answers
+        self.assertTrue(np.array_equal(got, again, equal_nan=True))
+
+    def test_default_parts_are_shank_and_holder(self):
+        got = clearance_profile(self.checker, self.centers, self.axes)
+        self.check([p.name for p in self.tool.parts() if p.name != "flutes"], got)
+        with self.assertRaises(ValueError):
+            ClearanceGauge(self.checker, ["spindle"])
+
+
+
+class CurvedClearance(unittest.TestCase):
+    """Poses on a convex and a concave cylinder (R 6 mm), axes tilted up to 45 deg from the
+    normal at random, against fcl.distance on the exact shank and holder primitives."""
+
+    def test_against_fcl_distance(self):
+        tool = load_tool("ball1_keycap")
+        rng = np.random.default_rng(7)
+        prims = [(fcl.CollisionObject(g, fcl.Transform()), z)
+                 for name, g, z in tool_primitives(tool, 0.0, 0.001) if name != "flutes"]
+        for outward in (True, False):
+            model = one_patch_model(cylinder_patch(6.0, 40.0, beta=1.2, outward=outward))
+            checker = CollisionChecker(model, tool, tolerance=0.002)
+            u, v = rng.uniform(0.3, 0.7, 24), rng.uniform(0.3, 0.7, 24)
+            sp = model.patches[0].evaluate(u, v)
+            n = sp.normal
+            side = np.cross(n, rng.normal(size=(24, 3)))
+            side /= np.linalg.norm(side, axis=1, keepdims=True)
+            tilt = np.radians(rng.uniform(0.0, 45.0, 24))[:, None]
+            axes = np.cos(tilt) * n + np.sin(tilt) * side
+            centers = sp.P + tool.ball_radius * n
+            got = clearance_profile(checker, centers, axes, top=20.0)
+            exact = np.empty(len(axes))
+            for i, q in enumerate(axis_quaternions(axes)):
+                best = np.inf
+                for obj, z in prims:
+                    obj.setQuatRotation(q)
+                    obj.setTranslation(centers[i] + z * axes[i])
+                    best = min(best, fcl.distance(obj, checker._wp, fcl.DistanceRequest(), fcl.DistanceResult()))
+                exact[i] = max(best, 0.0)
+            self.assertTrue(np.all(np.isfinite(got)))
+            # the mesh lies within the tessellation tolerance of the surface: both see the mesh
+            self.assertTrue(np.all(within_bounds(got, exact)), np.column_stack([got, exact]))
+
+
+class Offsets(unittest.TestCase):
+    def test_grown_profile_contains_the_offset_and_stays_close(self):
+        for part in (ToolPart("holder", 2.0, 8.0, 2.5, 5.0), ToolPart("shank", 1.0, 5.0, 0.5, 0.5),
+                     ToolPart("neck", 1.0, 3.0, 2.0, 1.0)):
+            g = 0.7
+            r, z = offset_profile(part, g)
+            self.assertEqual((r[0], r[-1]), (0.0, 0.0))
+            self.assertAlmostEqual(z[0], part.z0 - g)
+            self.assertAlmostEqual(z[-1], part.z1 + g)
+            # every point of the grown profile lies between g and g / cos(7.5 deg) from the
+            # part's profile polygon, and its edges never come closer than g either
+            t = np.linspace(0.0, 1.0, 50)
+            pts = np.concatenate([np.column_stack([r[k] + (r[k + 1] - r[k]) * t, z[k] + (z[k + 1] - z[k]) * t])
+                                  for k in range(len(r) - 1)])
+            pts = pts[pts[:, 0] > 1e-9]                   # the axis ends are inside the solid
+            corners = np.array([[0.0, part.z0], [part.r0, part.z0], [part.r1, part.z1], [0.0, part.z1]])
+            dist = np.full(len(pts), np.inf)
+            for a, b in zip(corners[:-1], corners[1:]):
+                w = np.clip(((pts - a) @ (b - a)) / ((b - a) @ (b - a)), 0.0, 1.0)
+                dist = np.minimum(dist, np.linalg.norm(pts - (a + w[:, None] * (b - a)), axis=1))
+            self.assertGreaterEqual(dist.min(), g - 1e-9, part)
+            self.assertLessEqual(dist.max(), g / np.cos(np.radians(7.5)) + 1e-9, part)
+        self.assertEqual(len(offset_profile(ToolPart("x", 0.0, 1.0, 1.0, 1.0), 0.0)[0]), 4)
+
+    def test_revolved_mesh_is_closed(self):
+        V, T = revolved_mesh([offset_profile(ToolPart("shank", 1.0, 5.0, 0.5, 0.5), 0.3)], 0.01)
+        edges = np.sort(np.concatenate([T[:, [0, 1]], T[:, [1, 2]], T[:, [2, 0]]]), axis=1)
+        _, count = np.unique(edges, axis=0, return_counts=True)
+        self.assertTrue(np.all(count == 2))                 # every edge shared by two triangles
+        rad = np.hypot(V[:, 0], V[:, 1])
+        self.assertLessEqual(rad.max(), 0.8 / np.cos(np.radians(7.5)) / np.cos(np.pi / 12) + 1e-9)
+
+    def test_levels(self):
+        lv = clearance_levels(10.0)
+        self.assertEqual(lv[0], 0.0)
+        self.assertAlmostEqual(lv[-1], 10.0)
+        self.assertTrue(np.all(np.diff(lv) > 0))
+        fine = lv[lv < 0.5]
+        self.assertTrue(np.allclose(np.diff(fine), 0.01))
+        big = lv[lv >= 0.5]
+        self.assertLess((big[1:] / big[:-1]).max(), 1.0201)
+
+
+if __name__ == "__main__":
+    unittest.main()

@@ -214,7 +214,8 @@ class _Reader:
                                    f"({' or '.join(FUSION_END_CONDITIONS)})", ln)
                 self.dialect = "fusion"
             elif value != "1":
-                raise self.err(f"force-bezier-end-conditions {excerpt(value, 40)} is not supported (only 1)", ln)
+                raise self.err(f"end conditions force-bezier-end-conditions {excerpt(value, 40)} are not supported "
+                               f"(only 1, or the Fusion dialect's end-conditions)", ln)
             self.header["end-conditions"] = (value, ln)
             self._set_scale()
 

@@ -489,14 +489,21 @@ class _Reader:
         return out
 
     # -- the tsplcam T-mesh -----------------------------------------------------------------------------
-    def build(self):
+    def build(self, old=None, pos=None, G=None, grip_lines=None, grip_names=None):
+        """The T-mesh with the boundary made explicit. By default from the file's grips and
+        blocks; the Fusion dialect passes its own T-mesh ``old``, ring-view positions
+        ``pos`` and grips ``G`` ((x, y, z, w) rows, file units) with their lines and names."""
         from ..tmesh import TMesh
-        old = self.topology()
+        own = pos is None
+        old = self.topology() if old is None else old
         topo = old.topology
-        pos = self.grips(old)
+        if own:
+            pos = self.grips(old)
+            G = np.array([g[1:5] if g is not None else (np.nan,) * 4 for g in self.g], float)
+            grip_lines = [g[0] if g is not None else None for g in self.g]
+        glines = grip_lines
+        names = grip_names or [f"grip {g} (line {ln})" for g, ln in enumerate(glines)]
         P, labels, vlines = [], [], []
-        G = np.array([g[1:5] if g is not None else (np.nan,) * 4 for g in self.g], float)
-        glines = [g[0] if g is not None else None for g in self.g]
         vid = {}                                           # (old vertex, ring-view position) -> new id
 
         def vertex(k, p):
@@ -507,9 +514,9 @@ class _Reader:
                 P.append(G[g])
                 vlines.append(glines[g])
                 if p == (0, 0):
-                    labels.append(old.vertex_labels[k] + f", grip {g}")
+                    labels.append(old.vertex_labels[k] + f", {names[g].split(' (')[0]}")
                 else:
-                    labels.append(f"grip {g} (line {glines[g]}) of {old.vertex_labels[k]}")
+                    labels.append(f"{names[g]} of {old.vertex_labels[k]}")
             return vid[key]
 
         for k in range(old.n_vertices):
@@ -579,7 +586,7 @@ class _Reader:
         mesh.validate()
         used = {pos[k][p] for k, p in vid}
         unused = [g for g in range(len(self.g)) if g not in used and self.g[g] is not None]
-        if unused:
+        if own and unused:
             raise self.err(f"grip {unused[0]} is not placed by the grip map", self.g[unused[0]][0])
         stars = [k for k in range(old.n_vertices) if topo.is_extraordinary(k)]
         if stars and self.header.get("star-smoothness", (0, None))[0] != 0:
@@ -623,7 +630,7 @@ def tsm_model(path, **options):
     reader = _parse(path)
     if reader.dialect == "fusion":
         from .tsm_fusion import fusion_model
-        return fusion_model(reader)
+        return fusion_model(reader, **options)
     mesh = reader.build()
     with naming(path):
         model = tspline_model(mesh, name=mesh.name)

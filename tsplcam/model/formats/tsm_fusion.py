@@ -159,11 +159,82 @@ def uniform_interval(old) -> float | None:
     return top
 
 
-def fusion_model(r):
-    """The surface of a parsed Fusion-dialect file ``r`` (a ``tsm._Reader``)."""
+def _alpha(r, old, k, w):
+    """The share of the way from boundary vertex k toward its inward neighbour w at which
+    the second grip of the clamped boundary sits: a / (2a + b), a the interval k-w and b the
+    next one straight on beyond w (b = a where the line leaves the mesh at w, reflected
+    there too). It reproduces a boundary (or crease) of OpenSubdiv's rule
+    on uniform knots, where the boundary point is kept and the curve is continued by
+    reflection through it: knot insertion (blossoming) of that reflected B-spline."""
+    topo = old.topology
+    a = topo.length(k, w).real
+    back = topo.edge_angle[(w, k)]
+    T = int(topo.total[w])
+    if topo.boundary[w] and back + 2 > T:
+        return 1.0 / 3.0                  # the line leaves the mesh at w: reflected there, b = a
+    beyond = topo.edge_by_angle[w].get((back + 2) % 4) if T in (2, 3, 4) else None
+    if beyond is None:
+        raise r.err(f"open boundary at vertex {r.old_ids[k]}: the line inward through vertex {r.old_ids[w]} "
+                    f"does not go straight on (a star point or T-junction there): the boundary rule "
+                    f"needs the knot interval beyond it", r.v[r.old_ids[k]][0])
+    b = topo.length(w, beyond).real
+    if not 2 * a + b > 0:
+        raise r.err(f"open boundary at vertex {r.old_ids[k]}: zero knot intervals inward", r.v[r.old_ids[k]][0])
+    return a / (2 * a + b)
+
+
+def clamped_boundary(r, old, G0):
+    """Ring-view grips (``tsm._Reader.build``) of a Fusion T-mesh with open boundaries, for
+    the T-spline kernel's clamped boundary: every boundary grip stays on the boundary ring
+    (zero knot interval outside) and the file vertex takes the second grip of the clamped
+    B-spline, per direction that meets the boundary (straight vertices one, convex corners
+    two and their product). Concave corners and boundary stars are refused."""
+    topo = old.topology
+    H = np.column_stack([G0[:, :3] * G0[:, 3:], G0[:, 3]])
+    rows, lines, names, pos = [], [], [], {}
+
+    def add(h, k, what):
+        rows.append(np.append(h[:3] / h[3], h[3]))
+        lines.append(old.vertex_lines[k])
+        names.append(f"{what} grip (line {old.vertex_lines[k]})")
+        return len(rows) - 1
+
+    for k in range(old.n_vertices):
+        if not topo.boundary[k]:
+            pos[k] = {(0, 0): add(H[k], k, "own")}
+            continue
+        T = int(topo.total[k])
+        nb = topo.edge_by_angle[k]
+        if T == 2 and 1 in nb:
+            w = nb[1]
+            al = _alpha(r, old, k, w)
+            pos[k] = {(0, -1): add(H[k], k, "boundary"), (0, 0): add(H[k] + al * (H[w] - H[k]), k, "clamped")}
+        elif T == 1:
+            f, i = topo.fan[k][0]
+            loop = old.faces[f]
+            if len(loop) != 4:
+                raise r.err(f"open boundary: the corner face at vertex {r.old_ids[k]} has T-junctions",
+                            r.v[r.old_ids[k]][0])
+            px, py = nb[0], nb[1]
+            pxy = int(loop[(list(loop).index(k) + 2) % 4])
+            ax, ay = _alpha(r, old, k, px), _alpha(r, old, k, py)
+            C, X, Y, XY = H[k], H[px], H[py], H[pxy]
+            pos[k] = {(-1, -1): add(C, k, "corner"),
+                      (0, -1): add(C + ax * (X - C), k, "clamped"),
+                      (-1, 0): add(C + ay * (Y - C), k, "clamped"),
+                      (0, 0): add(C + ax * (X - C) + ay * (Y - C) + ax * ay * (XY - X - Y + C), k, "clamped")}
+        else:
+            what = "a concave corner" if T == 3 else "a T-junction" if T == 2 else "a star point"
+            raise r.err(f"open boundary at vertex {r.old_ids[k]}, {what}: not supported by the T-spline "
+                        f"kernel's clamped boundary", r.v[r.old_ids[k]][0])
+    return pos, np.array(rows), lines, names
+
+
+def fusion_model(r, t_spline: bool = False):
+    """The surface of a parsed Fusion-dialect file ``r`` (a ``tsm._Reader``); ``t_spline``
+    builds it with the T-spline kernel even where it is a uniform cage (for checks)."""
     from ..cage import Cage, cage_model
     from ..quadmesh import QuadMesh
-    from ..tmesh import TMesh
     from ..tspline import tspline_model
     from .tsm import TsmInfo
     old = r.topology()
@@ -179,38 +250,33 @@ def fusion_model(r):
         if v not in r.compact:
             raise r.err(f"control point {g} belongs to vertex {v}, which no face uses", r.g[g][0])
     G = np.array([r.g[grip[v]][1:5] for v in r.old_ids], float)
-    points, weights = G[:, :3] * r.scale, G[:, 3]
     stars = [k for k in range(old.n_vertices) if topo.is_extraordinary(k)]
     smooth, s_line = r.header.get("star-smoothness", (0, None))
     if stars and smooth != 0:
         raise r.err(f"star-smoothness {smooth} with star points: only 0 is supported", s_line)
     name = os.path.splitext(os.path.basename(r.path))[0]
     d = uniform_interval(old)
-    if d is not None:
+    if d is not None and not t_spline:
         mesh = QuadMesh(np.array([list(f) for f in old.faces]), old.n_vertices, "edge-and-corner", r.path,
                         np.array(old.face_lines))
         mesh.sharpness = creases or None
         mesh.corner_sharpness = sharp or None
         with naming(r.path):
-            model = cage_model(Cage(mesh, points, weights, {"interpolateboundary": "edge-and-corner"}), name)
+            model = cage_model(Cage(mesh, G[:, :3] * r.scale, G[:, 3], {"interpolateboundary": "edge-and-corner"}),
+                               name)
         surface = (f"Catmull-Clark limit of the cage (uniform knot interval {d:g}, no T-junctions; "
                    f"boundaries edge-and-corner, creases infinitely sharp)")
     else:
-        if boundary:
-            e = min(boundary)
-            raise r.err("an open boundary on a T-mesh with T-junctions or non-uniform knot intervals is not "
-                        "supported: Fusion's boundary rule there is not established (open bodies are read "
-                        "as uniform cages only)", r.e[e][0])
         if r.crease_edges or r.crease_vertices:
             ln = (r.crease_edges or r.crease_vertices)[0][0]
             raise r.err("creases on a T-mesh with T-junctions or non-uniform knot intervals are not "
                         "supported (creased bodies are read as uniform cages only)", ln)
-        mesh = TMesh(points, weights, old.faces, old.corners, old.intervals, source=r.path,
-                     face_lines=old.face_lines, vertex_lines=old.vertex_lines,
-                     vertex_labels=old.vertex_labels, face_labels=old.face_labels, name=name)
+        pos, rows, lines, names = clamped_boundary(r, old, G)
+        mesh = r.build(old, pos, rows, lines, names)
         with naming(r.path):
             model = tspline_model(mesh, name=name)
-        surface = "T-spline (T-junctions or non-uniform knot intervals; T-NURCC rule at star points)"
+        surface = ("T-spline (T-junctions or non-uniform knot intervals; T-NURCC rule at star points; "
+                   "open boundaries clamped with the second grip row of the edge-and-corner rule)")
     model.tsm = TsmInfo.of(r, surface, len(creases), len(sharp))
     return model
 

@@ -133,6 +133,82 @@ class CatmullClarkCages(TempDir):
             self.assertLess(np.abs(sa.P - sb.P).max(), 1e-9 * scale)
 
 
+def tjunction_grid():
+    """An open T-mesh with T-junctions and non-uniform knot intervals (60 x 40 knot units,
+    lines near the middle stopping short of the rim), a wavy surface."""
+    from tsplcam.model.tmesh import from_lines
+    X = np.array([0, 7, 15, 21, 25, 28, 30, 32, 35, 39, 45, 53, 60.0])
+    Y = np.array([0, 6, 13, 16.5, 20, 23.5, 27, 34, 40.0])
+    short_v = {4: (1, 7), 8: (1, 7), 5: (2, 6), 7: (2, 6)}
+    short_h = {3: (3, 9), 5: (3, 9)}
+    vsegs = [(i, *short_v.get(i, (0, len(Y) - 1))) for i in range(len(X))]
+    hsegs = [(j, *short_h.get(j, (0, len(X) - 1))) for j in range(len(Y))]
+    return X, Y, from_lines(X, Y, hsegs, vsegs,
+                            lambda i, j: (X[i], Y[j], 3 * np.sin(X[i] / 9) * np.cos(Y[j] / 7)))
+
+
+class TSplineKernel(TempDir):
+    def test_kernel_equals_the_cage_on_uniform_cages(self):
+        """The kernel's clamped boundary (second grip row a / (2a + b) of the way inward) and
+        its star points give the cage path's surface on uniform cages: open grids, single
+        faces, an open box with stars, a closed head with stars."""
+        from tsplcam.model.formats.tsm import tsm_model
+        cages = {n: reference(n)[0] for n in ("catmark_tent", "catmark_edgecorner")}
+        cages["keycap"] = samples.keycap()
+        cages["head"] = samples.head()
+        for name, cage in cages.items():
+            path = self.write(cage, name, grip_map=True)
+            a, b = tsm_model(path), tsm_model(path, t_spline=True)
+            self.assertEqual((a.kind, b.kind), ("catmull-clark", "t-spline"), name)
+            f, s, t = face_grid(len(cage.mesh.faces))
+            gap = np.abs(a.evaluate_faces(f, s, t).P - b.evaluate_faces(f, s, t).P).max()
+            self.assertLess(gap, 1e-9 * size_of(a), name)
+
+    def test_non_uniform_boundary_is_the_reflected_b_spline(self):
+        """T-junctions and non-uniform intervals: the kernel; its boundary curve is the cubic
+        B-spline of the boundary grips continued by reflection through the end grips (knots
+        mirrored too), evaluated by scipy; corners interpolate their grips."""
+        from scipy.interpolate import BSpline
+        X, Y, mesh = tjunction_grid()
+        self.assertGreaterEqual(sum(len(f) > 4 for f in mesh.faces), 8)
+        model = tsplcam.load(self.write(mesh, "tgrid", grip_map=True))
+        self.assertEqual(model.kind, "t-spline")
+        scale = size_of(model)
+        gi = mesh.grid_index
+        row = sorted((int(gi[v, 0]), v) for v in range(mesh.n_vertices) if gi[v, 1] == 0)
+        x = X[[i for i, _ in row]]
+        P = mesh.points[[v for _, v in row]]
+        n = len(x) - 1
+        ext = np.concatenate([2 * x[0] - x[3:0:-1], x, 2 * x[-1] - x[-2:-5:-1]])
+        ctrl = np.vstack([2 * P[0] - P[1], P, 2 * P[-1] - P[-2]])
+        curve = BSpline(ext, ctrl, 3)
+        faces, ss, xs = [], [], []
+        for f, loop in enumerate(mesh.faces):
+            c = [int(loop[k]) for k in mesh.corners[f]]
+            if gi[c[0], 1] == 0 and gi[c[1], 1] == 0:
+                x0, x1 = X[gi[c[0], 0]], X[gi[c[1], 0]]
+                tau = np.linspace(0, 1, 7)
+                faces += [f] * 7
+                ss += list(tau)
+                xs += list(x0 + (x1 - x0) * tau)
+        self.assertAlmostEqual(min(xs), x[0])
+        self.assertAlmostEqual(max(xs), x[n])
+        got = model.evaluate_faces(faces, ss, np.zeros(len(ss))).P
+        self.assertLess(np.abs(got - curve(np.array(xs))).max(), 1e-9 * scale)
+        corners = [v for v in range(mesh.n_vertices) if gi[v, 0] in (0, len(X) - 1) and gi[v, 1] in (0, len(Y) - 1)]
+        for v in corners:
+            self.assertLess(np.linalg.norm(model.node_points - mesh.points[v], axis=1).min(), 1e-9 * scale)
+
+    def test_kernel_refuses_creases_and_concave_corners_with_their_line(self):
+        X, Y, mesh = tjunction_grid()
+        path = self.write(mesh, "tcrease", creases=[(0, 1)])
+        with self.assertRaises(InputError) as cm:
+            tsplcam.load(path)
+        self.assertIn("creases", str(cm.exception))
+        lines = open(path).read().split("\n")
+        self.assertTrue(lines[cm.exception.line - 1].startswith("100edges"))
+
+
 class Creases(TempDir):
     def crease_sides(self, model, cage, creases, n=9):
         """Per crease edge (a, b): the surface along it evaluated from the faces on both sides,

@@ -170,9 +170,13 @@ def _alpha(r, old, k, w):
     a = topo.length(k, w).real
     back = topo.edge_angle[(w, k)]
     T = int(topo.total[w])
-    if topo.boundary[w] and back + 2 > T:
-        return 1.0 / 3.0                  # the line leaves the mesh at w: reflected there, b = a
-    beyond = topo.edge_by_angle[w].get((back + 2) % 4) if T in (2, 3, 4) else None
+    if topo.boundary[w]:                 # a boundary fan spans the angles 0 .. T
+        on = [x for x in (back + 2, back - 2) if 0 <= x <= T]
+        if not on:
+            return 1.0 / 3.0              # the line leaves the mesh at w: reflected there, b = a
+        beyond = topo.edge_by_angle[w].get(on[0])
+    else:
+        beyond = topo.edge_by_angle[w].get((back + 2) % 4) if T == 4 else None
     if beyond is None:
         raise r.err(f"open boundary at vertex {r.old_ids[k]}: the line inward through vertex {r.old_ids[w]} "
                     f"does not go straight on (a star point or T-junction there): the boundary rule "
@@ -285,34 +289,47 @@ def fusion_model(r, t_spline: bool = False):
 def write_fusion_tsm(cage, path: str, creases=(), corners=(), grip_map: bool = False,
                      interval: float = 1.0, units: str = "1 centimeters",
                      end_conditions: str | None = None) -> None:
-    """A quad cage (mm) as a Fusion-dialect ``.tsm`` (centimetres): ``creases`` are vertex
+    """A quad cage or a T-mesh (``tmesh.TMesh``: its faces, corners, T-junctions and knot
+    intervals), in mm, as a Fusion-dialect ``.tsm`` (centimetres): ``creases`` are vertex
     pairs (0-based) written to ``100edges``, ``corners`` vertices to ``100verts``.
     ``grip_map`` writes the grips in reverse vertex order with ``0m odd-grip-map`` and one
-    ``0m gvp`` per grip. ``interval``: every edge's knot interval, or a function of an
-    edge's two vertices (a < b). End conditions SUBD_CREASES with creases, else
+    ``0m gvp`` per grip. ``interval`` (cages): every edge's knot interval, or a function of
+    an edge's two vertices (a < b). End conditions SUBD_CREASES with creases, else
     MULTIPLE_KNOTS (as Fusion writes them), unless given."""
-    faces = np.asarray(cage.mesh.faces, int)
-    nv = len(cage.points)
+    if hasattr(cage, "corners"):                     # a T-mesh
+        loops = [[int(v) for v in f] for f in cage.faces]
+        is_corner = [set(cs) for cs in cage.corners]
+        given = {(int(f[i]), int(f[(i + 1) % len(f)])): float(d[i])
+                 for f, d in zip(cage.faces, cage.intervals) for i in range(len(f))}
+        knot = lambda a, b: given.get((a, b), given.get((b, a)))      # noqa: E731
+        points, weights = cage.points, cage.weights
+    else:
+        loops = [[int(v) for v in f] for f in cage.mesh.faces]
+        is_corner = [{0, 1, 2, 3}] * len(loops)
+        knot = interval if callable(interval) else (lambda a, b: interval)
+        points, weights = cage.points, cage.weights
+    nv = len(points)
     links = []                                      # [prev, next, opp, vertex, face, edge, flag]
     at = {}                                         # (a, b) -> link
-    for f, quad in enumerate(faces):
-        for k in range(4):
-            i = 4 * f + k
-            links.append([4 * f + (k + 3) % 4, 4 * f + (k + 1) % 4, -1, int(quad[k]), f, -1, 0])
-            at[(int(quad[k]), int(quad[(k + 1) % 4]))] = i
+    turns = np.zeros(nv, int)
+    starts = []
+    for f, loop in enumerate(loops):
+        base, m = len(links), len(loop)
+        starts.append(base + min(is_corner[f]))
+        for k in range(m):
+            flag = 0 if k in is_corner[f] else 1
+            links.append([base + (k - 1) % m, base + (k + 1) % m, -1, loop[k], f, -1, flag])
+            at[(loop[k], loop[(k + 1) % m])] = base + k
+            turns[loop[k]] += 1 if flag == 0 else 2
     out_boundary = {}
     for (a, b), i in list(at.items()):
         if (b, a) not in at:                        # a boundary link b -> a on face -1
             j = len(links)
             links.append([-1, -1, i, b, -1, -1, 1])
             at[(b, a)] = j
-            links[i][2] = j
             out_boundary[b] = j
     for (a, b), i in at.items():
         links[i][2] = at[(b, a)]
-    turns = np.zeros(nv, int)
-    for quad in faces:
-        np.add.at(turns, quad, 1)
     for v, j in out_boundary.items():
         a = links[links[j][2]][3]                   # the boundary link runs v -> a
         links[j][1] = out_boundary[a]
@@ -327,14 +344,13 @@ def write_fusion_tsm(cage, path: str, creases=(), corners=(), grip_map: bool = F
     first = {}
     for i, ln in enumerate(links):
         first.setdefault(ln[3], i)
-    pts = np.asarray(cage.points, float) / 10.0
-    w = np.ones(nv) if cage.weights is None else np.asarray(cage.weights, float)
+    pts = np.asarray(points, float) / 10.0
+    w = np.ones(nv) if weights is None else np.asarray(weights, float)
     boundary_edges = sorted(links[i][5] for i in range(len(links)) if links[i][4] < 0)
     ends = end_conditions or ("SUBD_CREASES" if len(creases) or len(corners) else "MULTIPLE_KNOTS")
     rows = ["#TS0200", "", "degree 3", "cap-type G1CAPS", "star-smoothness 0", f"units {units}",
             f"end-conditions {ends}", "star-knot-rule NURCCS"]
-    rows += [f"f {4 * f} 0" for f in range(len(faces))]
-    knot = interval if callable(interval) else (lambda a, b: interval)
+    rows += [f"f {i} 0" for i in starts]
     rows += [f"e {i} {float(knot(*sorted((links[i][3], links[links[i][2]][3]))))!r}" for i in edges]
     rows += [f"v {first[v]} EAST" for v in range(nv)]
     rows += ["l " + " ".join(str(x) for x in ln) for ln in links]

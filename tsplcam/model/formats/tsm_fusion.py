@@ -21,9 +21,10 @@ boundary grips, single-face corners interpolated) and the creases as infinitely 
 OpenSubdiv creases, which bound patches. Star points (``cap-type G1CAPS``) are evaluated
 exactly on that limit surface, a watertight reading that is G1 at the star itself.
 Any other T-mesh (T-junctions, non-uniform intervals) goes to the T-spline kernel
-(``tspline.tspline_model``, T-NURCC rule at stars); there, open boundaries and creases
-are refused with their line, since the kernel's boundaries need zero outer knot intervals
-that Fusion files do not carry.
+(``tspline.tspline_model``, T-NURCC rule at stars). Its boundaries need zero outer knot
+intervals, which Fusion files do not carry: ``clamped_boundary`` adds them, with the grips
+that make the boundary the reflected B-spline of the boundary grips (the edge-and-corner
+rule on uniform knots). Creases there are refused with their line.
 """
 from __future__ import annotations
 

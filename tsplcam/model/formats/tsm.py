@@ -414,20 +414,25 @@ class _Reader:
         return mesh
 
     # -- grips ----------------------------------------------------------------------------------------
-    def grips(self, old):
-        """Per old vertex (compact id): {ring-view position: grip id}."""
+    def mapped_grips(self):
+        """The grip map's entries (grip, line, vertex, own grip?) without the null ones,
+        after checking there is one per control point and nulls go together."""
         if len(self.grip_of) != len(self.g):
-            last = next((g[0] for g in reversed(self.g) if g is not None), None)
+            last = next((g[0] for g in reversed(self.g) if g is not None), self.grip_map_line)
             raise self.err(f"{len(self.grip_of)} grip map records (0m gvp/gv) for {len(self.g)} control "
                            f"points (0g): the file is truncated or inconsistent", last)
-        topo = old.topology
-        prime, extra = {}, {}
         for gi, (ln, v, is_prime) in enumerate(self.grip_of):
             if (v < 0) != (self.g[gi] is None):
                 raise self.err(f"grip {gi}: a null grip map entry (vertex -1) must go with a null control "
                                f"point (a bare 0g) and only with one", ln)
-            if v < 0:
-                continue
+            if v >= 0:
+                yield gi, ln, v, is_prime
+
+    def grips(self, old):
+        """Per old vertex (compact id): {ring-view position: grip id}."""
+        topo = old.topology
+        prime, extra = {}, {}
+        for gi, ln, v, is_prime in self.mapped_grips():
             if v not in self.compact:
                 raise self.err(f"grip {gi} belongs to vertex {v}, which no face uses", ln)
             if is_prime:

@@ -99,16 +99,8 @@ def vertex_grips(r) -> dict:
             if vrec is not None:
                 out[k] = k
         return out
-    if len(r.grip_of) != len(r.g):
-        last = next((g[0] for g in reversed(r.g) if g is not None), r.grip_map_line)
-        raise r.err(f"{len(r.grip_of)} grip map records (0m gvp) for {len(r.g)} control points (0g)", last)
     out = {}
-    for gi, (ln, v, _) in enumerate(r.grip_of):
-        if (v < 0) != (r.g[gi] is None):
-            raise r.err(f"grip {gi}: a null grip map entry (vertex -1) must go with a null control point "
-                        f"(a bare 0g) and only with one", ln)
-        if v < 0:
-            continue
+    for gi, ln, v, _ in r.mapped_grips():
         if not (0 <= v < len(r.v)) or r.v[v] is None:
             raise r.err(f"grip {gi} belongs to vertex {v}, which does not exist", ln)
         if v in out:

@@ -54,15 +54,15 @@ RADIUS = 5                     # configuration nodes per sector: 0..5 along x an
 # -- one-dimensional midpoint refinement -------------------------------------------------
 @lru_cache(maxsize=None)
 def _split(knots: tuple) -> tuple[np.ndarray, np.ndarray]:
-    """The cubic B-spline N[t0..t4] as a combination of the five B-splines of its knot vector
-    with every interval halved: (children knots (5, 5), coefficients (5,)), by Boehm's knot
-    insertion (one midpoint at a time, exact up to rounding)."""
+    """The cubic B-spline N[t0..t4] as a combination of the B-splines of its knot vector with
+    every positive interval halved (zero intervals stay zero, as in the refined T-mesh):
+    (children knots (k + 1, 5), coefficients (k + 1,)) for k positive intervals, by Boehm's
+    knot insertion (one midpoint at a time, exact up to rounding)."""
     t = [float(x) for x in knots]
     T = [t[0]] * 3 + t + [t[-1]] * 3            # N[t0..t4] is basis function 3 of T
     c = [0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0]
-    for u in [(t[i] + t[i + 1]) / 2 for i in range(4)]:
-        if not t[0] < u < t[-1]:
-            continue                            # a zero interval: nothing to halve
+    ins = [(t[i] + t[i + 1]) / 2 for i in range(4) if t[i + 1] > t[i]]
+    for u in ins:
         l = max(i for i in range(len(T) - 1) if T[i] <= u < T[i + 1])
         new = []
         for i in range(len(c) + 1):
@@ -76,11 +76,11 @@ def _split(knots: tuple) -> tuple[np.ndarray, np.ndarray]:
                 new.append((1 - alpha) * c[i - 1] + alpha * c[i])
         c = new
         T = T[:l + 1] + [u] + T[l + 1:]
-    r = np.sort(np.concatenate([np.asarray(t), (np.asarray(t)[:-1] + np.asarray(t)[1:]) / 2]))
-    kids = np.array([r[j:j + 5] for j in range(5)])
-    # the refined padded vector is [t0 x3, r0..r8, t4 x3]: children are its basis functions 3..7
-    coef = np.array(c[3:8]) if len(c) >= 8 else np.zeros(5)
-    return kids, coef
+    r = np.sort(np.array(t + ins))
+    k = len(ins)
+    kids = np.array([r[j:j + 5] for j in range(k + 1)])
+    # the refined padded vector is [t0 x3, r, t4 x3]: the children are its basis functions 3..3+k
+    return kids, np.array(c[3:4 + k])
 
 
 def split(knots: np.ndarray):
@@ -116,25 +116,49 @@ def _canon(n: int, sector: int, x: float, y: float, xk, yk):
     return None                        # behind S: not a node of this chart's neighbourhood
 
 
-def children(n: int, f: Fn, own_chart: bool = False):
+def children(n: int, f: Fn, own_chart: bool = False, behind_rows=None):
     """The 25 children of ``f`` (midpoint refinement), canonicalised; those at S or behind
     it are left out (S's new point is the vertex rule). ``own_chart``: keep only children in
-    ``f``'s own sector (S is split once per sector chart)."""
+    ``f``'s own sector (S is split once per sector chart).
+
+    ``behind_rows`` (b_j, d_(j+2), d_(j-2)) for ``f``'s sector: a function on spoke j (S, the
+    spoke vertex and the spoke points of every level) reaches behind S along the spoke,
+    where no single knot frame exists. Its children on the spoke keep the spoke's interval
+    b_j; those on the rows through the neighbouring spokes' vertices (y > 0 and y < 0) cross
+    S's neighbouring spokes at regular vertices, where the T-mesh gives the interval behind
+    as d_(j+2) and d_(j-2) (the faces of sectors j+1 and j-1 there): they are split from the
+    function with that interval in place of b_j, so that every child is the refined T-mesh's
+    own B-spline (ray cast on the level below) with the knot-insertion coefficient of the
+    NURCC rules. With b_j = d_(j+2) = d_(j-2) (valence 4, uniform stars) this is plain
+    knot insertion."""
     kx, cx_ = split(f.xk)
     ky, cy_ = split(f.yk)
+    rows_x = None
+    tol = 1e-12 * float(f.xk[-1] - f.xk[0])
+    if behind_rows is not None and abs(f.cy) <= tol and f.xk[0] < -tol:
+        b, up, down = behind_rows
+        neg = np.asarray(f.xk) < -tol
+        rows_x = {}
+        for sign, beh in ((1, up), (-1, down)):
+            xk = np.where(neg, np.asarray(f.xk) * (beh / b), f.xk)
+            rows_x[sign] = split(xk)
     out = []
-    for a in range(5):
-        if cx_[a] == 0.0:
+    for b_ in range(len(cy_)):
+        if cy_[b_] == 0.0:
             continue
-        for b in range(5):
-            if cy_[b] == 0.0:
+        yc = ky[b_][2]
+        kxx, cxx = kx, cx_
+        if rows_x is not None and abs(yc) > tol:
+            kxx, cxx = rows_x[1 if yc > 0.0 else -1]
+        for a in range(len(cxx)):
+            if cxx[a] == 0.0:
                 continue
-            xk, yk = kx[a], ky[b]
+            xk, yk = kxx[a], ky[b_]
             c = _canon(n, f.sector, xk[2], yk[2], xk, yk)
             if c is None or (own_chart and c[0] != f.sector):
                 continue
             s, x, y, xk, yk = c
-            out.append(Fn(s, x, y, np.asarray(xk, float), np.asarray(yk, float), f.row * (cx_[a] * cy_[b])))
+            out.append(Fn(s, x, y, np.asarray(xk, float), np.asarray(yk, float), f.row * (cxx[a] * cy_[b_])))
     return out
 
 
@@ -155,6 +179,12 @@ class StarZone:
     direct: list = field(default_factory=list)        # Fn, plain B-splines (D1, D2, W1 on ring 2)
     w1: list = field(default_factory=list)            # W1 functions (evaluated directly on ring 2)
 
+    def behind_rows(self, j: int):
+        """Intervals behind S along spoke j: on the spoke, and on the rows through the
+        neighbouring spokes' vertices (``children``)."""
+        n = self.n
+        return float(self.b[j]), float(self.d[(j + 2) % n]), float(self.d[(j - 2) % n])
+
     @property
     def w0(self) -> list:
         return [self.v] + list(self.spokes) + list(self.diags)
@@ -168,16 +198,20 @@ class StarZone:
             return 1 + self.n + sector
         return None
 
-    def w_knots(self, node: int, level: int, far: float | None = None):
+    def w_knots(self, node: int, level: int, beyond=None):
         """Knots of W_k node ``node`` (1..n spoke points, n+1..2n face points) in its chart:
-        the level-k mesh's, scaled spoke intervals; at level 1 the outermost knot stays
-        inside the zone (``far`` beyond the first ring)."""
+        the level-k mesh's, scaled spoke intervals. At level 1 the outermost knots lie in the
+        second ring of faces: ``beyond`` = (e, gx, gy), the T-mesh's intervals beyond the
+        spoke vertices and beyond the diagonal vertices along x and y, halved there."""
         n, d, b = self.n, self.d, self.b
         h = 0.5 ** level
         j = (node - 1) % n
         dj, dn, dp, dnn = d[j], d[(j + 1) % n], d[(j - 1) % n], d[(j + 2) % n]
-        x3 = 3 * h * dj if far is None else dj + min(dj, far) / 2
-        y3 = 3 * h * dn if far is None else dn + min(dn, far) / 2
+        x3, y3 = 3 * h * dj, 3 * h * dn
+        if beyond is not None:
+            e, gx, gy = beyond
+            x3 = dj + (e[j] if node <= n else gx[j]) / 2
+            y3 = dn + gy[j] / 2
         if node <= n:                                  # spoke point (h dj, 0)
             xk = np.array([-h * b[j], 0.0, h * dj, 2 * h * dj, x3])
             yk = h * np.array([-2 * dp, -dp, 0.0, dn, 2 * dn])
@@ -234,7 +268,7 @@ class StarZone:
         tol = 1e-9 * float(self.d.max()) * 0.5 ** level
         plain = []
         for f in fns:
-            for c in children(n, f, own_chart=(f.cx == 0.0 and f.cy == 0.0)):
+            for c in children(n, f, own_chart=(f.cx == 0.0 and f.cy == 0.0), behind_rows=self.behind_rows(f.sector)):
                 if self.w_index(c.sector, c.cx, c.cy, level + 1, tol) is None:
                     plain.append(c)
         return self.point_rules(rows, e, gx, gy), plain
@@ -244,14 +278,14 @@ class StarZone:
         d = self.d
         return d, d.copy(), np.roll(d, -1)
 
-    def level_fns(self, rows: np.ndarray, level: int, far=None) -> list:
+    def level_fns(self, rows: np.ndarray, level: int, beyond=None) -> list:
         """W_level as Fn objects (S in every sector's chart, for its children there)."""
         out = []
         for j in range(self.n):
             xk, yk = self.s_knots(j, level)
             out.append(Fn(j, 0.0, 0.0, xk, yk, rows[0]))
         for node in range(1, 2 * self.n + 1):
-            j, xk, yk = self.w_knots(node, level, far)
+            j, xk, yk = self.w_knots(node, level, beyond)
             out.append(Fn(j, xk[2], yk[2], xk, yk, rows[node]))
         return out
 
@@ -282,7 +316,7 @@ class StarZone:
                     tuple(np.round(c.yk * 8 / gy, 9)))
 
         def expand(parent, f, own):
-            for c in children(n, f, own_chart=own):
+            for c in children(n, f, own_chart=own, behind_rows=self.behind_rows(f.sector)):
                 if self.w_index(c.sector, c.cx, c.cy, 3, tol) is not None:
                     continue
                 k = key_of(c)
@@ -342,13 +376,15 @@ def overlaps(xk, yk, rect, tol) -> bool:
 
 
 # -- stars of a T-mesh --------------------------------------------------------------------------
-def find_stars(walker: Walker) -> dict:
+def find_stars(walker: Walker, extra=()) -> dict:
     """Every star point of the T-mesh: vertex -> (faces F_j, spokes s_j, diagonals q_j, d_j),
-    refusing what the construction cannot take (named)."""
+    refusing what the construction cannot take (named). ``extra``: interior regular vertices
+    to treat as stars of valence 4 as well (where the construction must give the T-spline's
+    own B-splines: a check of it)."""
     mesh, topo = walker.mesh, walker.topo
     out = {}
     for v in range(mesh.n_vertices):
-        if not topo.is_extraordinary(v):
+        if not topo.is_extraordinary(v) and v not in extra:
             continue
         name = mesh.vertex_name(v)
         if topo.boundary[v]:
@@ -374,16 +410,6 @@ def find_stars(walker: Walker) -> dict:
         if min(d) <= walker.tol:
             raise mesh.error(f"a knot interval at extraordinary {name} is zero: star points need "
                              f"positive intervals on their spokes", vertex=v)
-        # the functions next to the star cross its spokes: the interval behind the star along
-        # spoke j is the next sector's (d_(j+2)) on one side and the previous one's (d_(j-2)) on
-        # the other; they must agree for those functions to be the same on both sides
-        nd = len(d)
-        bad = [j for j in range(nd) if abs(d[(j + 2) % nd] - d[(j - 2) % nd]) > 1e-9 * max(d)]
-        if bad:
-            raise mesh.error(f"knot intervals around extraordinary {name} ({', '.join(f'{x:g}' for x in d)} "
-                             f"on its spokes in turn) are not supported: the spokes two steps apart on "
-                             f"either side of each spoke must have equal intervals (uniform intervals "
-                             f"always do; at valence 6 they may alternate)", vertex=v)
         out[v] = (faces, spokes, diags, np.array(d))
     seen = {}
     for v, (faces, spokes, diags, _) in out.items():
@@ -495,22 +521,30 @@ def build_zone(walker: Walker, v: int, star, knots, Pw: np.ndarray) -> StarZone:
         gy[j] = qy[3] - qy[2]
         fns.append(Fn(j, d[j], 0.0, sx, sy, eye[1 + j]))
         fns.append(Fn(j, d[j], d[(j + 1) % n], qx, qy, eye[1 + n + j]))
+    # the W1 functions are B-splines with one knot vector each: the knot lines beyond the
+    # star's neighbours must continue across its first ring (no T-junction on the sides of
+    # the second ring's faces that meet the first ring's corners)
+    tol = 1e-9 * float(max(d))
+    for j in range(n):
+        beyond = (e[j], gx[j], gy[(j - 1) % n])
+        if max(beyond) - min(beyond) > tol:
+            raise mesh.error(f"a T-junction within two rings of faces of extraordinary {mesh.vertex_name(v)} "
+                             f"(beyond {mesh.vertex_name(spokes[j])}: the knot intervals next along spoke "
+                             f"{j} and its two neighbours are {', '.join(f'{x:g}' for x in beyond)}): the "
+                             f"T-NURCC construction needs the knot lines across the star's second ring "
+                             f"to continue; move the T-junction one face further out", vertex=spokes[j])
     for j in range(n):
         xk = np.array([-2 * b[j], -b[j], 0.0, d[j], d[j] + e[j]])
         yk = np.array([-(d[(j - 1) % n] + e[(j - 1) % n]), -d[(j - 1) % n], 0.0, d[(j + 1) % n],
                        d[(j + 1) % n] + e[(j + 1) % n]])
         fns.append(Fn(j, 0.0, 0.0, xk, yk, eye[0]))
     rows1, plain1 = zone.step(0, eye, fns, e, gx, gy)
-    # W1 as functions: their outermost knots stay inside the second ring
-    ring2 = [g for g in chart if g not in zone.ring1]
-    extents = [abs(complex(x).real) for g in ring2 for x in topo.size[g]] or [float(d.min())]
-    far = max(0.0, min(extents))
-    zone.w1 = zone.level_fns(rows1, 1, far=far)
+    # W1 as functions: their outermost knots in the second ring, where the T-mesh's are
+    zone.w1 = zone.level_fns(rows1, 1, beyond=(e, gx, gy))
     rows2, plain2 = zone.step(1, rows1, zone.w1, *zone.self_similar())
     zone.d1, zone.d2 = _merge(plain1), _merge(plain2)
     zone.points = Pw[zone.w0]
     zone.rows2 = rows2
-    zone.far = far
     return zone
 
 

@@ -34,7 +34,7 @@ from .extraordinary import find_extraordinary
 from .knots import LocalKnots, check_clamped, local_knots
 from .model import ExtraordinaryPoint, Model, link_patches
 from .patch import CORNER_UV, Patch
-from .stars import StarCells, StarLevels, SumCells, build_zone, direct_functions
+from .stars import StarCells, StarLevels, SumCells, build_zone, direct_functions, find_stars
 from .tmesh import TMesh
 from .twalk import Walker, apply, compose, inverse, map_knots, rot
 
@@ -119,18 +119,22 @@ def homogeneous_parts(patch: Patch) -> tuple[Patch, Patch]:
     return out[0], out[1]
 
 
-def tspline_model(mesh: TMesh, name: str | None = None) -> TSplineModel:
+def tspline_model(mesh: TMesh, name: str | None = None, subdivide_at=()) -> TSplineModel:
     """The surface of a T-mesh as patches over Bezier cells (and subdivided cells next to star
-    points)."""
+    points). ``subdivide_at``: regular interior vertices evaluated by the star construction
+    too (valence 4; it must give the same surface: a check of the construction)."""
     mesh.validate()                   # points and weights may have changed since the topology
     walker = Walker(mesh)
     Pw = mesh.homogeneous()
     check_clamped(mesh)
     ep = find_extraordinary(mesh, walker)
     knots = local_knots(walker, ep.interval)
-    zones = [build_zone(walker, v, star, knots, Pw) for v, star in ep.stars.items()]
+    stars = dict(ep.stars)
+    if subdivide_at:
+        stars = find_stars(walker, extra=set(subdivide_at))
+    zones = [build_zone(walker, v, star, knots, Pw) for v, star in stars.items()]
     near = _zone_faces(zones)
-    support = supports(walker, knots, set(ep.stars), near)
+    support = supports(walker, knots, set(stars), near)
     dec = decompose_tmesh(walker)
     patches, face_pieces = _extract(walker, dec, knots, support, zones, Pw)
     return _assemble(walker, dec, patches, face_pieces, ep.interval, name)

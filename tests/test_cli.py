@@ -306,7 +306,7 @@ class FusionSampleJob(unittest.TestCase):
         collision or gouge."""
         with tempfile.TemporaryDirectory(prefix="tsplcam-fusion-job-") as out:
             code, stdout, err = run(["job", "--model", sample_path("fusion_mold"), "--tool-radius", "0.5",
-                                     "--scallop", "0.05", "--out", out])
+                                     "--scallop", "0.1", "--max-step", "2", "--out", out])
             self.assertEqual(code, 0, err)
             with open(os.path.join(out, "report.json")) as fh:
                 report = json.load(fh)

@@ -199,12 +199,63 @@ class TSplineKernel(TempDir):
         for v in corners:
             self.assertLess(np.linalg.norm(model.node_points - mesh.points[v], axis=1).min(), 1e-9 * scale)
 
-    def test_kernel_refuses_creases_and_concave_corners_with_their_line(self):
+    def test_kernel_creases_equal_the_cage_creases(self):
+        """A crease in the kernel: the T-mesh is cut along it and each side clamped like a
+        boundary (knot multiplicity three on the crease line), the sides linked again. On
+        uniform knots that is OpenSubdiv's infinitely sharp crease (the cage path)."""
+        from tsplcam.model.formats.tsm import tsm_model
+        nx, ny = 6, 5
+        P = np.array([(10.0 * i, 10.0 * j, 4 * np.sin(i) * np.cos(0.7 * j)) for j in range(ny + 1)
+                      for i in range(nx + 1)])
+        vid = lambda i, j: j * (nx + 1) + i                          # noqa: E731
+        faces = [[vid(i, j), vid(i + 1, j), vid(i + 1, j + 1), vid(i, j + 1)] for j in range(ny) for i in range(nx)]
+        from tsplcam.model.quadmesh import QuadMesh
+        cage = Cage(QuadMesh(np.array(faces), len(P)), P)
+        path = self.write(cage, "grid_crease", creases=[(vid(2, j), vid(2, j + 1)) for j in range(ny)])
+        a, b = tsm_model(path), tsm_model(path, t_spline=True)
+        self.assertEqual((a.kind, b.kind), ("catmull-clark", "t-spline"))
+        f, s, t = face_grid(len(faces))
+        self.assertLess(np.abs(a.evaluate_faces(f, s, t).P - b.evaluate_faces(f, s, t).P).max(), 1e-9 * size_of(a))
+        la, lb = Layout.from_model(a), Layout.from_model(b)
+        self.assertEqual((len(la.edge_links), len(lb.edge_links), len(b.node_points)), (1, 1, len(a.node_points)))
+
+    def test_kernel_crease_on_a_non_uniform_t_mesh(self):
+        """T-junctions, non-uniform intervals, a crease along a whole knot line: C0 along it,
+        the crease curve the reflected B-spline of its grips (scipy), the two sides linked."""
+        from scipy.interpolate import BSpline
         X, Y, mesh = tjunction_grid()
-        path = self.write(mesh, "tcrease", creases=[(0, 1)])
+        gi = mesh.grid_index
+        col = sorted((int(gi[v, 1]), v) for v in range(mesh.n_vertices) if gi[v, 0] == 2)
+        creases = [(a, b) for (_, a), (_, b) in zip(col[:-1], col[1:])]
+        model = tsplcam.load(self.write(mesh, "tcrease", creases=creases))
+        self.assertEqual(model.kind, "t-spline")
+        scale = size_of(model)
+        y = Y[[j for j, _ in col]]
+        P = mesh.points[[v for _, v in col]]
+        ext = np.concatenate([2 * y[0] - y[3:0:-1], y, 2 * y[-1] - y[-2:-5:-1]])
+        curve = BSpline(ext, np.vstack([2 * P[0] - P[1], P, 2 * P[-1] - P[-2]]), 3)
+        tau = np.linspace(0, 1, 7)
+        sides = 0
+        for f, loop in enumerate(mesh.faces):
+            for k in range(4):
+                c0, c1 = int(loop[mesh.corners[f][k]]), int(loop[mesh.corners[f][(k + 1) % 4]])
+                if gi[c0, 0] == 2 and gi[c1, 0] == 2:
+                    st = [(tau, 0 * tau), (1 + 0 * tau, tau), (1 - tau, 1 + 0 * tau), (0 * tau, 1 - tau)][k]
+                    got = model.evaluate_faces(np.full(7, f), *st).P
+                    yy = Y[gi[c0, 1]] + (Y[gi[c1, 1]] - Y[gi[c0, 1]]) * tau
+                    self.assertLess(np.abs(got - curve(yy)).max(), 1e-9 * scale)
+                    sides += 1
+        self.assertGreaterEqual(sides, 2 * len(creases) - 2)     # both sides (T-junction faces span two)
+        self.assertGreaterEqual(len(Layout.from_model(model).edge_links), 1)
+
+    def test_kernel_refuses_a_crease_ending_inside(self):
+        X, Y, mesh = tjunction_grid()
+        gi = mesh.grid_index
+        col = sorted((int(gi[v, 1]), v) for v in range(mesh.n_vertices) if gi[v, 0] == 2)
+        path = self.write(mesh, "dart", creases=[(col[0][1], col[1][1]), (col[1][1], col[2][1])])
         with self.assertRaises(InputError) as cm:
             tsplcam.load(path)
-        self.assertIn("creases", str(cm.exception))
+        self.assertIn("crease ends inside", str(cm.exception))
         lines = open(path).read().split("\n")
         self.assertTrue(lines[cm.exception.line - 1].startswith("100edges"))
 

@@ -494,10 +494,12 @@ class _Reader:
         return out
 
     # -- the tsplcam T-mesh -----------------------------------------------------------------------------
-    def build(self, old=None, pos=None, G=None, grip_lines=None, grip_names=None):
+    def build(self, old=None, pos=None, G=None, grip_lines=None, grip_names=None, origin=None):
         """The T-mesh with the boundary made explicit. By default from the file's grips and
         blocks; the Fusion dialect passes its own T-mesh ``old``, ring-view positions
-        ``pos`` and grips ``G`` ((x, y, z, w) rows, file units) with their lines and names."""
+        ``pos`` and grips ``G`` ((x, y, z, w) rows, file units) with their lines and names,
+        and for a T-mesh cut along creases the vertex of the file's T-mesh every vertex of
+        ``old`` was copied from (``origin``)."""
         from ..tmesh import TMesh
         own = pos is None
         old = self.topology() if old is None else old
@@ -571,8 +573,9 @@ class _Reader:
             # ring faces outside, one per chain edge: (offset p, offset q, q, p)
             na = _STEP[3]                                      # right of the walk along a's +x
             nb = _STEP[(Tb + 1) % 4]                           # right of the arrival at b
-            e_line = self.e[self.l[self._link_of(a, b)][6]][0]
-            e_id = self.l[self._link_of(a, b)][6]
+            oa, ob = (a, b) if origin is None else (origin[a], origin[b])
+            e_id = self.l[self._link_of(oa, ob)][6]
+            e_line = self.e[e_id][0]
             for (kp, pp), (kq, pq), dd in zip(chain[:-1], chain[1:], d):
                 op = (pp[0] + (na if kp == a else nb)[0], pp[1] + (na if kp == a else nb)[1])
                 oq = (pq[0] + (na if kq == a else nb)[0], pq[1] + (na if kq == a else nb)[1])
@@ -582,7 +585,7 @@ class _Reader:
             if Ta == 1:
                 loop_c = [vertex(a, (-1, -1)), vertex(a, (0, -1)), vertex(a, (0, 0)), vertex(a, (-1, 0))]
                 add_face(loop_c, [0, 1, 2, 3], [0.0] * 4, f"boundary corner at {old.vertex_labels[a]}",
-                         self.v[self.old_ids[a]][0])
+                         old.vertex_lines[a])
         P = np.array(P, float)
         mesh = TMesh(P[:, :3] * self.scale, P[:, 3], faces, corners, intervals, source=self.path,
                      face_lines=face_lines, vertex_lines=vlines, vertex_labels=labels,

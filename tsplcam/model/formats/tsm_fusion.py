@@ -24,7 +24,11 @@ Any other T-mesh (T-junctions, non-uniform intervals) goes to the T-spline kerne
 (``tspline.tspline_model``, T-NURCC rule at stars). Its boundaries need zero outer knot
 intervals, which Fusion files do not carry: ``clamped_boundary`` adds them, with the grips
 that make the boundary the reflected B-spline of the boundary grips (the edge-and-corner
-rule on uniform knots). Creases there are refused with their line.
+rule on uniform knots). A crease there is knot multiplicity three on its line: the
+T-mesh is cut along the crease (``cut_along_creases``), each side clamped like a boundary,
+and the patches on the two sides linked again (``join_across_creases``); on uniform knots
+this is OpenSubdiv's infinitely sharp crease. Creases that end inside the surface and
+sharp vertices are refused there with their line.
 """
 from __future__ import annotations
 
@@ -152,7 +156,13 @@ def uniform_interval(old) -> float | None:
     return top
 
 
-def _alpha(r, old, k, w):
+def _file_vertex(r, origin, k):
+    """(file vertex id, its v line) of vertex k of a (possibly cut) T-mesh."""
+    v = r.old_ids[origin[k]]
+    return v, r.v[v][0]
+
+
+def _alpha(r, old, k, w, origin):
     """The share of the way from boundary vertex k toward its inward neighbour w at which
     the second grip of the clamped boundary sits: a / (2a + b), a the interval k-w and b the
     next one straight on beyond w (b = a where the line leaves the mesh at w, reflected
@@ -170,17 +180,18 @@ def _alpha(r, old, k, w):
         beyond = topo.edge_by_angle[w].get(on[0])
     else:
         beyond = topo.edge_by_angle[w].get((back + 2) % 4) if T == 4 else None
+    v, line = _file_vertex(r, origin, k)
     if beyond is None:
-        raise r.err(f"open boundary at vertex {r.old_ids[k]}: the line inward through vertex {r.old_ids[w]} "
-                    f"does not go straight on (a star point or T-junction there): the boundary rule "
-                    f"needs the knot interval beyond it", r.v[r.old_ids[k]][0])
+        raise r.err(f"open boundary or crease at vertex {v}: the line inward through vertex "
+                    f"{_file_vertex(r, origin, w)[0]} does not go straight on (a star point or T-junction "
+                    f"there): the boundary rule needs the knot interval beyond it", line)
     b = topo.length(w, beyond).real
     if not 2 * a + b > 0:
-        raise r.err(f"open boundary at vertex {r.old_ids[k]}: zero knot intervals inward", r.v[r.old_ids[k]][0])
+        raise r.err(f"open boundary or crease at vertex {v}: zero knot intervals inward", line)
     return a / (2 * a + b)
 
 
-def clamped_boundary(r, old, G0):
+def clamped_boundary(r, old, G0, origin):
     """Ring-view grips (``tsm._Reader.build``) of a Fusion T-mesh with open boundaries, for
     the T-spline kernel's clamped boundary: every boundary grip stays on the boundary ring
     (zero knot interval outside) and the file vertex takes the second grip of the clamped
@@ -204,17 +215,17 @@ def clamped_boundary(r, old, G0):
         nb = topo.edge_by_angle[k]
         if T == 2 and 1 in nb:
             w = nb[1]
-            al = _alpha(r, old, k, w)
+            al = _alpha(r, old, k, w, origin)
             pos[k] = {(0, -1): add(H[k], k, "boundary"), (0, 0): add(H[k] + al * (H[w] - H[k]), k, "clamped")}
         elif T == 1:
             f, i = topo.fan[k][0]
             loop = old.faces[f]
             if len(loop) != 4:
-                raise r.err(f"open boundary: the corner face at vertex {r.old_ids[k]} has T-junctions",
-                            r.v[r.old_ids[k]][0])
+                raise r.err(f"open boundary: the corner face at vertex {_file_vertex(r, origin, k)[0]} has "
+                            f"T-junctions", _file_vertex(r, origin, k)[1])
             px, py = nb[0], nb[1]
             pxy = int(loop[(list(loop).index(k) + 2) % 4])
-            ax, ay = _alpha(r, old, k, px), _alpha(r, old, k, py)
+            ax, ay = _alpha(r, old, k, px, origin), _alpha(r, old, k, py, origin)
             C, X, Y, XY = H[k], H[px], H[py], H[pxy]
             pos[k] = {(-1, -1): add(C, k, "corner"),
                       (0, -1): add(C + ax * (X - C), k, "clamped"),
@@ -222,9 +233,113 @@ def clamped_boundary(r, old, G0):
                       (0, 0): add(C + ax * (X - C) + ay * (Y - C) + ax * ay * (XY - X - Y + C), k, "clamped")}
         else:
             what = "a concave corner" if T == 3 else "a T-junction" if T == 2 else "a star point"
-            raise r.err(f"open boundary at vertex {r.old_ids[k]}, {what}: not supported by the T-spline "
-                        f"kernel's clamped boundary", r.v[r.old_ids[k]][0])
+            v, line = _file_vertex(r, origin, k)
+            raise r.err(f"open boundary or crease at vertex {v}, {what}: not supported by the T-spline "
+                        f"kernel's clamped boundary", line)
     return pos, np.array(rows), lines, names
+
+
+def cut_along_creases(r, old, creases: dict):
+    """The T-mesh ``old`` cut open along its crease edges, and the vertex of ``old`` each
+    vertex comes from. A vertex on creases is split into one copy per sector of faces
+    between its crease edges (same grip); a crease that ends inside the surface (one
+    crease edge at an inner vertex) cannot be cut and is refused."""
+    from ..tmesh import TMesh
+    faces = [list(map(int, f)) for f in old.faces]
+    at = {}                                          # vertex -> [(face, loop index)]
+    for f, loop in enumerate(faces):
+        for i, v in enumerate(loop):
+            at.setdefault(v, []).append((f, i))
+    origin = list(range(old.n_vertices))
+    lines, labels = list(old.vertex_lines), list(old.vertex_labels)
+    on_crease = sorted({v for e in creases for v in e})
+    first_line = r.crease_edges[0][0] if r.crease_edges else None
+    for v in on_crease:
+        parent = {f: f for f, _ in at[v]}
+
+        def find(f):
+            while parent[f] != f:
+                f = parent[f]
+            return f
+        by_edge = {}
+        for f, i in at[v]:
+            m = len(faces[f])
+            for w in (faces[f][(i + 1) % m], faces[f][(i - 1) % m]):
+                by_edge.setdefault((min(v, w), max(v, w)), []).append(f)
+        for e, fs in by_edge.items():
+            if e not in creases:
+                for g in fs[1:]:
+                    parent[find(g)] = find(fs[0])
+        sectors = sorted({find(f) for f, _ in at[v]})
+        if len(sectors) == 1:
+            raise r.err(f"the crease ends inside the surface at vertex {r.old_ids[v]}: the T-spline kernel "
+                        f"cuts the surface along creases, so they must run from boundary to boundary or "
+                        f"close", first_line)
+        for root in sectors[1:]:
+            copy = len(origin)
+            origin.append(v)
+            lines.append(lines[v])
+            labels.append(labels[v] + " (across the crease)")
+            for f, i in at[v]:
+                if find(f) == root:
+                    faces[f][i] = copy
+    mesh = TMesh(np.zeros((len(origin), 3)), None, faces, old.corners, old.intervals, source=old.source,
+                 face_lines=old.face_lines, vertex_lines=lines, vertex_labels=labels, face_labels=old.face_labels)
+    mesh.validate()
+    return mesh, origin
+
+
+def join_across_creases(model, samples: int = 5) -> int:
+    """Make the patches on the two sides of a cut crease neighbours again: every pair of
+    patch edges without a neighbour that coincide along their whole length (to 1e-9 of the
+    model size, at ``samples`` points) is linked, and their corner nodes become one.
+    Returns the number of links made."""
+    from ..model import EdgeNeighbour
+    from ..patch import CORNER_UV
+    free = [(p.index, e) for p in model.patches for e in range(4) if p.neighbours[e] is None]
+    if not free:
+        return 0
+    tau = np.linspace(0.0, 1.0, samples)
+    pts = {pe: model.patches[pe[0]].evaluate(*model.patches[pe[0]].edge_params(pe[1], tau)).P for pe in free}
+    every = np.concatenate([model.patches[p].evaluate(CORNER_UV[:, 0], CORNER_UV[:, 1]).P
+                            for p in range(len(model.patches))])
+    tol = 1e-9 * max(float(np.linalg.norm(every.max(0) - every.min(0))), 1e-300)
+    same = {}                                       # node -> node it becomes
+    made = 0
+    for i, a in enumerate(free):
+        for b in free[i + 1:]:
+            if model.patches[a[0]].neighbours[a[1]] is not None or model.patches[b[0]].neighbours[b[1]] is not None:
+                continue
+            for rev in (True, False):
+                other = pts[b][::-1] if rev else pts[b]
+                if np.abs(pts[a] - other).max() <= tol:
+                    model.patches[a[0]].neighbours[a[1]] = EdgeNeighbour(b[0], b[1], rev)
+                    model.patches[b[0]].neighbours[b[1]] = EdgeNeighbour(a[0], a[1], rev)
+                    ca = [model.patches[a[0]].corner_nodes[(a[1] + k) % 4] for k in (0, 1)]
+                    cb = [model.patches[b[0]].corner_nodes[(b[1] + k) % 4] for k in ((1, 0) if rev else (0, 1))]
+                    for x, y in zip(ca, cb):
+                        same[int(y)] = int(x)
+                    made += 1
+                    break
+    if same:
+        def root(n):
+            while n in same and same[n] != n:
+                n = same[n]
+            return n
+        used = sorted({root(int(n)) for p in model.patches for n in p.corner_nodes})
+        new = {n: k for k, n in enumerate(used)}
+        for p in model.patches:
+            p.corner_nodes = np.array([new[root(int(n))] for n in p.corner_nodes])
+        model.node_points = model.node_points[used]
+        keys = getattr(model, "node_keys", None)
+        if keys is not None:
+            model.node_keys = [keys[n] for n in used]
+        kept = {}
+        for ep in model.extraordinary:
+            ep.node = new[root(ep.node)]
+            kept.setdefault(ep.node, ep)
+        model.extraordinary = list(kept.values())
+    return made
 
 
 def fusion_model(r, t_spline: bool = False):
@@ -264,14 +379,18 @@ def fusion_model(r, t_spline: bool = False):
         surface = (f"Catmull-Clark limit of the cage (uniform knot interval {d:g}, no T-junctions; "
                    f"boundaries edge-and-corner, creases infinitely sharp)")
     else:
-        if r.crease_edges or r.crease_vertices:
-            ln = (r.crease_edges or r.crease_vertices)[0][0]
-            raise r.err("creases on a T-mesh with T-junctions or non-uniform knot intervals are not "
-                        "supported (creased bodies are read as uniform cages only)", ln)
-        pos, rows, lines, names = clamped_boundary(r, old, G)
-        mesh = r.build(old, pos, rows, lines, names)
+        if sharp:
+            raise r.err("sharp vertices (100verts) on a T-mesh with T-junctions or non-uniform knot "
+                        "intervals are not supported", r.crease_vertices[0][0])
+        origin = list(range(old.n_vertices))
+        if creases:
+            old, origin = cut_along_creases(r, old, creases)
+        pos, rows, lines, names = clamped_boundary(r, old, G[origin], origin)
+        mesh = r.build(old, pos, rows, lines, names, origin if creases else None)
         with naming(r.path):
             model = tspline_model(mesh, name=name)
+        if creases:
+            join_across_creases(model)
         surface = ("T-spline (T-junctions or non-uniform knot intervals; T-NURCC rule at star points; "
                    "open boundaries clamped with the second grip row of the edge-and-corner rule)")
     model.tsm = TsmInfo.of(r, surface, len(creases), len(sharp))

@@ -20,7 +20,24 @@ spoke j+1; the first face F_j is [0, d_j] x [0, d_(j+1)], d_j the spoke's knot i
   intervals this is exactly Catmull-Clark.
 * The knot interval "behind" S along spoke j (which a ray through S would need) is
   b_j = (d_(j+2) + d_(j-2)) / 2, the mean of the spokes two steps away (the NURCC rule; for
-  valence 4 it is the opposite spoke).
+  valence 4 it is the opposite spoke). It serves the rules and the children on spoke j
+  itself; children on the rows through the neighbouring spokes' vertices cross those
+  spokes at regular vertices, where the T-mesh itself gives d_(j+2) and d_(j-2)
+  (``children``): so every child is the refined T-mesh's own B-spline and the functions
+  stay a partition of unity for any spoke intervals.
+* The NURCC rules with unequal spoke intervals can have two different subdominant
+  eigenvalues (valence 8, intervals in ratio 4: 0.72 and 0.57 with 0.52 next), so that the
+  normal at S converges too slowly or not at all (the defect that Li, Finnigan and
+  Sederberg 2016, "G1 non-uniform Catmull-Clark surfaces", address with eigen-polyhedra).
+  Here the NURCC rules make levels 1 and 2, and the star's own points follow
+  Catmull-Clark's rules from level 2 on: its stationary matrix then has Catmull-Clark's
+  double subdominant eigenvalue, so the limit is G1 at S whatever the intervals. Only the
+  points next to S change (the functions and their knots do not), so the surface stays C2
+  away from S, and uniform stars are still exactly Catmull-Clark. At valence 4 the rules
+  are knot insertion throughout (``tspline_model(subdivide_at=...)`` checks that the
+  construction then gives the T-spline's own surface).
+* The knot lines beyond the star's neighbours must run on across its second ring (one knot
+  vector per level-1 function); a T-junction that cuts them is refused by name.
 * W_k functions reach only 1.5 level-k intervals from S, so the two rings of faces around
   S (the zone) contain every piece that is not a plain B-spline: the surface there is
   the sum of plain B-splines (the other functions, and the children split off at every
@@ -32,8 +49,9 @@ spoke j+1; the first face F_j is [0, d_j] x [0, d_(j+1)], d_j the spoke's knot i
   within 5 intervals, 1 + 30 n functions) to level k+1. Configurations are precomputed
   level by level (as differences from the limit point, ``cells.LevelCells``' method).
 
-``star_zones(walker, ...)`` finds and checks the stars; ``StarZone`` holds one star's
-construction; ``StarCells`` evaluates the subdivided part on the star's first faces.
+``find_stars(walker)`` finds and checks the stars; ``build_zone`` makes one star's
+construction (``StarZone``); ``StarLevels`` holds its subdivided part, ``StarCells``
+evaluates it on the star's first faces (array calls: one product per cell and level met).
 """
 from __future__ import annotations
 
@@ -227,12 +245,15 @@ class StarZone:
         return (h * np.array([-2 * b[j], -b[j], 0.0, d[j], 2 * d[j]]),
                 h * np.array([-2 * d[(j - 1) % n], -d[(j - 1) % n], 0.0, d[(j + 1) % n], 2 * d[(j + 1) % n]]))
 
-    def point_rules(self, rows: np.ndarray, e, gx, gy) -> np.ndarray:
+    def point_rules(self, rows: np.ndarray, e, gx, gy, uniform: bool = False) -> np.ndarray:
         """The next level's S, spoke and face points from this level's (``rows``: S, s_j,
         q_j, any trailing columns), by the NURCC rules (Sederberg et al. 1998; affine, and
         exact knot insertion wherever the knots are a tensor grid). ``e[j]``: the interval
-        beyond s_j along spoke j; ``gx[j]``, ``gy[j]``: beyond q_j along x and y of sector j."""
+        beyond s_j along spoke j; ``gx[j]``, ``gy[j]``: beyond q_j along x and y of sector j.
+        ``uniform``: every interval equal (Catmull-Clark's rules)."""
         n, d, b = self.n, self.d, self.b
+        if uniform:
+            d = b = e = gx = gy = np.ones(n)
         S, sp, fq = rows[0], rows[1:1 + n], rows[1 + n:1 + 2 * n]
         new = np.zeros_like(rows[:2 * n + 1])
         M = []
@@ -338,7 +359,7 @@ class StarZone:
             done += 1
         K = Wn + len(plain)
         A = np.zeros((K, K))
-        A[:Wn] = self.point_rules(np.eye(K)[:Wn], *self.self_similar())
+        A[:Wn] = self.point_rules(np.eye(K)[:Wn], *self.self_similar(), uniform=self.n != 4)
         for parent, child, coef in edges:
             if parent[0] == "w":
                 A[Wn + child, :Wn] += coef
@@ -573,12 +594,93 @@ def direct_functions(zone: StarZone, walker: Walker) -> dict:
         back = inverse(m)
         rows = []
         for f in cands:
+            if f.cx == 0.0 and f.cy == 0.0 and f.sector != j:
+                continue                    # the star's own function lives in each sector's chart
             k = to_chart(zone.n, f, j)
             if k is None or not overlaps(k[0], k[1], rect, tol):
                 continue
             xk, yk = map_knots(np.asarray(k[0]), np.asarray(k[1]), back)
             rows.append((f.row @ zone.points, np.asarray(xk).real, np.asarray(yk).real))
         out[g] = rows
+    return out
+
+
+@dataclass
+class _Pieces:
+    """What a star's subdivided part needs besides its points (the same for every star with
+    the same valence and spoke intervals, up to scale): the stationary matrix A, the
+    configuration's share of the limit point ``xinf``, the tangent masks, and the Bezier
+    matrices Z (cells, 16, K) of the level-2 functions on the ring faces of every sector."""
+    A: np.ndarray
+    xinf: np.ndarray
+    masks: tuple
+    spectrum: np.ndarray
+    face_index: dict
+    breaks: dict
+    first_cell: dict
+    Z: np.ndarray
+    Zinf: np.ndarray
+
+
+_PIECES: dict = {}
+
+
+def _pieces(zone: StarZone) -> _Pieces:
+    n = zone.n
+    key = (n, tuple(np.round(zone.d / zone.d.max(), 13)))
+    hit = _PIECES.get(key)
+    if hit is not None and abs(hit[0] - zone.d.max()) <= 1e-13 * zone.d.max():
+        return hit[1]
+    from .blending import bezier_1d
+    from .eigen import _tangent_masks
+    A, fns = zone.stationary()
+    K = A.shape[0]
+    Wn = 2 * n + 1
+    xinf = np.ones(K)
+    xinf[Wn:] = np.linalg.solve(np.eye(K - Wn) - A[Wn:, Wn:], A[Wn:, :Wn] @ np.ones(Wn))
+    AW = A[:Wn, :Wn]
+    masks = tuple(_tangent_masks(AW, f"extraordinary {zone.v}"))
+    spectrum = np.sort(np.abs(np.linalg.eigvals(AW)))[::-1]
+    # Bezier matrices of the level-2 functions on the ring faces of every sector, each face
+    # cut at the knot lines of the functions on it (those of functions next to the star fall
+    # between the grid lines where the spokes' intervals differ)
+    faces = [(p, q) for p in range(4) for q in range(4) if p >= 2 or q >= 2]
+    face_index = {pq: k for k, pq in enumerate(faces)}
+    tol = 1e-12 * float(zone.d.max())
+    breaks, first_cell, Zc = {}, {}, []
+    ncells = 0
+    for j in range(n):
+        hx, hy = zone.d[j] / 4, zone.d[(j + 1) % n] / 4
+        for k, (p, q) in enumerate(faces):
+            rect = (p * hx, (p + 1) * hx, q * hy, (q + 1) * hy)
+            cols, XK, YK = [], [], []
+            for f in fns:
+                if f.cx == 0.0 and f.cy == 0.0 and f.sector != j:
+                    continue                            # the star, in another sector's chart
+                kn = to_chart(n, f, j)
+                if kn is not None and overlaps(kn[0], kn[1], rect, tol):
+                    cols.append(int(np.argmax(f.row)))
+                    XK.append(kn[0])
+                    YK.append(kn[1])
+            XK, YK = np.array(XK, float).reshape(-1, 5), np.array(YK, float).reshape(-1, 5)
+            xs = np.array(sorted({0.0, 1.0} | {round((x - rect[0]) / hx, 12) for x in XK.ravel()
+                                                if rect[0] + tol < x < rect[1] - tol}))
+            ys = np.array(sorted({0.0, 1.0} | {round((y - rect[2]) / hy, 12) for y in YK.ravel()
+                                                if rect[2] + tol < y < rect[3] - tol}))
+            breaks[(j, k)] = (xs, ys)
+            first_cell[(j, k)] = ncells
+            Cx = bezier_1d(XK, rect[0] + xs[:-1] * hx, rect[0] + xs[1:] * hx)        # (m, cx, 4)
+            Cy = bezier_1d(YK, rect[2] + ys[:-1] * hy, rect[2] + ys[1:] * hy)        # (m, cy, 4)
+            onehot = np.zeros((len(cols), K))
+            np.add.at(onehot, (np.arange(len(cols)), cols), 1.0)
+            T = np.einsum("mbj,mai,mk->bajik", Cy, Cx, onehot)   # (cy, cx, 4 [y], 4 [x], K)
+            Zc.append(T.reshape(-1, 16, K))
+            ncells += T.shape[0] * T.shape[1]
+    Z = np.concatenate(Zc)                                       # (cells, 16, K)
+    out = _Pieces(A, xinf, masks, spectrum, face_index, breaks, first_cell, Z, Z @ xinf)
+    if len(_PIECES) > 64:
+        _PIECES.clear()
+    _PIECES[key] = (float(zone.d.max()), out)
     return out
 
 
@@ -590,7 +692,8 @@ class StarLevels:
     def __init__(self, zone: StarZone):
         n = zone.n
         self.zone = zone
-        A, fns = zone.stationary()
+        pieces = _pieces(zone)
+        A, xinf = pieces.A, pieces.xinf
         K = A.shape[0]
         Wn = 2 * n + 1
         X2 = np.zeros((K, zone.points.shape[1]))
@@ -599,58 +702,22 @@ class StarLevels:
         _, sv, vt = np.linalg.svd((AW - np.eye(Wn)).T)
         l0 = vt[-1] / vt[-1].sum()
         self.limit = l0 @ X2[:Wn]                                  # (4,)
-        xinf = np.ones(K)
-        AY = A[Wn:, Wn:]
-        xinf[Wn:] = np.linalg.solve(np.eye(K - Wn) - AY, A[Wn:, :Wn] @ np.ones(Wn))
         dm = np.empty((MAX_LEVEL + 1, K, X2.shape[1]))
         dm[2] = X2 - np.outer(xinf, self.limit)
         for m in range(3, MAX_LEVEL + 1):
             dm[m] = A @ dm[m - 1]
         self.d = dm
-        from .eigen import _tangent_masks
-        masks = _tangent_masks(AW, f"extraordinary {zone.v}")
         L = self.limit
         X = L[:3] / L[3]
-        t1, t2 = ((mk @ X2[:Wn])[:3] - X * (mk @ X2[:Wn])[3] for mk in masks)
+        t1, t2 = ((mk @ X2[:Wn])[:3] - X * (mk @ X2[:Wn])[3] for mk in pieces.masks)
         nrm = np.cross(t1, t2)
         self.normal = nrm / max(np.linalg.norm(nrm), 1e-300)
-        self.spectrum = np.sort(np.abs(np.linalg.eigvals(AW)))[::-1]
-        # Bezier matrices of the level-2 functions on the ring faces of every sector, each face
-        # cut at the knot lines of the functions on it (those of functions next to the
-        # star fall between the grid lines where the spokes' intervals differ)
-        faces = [(p, q) for p in range(4) for q in range(4) if p >= 2 or q >= 2]
-        self.face_index = {pq: k for k, pq in enumerate(faces)}
-        tol = 1e-12 * float(zone.d.max())
-        self.breaks = {}                    # (sector, face) -> (x breaks, y breaks) in [0, 1]
-        self.first_cell = {}                # (sector, face) -> index of its first sub-cell
-        Zc = []
-        for j in range(n):
-            hx, hy = zone.d[j] / 4, zone.d[(j + 1) % n] / 4
-            for k, (p, q) in enumerate(faces):
-                rect = (p * hx, (p + 1) * hx, q * hy, (q + 1) * hy)
-                on = []
-                for f in fns:
-                    if f.cx == 0.0 and f.cy == 0.0 and f.sector != j:
-                        continue                            # the star, in another sector's chart
-                    kn = to_chart(n, f, j)
-                    if kn is not None and overlaps(kn[0], kn[1], rect, tol):
-                        on.append((int(np.argmax(f.row)), np.asarray(kn[0]), np.asarray(kn[1])))
-                xs = sorted({0.0, 1.0} | {round((x - rect[0]) / hx, 12) for _, xk, _ in on for x in xk
-                                          if rect[0] + tol < x < rect[1] - tol})
-                ys = sorted({0.0, 1.0} | {round((y - rect[2]) / hy, 12) for _, _, yk in on for y in yk
-                                          if rect[2] + tol < y < rect[3] - tol})
-                self.breaks[(j, k)] = (np.array(xs), np.array(ys))
-                self.first_cell[(j, k)] = len(Zc)
-                for iy in range(len(ys) - 1):
-                    for ix in range(len(xs) - 1):
-                        sub = (rect[0] + xs[ix] * hx, rect[0] + xs[ix + 1] * hx,
-                               rect[2] + ys[iy] * hy, rect[2] + ys[iy + 1] * hy)
-                        Z = np.zeros((16, K))
-                        for c, xk, yk in on:
-                            Z[:, c] += bezier_of(xk, yk, *sub).reshape(16)
-                        Zc.append(Z)
-        self.Z = np.array(Zc)                                       # (cells, 16, K)
-        self.Zinf = self.Z @ xinf                                   # the limit's share per cell
+        self.spectrum = pieces.spectrum
+        self.face_index, self.breaks, self.first_cell = pieces.face_index, pieces.breaks, pieces.first_cell
+        self.face_lut = np.full((4, 4), -1, dtype=int)          # (p, q) of the ring -> face index
+        for (pp, qq), k in self.face_index.items():
+            self.face_lut[pp, qq] = k
+        self.Z, self.Zinf = pieces.Z, pieces.Zinf
 
     def evaluate(self, sector: np.ndarray, x: np.ndarray, y: np.ndarray):
         """Homogeneous value and derivatives (6, 4, n) with respect to the sector chart's
@@ -674,7 +741,7 @@ class StarLevels:
         inner = (p < 2) & (q < 2)
         p = np.where(inner, 2, p)                  # rounding at the ring's inner edge
         a, b = np.clip(P - p, 0.0, 1.0), np.clip(Q - q, 0.0, 1.0)
-        face = np.array([self.face_index[(int(i), int(k))] for i, k in zip(p, q)]) if n else np.zeros(0, int)
+        face = self.face_lut[p, q]
         # the sub-cell of the face, and the point in it
         cell = np.empty(n, dtype=int)
         sxw, syw = np.ones(n), np.ones(n)
@@ -688,7 +755,10 @@ class StarLevels:
             syw[sel] = ys[iy + 1] - ys[iy]
             a[sel] = np.clip((a[sel] - xs[ix]) / sxw[sel], 0.0, 1.0)
             b[sel] = np.clip((b[sel] - ys[iy]) / syw[sel], 0.0, 1.0)
-        ctrl = np.einsum("npc,ncd->npd", self.Z[cell], self.d[level])                  # (n, 16, 4)
+        # one product per (cell, level) met, not per point
+        key, inv = np.unique(cell * (MAX_LEVEL + 1) + level, return_inverse=True)
+        uc, ul = np.divmod(key, MAX_LEVEL + 1)
+        ctrl = np.einsum("npc,ncd->npd", self.Z[uc], self.d[ul])[inv.reshape(-1)]      # (n, 16, 4)
         # the limit's share separately, relative to its first coefficient: where it is
         # constant its derivatives are exactly zero (no rounding of O(1) terms near S)
         zinf = self.Zinf[cell]
@@ -696,11 +766,14 @@ class StarLevels:
         bs = bernstein(3, a)                                       # (n, 3, 4)
         bt = bernstein(3, b)
         H = np.empty((6, 4, n))
-        c4 = ctrl.reshape(n, 4, 4, -1)                              # [j (y), i (x)]
-        z4 = (zinf - z0).reshape(n, 4, 4)
+        # the differences and the limit's share beyond the cell's first coefficient together
+        # (exactly the differences where that share is constant), then the Bernstein sums as
+        # batched 4 x 4 products: (n, c, j, i) @ (n, 1, i, 1) -> (n, c, j)
+        c4 = (ctrl + (zinf - z0)[:, :, None] * self.limit[None, None, :]).reshape(n, 4, 4, -1)
+        X = c4.transpose(0, 3, 1, 2)                                # (n, c, j [y], i [x])
+        along_x = [np.matmul(X, bs[:, da][:, None, :, None])[..., 0] for da in range(3)]   # (n, c, j)
         for k, (da, db) in enumerate(DERIVS):
-            H[k] = (np.einsum("ni,nj,njic->cn", bs[:, da], bt[:, db], c4)
-                    + np.einsum("ni,nj,nji->n", bs[:, da], bt[:, db], z4)[None, :] * self.limit[:, None])
+            H[k] = np.matmul(along_x[da], bt[:, db][:, :, None])[..., 0].T
         H[0] += z0[:, 0][None, :] * self.limit[:, None]
         sx, sy = scale / (dx * sxw), scale / (dy * syw)
         H[1] *= sx

@@ -202,22 +202,34 @@ class TSplineKernel(TempDir):
     def test_kernel_creases_equal_the_cage_creases(self):
         """A crease in the kernel: the T-mesh is cut along it and each side clamped like a
         boundary (knot multiplicity three on the crease line), the sides linked again. On
-        uniform knots that is OpenSubdiv's infinitely sharp crease (the cage path)."""
+        uniform knots that is OpenSubdiv's infinitely sharp crease (the cage path): a
+        straight crease, and two crossing ones (every edge at the crossing sharp: a corner)."""
         from tsplcam.model.formats.tsm import tsm_model
+        from tsplcam.model.quadmesh import QuadMesh
         nx, ny = 6, 5
         P = np.array([(10.0 * i, 10.0 * j, 4 * np.sin(i) * np.cos(0.7 * j)) for j in range(ny + 1)
                       for i in range(nx + 1)])
         vid = lambda i, j: j * (nx + 1) + i                          # noqa: E731
         faces = [[vid(i, j), vid(i + 1, j), vid(i + 1, j + 1), vid(i, j + 1)] for j in range(ny) for i in range(nx)]
-        from tsplcam.model.quadmesh import QuadMesh
         cage = Cage(QuadMesh(np.array(faces), len(P)), P)
-        path = self.write(cage, "grid_crease", creases=[(vid(2, j), vid(2, j + 1)) for j in range(ny)])
-        a, b = tsm_model(path), tsm_model(path, t_spline=True)
-        self.assertEqual((a.kind, b.kind), ("catmull-clark", "t-spline"))
-        f, s, t = face_grid(len(faces))
-        self.assertLess(np.abs(a.evaluate_faces(f, s, t).P - b.evaluate_faces(f, s, t).P).max(), 1e-9 * size_of(a))
-        la, lb = Layout.from_model(a), Layout.from_model(b)
-        self.assertEqual((len(la.edge_links), len(lb.edge_links), len(b.node_points)), (1, 1, len(a.node_points)))
+        column = [(vid(2, j), vid(2, j + 1)) for j in range(ny)]
+        row = [(vid(i, 3), vid(i + 1, 3)) for i in range(nx)]
+        for name, creases, links in (("straight", column, 1), ("crossing", column + row, 4)):
+            path = self.write(cage, name, creases=creases)
+            a, b = tsm_model(path), tsm_model(path, t_spline=True)
+            self.assertEqual((a.kind, b.kind), ("catmull-clark", "t-spline"))
+            f, s, t = face_grid(len(faces))
+            gap = np.abs(a.evaluate_faces(f, s, t).P - b.evaluate_faces(f, s, t).P).max()
+            self.assertLess(gap, 1e-9 * size_of(a), name)
+            la, lb = Layout.from_model(a), Layout.from_model(b)
+            self.assertEqual((len(la.edge_links), len(lb.edge_links), len(b.node_points)),
+                             (links, links, len(a.node_points)), name)
+        # a crease that turns at a vertex: each side would be clamped differently: refused
+        path = self.write(cage, "turning", creases=column[:3] + row[2:])
+        with self.assertRaises(InputError) as cm:
+            tsm_model(path, t_spline=True)
+        self.assertIn("turns", str(cm.exception))
+        self.assertTrue(open(path).read().split("\n")[cm.exception.line - 1].startswith("100edges"))
 
     def test_kernel_crease_on_a_non_uniform_t_mesh(self):
         """T-junctions, non-uniform intervals, a crease along a whole knot line: C0 along it,

@@ -243,7 +243,8 @@ def cut_along_creases(r, old, creases: dict):
     """The T-mesh ``old`` cut open along its crease edges, and the vertex of ``old`` each
     vertex comes from. A vertex on creases is split into one copy per sector of faces
     between its crease edges (same grip); a crease that ends inside the surface (one
-    crease edge at an inner vertex) cannot be cut and is refused."""
+    crease edge at an inner vertex) cannot be cut and is refused, and so is a crease vertex
+    whose sectors would be clamped differently (a crease turning at a vertex)."""
     from ..tmesh import TMesh
     faces = [list(map(int, f)) for f in old.faces]
     at = {}                                          # vertex -> [(face, loop index)]
@@ -286,6 +287,19 @@ def cut_along_creases(r, old, creases: dict):
     mesh = TMesh(np.zeros((len(origin), 3)), None, faces, old.corners, old.intervals, source=old.source,
                  face_lines=old.face_lines, vertex_lines=lines, vertex_labels=labels, face_labels=old.face_labels)
     mesh.validate()
+    # both sides must treat every crease vertex alike: all straight (the crease runs
+    # straight through an inner vertex: OpenSubdiv's crease rule) or all corners (every edge
+    # sharp: its corner rule); a crease that turns, or runs past a star, is refused
+    turns = {}
+    for k, v in enumerate(origin):
+        if v in on_crease:
+            turns.setdefault(v, []).append(int(mesh.topology.total[k]))
+    for v, ts in turns.items():
+        if not (all(t == 1 for t in ts) or (all(t == 2 for t in ts) and not old.topology.boundary[v])):
+            raise r.err(f"the crease at vertex {r.old_ids[v]} turns or meets a star point (the faces between "
+                        f"its crease edges make {' and '.join(f'{t} quarter turns' for t in ts)}): the T-spline "
+                        f"kernel's crease needs it straight through the vertex, or every edge there creased",
+                        first_line)
     return mesh, origin
 
 

@@ -203,6 +203,21 @@ class NonUniformStars(unittest.TestCase):
             jump = np.degrees(angle_between(near.normal, np.repeat(at.normal[:1], len(f), 0))).max()
             self.assertLess(jump, G1_DEG, n)
 
+    def test_rational_weights(self):
+        """Weights on the star and its neighbours: still watertight, one normal at the star."""
+        rng = np.random.default_rng(12)
+        for n in (3, 5):
+            mesh = star_disc(n, random_intervals(n, 30 + n))
+            mesh.weights = rng.uniform(0.5, 2.0, mesh.n_vertices)
+            model = tspline_model(mesh)
+            gap, angle = meet(model, mesh)
+            self.assertLess(gap, FAR_TOL, n)
+            self.assertLess(angle, 1e-6, n)
+            near = model.evaluate_faces(*near_vertex(model, mesh, 0, 2.0 ** -30, 20, rng))
+            at = model.evaluate_faces(*near_vertex(model, mesh, 0, 0.0, 1, rng))
+            jump = np.degrees(angle_between(near.normal, np.repeat(at.normal[:1], len(near.normal), 0))).max()
+            self.assertLess(jump, G1_DEG, n)
+
     def test_partition_of_unity_on_star_cells(self):
         rng = np.random.default_rng(8)
         for n, (mesh, model) in self.models.items():

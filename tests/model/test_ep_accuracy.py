@@ -9,8 +9,7 @@ import numpy as np
 
 from tsplcam.model.cage import cage_model
 from tsplcam.model.formats.obj import read_obj
-from conftest import external, ngon_prism
-from test_creases import RefMesh
+from conftest import RefMesh, external, ngon_prism
 
 POS_TOL, DER_TOL = 1e-10, 1e-8           # of the model size, of the derivative's size
 

@@ -5,7 +5,6 @@ closed-form properties (partition of unity, linear precision)."""
 import unittest
 
 import numpy as np
-from scipy.interpolate import BSpline
 
 from tsplcam.errors import InputError
 from tsplcam.layout.layout import Layout
@@ -13,150 +12,17 @@ from tsplcam.model import samples
 from tsplcam.model.cage import cage_model
 from tsplcam.model.tmesh import TMesh, bspline_tmesh, from_lines, quad_tmesh
 from tsplcam.model.knots import knot_vectors
+from tsplcam.model.stars import StarsTooClose, find_stars
 from tsplcam.model.tspline import homogeneous_parts, tspline_model
-from conftest import (needs_freecad, assert_finite_everywhere, curvature_gap, edge_pair, ngon_prism,
-                      require_freecad)
+from tsplcam.model.twalk import Walker
+from conftest import (needs_freecad, angle_between, assert_finite_everywhere, brute_force, clamped_grid,
+                      curvature_gap, edge_pair, faces_meet, grid_knots, ngon_prism, require_freecad,
+                      split_face, t_junction_mesh)
 
 RNG_SEED = 20240611
 
 
 # -- reference: rays cast on the grid of knot lines of a from_lines T-mesh -----------------------
-def grid_knots(X, Y, hsegs, vsegs, i, j):
-    """Local knot vectors of the vertex at grid node (i, j), by the definition (Sederberg
-    2003): walk along row j (column i) and collect the columns (rows) whose segments cross
-    it; past the last one the last knot repeats. Independent of the kernel's mesh walk."""
-    def crossing_cols(i, j, step):
-        out, c = [], i + step
-        while 0 <= c < len(X) and len(out) < 2:
-            if any(ci == c and min(a, b) <= j <= max(a, b) for ci, a, b in vsegs):
-                out.append(X[c])
-            c += step
-        while len(out) < 2:
-            out.append(out[-1] if out else X[i])
-        return out
-
-    def crossing_rows(i, j, step):
-        out, r = [], j + step
-        while 0 <= r < len(Y) and len(out) < 2:
-            if any(rj == r and min(a, b) <= i <= max(a, b) for rj, a, b in hsegs):
-                out.append(Y[r])
-            r += step
-        while len(out) < 2:
-            out.append(out[-1] if out else Y[j])
-        return out
-
-    w, e = crossing_cols(i, j, -1), crossing_cols(i, j, 1)
-    s, n = crossing_rows(i, j, -1), crossing_rows(i, j, 1)
-    return np.array([w[1], w[0], X[i], e[0], e[1]]), np.array([s[1], s[0], Y[j], n[0], n[1]])
-
-
-def basis(knots, x, nu=0):
-    """B-spline basis function of ``knots`` (scipy), or its first derivative by
-    N' = p (N_0 / (t_p - t_0) - N_1 / (t_(p+1) - t_1)) on its two sub-knot vectors."""
-    if knots[-1] - knots[0] <= 0:
-        return np.zeros_like(x)
-    if nu == 0:
-        return np.nan_to_num(BSpline.basis_element(knots, extrapolate=False)(x))
-    p = len(knots) - 2
-    out = np.zeros_like(x)
-    for k, sign in ((knots[:-1], 1.0), (knots[1:], -1.0)):
-        if k[-1] > k[0]:
-            out += sign * p * basis(k, x) / (k[-1] - k[0])
-    return out
-
-
-def brute_force(mesh, X, Y, hsegs, vsegs, s, t):
-    """S, S_s, S_t of sum w B P / sum w B with basis functions from scipy, (n, 3) each."""
-    out = []
-    K = [grid_knots(X, Y, hsegs, vsegs, i, j) for i, j in mesh.grid_index]
-    w = mesh.weights
-    for ds, dt in ((0, 0), (1, 0), (0, 1)):
-        B = np.array([basis(xk, s, ds) * basis(yk, t, dt) for xk, yk in K]) * w[:, None]
-        out.append(B)
-    B, Bs, Bt = out
-    W, Ws, Wt = B.sum(0), Bs.sum(0), Bt.sum(0)
-    N = B.T @ mesh.points
-    S = N / W[:, None]
-    Ss = (Bs.T @ mesh.points - Ws[:, None] * S) / W[:, None]
-    St = (Bt.T @ mesh.points - Wt[:, None] * S) / W[:, None]
-    return S, Ss, St
-
-
-def clamped_grid(nx, ny, seed=0, spacing=None):
-    """Knot values of a clamped grid (zero outer intervals) with uneven spacing."""
-    rng = np.random.default_rng(seed)
-    gx = np.concatenate([[0.0], np.cumsum(rng.uniform(0.5, 2.0, nx - 3))])
-    gy = np.concatenate([[0.0], np.cumsum(rng.uniform(0.5, 2.0, ny - 3))])
-    X = np.concatenate([[0.0], gx, [gx[-1]]])
-    Y = np.concatenate([[0.0], gy, [gy[-1]]])
-    return X, Y
-
-
-def t_junction_mesh(seed=1, analysis_suitable=True):
-    """A clamped 12 x 10 grid of knot lines with T-junctions; with ``analysis_suitable`` the
-    T-junctions' extensions do not cross (partition of unity and linear precision hold)."""
-    X, Y = clamped_grid(12, 10, seed)
-    nx, ny = len(X), len(Y)
-    h = {j: (j, 0, nx - 1) for j in range(ny)}
-    v = {i: (i, 0, ny - 1) for i in range(nx)}
-    if analysis_suitable:
-        h[4] = (4, 0, 5)             # a horizontal line stopping in the middle
-        v[8] = (8, 5, ny - 1)        # a vertical line starting in the middle, far from it
-        h[7] = (7, 6, nx - 1)
-    else:
-        h[4] = (4, 2, 7)
-        v[5] = (5, 3, 8)
-        v[7] = (7, 0, 6)
-        h[6] = (6, 4, nx - 1)
-    hsegs, vsegs = list(h.values()), list(v.values())
-    rng = np.random.default_rng(seed + 7)
-    P = rng.standard_normal((nx, ny, 3)) * 0.3
-    P[..., 0] += X[:, None]
-    P[..., 1] += Y[None, :]
-    W = rng.uniform(0.5, 2.0, (nx, ny))
-    mesh = from_lines(X, Y, hsegs, vsegs, P, W)
-    return mesh, X, Y, hsegs, vsegs
-
-
-def split_face(mesh: TMesh, f: int) -> TMesh:
-    """Cut quad face f in two along the middle of its sides 0 and 2: two new vertices, the
-    neighbours across those sides get T-junctions. Intervals halve."""
-    loop = [int(x) for x in mesh.faces[f]]
-    a, b, c, d = loop
-    P = list(mesh.points)
-    w = list(mesh.weights)
-    m1, m2 = len(P), len(P) + 1
-    P += [(P[a] + P[b]) / 2, (P[c] + P[d]) / 2]
-    w += [1.0, 1.0]
-    faces = [list(map(int, x)) for x in mesh.faces]
-    corners = [list(x) for x in mesh.corners]
-    iv = [list(map(float, x)) for x in mesh.intervals]
-    da, db = iv[f][0], iv[f][1]
-
-    def insert(u, v_, mid):
-        for g, lp in enumerate(faces):
-            n = len(lp)
-            for k in range(n):
-                if lp[k] == u and lp[(k + 1) % n] == v_:
-                    half = iv[g][k] / 2
-                    lp.insert(k + 1, mid)
-                    iv[g][k:k + 1] = [half, half]
-                    corners[g] = [x + 1 if x > k else x for x in corners[g]]
-                    return
-
-    insert(b, a, m1)
-    insert(d, c, m2)
-    faces[f], corners[f], iv[f] = [a, m1, m2, d], [0, 1, 2, 3], [da / 2, db, da / 2, db]
-    faces.append([m1, b, c, m2])
-    corners.append([0, 1, 2, 3])
-    iv.append([da / 2, db, da / 2, db])
-    return TMesh(np.array(P), np.array(w), faces, corners, iv)
-
-
-def angle_between(a, b):
-    return np.arctan2(np.linalg.norm(np.cross(a, b), axis=1), np.abs(np.einsum("ij,ij->i", a, b)))
-
-
 def models():
     """Models for the continuity checks: grids with T-junctions, an L-shaped domain, a closed
     surface with extraordinary points and T-junctions."""
@@ -529,12 +395,15 @@ class ExtraordinaryPoints(unittest.TestCase):
             # non-uniform intervals at or near a star point: the NURCC rules (StarPoints)
             model = tspline_model(bad)
             self.assertEqual(len(model.extraordinary), 8)
-        # adjacent extraordinary points (two on one face)
+        # adjacent extraordinary points (two on one face): too close for the star construction
+        # (a closed T-mesh with one interval everywhere, a Catmull-Clark cage, then takes the
+        # subdivision path)
         prism = ngon_prism(5, noise=0.0)
         two = quad_tmesh(prism.points, prism.mesh.faces)
-        with self.assertRaises(InputError) as cm:
-            tspline_model(two)
+        with self.assertRaises(StarsTooClose) as cm:
+            find_stars(Walker(two))
         self.assertIn("two extraordinary corners", str(cm.exception))
+        self.assertEqual(len(tspline_model(two).extraordinary), 2 + 10)
 
 
 
@@ -576,26 +445,8 @@ class Continuity(unittest.TestCase):
         """Every interior T-mesh edge, sampled from the faces on both sides."""
         tau = np.linspace(0, 1, 9)
         for name, model in self.models:
-            mesh = model.control
-            topo = mesh.topology
             scale = np.abs(model.node_points).max()
-            fa, sa_, ta, fb, sb_, tb = [], [], [], [], [], []
-            for (a, b), (f, i) in topo.edge_at.items():
-                hit = topo.edge_at.get((b, a))
-                if hit is None or a > b or min(model.face_size[f]) <= 0 or min(model.face_size[hit[0]]) <= 0:
-                    continue
-                g, j = hit
-                for face, k, ts, ss, tt in ((f, i, tau, sa_, ta), (g, j, tau[::-1], sb_, tb)):
-                    W, H = model.face_size[face]
-                    p0, p1 = topo.pos[face][k], topo.pos[face][(k + 1) % len(mesh.faces[face])]
-                    x = (p0[0].real + (p1[0].real - p0[0].real) * ts) / W
-                    y = (p0[1].real + (p1[1].real - p0[1].real) * ts) / H
-                    ss.extend(x)
-                    tt.extend(y)
-                fa.extend([f] * len(tau))
-                fb.extend([g] * len(tau))
-            A = model.evaluate_faces(fa, sa_, ta)
-            B = model.evaluate_faces(fb, sb_, tb)
+            A, B = faces_meet(model, model.control, tau)
             self.assertLess(np.abs(A.P - B.P).max(), 1e-12 * scale, name)
 
     def test_derivatives_match_finite_differences(self):

@@ -15,12 +15,12 @@ import unittest
 import numpy as np
 
 from tsplcam.errors import InputError
+from tsplcam.model import samples
 from tsplcam.model.cage import Cage, cage_model
 from tsplcam.model.stars import SumCells
 from tsplcam.model.tmesh import TMesh, quad_tmesh
 from tsplcam.model.tspline import tspline_model
-from conftest import ngon_prism
-from test_kernel_tspline import angle_between, brute_force, split_face, t_junction_mesh
+from conftest import angle_between, brute_force, faces_meet, ngon_prism, split_face, t_junction_mesh
 
 POS_TOL, DER_TOL = 1e-10, 1e-8        # of the model size, of the derivative's own size
 FAR_TOL = 1e-9                        # of the model size
@@ -89,24 +89,10 @@ def near_vertex(model, mesh, v, dist, count, rng):
     return f, np.abs(st[:, 0] - r[:, 0]), np.abs(st[:, 1] - r[:, 1])
 
 
-def faces_meet(model, mesh, tau=np.linspace(0.0, 1.0, 17)):
+def meet(model, mesh, tau=np.linspace(0.0, 1.0, 17)):
     """Every interior edge sampled from the faces on both sides: the largest position gap (of
     the model size) and normal angle (degrees)."""
-    topo = mesh.topology
-    fa, sa, ta, fb, sb, tb = [], [], [], [], [], []
-    for (a, b), (f, i) in topo.edge_at.items():
-        hit = topo.edge_at.get((b, a))
-        if hit is None or a > b or min(model.face_size[f]) <= 0 or min(model.face_size[hit[0]]) <= 0:
-            continue
-        g, j = hit
-        for face, k, ts, ss, tt in ((f, i, tau, sa, ta), (g, j, tau[::-1], sb, tb)):
-            W, H = model.face_size[face]
-            p0, p1 = topo.pos[face][k], topo.pos[face][(k + 1) % len(mesh.faces[face])]
-            ss.extend((p0[0].real + (p1[0].real - p0[0].real) * ts) / W)
-            tt.extend((p0[1].real + (p1[1].real - p0[1].real) * ts) / H)
-        fa += [f] * len(tau)
-        fb += [g] * len(tau)
-    A, B = model.evaluate_faces(fa, sa, ta), model.evaluate_faces(fb, sb, tb)
+    A, B = faces_meet(model, mesh, tau)
     gap = np.abs(A.P - B.P).max() / np.abs(mesh.points).max()
     return gap, np.degrees(angle_between(A.normal, B.normal)).max()
 
@@ -199,7 +185,7 @@ class NonUniformStars(unittest.TestCase):
 
     def test_watertight_and_tangent_continuous_across_edges(self):
         for n, (mesh, model) in self.models.items():
-            gap, angle = faces_meet(model, mesh)
+            gap, angle = meet(model, mesh)
             self.assertLess(gap, FAR_TOL, n)
             self.assertLess(angle, 1e-6, n)
 
@@ -215,6 +201,21 @@ class NonUniformStars(unittest.TestCase):
             self.assertLess(np.degrees(angle_between(at.normal, np.repeat(at.normal[:1], len(at.normal), 0))).max(),
                             1e-9, n)
             jump = np.degrees(angle_between(near.normal, np.repeat(at.normal[:1], len(f), 0))).max()
+            self.assertLess(jump, G1_DEG, n)
+
+    def test_rational_weights(self):
+        """Weights on the star and its neighbours: still watertight, one normal at the star."""
+        rng = np.random.default_rng(12)
+        for n in (3, 5):
+            mesh = star_disc(n, random_intervals(n, 30 + n))
+            mesh.weights = rng.uniform(0.5, 2.0, mesh.n_vertices)
+            model = tspline_model(mesh)
+            gap, angle = meet(model, mesh)
+            self.assertLess(gap, FAR_TOL, n)
+            self.assertLess(angle, 1e-6, n)
+            near = model.evaluate_faces(*near_vertex(model, mesh, 0, 2.0 ** -30, 20, rng))
+            at = model.evaluate_faces(*near_vertex(model, mesh, 0, 0.0, 1, rng))
+            jump = np.degrees(angle_between(near.normal, np.repeat(at.normal[:1], len(near.normal), 0))).max()
             self.assertLess(jump, G1_DEG, n)
 
     def test_partition_of_unity_on_star_cells(self):
@@ -248,6 +249,27 @@ class NonUniformStars(unittest.TestCase):
                     self.assertLess(np.abs(got - ref).max(), 1e-5 * (1.0 + np.abs(got).max()), (n, dist, k))
 
 
+class CloseStars(unittest.TestCase):
+    def test_two_edges_apart_on_a_cage_is_catmull_clark(self):
+        """Stars two edges apart (a cube of 2 x 2 faces a side) are closer than the T-NURCC
+        construction takes; a T-mesh that is a Catmull-Clark cage is evaluated by the
+        subdivision path instead. With a T-junction or unequal intervals it is refused."""
+        cage = samples.head(2)
+        mesh = quad_tmesh(cage.points, cage.mesh.faces, interval=1.5)
+        model = tspline_model(mesh)
+        self.assertIs(model.control, mesh)
+        self.assertEqual(sorted(e.valence for e in model.extraordinary), [3] * 8)
+        ref = cage_model(cage)
+        rng = np.random.default_rng(11)
+        f = rng.integers(0, len(mesh.faces), 500)
+        s, t = rng.random(500), rng.random(500)
+        a, b = model.evaluate_faces(f, s, t), ref.evaluate_faces(f, s, t)
+        self.assertLess(np.abs(a.P - b.P).max(), 1e-14 * np.abs(cage.points).max())
+        with self.assertRaises(InputError) as cm:
+            tspline_model(split_face(mesh, 0))
+        self.assertIn("extraordinary", str(cm.exception))
+
+
 class NextToTJunctions(unittest.TestCase):
     def test_t_junction_beyond_the_second_ring(self):
         """A face three rings out split in two: the star still evaluates, watertight, one
@@ -259,7 +281,7 @@ class NextToTJunctions(unittest.TestCase):
             # the star's neighbours' functions beyond the second ring
             split = split_face(mesh, 2 * 5 + 1)
             model = tspline_model(split)
-            gap, angle = faces_meet(model, split)
+            gap, angle = meet(model, split)
             self.assertLess(gap, FAR_TOL, n)
             self.assertLess(angle, 1e-6, n)
             f, s, t = near_vertex(model, split, 0, 2.0 ** -30, 10, rng)

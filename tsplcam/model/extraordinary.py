@@ -3,7 +3,7 @@
 An extraordinary point is an interior vertex whose faces do not make a full turn. Around it
 the T-NURCC rule applies (Sederberg et al. 1998, 2003): the two rings of faces around the
 point are evaluated by subdividing to the regular level (``stars.py``), with uniform or
-non-uniform knot intervals on its spokes and T-junctions beyond its first ring. What that
+non-uniform knot intervals on its spokes and T-junctions beyond its second ring. What that
 construction cannot take is refused with an error naming the vertex or face: star points on
 the boundary, T-junctions on the faces at a star point or on its neighbours, and star points
 closer than three edges to each other.

@@ -57,8 +57,9 @@ class LocalKnots:
 
 
 def local_knots(walker: Walker, ep_interval: dict) -> LocalKnots:
-    """Local knot vectors of every vertex (``ep_interval``: the uniform knot interval of each
-    extraordinary vertex)."""
+    """Local knot vectors of every vertex (``ep_interval``: the mean spoke interval of each
+    extraordinary vertex; the functions that see it are replaced next to the star by
+    ``stars.py``)."""
     n = walker.mesh.n_vertices
     sk = np.zeros((n, 5), dtype=complex)
     tk = np.zeros((n, 5), dtype=complex)

@@ -252,29 +252,20 @@ class QuadMesh:
         cuts = [j for j in range(len(fan))
                 if self.edge_sharpness(v, int(self.faces[fan[j][0]][(fan[j][1] + 3) % 4])) >= INFINITE
                 and (boundary is False or j < len(fan) - 1)]
-        if boundary:
-            out, run = [], []
-            for j, fk in enumerate(fan):
-                run.append(fk)
-                if j in cuts:
-                    out.append(run)
-                    run = []
-            out.append(run)
-            return [r for r in out if r]
-        if not cuts:
-            return [list(fan)]
-        start = cuts[-1] + 1
-        order = fan[start:] + fan[:start]
-        cuts = [(j - start) % len(fan) for j in cuts]
+        if not boundary:
+            if not cuts:
+                return [list(fan)]
+            start = cuts[-1] + 1                  # a closed fan: start after the last cut
+            fan = fan[start:] + fan[:start]
+            cuts = [(j - start) % len(fan) for j in cuts]
         out, run = [], []
-        for j, fk in enumerate(order):
+        for j, fk in enumerate(fan):
             run.append(fk)
             if j in cuts:
                 out.append(run)
                 run = []
-        if run:
-            out.append(run)
-        return out
+        out.append(run)
+        return [r for r in out if r]
 
     def sector_of(self, v: int, f: int) -> list[tuple[int, int]]:
         for run in self.sectors(v):

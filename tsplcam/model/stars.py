@@ -60,6 +60,7 @@ from functools import lru_cache
 
 import numpy as np
 
+from ..errors import InputError
 from .basis import bernstein
 from .cells import DERIVS, _chain
 from .twalk import Walker, apply, compose, inverse, map_knots, rot
@@ -397,6 +398,15 @@ def overlaps(xk, yk, rect, tol) -> bool:
 
 
 # -- stars of a T-mesh --------------------------------------------------------------------------
+class StarsTooClose(InputError):
+    """Star points closer than the construction takes (less than three edges apart)."""
+
+
+def _too_close(mesh, message: str, **where) -> StarsTooClose:
+    exc = mesh.error(message, **where)
+    return StarsTooClose(exc.message, path=exc.path, line=exc.line, item=exc.item)
+
+
 def find_stars(walker: Walker, extra=()) -> dict:
     """Every star point of the T-mesh: vertex -> (faces F_j, spokes s_j, diagonals q_j, d_j),
     refusing what the construction cannot take (named). ``extra``: interior regular vertices
@@ -436,23 +446,25 @@ def find_stars(walker: Walker, extra=()) -> dict:
     for v, (faces, spokes, diags, _) in out.items():
         for f in faces:
             if f in seen:
-                raise mesh.error(f"{mesh.face_name(f)} has two extraordinary corners "
+                raise _too_close(mesh, f"{mesh.face_name(f)} has two extraordinary corners "
                                  f"({mesh.vertex_name(seen[f])} and {mesh.vertex_name(v)}): refine the "
-                                 f"T-mesh so that they are further apart", f)
+                                 f"T-mesh so that they are further apart", face=f)
             seen[f] = v
     for v, (faces, spokes, diags, _) in out.items():
         name = mesh.vertex_name(v)
         for w in set(spokes) | set(diags):
             if topo.boundary[w] or topo.total[w] != 4 or any(topo.span(f, i) != 1 for f, i in topo.fan[w]):
-                kind = "extraordinary" if topo.is_extraordinary(w) and not topo.boundary[w] else "not a plain grid vertex"
-                raise mesh.error(f"{mesh.vertex_name(w)} next to extraordinary {name} is {kind}: the faces "
-                                 f"around a star point must be surrounded by plain four-valent vertices "
-                                 f"(the star points are too close; refine the T-mesh)", vertex=w)
+                close = topo.is_extraordinary(w) and not topo.boundary[w]
+                kind = "extraordinary" if close else "not a plain grid vertex"
+                message = (f"{mesh.vertex_name(w)} next to extraordinary {name} is {kind}: the faces "
+                           f"around a star point must be surrounded by plain four-valent vertices "
+                           f"(the star points are too close; refine the T-mesh)")
+                raise _too_close(mesh, message, vertex=w) if close else mesh.error(message, vertex=w)
     owner = {}
     for v, (faces, spokes, diags, _) in out.items():
         for w in [v] + spokes + diags:
             if w in owner and owner[w] != v:
-                raise mesh.error(f"extraordinary {mesh.vertex_name(owner[w])} and {mesh.vertex_name(v)} share "
+                raise _too_close(mesh, f"extraordinary {mesh.vertex_name(owner[w])} and {mesh.vertex_name(v)} share "
                                  f"the neighbour {mesh.vertex_name(w)}: star points must be at least three "
                                  f"edges apart (refine the T-mesh)", vertex=w)
             owner[w] = v
@@ -461,9 +473,9 @@ def find_stars(walker: Walker, extra=()) -> dict:
 
 def behind(d: np.ndarray) -> np.ndarray:
     """The interval behind a star point along each spoke: the mean of the spokes two steps
-    away on either side (Sederberg et al. 1998's rule; the opposite spoke at valence 4).
-    ``find_stars`` admits stars where the two are equal, so this is also the interval a
-    function next to the star sees when it crosses the neighbouring spokes."""
+    away on either side (the opposite spoke at valence 4). It serves the rules and the
+    functions on the spoke itself; off the spoke the T-mesh's own intervals apply
+    (``StarZone.behind_rows``)."""
     n = len(d)
     return np.array([0.5 * (d[(j + 2) % n] + d[(j - 2) % n]) for j in range(n)])
 

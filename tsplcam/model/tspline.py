@@ -1,21 +1,23 @@
-"""T-spline surfaces: the surface of a T-mesh as patches of Bezier (and extraordinary) cells.
+"""T-spline surfaces: the surface of a T-mesh as patches of Bezier cells (and star cells).
 
 The surface of a T-mesh (``tmesh.py``) is S = sum w_i B_i P_i / sum w_i B_i
 (docs/method.md section 1.1; Sederberg et al. 2003, "T-splines and T-NURCCs").
 ``tspline_model`` builds it in steps, each in the module named for it:
 
 1. ``knots.check_clamped``: boundaries need zero outer knot intervals;
-2. ``extraordinary.find_extraordinary``: the extraordinary points (T-NURCC rule) and the
-   faces around them;
+2. ``extraordinary.find_extraordinary``: the star points (extraordinary points) and the
+   faces around them (``stars.find_stars``; stars closer than three edges on a T-mesh that is
+   a Catmull-Clark cage go to the subdivision path, ``cage.py``);
 3. ``knots.local_knots``: every blending function's local knot vectors, by ray casting on
    the mesh (``twalk.py`` walks the rays);
-4. ``blending.supports``: the faces each blending function is non-zero on;
-5. ``extraordinary.extraordinary_cells``: exact Catmull-Clark evaluation of the faces
-   around extraordinary points, with the check that the functions there are uniform;
+4. ``stars.build_zone``: per star, the T-NURCC construction on its two rings of faces (the
+   functions of the star and its neighbours by refinement to the regular level);
+5. ``blending.supports``: the faces each other blending function is non-zero on;
 6. ``decompose.decompose_tmesh``: four-sided patches between lines from extraordinary
    points and boundary corners (the same decomposition as for cages);
 7. Bezier extraction (here): every patch's cells are cut by the knot lines inside it and
-   each piece of each function becomes Bernstein coefficients (exact: a cubic per cell).
+   each piece of each function becomes Bernstein coefficients (exact: a cubic per cell);
+   cells on a star's first faces add its subdivided part (``stars.StarCells``).
 
 API: ``tspline_model(mesh)`` -> ``TSplineModel`` (a ``Model``; ``evaluate_faces`` in T-mesh
 face coordinates), ``knots.knot_vectors(mesh)`` (every vertex's local knot vectors),
@@ -34,7 +36,7 @@ from .extraordinary import find_extraordinary
 from .knots import LocalKnots, check_clamped, local_knots
 from .model import ExtraordinaryPoint, Model, link_patches
 from .patch import CORNER_UV, Patch
-from .stars import StarCells, StarLevels, SumCells, build_zone, direct_functions, find_stars
+from .stars import StarCells, StarLevels, StarsTooClose, SumCells, build_zone, direct_functions, find_stars
 from .tmesh import TMesh
 from .twalk import Walker, apply, compose, inverse, map_knots, rot
 
@@ -127,7 +129,13 @@ def tspline_model(mesh: TMesh, name: str | None = None, subdivide_at=()) -> TSpl
     walker = Walker(mesh)
     Pw = mesh.homogeneous()
     check_clamped(mesh)
-    ep = find_extraordinary(mesh, walker)
+    try:
+        ep = find_extraordinary(mesh, walker)
+    except StarsTooClose:
+        cage = _as_cage(mesh)
+        if cage is None:
+            raise
+        return _cage_tspline(mesh, cage, name)
     knots = local_knots(walker, ep.interval)
     stars = dict(ep.stars)
     if subdivide_at:
@@ -138,6 +146,33 @@ def tspline_model(mesh: TMesh, name: str | None = None, subdivide_at=()) -> TSpl
     dec = decompose_tmesh(walker)
     patches, face_pieces = _extract(walker, dec, knots, support, zones, Pw)
     return _assemble(walker, dec, patches, face_pieces, ep.interval, name)
+
+
+def _as_cage(mesh: TMesh):
+    """The T-mesh as a Catmull-Clark cage when it is one (Sederberg et al. 2003): closed, no
+    T-junctions, one knot interval everywhere; None otherwise."""
+    from .cage import Cage
+    from .quadmesh import QuadMesh
+    topo = mesh.topology
+    if any(len(f) != 4 for f in mesh.faces) or any((b, a) not in topo.edge_at for a, b in topo.edge_at):
+        return None
+    d = np.concatenate(mesh.intervals)
+    if d.min() <= topo.tol or d.max() - d.min() > 1e-12 * d.max():
+        return None
+    return Cage(QuadMesh(np.array([[int(x) for x in f] for f in mesh.faces]), mesh.n_vertices), mesh.points,
+                mesh.weights)
+
+
+def _cage_tspline(mesh: TMesh, cage, name):
+    """Star points closer than the T-NURCC construction takes (``stars.py``), on a T-mesh that is
+    a Catmull-Clark cage: its limit surface by the subdivision path (``cage.py``, which takes
+    extraordinary points two edges apart), the T-mesh kept as the model's control mesh."""
+    from .cage import cage_model
+    model = cage_model(cage, name or mesh.name)
+    model.kind = "t-spline"
+    model.source = mesh.source
+    model.control = mesh
+    return model
 
 
 def _zone_faces(zones: list) -> dict:

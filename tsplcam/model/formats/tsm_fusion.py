@@ -37,6 +37,7 @@ import os
 import numpy as np
 
 from ...inputfile import naming
+from ..components import components
 from ..quadmesh import INFINITE
 
 #: relative spread of knot intervals still read as uniform
@@ -256,33 +257,26 @@ def cut_along_creases(r, old, creases: dict):
     on_crease = sorted({v for e in creases for v in e})
     first_line = r.crease_edges[0][0] if r.crease_edges else None
     for v in on_crease:
-        parent = {f: f for f, _ in at[v]}
-
-        def find(f):
-            while parent[f] != f:
-                f = parent[f]
-            return f
+        around = sorted({f for f, _ in at[v]})              # the faces at v, joined across
+        index = {f: k for k, f in enumerate(around)}       # its edges that are not creases
         by_edge = {}
         for f, i in at[v]:
             m = len(faces[f])
             for w in (faces[f][(i + 1) % m], faces[f][(i - 1) % m]):
                 by_edge.setdefault((min(v, w), max(v, w)), []).append(f)
-        for e, fs in by_edge.items():
-            if e not in creases:
-                for g in fs[1:]:
-                    parent[find(g)] = find(fs[0])
-        sectors = sorted({find(f) for f, _ in at[v]})
-        if len(sectors) == 1:
+        sector = components(len(around), [(index[fs[0]], index[g]) for e, fs in by_edge.items()
+                                          if e not in creases for g in fs[1:]])
+        if sector.max() == 0:
             raise r.err(f"the crease ends inside the surface at vertex {r.old_ids[v]}: the T-spline kernel "
                         f"cuts the surface along creases, so they must run from boundary to boundary or "
                         f"close", first_line)
-        for root in sectors[1:]:
+        for k in range(1, int(sector.max()) + 1):
             copy = len(origin)
             origin.append(v)
             lines.append(lines[v])
             labels.append(labels[v] + " (across the crease)")
             for f, i in at[v]:
-                if find(f) == root:
+                if sector[index[f]] == k:
                     faces[f][i] = copy
     mesh = TMesh(np.zeros((len(origin), 3)), None, faces, old.corners, old.intervals, source=old.source,
                  face_lines=old.face_lines, vertex_lines=lines, vertex_labels=labels, face_labels=old.face_labels)

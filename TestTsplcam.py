@@ -21,6 +21,9 @@ def _load_file(path, prefix="tsplcam_test_"):
     name = prefix + os.path.splitext(os.path.basename(path))[0]
     if name in sys.modules:
         return sys.modules[name]
+    folder = os.path.dirname(os.path.abspath(path))
+    if folder not in sys.path:               # a test may import a sibling's helpers, as under pytest
+        sys.path.append(folder)
     spec = importlib.util.spec_from_file_location(name, path)
     module = importlib.util.module_from_spec(spec)
     sys.modules[name] = module

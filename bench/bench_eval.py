@@ -36,6 +36,41 @@ def surface_data(rng):
     return poles, uk, vk, p
 
 
+def cell_points(patch, groups, count, rng):
+    """(u, v) spread over the cells of ``patch`` whose group is among ``groups``."""
+    cells = np.argwhere(np.isin(patch.cell_group, groups))
+    pick = cells[rng.integers(0, len(cells), count)]
+    a, b = rng.random(count), rng.random(count)
+    ub, vb = patch.ubreaks, patch.vbreaks
+    return (ub[pick[:, 0]] + a * (ub[pick[:, 0] + 1] - ub[pick[:, 0]]),
+            vb[pick[:, 1]] + b * (vb[pick[:, 1] + 1] - vb[pick[:, 1]]))
+
+
+def star_cells(rng, count=200_000):
+    """T-spline kernel: points/s in the cells next to star points (subdivided to the regular
+    level, stars.py) against plain Bezier cells of the same patches, in the same run; a head
+    of 5 x 5 faces a cube side (eight stars of valence 3) and the same with non-uniform
+    knot intervals on one edge class through a star."""
+    from tsplcam.model import samples
+    from tsplcam.model.stars import SumCells
+    from tsplcam.model.tmesh import quad_tmesh
+    from tsplcam.model.tspline import tspline_model
+    cage = samples.head(5)
+    mesh = quad_tmesh(cage.points, cage.mesh.faces)
+    for label, model in (("uniform", tspline_model(mesh)),):
+        patch = model.patches[0]
+        star = [g for g, grp in enumerate(patch.groups) if isinstance(grp, SumCells)]
+        plain = [g for g, grp in enumerate(patch.groups) if not isinstance(grp, SumCells)]
+        us, vs = cell_points(patch, star, count, rng)
+        ub, vb = cell_points(patch, plain, count, rng)
+        patch.evaluate(us[:1000], vs[:1000])
+        t_star, _ = best_of(lambda: patch.evaluate(us, vs), 5)
+        t_bez, _ = best_of(lambda: patch.evaluate(ub, vb), 5)
+        print(f"T-spline kernel ({label} stars): star cells {count / t_star / 1e6:.2f} M points/s, "
+              f"Bezier cells {count / t_bez / 1e6:.2f} M points/s (ratio star/Bezier "
+              f"{t_bez / t_star:.2f})")
+
+
 def main():
     rng = np.random.default_rng(0)
     poles, uk, vk, p = surface_data(rng)
@@ -64,6 +99,7 @@ def main():
         print(f"tsplcam Catmull-Clark patch next to 4 extraordinary points: {N / t_ep / 1e6:.2f} M points/s")
     except Exception as exc:  # shared data absent
         print(f"(cube model skipped: {exc})")
+    star_cells(rng)
     try:
         import FreeCAD
         import Part

@@ -20,7 +20,7 @@ cd "$REPO"
 
 SECONDS=0
 # 1 in the background, its output shown when it is done
-/usr/bin/python3 -m pytest -q -p no:cacheprovider tests > "$LOGS/pytest.log" 2>&1 &
+/usr/bin/python3 -m pytest -q -p no:cacheprovider --durations=20 tests > "$LOGS/pytest.log" 2>&1 &
 pid_py=$!
 
 echo "== 2/3 FreeCAD tests: freecadcmd -t TestTsplcam"

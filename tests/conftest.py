@@ -158,6 +158,26 @@ def edge_pair(model, link, tau):
     return sa, sb
 
 
+def faces_meet(model, mesh, tau):
+    """Every interior edge of a T-mesh model sampled at fractions ``tau`` from the faces on
+    both sides (faces of zero size left out): (SurfacePoints on one side, on the other)."""
+    topo = mesh.topology
+    fa, sa, ta, fb, sb, tb = [], [], [], [], [], []
+    for (a, b), (f, i) in topo.edge_at.items():
+        hit = topo.edge_at.get((b, a))
+        if hit is None or a > b or min(model.face_size[f]) <= 0 or min(model.face_size[hit[0]]) <= 0:
+            continue
+        g, j = hit
+        for face, k, ts, ss, tt in ((f, i, tau, sa, ta), (g, j, tau[::-1], sb, tb)):
+            W, H = model.face_size[face]
+            p0, p1 = topo.pos[face][k], topo.pos[face][(k + 1) % len(mesh.faces[face])]
+            ss.extend((p0[0].real + (p1[0].real - p0[0].real) * ts) / W)
+            tt.extend((p0[1].real + (p1[1].real - p0[1].real) * ts) / H)
+        fa += [f] * len(tau)
+        fb += [g] * len(tau)
+    return model.evaluate_faces(fa, sa, ta), model.evaluate_faces(fb, sb, tb)
+
+
 def curvature_gap(sa, sb):
     """(largest difference of the sorted principal curvatures of two evaluations of the same
     points, 1 + largest |curvature|), with b's signs turned to a's normal."""
@@ -448,3 +468,383 @@ def read_refused(test, read, name: str, data: bytes, *fragments: str):
     for f in fragments:
         test.assertIn(f, str(cm.exception))
     return cm.exception
+
+
+# -- references shared by the kernel's tests (tests/model): a refinement of creased cages by
+# OpenSubdiv's rules written out here, and a brute-force T-spline sum with rays cast on a grid of
+# knot lines
+import numpy as np  # noqa: E402
+from scipy.interpolate import BSpline  # noqa: E402
+
+from tsplcam.model.tmesh import TMesh, from_lines  # noqa: E402
+
+INF = np.float32(10.0)
+
+
+def decrement(s):
+    s = np.asarray(s, np.float32)
+    return np.where(s >= INF, INF, np.where(s > 1, s - np.float32(1), np.float32(0))).astype(np.float32)
+
+
+class RefMesh:
+    """A cage with per-edge sharpness (float32), refined by the rules written out here."""
+
+    def __init__(self, faces, points, sharp: dict, corner: dict, rule: str):
+        self.F = np.asarray(faces, int)
+        self.P = np.asarray(points, float)
+        self.rule = rule
+        nv = len(self.P)
+        a = self.F.reshape(-1)
+        b = np.roll(self.F, -1, axis=1).reshape(-1)
+        key = np.minimum(a, b) * nv + np.maximum(a, b)
+        self.ukey, self.einv = np.unique(key, return_inverse=True)
+        self.E = np.column_stack([self.ukey // nv, self.ukey % nv])
+        self.nfaces_e = np.bincount(self.einv, minlength=len(self.E))
+        s = np.zeros(len(self.E), np.float32)
+        pos = {tuple(e): i for i, e in enumerate(self.E)}
+        for e, v in sharp.items():
+            s[pos[tuple(sorted(e))]] = v
+        self.s = s
+        self.cs = np.zeros(nv, np.float32)
+        for v, x in corner.items():
+            self.cs[v] = x
+        self.val = np.bincount(self.F.reshape(-1), minlength=nv)
+        self.bnd_e = self.nfaces_e == 1
+        bv = np.zeros(nv, bool)
+        bv[self.E[self.bnd_e].reshape(-1)] = True
+        self.bnd_v = bv
+
+    def edge_s(self):
+        return np.where(self.bnd_e, INF, self.s)
+
+    def vertex_s(self):
+        cs = self.cs.copy()
+        if self.rule == "edge-and-corner":
+            cs[self.bnd_v & (self.val == 1)] = INF
+        return cs
+
+    def _rules(self, es, vs):
+        nv = len(self.P)
+        sharp = es > 0
+        count = np.bincount(self.E[sharp].reshape(-1), minlength=nv)
+        ends = np.zeros((nv, 4))
+        np.add.at(ends, self.E[sharp, 0], self.P[self.E[sharp, 1]])
+        np.add.at(ends, self.E[sharp, 1], self.P[self.E[sharp, 0]])
+        corner = (vs > 0) | (count > 2)
+        crease = ~corner & (count == 2)
+        return corner, crease, ends
+
+    def refine(self) -> "RefMesh":
+        F, P, E = self.F, self.P, self.E
+        nv, ne, nf = len(P), len(E), len(F)
+        FP = P[F].mean(axis=1)
+        fsum = np.zeros((ne, 4))
+        np.add.at(fsum, self.einv, np.repeat(FP, 4, axis=0))
+        es = self.edge_s()
+        mid = 0.5 * (P[E[:, 0]] + P[E[:, 1]])
+        smooth_e = 0.25 * (P[E[:, 0]] + P[E[:, 1]]) + 0.25 * fsum
+        w = np.clip(es, 0, 1)[:, None].astype(float)
+        EP = np.where((es >= 1)[:, None], mid, w * mid + (1 - w) * smooth_e)
+        # vertex points
+        n = self.val.astype(float)
+        nsum = np.zeros((nv, 4))
+        np.add.at(nsum, E[:, 0], P[E[:, 1]])
+        np.add.at(nsum, E[:, 1], P[E[:, 0]])
+        fpsum = np.zeros((nv, 4))
+        np.add.at(fpsum, F.reshape(-1), np.repeat(FP, 4, axis=0))
+        with np.errstate(divide="ignore", invalid="ignore"):
+            smooth_v = ((n - 2) / n)[:, None] * P + (nsum + fpsum) / (n * n)[:, None]
+        vs = self.vertex_s()
+        pc, pk, pends = self._rules(es, vs)
+        ces, cvs = decrement(es), decrement(vs)
+        cc, ck, cends = self._rules(ces, cvs)
+
+        def mask(corner, crease, ends):
+            return np.where(corner[:, None], P, np.where(crease[:, None], 0.75 * P + 0.125 * ends, smooth_v))
+
+        mp, mc = mask(pc, pk, pends), mask(cc, ck, cends)
+        same = (pc == cc) & (pk == ck)
+        psmooth = ~pc & ~pk
+        # fractional weight: edges becoming smooth (0 < s <= 1) and the vertex's own sharpness
+        tr = (es > 0) & (es <= 1)
+        tcount = np.bincount(E[tr].reshape(-1), minlength=nv).astype(float)
+        tsum = np.zeros(nv)
+        np.add.at(tsum, E[tr, 0], es[tr])
+        np.add.at(tsum, E[tr, 1], es[tr])
+        vt = (vs > 0) & (cvs <= 0)
+        tcount += vt
+        tsum += np.where(vt, vs, 0)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            fw = np.minimum(1.0, np.where(tcount > 0, tsum / tcount, 0.0))
+        VP = np.where((psmooth | same)[:, None], mp, fw[:, None] * mp + (1 - fw)[:, None] * mc)
+        # children
+        e_of = self.einv.reshape(nf, 4)
+        child = np.empty((4 * nf, 4), int)
+        for k in range(4):
+            child[k::4] = np.column_stack([F[:, k], nv + e_of[:, k], nv + ne + np.arange(nf), nv + e_of[:, (k + 3) % 4]])
+        sharp = {}
+        cs_e = decrement(self.s)
+        for i in np.nonzero(cs_e > 0)[0]:
+            a, b = E[i]
+            sharp[(a, nv + i)] = cs_e[i]
+            sharp[(b, nv + i)] = cs_e[i]
+        corner = {int(v): decrement(self.cs[v]) for v in np.nonzero(decrement(self.cs) > 0)[0]}
+        out = RefMesh(child, np.vstack([VP, EP, FP]), sharp, corner, self.rule)
+        # where each child face lies in the root face: corner 0 and the two axes
+        C = np.array([[0, 0], [1, 0], [1, 1], [0, 1.0]])
+        O, X, Y = self.O, self.X, self.Y
+        out.root = np.repeat(self.root, 4)
+        out.O, out.X, out.Y = np.empty((4 * nf, 2)), np.empty((4 * nf, 2)), np.empty((4 * nf, 2))
+        for k in range(4):
+            def at(c):
+                return O + X * c[0] + Y * c[1]
+            ck, cn, cp = C[k], C[(k + 1) % 4], C[(k + 3) % 4]
+            out.O[k::4] = at(ck)
+            out.X[k::4] = at(ck + (cn - ck) / 2) - at(ck)
+            out.Y[k::4] = at(ck + (cp - ck) / 2) - at(ck)
+        return out
+
+    def subset(self, keep: np.ndarray) -> "RefMesh":
+        """The faces ``keep`` (mask) as a mesh of their own, with their places in the roots.
+        Rules at the cut are wrong: use only what lies well inside."""
+        F = self.F[keep]
+        used = np.unique(F)
+        new = np.full(len(self.P), -1)
+        new[used] = np.arange(len(used))
+        sharp = {}
+        for i in np.nonzero(self.s > 0)[0]:
+            a, b = self.E[i]
+            if new[a] >= 0 and new[b] >= 0:
+                sharp[(new[a], new[b])] = self.s[i]
+        corner = {int(new[v]): self.cs[v] for v in np.nonzero(self.cs > 0)[0] if new[v] >= 0}
+        out = RefMesh(new[F], self.P[used], sharp, corner, self.rule)
+        out.root, out.O, out.X, out.Y = self.root[keep], self.O[keep], self.X[keep], self.Y[keep]
+        out.ids = used
+        return out
+
+    def rings(self, v: int, count: int) -> np.ndarray:
+        """Mask of the faces within ``count`` rings of vertex v (faces sharing a vertex)."""
+        verts = np.zeros(len(self.P), bool)
+        verts[v] = True
+        faces = np.zeros(len(self.F), bool)
+        for _ in range(count):
+            faces |= verts[self.F].any(axis=1)
+            verts[self.F[faces].reshape(-1)] = True
+        return faces
+
+    def start(self):
+        nf = len(self.F)
+        self.root = np.arange(nf)
+        self.O = np.zeros((nf, 2))
+        self.X = np.tile([1.0, 0.0], (nf, 1))
+        self.Y = np.tile([0.0, 1.0], (nf, 1))
+        return self
+
+    def exact_limits(self):
+        """Limit position of every vertex whose neighbourhood's rules no longer change, NaN
+        elsewhere (semi-sharp edges or vertices left, darts, mixed creases)."""
+        nv = len(self.P)
+        es, vs = self.edge_s(), self.vertex_s()
+        semi_e = (es > 0) & (es < INF)
+        semi_v = (vs > 0) & (vs < INF)
+        touch = np.zeros(nv, bool)
+        touch[self.E[semi_e].reshape(-1)] = True
+        out = np.full((nv, 3), np.nan)
+        inf_e = es >= INF
+        count = np.bincount(self.E[inf_e].reshape(-1), minlength=nv)
+        ok = ~touch & ~semi_v
+        corner = ok & ((vs >= INF) | (count > 2))
+        out[corner] = self.P[corner, :3] / self.P[corner, 3:]
+        crease = ok & ~corner & (count == 2)
+        ends = np.zeros((nv, 4))
+        np.add.at(ends, self.E[inf_e, 0], self.P[self.E[inf_e, 1]])
+        np.add.at(ends, self.E[inf_e, 1], self.P[self.E[inf_e, 0]])
+        Lc = (4 * self.P + ends) / 6
+        out[crease] = Lc[crease, :3] / Lc[crease, 3:]
+        smooth = ok & ~corner & (count == 0) & ~self.bnd_v
+        n = self.val.astype(float)
+        nsum = np.zeros((nv, 4))
+        np.add.at(nsum, self.E[:, 0], self.P[self.E[:, 1]])
+        np.add.at(nsum, self.E[:, 1], self.P[self.E[:, 0]])
+        diag = np.zeros((nv, 4))
+        for k in range(4):
+            np.add.at(diag, self.F[:, k], self.P[self.F[:, (k + 2) % 4]])
+        with np.errstate(divide="ignore", invalid="ignore"):
+            L = ((n * n)[:, None] * self.P + 4 * nsum + diag) / (n * (n + 5))[:, None]
+        out[smooth] = L[smooth, :3] / L[smooth, 3:]
+        return out
+
+    def regular_jets(self, count: int = 4000, seed: int = 0):
+        """At corner 0 of up to ``count`` random faces whose 3 x 3 control points around it
+        are smooth, regular and unsharpened: (faces, P, Ps, Pt, Pss, Pst, Ptt) of the bicubic
+        B-spline there, in the face's own parameters."""
+        F, nv = self.F, len(self.P)
+        es, vs = self.edge_s(), self.vertex_s()
+        sharp_v = np.zeros(nv, bool)
+        sharp_v[self.E[es > 0].reshape(-1)] = True
+        good_v = (~sharp_v) & (vs <= 0) & (self.val == 4) & ~self.bnd_v
+        # directed edge a -> b to (face, position of a), by one sorted search
+        a = F.reshape(-1).astype(np.int64)
+        b = np.roll(F, -1, axis=1).reshape(-1).astype(np.int64)
+        keys = a * nv + b
+        order = np.argsort(keys)
+        skeys = keys[order]
+
+        def across(x, y):                         # the face with directed edge x -> y, and x's place
+            i = order[np.searchsorted(skeys, x.astype(np.int64) * nv + y)]
+            return i // 4, i % 4
+
+        cand = np.nonzero(good_v[F[:, 0]])[0]
+        rng = np.random.default_rng(seed)
+        cand = rng.permutation(cand)[:4 * count]
+        v0, v1, v2, v3 = F[cand].T
+        g, p = across(v0, v3)
+        G = F[g]
+        gp2, gp3 = G[np.arange(len(g)), (p + 2) % 4], G[np.arange(len(g)), (p + 3) % 4]
+        h, r = across(v0, gp3)
+        Hh = F[h]
+        hr2, hr3 = Hh[np.arange(len(h)), (r + 2) % 4], Hh[np.arange(len(h)), (r + 3) % 4]
+        k_, t = across(v0, hr3)
+        kt2 = F[k_][np.arange(len(k_)), (t + 2) % 4]
+        grid = {(0, 0): v0, (1, 0): v1, (1, 1): v2, (0, 1): v3, (-1, 1): gp2, (-1, 0): gp3,
+                (-1, -1): hr2, (0, -1): hr3, (1, -1): kt2}
+        ok = np.all([good_v[x] for x in grid.values()], axis=0)
+        sel = np.nonzero(ok)[0][:count]
+        Q = {key: self.P[x[sel], :3] / self.P[x[sel], 3:] for key, x in grid.items()}
+        w = {-1: 1 / 6, 0: 4 / 6, 1: 1 / 6}
+        P = sum(w[i] * w[j] * Q[(i, j)] for i in w for j in w)
+        Ps = sum(w[j] * (Q[(1, j)] - Q[(-1, j)]) / 2 for j in w)
+        Pt = sum(w[i] * (Q[(i, 1)] - Q[(i, -1)]) / 2 for i in w)
+        Pss = sum(w[j] * (Q[(1, j)] - 2 * Q[(0, j)] + Q[(-1, j)]) for j in w)
+        Ptt = sum(w[i] * (Q[(i, 1)] - 2 * Q[(i, 0)] + Q[(i, -1)]) for i in w)
+        Pst = (Q[(1, 1)] - Q[(1, -1)] - Q[(-1, 1)] + Q[(-1, -1)]) / 4
+        return cand[sel], P, Ps, Pt, Pss, Pst, Ptt
+
+
+def grid_knots(X, Y, hsegs, vsegs, i, j):
+    """Local knot vectors of the vertex at grid node (i, j), by the definition (Sederberg
+    2003): walk along row j (column i) and collect the columns (rows) whose segments cross
+    it; past the last one the last knot repeats. Independent of the kernel's mesh walk."""
+    def crossing(segs, values, at, other, step):
+        """The first two knot lines (from ``segs``) crossed walking from index ``at`` by
+        ``step`` along the line at index ``other``; the last repeats past the end."""
+        out, c = [], at + step
+        while 0 <= c < len(values) and len(out) < 2:
+            if any(ci == c and min(a, b) <= other <= max(a, b) for ci, a, b in segs):
+                out.append(values[c])
+            c += step
+        while len(out) < 2:
+            out.append(out[-1] if out else values[at])
+        return out
+
+    w, e = crossing(vsegs, X, i, j, -1), crossing(vsegs, X, i, j, 1)
+    s, n = crossing(hsegs, Y, j, i, -1), crossing(hsegs, Y, j, i, 1)
+    return np.array([w[1], w[0], X[i], e[0], e[1]]), np.array([s[1], s[0], Y[j], n[0], n[1]])
+
+
+def basis(knots, x, nu=0):
+    """B-spline basis function of ``knots`` (scipy), or its first derivative by
+    N' = p (N_0 / (t_p - t_0) - N_1 / (t_(p+1) - t_1)) on its two sub-knot vectors."""
+    if knots[-1] - knots[0] <= 0:
+        return np.zeros_like(x)
+    if nu == 0:
+        return np.nan_to_num(BSpline.basis_element(knots, extrapolate=False)(x))
+    p = len(knots) - 2
+    out = np.zeros_like(x)
+    for k, sign in ((knots[:-1], 1.0), (knots[1:], -1.0)):
+        if k[-1] > k[0]:
+            out += sign * p * basis(k, x) / (k[-1] - k[0])
+    return out
+
+
+def brute_force(mesh, X, Y, hsegs, vsegs, s, t):
+    """S, S_s, S_t of sum w B P / sum w B with basis functions from scipy, (n, 3) each."""
+    out = []
+    K = [grid_knots(X, Y, hsegs, vsegs, i, j) for i, j in mesh.grid_index]
+    w = mesh.weights
+    for ds, dt in ((0, 0), (1, 0), (0, 1)):
+        B = np.array([basis(xk, s, ds) * basis(yk, t, dt) for xk, yk in K]) * w[:, None]
+        out.append(B)
+    B, Bs, Bt = out
+    W, Ws, Wt = B.sum(0), Bs.sum(0), Bt.sum(0)
+    N = B.T @ mesh.points
+    S = N / W[:, None]
+    Ss = (Bs.T @ mesh.points - Ws[:, None] * S) / W[:, None]
+    St = (Bt.T @ mesh.points - Wt[:, None] * S) / W[:, None]
+    return S, Ss, St
+
+
+def clamped_grid(nx, ny, seed=0, spacing=None):
+    """Knot values of a clamped grid (zero outer intervals) with uneven spacing."""
+    rng = np.random.default_rng(seed)
+    gx = np.concatenate([[0.0], np.cumsum(rng.uniform(0.5, 2.0, nx - 3))])
+    gy = np.concatenate([[0.0], np.cumsum(rng.uniform(0.5, 2.0, ny - 3))])
+    X = np.concatenate([[0.0], gx, [gx[-1]]])
+    Y = np.concatenate([[0.0], gy, [gy[-1]]])
+    return X, Y
+
+
+def t_junction_mesh(seed=1, analysis_suitable=True):
+    """A clamped 12 x 10 grid of knot lines with T-junctions; with ``analysis_suitable`` the
+    T-junctions' extensions do not cross (partition of unity and linear precision hold)."""
+    X, Y = clamped_grid(12, 10, seed)
+    nx, ny = len(X), len(Y)
+    h = {j: (j, 0, nx - 1) for j in range(ny)}
+    v = {i: (i, 0, ny - 1) for i in range(nx)}
+    if analysis_suitable:
+        h[4] = (4, 0, 5)             # a horizontal line stopping in the middle
+        v[8] = (8, 5, ny - 1)        # a vertical line starting in the middle, far from it
+        h[7] = (7, 6, nx - 1)
+    else:
+        h[4] = (4, 2, 7)
+        v[5] = (5, 3, 8)
+        v[7] = (7, 0, 6)
+        h[6] = (6, 4, nx - 1)
+    hsegs, vsegs = list(h.values()), list(v.values())
+    rng = np.random.default_rng(seed + 7)
+    P = rng.standard_normal((nx, ny, 3)) * 0.3
+    P[..., 0] += X[:, None]
+    P[..., 1] += Y[None, :]
+    W = rng.uniform(0.5, 2.0, (nx, ny))
+    mesh = from_lines(X, Y, hsegs, vsegs, P, W)
+    return mesh, X, Y, hsegs, vsegs
+
+
+def split_face(mesh: TMesh, f: int) -> TMesh:
+    """Cut quad face f in two along the middle of its sides 0 and 2: two new vertices, the
+    neighbours across those sides get T-junctions. Intervals halve."""
+    loop = [int(x) for x in mesh.faces[f]]
+    a, b, c, d = loop
+    P = list(mesh.points)
+    w = list(mesh.weights)
+    m1, m2 = len(P), len(P) + 1
+    P += [(P[a] + P[b]) / 2, (P[c] + P[d]) / 2]
+    w += [1.0, 1.0]
+    faces = [list(map(int, x)) for x in mesh.faces]
+    corners = [list(x) for x in mesh.corners]
+    iv = [list(map(float, x)) for x in mesh.intervals]
+    da, db = iv[f][0], iv[f][1]
+
+    def insert(u, v_, mid):
+        for g, lp in enumerate(faces):
+            n = len(lp)
+            for k in range(n):
+                if lp[k] == u and lp[(k + 1) % n] == v_:
+                    half = iv[g][k] / 2
+                    lp.insert(k + 1, mid)
+                    iv[g][k:k + 1] = [half, half]
+                    corners[g] = [x + 1 if x > k else x for x in corners[g]]
+                    return
+
+    insert(b, a, m1)
+    insert(d, c, m2)
+    faces[f], corners[f], iv[f] = [a, m1, m2, d], [0, 1, 2, 3], [da / 2, db, da / 2, db]
+    faces.append([m1, b, c, m2])
+    corners.append([0, 1, 2, 3])
+    iv.append([da / 2, db, da / 2, db])
+    return TMesh(np.array(P), np.array(w), faces, corners, iv)
+
+
+def angle_between(a, b):
+    return np.arctan2(np.linalg.norm(np.cross(a, b), axis=1), np.abs(np.einsum("ij,ij->i", a, b)))
+

@@ -299,5 +299,25 @@ class Determinism(unittest.TestCase):
                 shutil.copytree(tmp, keep)
                 raise
 
+class FusionSampleJob(unittest.TestCase):
+    def test_fusion_tsm_job_end_to_end(self):
+        """The Fusion-dialect sample (a .tsm: stars of valence 3 and 5, a crease) through the
+        one reader registry: path, tool axes and program in one run, no retraction, no
+        collision or gouge."""
+        with tempfile.TemporaryDirectory(prefix="tsplcam-fusion-job-") as out:
+            code, stdout, err = run(["job", "--model", sample_path("fusion_mold"), "--tool-radius", "0.5",
+                                     "--scallop", "0.1", "--max-step", "2", "--out", out])
+            self.assertEqual(code, 0, err)
+            with open(os.path.join(out, "report.json")) as fh:
+                report = json.load(fh)
+            self.assertEqual(report["path"]["patches"], 32)
+            self.assertEqual(report["path"]["retractions"], 0)
+            self.assertEqual((report["orientation"]["collisions"], report["orientation"]["gouges"]), (0, 0))
+            with open(os.path.join(out, "fusion_mold.h")) as fh:
+                blocks = fh.read().splitlines()
+            self.assertGreater(len(blocks), report["path"]["points"])
+            self.assertIn("0 retractions", stdout)
+
+
 if __name__ == "__main__":
     unittest.main()

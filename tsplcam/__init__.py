@@ -37,7 +37,7 @@ def load(path, **options):
 
 def load_model(spec, **options):
     """A model from a file, or from the name of a shipped sample (keycap, keycap_mold, head,
-    figure4, tjunction_mold) when no file of that name exists. Errors name the file and line."""
+    figure4, tjunction_mold, fusion_mold) when no file of that name exists. Errors name the file and line."""
     from .errors import InputError
     from .model.samples import SAMPLES, sample_path
     spec = os.fspath(spec)

@@ -246,9 +246,8 @@ def _cmd_path(args) -> int:
         print(program.report.summary())
         print(program.metrics.summary())
     if program.posted is not None:
-        from .verify.orientation import machine_motion
         print(program.posted.summary())
-        print(motion_summary(machine_motion(program.posted, program.path)))
+        print(motion_summary(motion_figures(program)))
     for f in written:
         print(f"wrote {f}")
     print(f"time taken {time.perf_counter() - t0:.2f} s")
@@ -275,9 +274,8 @@ def path_figures(program, verification=None, baseline=None) -> dict:
     if program.metrics is not None:
         doc["orientation"] = program.metrics.as_dict()
     if program.posted is not None:
-        from .verify.orientation import machine_motion
         doc["machining_time_s"] = program.posted.time.total_s
-        doc["machine_motion"] = machine_motion(program.posted, program.path)
+        doc["machine_motion"] = motion_figures(program)
     if baseline is not None:
         doc["baseline"] = _summary(baseline)
     return doc
@@ -413,11 +411,10 @@ def make_job(s: JobSettings, log=None, progress=None, baseline_axes: str = "job"
 def job_figures(job: JobResult) -> dict:
     """report.json of a job (its timing block apart)."""
     from .verify.metrics import path_metrics
-    from .verify.orientation import machine_motion
     s, program = job.settings, job.program
     figures = {"settings": report_settings(s), "path": path_metrics(program.path).as_dict(),
                "machining_time_s": program.posted.time.total_s,
-               "machine_motion": machine_motion(program.posted, program.path)}
+               "machine_motion": motion_figures(program)}
     if program.metrics is not None:
         figures["orientation"] = program.metrics.as_dict()
     if job.verification is not None:
@@ -489,10 +486,27 @@ def run_job(s: JobSettings, log=print, progress=None) -> dict:
     return figures
 
 
+def motion_figures(program) -> dict:
+    """report.json's ``machine_motion``: what the machine does with the posted program
+    (tsplcam.verify.orientation.machine_motion) and, beside its C travel, the least C travel
+    the tool-axis cones, the collisions and the tilt range force on the orientation stage's
+    pose grid (``c_travel_forced_deg``; tsplcam.orientation.smoothing.forced_rotary_travel)
+    and the ratio of the two."""
+    from .verify.orientation import machine_motion
+    mm = machine_motion(program.posted, program.path)
+    forced = program.path.info.get("orientation", {}).get("c_travel_forced_deg")
+    if forced is not None:
+        mm["c_travel_forced_deg"] = forced
+        mm["c_travel_over_forced"] = round(mm["c_travel_deg"] / forced, 6) if forced > 0 else None
+    return mm
+
+
 def motion_summary(mm: dict) -> str:
-    """One line of what the machine does: time against length/feed, C travel, flips, poles."""
+    """One line of what the machine does: time against length/feed, C travel (and what the
+    cones force), flips, poles."""
+    forced = f", forced {mm['c_travel_forced_deg']:.0f} deg" if mm.get("c_travel_forced_deg") is not None else ""
     return (f"machine motion: time {mm['time_s']:.1f} s = {mm['time_ratio']:.3f} x length/feed "
-            f"({mm['length_feed_time_s']:.1f} s); C travel {mm['c_travel_deg']:.0f} deg "
+            f"({mm['length_feed_time_s']:.1f} s); C travel {mm['c_travel_deg']:.0f} deg{forced} "
             f"({mm['c_deg_per_mm']:.2f} deg/mm), branch flips {mm['branch_flips']}, pole points "
             f"{mm['pole_points']}, largest axis step {mm['max_axis_step_deg']:.2f} deg, retract-reorient "
             f"{mm['reorientations']}")

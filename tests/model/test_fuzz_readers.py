@@ -34,10 +34,51 @@ def obj_model(path):
     return cage_model(read_obj(path))
 
 
-READERS = {"tspl": native_model, "tsm": tsm_model, "iga": iga_model, "obj": obj_model}
+def fusion_grid_seed() -> bytes:
+    """A 3 x 3 open grid with a bump, boundary edges and a grip map, as Fusion writes it."""
+    import numpy as np
+    from tsplcam.model.cage import Cage
+    from tsplcam.model.formats.tsm_fusion import write_fusion_tsm
+    from tsplcam.model.quadmesh import QuadMesh
+    ij = [(i, j) for j in range(4) for i in range(4)]
+    P = np.array([(10.0 * i, 10.0 * j, 5.0 * (0 < i < 3 and 0 < j < 3)) for i, j in ij])
+    faces = [[4 * j + i, 4 * j + i + 1, 4 * j + i + 5, 4 * j + i + 4] for j in range(3) for i in range(3)]
+    with tempfile.TemporaryDirectory(prefix="tsplcam-seed-") as folder:
+        path = os.path.join(folder, "grid.tsm")
+        write_fusion_tsm(Cage(QuadMesh(np.array(faces), 16), P), path, creases=[(5, 6)], grip_map=True)
+        with open(path, "rb") as fh:
+            return fh.read()
+
+
+def fusion_tmesh_seed() -> bytes:
+    """An open T-mesh with T-junctions, non-uniform intervals and a crease along a whole knot
+    line (the T-spline kernel's path: clamped boundary, cut crease)."""
+    import numpy as np
+    from tsplcam.model.formats.tsm_fusion import write_fusion_tsm
+    from tsplcam.model.tmesh import from_lines
+    X = np.array([0, 7, 15, 21, 25, 28, 30, 32, 35, 45, 60.0])
+    Y = np.array([0, 6, 13, 20, 27, 34, 40.0])
+    vsegs = [(i, *({4: (1, 5), 6: (1, 5)}.get(i, (0, 6)))) for i in range(len(X))]
+    hsegs = [(j, 0, len(X) - 1) for j in range(len(Y))]
+    mesh = from_lines(X, Y, hsegs, vsegs, lambda i, j: (X[i], Y[j], np.sin(X[i] / 9) * np.cos(Y[j] / 7)))
+    gi = mesh.grid_index
+    col = sorted((int(gi[v, 1]), v) for v in range(mesh.n_vertices) if gi[v, 0] == 2)
+    with tempfile.TemporaryDirectory(prefix="tsplcam-seed-") as folder:
+        path = os.path.join(folder, "t.tsm")
+        write_fusion_tsm(mesh, path, creases=[(a, b) for (_, a), (_, b) in zip(col[:-1], col[1:])], grip_map=True)
+        with open(path, "rb") as fh:
+            return fh.read()
+
+
+READERS = {"tspl": native_model, "tsm": tsm_model, "tsm-fusion": tsm_model, "iga": iga_model,
+           "obj": obj_model}
 SEEDS = {
     "tspl": fuzz_seeds(["samples/tjunction_mold.tspl"]),
     "tsm": fuzz_seeds((), ["grapetec_tspline/*.tsm"]),
+    # the Fusion dialect: the shipped sample (stars of valence 3 and 5, a crease, grips in
+    # vertex order) and a small open cage with a grip map, both written by write_fusion_tsm
+    "tsm-fusion": (fuzz_seeds(["samples/fusion_mold.tsm"]) + [("grid_map.tsm", fusion_grid_seed())]
+                   + [("tgrid_crease.tsm", fusion_tmesh_seed())]),
     "iga": fuzz_seeds((), ["geopdes/*.iga", "msolve/*.iga"]),
     "obj": fuzz_seeds(["samples/keycap.obj", "samples/head.obj", "samples/figure4.obj"],
                       ["opensubdiv/*.obj"]),
@@ -65,6 +106,11 @@ class FuzzModelReaders(unittest.TestCase):
     @given(st.integers(0, 1000), fuzz_ops())
     def test_tsm(self, index, ops):
         self.case("tsm", index, ops)
+
+    @fuzz_settings(60)
+    @given(st.integers(0, 1000), fuzz_ops())
+    def test_tsm_fusion(self, index, ops):
+        self.case("tsm-fusion", index, ops)
 
     @fuzz_settings(60)
     @given(st.integers(0, 1000), fuzz_ops())

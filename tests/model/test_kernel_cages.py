@@ -397,7 +397,9 @@ class BadInput(unittest.TestCase):
         self.assertRefused(self.GRID + "f 1 2 5 40\n", "face 1", "does not exist")
 
     def test_crease_tags_refused(self):
-        self.assertRefused(self.GRID + "f 1 2 5 4\nt crease 2/1/0 0 1 10\n", "line 11", "crease")
+        # creases are read (tests/model/test_creases.py); one on two vertices that share no
+        # edge (a face's diagonal) is refused with its line
+        self.assertRefused(self.GRID + "f 1 2 5 4\nt crease 2/1/0 0 4 10\n", "line 11", "crease")
 
     def test_bowtie_vertex(self):
         text = ("v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nv -1 0 0\nv -1 -1 0\nv 0 -1 0\n"

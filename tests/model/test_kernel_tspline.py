@@ -5,7 +5,6 @@ closed-form properties (partition of unity, linear precision)."""
 import unittest
 
 import numpy as np
-from scipy.interpolate import BSpline
 
 from tsplcam.errors import InputError
 from tsplcam.layout.layout import Layout
@@ -13,150 +12,17 @@ from tsplcam.model import samples
 from tsplcam.model.cage import cage_model
 from tsplcam.model.tmesh import TMesh, bspline_tmesh, from_lines, quad_tmesh
 from tsplcam.model.knots import knot_vectors
+from tsplcam.model.stars import StarsTooClose, find_stars
 from tsplcam.model.tspline import homogeneous_parts, tspline_model
-from conftest import (needs_freecad, assert_finite_everywhere, curvature_gap, edge_pair, ngon_prism,
-                      require_freecad)
+from tsplcam.model.twalk import Walker
+from conftest import (needs_freecad, angle_between, assert_finite_everywhere, brute_force, clamped_grid,
+                      curvature_gap, edge_pair, faces_meet, grid_knots, ngon_prism, require_freecad,
+                      split_face, t_junction_mesh)
 
 RNG_SEED = 20240611
 
 
 # -- reference: rays cast on the grid of knot lines of a from_lines T-mesh -----------------------
-def grid_knots(X, Y, hsegs, vsegs, i, j):
-    """Local knot vectors of the vertex at grid node (i, j), by the definition (Sederberg
-    2003): walk along row j (column i) and collect the columns (rows) whose segments cross
-    it; past the last one the last knot repeats. Independent of the kernel's mesh walk."""
-    def crossing_cols(i, j, step):
-        out, c = [], i + step
-        while 0 <= c < len(X) and len(out) < 2:
-            if any(ci == c and min(a, b) <= j <= max(a, b) for ci, a, b in vsegs):
-                out.append(X[c])
-            c += step
-        while len(out) < 2:
-            out.append(out[-1] if out else X[i])
-        return out
-
-    def crossing_rows(i, j, step):
-        out, r = [], j + step
-        while 0 <= r < len(Y) and len(out) < 2:
-            if any(rj == r and min(a, b) <= i <= max(a, b) for rj, a, b in hsegs):
-                out.append(Y[r])
-            r += step
-        while len(out) < 2:
-            out.append(out[-1] if out else Y[j])
-        return out
-
-    w, e = crossing_cols(i, j, -1), crossing_cols(i, j, 1)
-    s, n = crossing_rows(i, j, -1), crossing_rows(i, j, 1)
-    return np.array([w[1], w[0], X[i], e[0], e[1]]), np.array([s[1], s[0], Y[j], n[0], n[1]])
-
-
-def basis(knots, x, nu=0):
-    """B-spline basis function of ``knots`` (scipy), or its first derivative by
-    N' = p (N_0 / (t_p - t_0) - N_1 / (t_(p+1) - t_1)) on its two sub-knot vectors."""
-    if knots[-1] - knots[0] <= 0:
-        return np.zeros_like(x)
-    if nu == 0:
-        return np.nan_to_num(BSpline.basis_element(knots, extrapolate=False)(x))
-    p = len(knots) - 2
-    out = np.zeros_like(x)
-    for k, sign in ((knots[:-1], 1.0), (knots[1:], -1.0)):
-        if k[-1] > k[0]:
-            out += sign * p * basis(k, x) / (k[-1] - k[0])
-    return out
-
-
-def brute_force(mesh, X, Y, hsegs, vsegs, s, t):
-    """S, S_s, S_t of sum w B P / sum w B with basis functions from scipy, (n, 3) each."""
-    out = []
-    K = [grid_knots(X, Y, hsegs, vsegs, i, j) for i, j in mesh.grid_index]
-    w = mesh.weights
-    for ds, dt in ((0, 0), (1, 0), (0, 1)):
-        B = np.array([basis(xk, s, ds) * basis(yk, t, dt) for xk, yk in K]) * w[:, None]
-        out.append(B)
-    B, Bs, Bt = out
-    W, Ws, Wt = B.sum(0), Bs.sum(0), Bt.sum(0)
-    N = B.T @ mesh.points
-    S = N / W[:, None]
-    Ss = (Bs.T @ mesh.points - Ws[:, None] * S) / W[:, None]
-    St = (Bt.T @ mesh.points - Wt[:, None] * S) / W[:, None]
-    return S, Ss, St
-
-
-def clamped_grid(nx, ny, seed=0, spacing=None):
-    """Knot values of a clamped grid (zero outer intervals) with uneven spacing."""
-    rng = np.random.default_rng(seed)
-    gx = np.concatenate([[0.0], np.cumsum(rng.uniform(0.5, 2.0, nx - 3))])
-    gy = np.concatenate([[0.0], np.cumsum(rng.uniform(0.5, 2.0, ny - 3))])
-    X = np.concatenate([[0.0], gx, [gx[-1]]])
-    Y = np.concatenate([[0.0], gy, [gy[-1]]])
-    return X, Y
-
-
-def t_junction_mesh(seed=1, analysis_suitable=True):
-    """A clamped 12 x 10 grid of knot lines with T-junctions; with ``analysis_suitable`` the
-    T-junctions' extensions do not cross (partition of unity and linear precision hold)."""
-    X, Y = clamped_grid(12, 10, seed)
-    nx, ny = len(X), len(Y)
-    h = {j: (j, 0, nx - 1) for j in range(ny)}
-    v = {i: (i, 0, ny - 1) for i in range(nx)}
-    if analysis_suitable:
-        h[4] = (4, 0, 5)             # a horizontal line stopping in the middle
-        v[8] = (8, 5, ny - 1)        # a vertical line starting in the middle, far from it
-        h[7] = (7, 6, nx - 1)
-    else:
-        h[4] = (4, 2, 7)
-        v[5] = (5, 3, 8)
-        v[7] = (7, 0, 6)
-        h[6] = (6, 4, nx - 1)
-    hsegs, vsegs = list(h.values()), list(v.values())
-    rng = np.random.default_rng(seed + 7)
-    P = rng.standard_normal((nx, ny, 3)) * 0.3
-    P[..., 0] += X[:, None]
-    P[..., 1] += Y[None, :]
-    W = rng.uniform(0.5, 2.0, (nx, ny))
-    mesh = from_lines(X, Y, hsegs, vsegs, P, W)
-    return mesh, X, Y, hsegs, vsegs
-
-
-def split_face(mesh: TMesh, f: int) -> TMesh:
-    """Cut quad face f in two along the middle of its sides 0 and 2: two new vertices, the
-    neighbours across those sides get T-junctions. Intervals halve."""
-    loop = [int(x) for x in mesh.faces[f]]
-    a, b, c, d = loop
-    P = list(mesh.points)
-    w = list(mesh.weights)
-    m1, m2 = len(P), len(P) + 1
-    P += [(P[a] + P[b]) / 2, (P[c] + P[d]) / 2]
-    w += [1.0, 1.0]
-    faces = [list(map(int, x)) for x in mesh.faces]
-    corners = [list(x) for x in mesh.corners]
-    iv = [list(map(float, x)) for x in mesh.intervals]
-    da, db = iv[f][0], iv[f][1]
-
-    def insert(u, v_, mid):
-        for g, lp in enumerate(faces):
-            n = len(lp)
-            for k in range(n):
-                if lp[k] == u and lp[(k + 1) % n] == v_:
-                    half = iv[g][k] / 2
-                    lp.insert(k + 1, mid)
-                    iv[g][k:k + 1] = [half, half]
-                    corners[g] = [x + 1 if x > k else x for x in corners[g]]
-                    return
-
-    insert(b, a, m1)
-    insert(d, c, m2)
-    faces[f], corners[f], iv[f] = [a, m1, m2, d], [0, 1, 2, 3], [da / 2, db, da / 2, db]
-    faces.append([m1, b, c, m2])
-    corners.append([0, 1, 2, 3])
-    iv.append([da / 2, db, da / 2, db])
-    return TMesh(np.array(P), np.array(w), faces, corners, iv)
-
-
-def angle_between(a, b):
-    return np.arctan2(np.linalg.norm(np.cross(a, b), axis=1), np.abs(np.einsum("ij,ij->i", a, b)))
-
-
 def models():
     """Models for the continuity checks: grids with T-junctions, an L-shaped domain, a closed
     surface with extraordinary points and T-junctions."""
@@ -398,6 +264,57 @@ class TJunctions(unittest.TestCase):
         self.assertTrue(inside.all())
 
 
+class ZeroIntervals(unittest.TestCase):
+    """Zero knot intervals in any consistent arrangement: the order of points at equal knot
+    values is a feasibility problem (a linear program), not a least-squares guess."""
+
+    # found by a random search: the minimum-norm least-squares arrangement of its zero
+    # intervals leaves an edge of zero order, though an arrangement exists (grid indices)
+    X = [0.0, 0.0, 0.0, 1.0, 1.0, 1.0]
+    Y = [0.0, 0.0, 0.0, 0.0, 0.0, 1.0, 1.0, 2.0, 2.0, 2.0]
+    H = [(0, 0, 5), (1, 0, 5), (2, 0, 3), (3, 3, 5), (4, 3, 5), (5, 3, 5), (6, 0, 5), (7, 1, 4),
+         (8, 0, 5), (9, 0, 5)]
+    V = [(i, 0, 9) for i in range(6)]
+
+    def test_arrangement_least_squares_missed(self):
+        from scipy.sparse.linalg import lsqr
+        rng = np.random.default_rng(3)
+        nx, ny = len(self.X), len(self.Y)
+        mesh = from_lines(self.X, self.Y, self.H, self.V, rng.standard_normal((nx, ny, 3)),
+                          rng.uniform(0.5, 2, (nx, ny)))
+        topo = mesh.topology
+        # the least-squares arrangement (start 1 on every zero interval) fails here
+        und = {}
+        for (a, b), (f, i) in topo.edge_at.items():
+            und.setdefault((min(a, b), max(a, b)), mesh.intervals[f][i])
+        eid = {k: n for n, k in enumerate(und)}
+        zero = np.array([und[k] <= 0 for k in und])
+        A = topo._order_matrix(eid)
+        xi = zero + lsqr(A, -(A @ zero.astype(float)), atol=1e-14, btol=1e-14)[0]
+        self.assertTrue((zero & (xi < 1e-3)).any())
+        # the linear program's: every zero interval positive, every face a rectangle
+        order = np.array([topo.edge_len[k].imag for k in und])
+        self.assertGreaterEqual(order[zero].min(), 1.0 - 1e-9)
+        self.assertLess(np.abs(A @ order).max(), 1e-9)
+        patch = tspline_model(mesh).patches[0]
+        W, Hk = patch.knot_size
+        u, v = rng.random(400), rng.random(400)
+        S, _, _ = brute_force(mesh, np.array(self.X), np.array(self.Y), self.H, self.V, u * W, v * Hk)
+        self.assertLess(np.abs(patch.evaluate(u, v).P - S).max(), 1e-14 * np.abs(mesh.points).max())
+
+    def test_inconsistent_zero_intervals_name_the_edge_and_line(self):
+        """Two faces of zero height glued so that face A's bottom (z1) equals its top (z2 + z3)
+        and face B's bottom (z2) equals its top (z1): z3 can only be a point."""
+        mesh = TMesh(np.random.default_rng(0).random((5, 3)), None, [[0, 1, 2, 3, 4], [3, 2, 1, 0]],
+                     [(0, 1, 2, 4), (0, 1, 2, 3)], [[0, 1, 0, 0, 1], [0, 1, 0, 1]], source="z.tsm",
+                     edge_labels={(3, 4): ("edge 7", 42)})
+        with self.assertRaises(InputError) as cm:
+            mesh.topology          # noqa: B018
+        self.assertIn("edge 7", str(cm.exception))
+        self.assertIn("zero knot interval", str(cm.exception))
+        self.assertEqual(cm.exception.line, 42)
+
+
 class ExtraordinaryPoints(unittest.TestCase):
     def test_closed_quad_tmesh_equals_catmull_clark(self):
         """Uniform knot intervals, no T-junctions: the T-NURCC is Catmull-Clark, everywhere,
@@ -415,8 +332,19 @@ class ExtraordinaryPoints(unittest.TestCase):
             t = np.concatenate([rng.random(2000), np.tile([0, 0, 1, 1.0], F)])
             a, b = model.evaluate_faces(f, s, t), ref.evaluate_faces(f, s, t)
             scale = np.abs(cage.points).max()
-            for k in ("P", "Pu", "Pv", "Puu", "Puv", "Pvv"):
-                self.assertLess(np.abs(getattr(a, k) - getattr(b, k)).max(), 1e-12 * scale, (n, k))
+            # at an extraordinary point itself the parametrisation is singular (derivatives
+            # depend on the way in; both kernels report the limit point and tangent plane):
+            # derivatives everywhere else
+            mesh = cage.mesh
+            corner = np.zeros(len(f), bool)
+            corner[2000:] = True
+            k_of = np.tile(np.arange(4), F)
+            at_ep = corner & np.array([False] * 2000 + [not mesh.is_regular_vertex(int(mesh.faces[g][k]))
+                                                        for g, k in zip(f[2000:], k_of)])
+            self.assertGreater(at_ep.sum(), 20)
+            self.assertLess(np.abs(a.P - b.P).max(), 1e-12 * scale, (n, "P"))
+            for k in ("Pu", "Pv", "Puu", "Puv", "Pvv"):
+                self.assertLess(np.abs(getattr(a, k) - getattr(b, k))[~at_ep].max(), 1e-12 * scale, (n, k))
             self.assertLess(angle_between(a.normal, b.normal).max(), 1e-9)
 
     def test_t_junctions_away_from_extraordinary_points(self):
@@ -464,16 +392,18 @@ class ExtraordinaryPoints(unittest.TestCase):
             a, b = (ep, next(iter(topo.edge_by_angle[ep].values()))) if distance == 0 else (prev, v)
             for g, k in edge_class(mesh, a, b):
                 bad.intervals[g][k] = 2.0
-            with self.assertRaises(InputError) as cm:
-                tspline_model(bad)
-            self.assertIn("not uniform", str(cm.exception))
-            self.assertIn("vertex", str(cm.exception))
-        # adjacent extraordinary points (two on one face)
+            # non-uniform intervals at or near a star point: the NURCC rules (StarPoints)
+            model = tspline_model(bad)
+            self.assertEqual(len(model.extraordinary), 8)
+        # adjacent extraordinary points (two on one face): too close for the star construction
+        # (a closed T-mesh with one interval everywhere, a Catmull-Clark cage, then takes the
+        # subdivision path)
         prism = ngon_prism(5, noise=0.0)
         two = quad_tmesh(prism.points, prism.mesh.faces)
-        with self.assertRaises(InputError) as cm:
-            tspline_model(two)
+        with self.assertRaises(StarsTooClose) as cm:
+            find_stars(Walker(two))
         self.assertIn("two extraordinary corners", str(cm.exception))
+        self.assertEqual(len(tspline_model(two).extraordinary), 2 + 10)
 
 
 
@@ -515,26 +445,8 @@ class Continuity(unittest.TestCase):
         """Every interior T-mesh edge, sampled from the faces on both sides."""
         tau = np.linspace(0, 1, 9)
         for name, model in self.models:
-            mesh = model.control
-            topo = mesh.topology
             scale = np.abs(model.node_points).max()
-            fa, sa_, ta, fb, sb_, tb = [], [], [], [], [], []
-            for (a, b), (f, i) in topo.edge_at.items():
-                hit = topo.edge_at.get((b, a))
-                if hit is None or a > b or min(model.face_size[f]) <= 0 or min(model.face_size[hit[0]]) <= 0:
-                    continue
-                g, j = hit
-                for face, k, ts, ss, tt in ((f, i, tau, sa_, ta), (g, j, tau[::-1], sb_, tb)):
-                    W, H = model.face_size[face]
-                    p0, p1 = topo.pos[face][k], topo.pos[face][(k + 1) % len(mesh.faces[face])]
-                    x = (p0[0].real + (p1[0].real - p0[0].real) * ts) / W
-                    y = (p0[1].real + (p1[1].real - p0[1].real) * ts) / H
-                    ss.extend(x)
-                    tt.extend(y)
-                fa.extend([f] * len(tau))
-                fb.extend([g] * len(tau))
-            A = model.evaluate_faces(fa, sa_, ta)
-            B = model.evaluate_faces(fb, sb_, tb)
+            A, B = faces_meet(model, model.control, tau)
             self.assertLess(np.abs(A.P - B.P).max(), 1e-12 * scale, name)
 
     def test_derivatives_match_finite_differences(self):

@@ -164,7 +164,7 @@ class Errors(unittest.TestCase):
 
     def test_header_errors(self):
         self.refused(self.text.replace('"tsplcam-model"', '"other"'), "not a tsplcam model")
-        self.refused(self.text.replace('"version": 1', '"version": 2'), "newer")
+        self.refused(self.text.replace('"version": 1', '"version": 3'), "newer")
         self.refused(self.text.replace('"units": "mm"', '"units": "furlong"'), "units")
         self.refused(self.text.replace('"kind": "t-spline"', '"kind": "nurbs"'), "kind")
         self.refused(self.text.replace('"name": "small",', '"name": "small", "extra": 1,'), "unknown keys")

@@ -142,14 +142,31 @@ class RoundTrip(unittest.TestCase):
         with open(artifact_path("post_round_trip.txt"), "w") as f:
             f.write("\n".join(report) + "\n")
 
-    def test_inverse_time_feeds(self):
-        """Every G93 F is 1/t with t = max(length / feed, max over axes |dq| / v_max),
-        recomputed from the program text and the machine file (docs/post.md section 3.4)."""
+    def test_feed_words(self):
+        """The F words, read back from the program text with the machine file, give every feed
+        block the time the post meant, t = max(L / feed, max over axes |dq| / v_max), L the
+        tool tip's length (docs/post.md section 3.4). Inverse time (G93, F = 1 / t on every G1)
+        by default only where the control cannot compute the tip's feed: LinuxCNC's
+        joint-coordinate program. With tool centre point control on (Heidenhain FUNCTION TCPM
+        F TCP, Sinumerik TRAORI, Fanuc G43.4/G43.5) G94 and F = L / t, the tip's feed in
+        mm/min: the path feed wherever no axis limit slows the block. Either on request; a
+        joint-coordinate G94 program's F is the joints' XYZ length (or rotary degrees) per
+        minute, as LinuxCNC reads it."""
         tp = hemisphere_sweep(n=200)
-        for machine, dialect in (("bc_head_table_sinumerik", "sinumerik"), ("bc_head_head_fanuc", "fanuc"),
-                                 ("linuxcnc_xyzac_trt", "linuxcnc")):
-            r = post_program(tp, machine, dialect)
+        for machine, dialect, options, g93 in (
+                ("mikron_ucp600_heidenhain", "heidenhain", {}, False),
+                ("bc_head_table_sinumerik", "sinumerik", {}, False),
+                ("bc_head_head_fanuc", "fanuc", {}, False),
+                ("mikron_ucp600_heidenhain", "fanuc", {}, False),
+                ("linuxcnc_xyzac_trt", "linuxcnc", {}, True),
+                ("bc_head_table_sinumerik", "sinumerik", {"inverse_time": True}, True),
+                ("bc_head_head_fanuc", "fanuc", {"inverse_time": True}, True),
+                ("linuxcnc_xyzac_trt", "linuxcnc", {"inverse_time": False}, False)):
+            label = f"{dialect} on {machine} {options}"
+            r = post_program(tp, machine, dialect, **options)
             interpret_linuxcnc(self, r)
+            self.assertEqual("G93" in r.text, g93, label)
+            self.assertEqual(r.settings["inverse_time"], g93, label)
             m = r.machine
             mod = dialects.get(dialect)
             moves = [mv for mv in mod.read(r.text) if mv.program]
@@ -162,19 +179,55 @@ class RoundTrip(unittest.TestCase):
                 J = np.column_stack([linear_joints(m, tips, rot[:, 0], rot[:, 1], r.settings["tool_length"],
                                                    r.settings["part_origin"]), rot])
             vmax = m.max_velocity * 60
-            checked = 0
+            checked = at_feed = 0
             for i in range(1, len(moves)):
                 mv = moves[i]
                 if mv.rapid:
                     continue
-                self.assertTrue(mv.inverse_time, f"{dialect} line {mv.line}")
-                self.assertIsNotNone(mv.feed, f"{dialect} line {mv.line}: G93 block without F")
+                self.assertEqual(mv.inverse_time, g93, f"{label} line {mv.line}")
+                self.assertIsNotNone(mv.feed, f"{label} line {mv.line}: feed block without F")
                 L = np.linalg.norm(tips[i] - tips[i - 1])
+                dq = np.abs(J[i] - J[i - 1])
                 f_path = tp.feed                 # every block of this path runs at the path feed
-                t = max(L / f_path, (np.abs(J[i] - J[i - 1]) / vmax).max())
-                self.assertAlmostEqual(1.0 / mv.feed, t, delta=2e-3 * t + 1e-6, msg=f"{dialect} line {mv.line}")
+                t = max(L / f_path, (dq / vmax).max())
+                tol = 2e-3 * t + 1e-6
+                if g93:
+                    t_read = 1.0 / mv.feed
+                elif mod.JOINT_SPACE:
+                    lin = np.linalg.norm(dq[:3])
+                    t_read = (lin if lin > 1e-9 else np.linalg.norm(dq[3:])) / mv.feed
+                    tol += 2 * np.sqrt(3) * 0.5e-4 / mv.feed     # joints printed to 4 decimals
+                else:
+                    if L < 1e-3:
+                        continue
+                    t_read = L / mv.feed         # F: the tip's feed in mm/min
+                    self.assertLessEqual(mv.feed, f_path + 1e-9, f"{label} line {mv.line}")
+                    at_feed += abs(mv.feed - f_path) < 1e-9
+                self.assertAlmostEqual(t_read, t, delta=tol, msg=f"{label} line {mv.line}")
                 checked += 1
-            self.assertGreater(checked, 100)
+            self.assertGreater(checked, 100, label)
+            if not g93 and not mod.JOINT_SPACE:
+                self.assertGreater(at_feed, checked // 2, label)
+
+    def test_inverse_time_setting(self):
+        """inverse_time is true, false or "auto", in a call and in a machine file; the TNC has
+        none (its F TCP is the tool point's feed already)."""
+        tp = hemisphere_sweep(n=20)
+        with self.assertRaises(InputError):
+            post_program(tp, "mikron_ucp600_heidenhain", "heidenhain", inverse_time=True)
+        with self.assertRaises(InputError):
+            post_program(tp, "bc_head_head_fanuc", "fanuc", inverse_time="yes")
+        r = post_program(tp, "bc_head_head_fanuc", "fanuc", inverse_time="auto")
+        self.assertNotIn("G93", r.text)
+        from tsplcam.post.machine import machine_from_dict
+        import json
+        doc = json.load(open(os.path.join(REPO_DIR, "tsplcam", "data", "machines", "bc_head_head_fanuc.json")))
+        doc["post"]["inverse_time"] = True
+        self.assertIn("G93 G1", post_program(tp, machine_from_dict(doc, "m.json"), "fanuc").text)
+        doc["post"]["inverse_time"] = 1
+        with self.assertRaises(InputError) as cm:
+            machine_from_dict(doc, "m.json")
+        self.assertIn("post.inverse_time", str(cm.exception))
 
     def test_same_input_same_bytes(self):
         tp = hemisphere_sweep(n=150)
@@ -209,10 +262,10 @@ class SafeStartAndEnd(unittest.TestCase):
                        "FUNCTION TCPM F TCP AXIS POS PATHCTRL AXIS", "FMAX", "FUNCTION RESET TCPM",
                        "R0 FMAX M91", "M9", "M5", "M30", "END PGM TSPLCAM MM"],
         "sinumerik": ["G17 G90 G71", "G0 SUPA Z", "T1", "M6", "D1", "G54", "S15000 M3", "M8", "G0 B",
-                      "TRAORI", "ORIWKS", "ORIAXES", "G0 X", "G93 G1", "G94", "TRAFOOF", "M9", "M5",
+                      "TRAORI", "ORIWKS", "ORIAXES", "G0 X", "G1 X", "TRAFOOF", "M9", "M5",
                       "G0 SUPA Z", "M30"],
         "fanuc": ["%", "O1000", "G21 G17 G40 G49 G80 G90 G94", "G90 G53 G0 Z", "T1 M6", "G54",
-                  "S14000 M3", "M8", "G0 B", "G0 G43.4 H1 X", "G93 G1", "G94", "G49", "M9", "M5",
+                  "S14000 M3", "M8", "G0 B", "G0 G43.4 H1 X", "G1 X", "G49", "M9", "M5",
                   "G90 G53 G0 Z", "M30", "%"],
         "linuxcnc": ["G21 G90 G94 G17 G40 G49 G80", "G10 L2 P1 X0 Y0 Z0 A0 C0", "G54", "G92.1",
                      "T1 M6", "G53 G0 Z", "G0 A", "G43 H1", "S10000 M3", "M8", "G0 X", "G93", "G1 X",

@@ -140,7 +140,8 @@ class PostedPrograms(unittest.TestCase):
 
     def test_rotary_limited_cut(self):
         # The tool axis turns 90 deg about C over 1 mm of tip motion near the C axis: C at
-        # 9000 deg/min, 1800 deg/s^2 needs 90/150 + 150/1800 s; G93 asks 1/(90/9000) = 100/min.
+        # 9000 deg/min, 1800 deg/s^2 needs 90/150 + 150/1800 s; the block's F (Sinumerik, TRAORI:
+        # the tip's feed) is 1 mm / (90/9000 min) = 100 mm/min, as G93 would ask 1/(90/9000).
         m = self.machine()
         th = np.radians(30)
         axis = np.array([[np.sin(th), 0, np.cos(th)], [0, np.sin(th), np.cos(th)]])

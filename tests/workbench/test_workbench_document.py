@@ -58,6 +58,17 @@ class ModelObject(_DocCase):
         json.dumps(obj.Proxy.dumps())                     # state is plain JSON
         self.assertNotIn("Touched", obj.State)
 
+    def test_import_fusion_tsm_through_the_engine_reader(self):
+        """A Fusion-dialect .tsm (the shipped sample) comes in through the engine's reader
+        registry: the same patches, stars and surface as the engine reads."""
+        obj = self.importer.import_file(sample_path("fusion_mold"), self.doc)
+        self.assertIsNotNone(obj, self.messages.recorded[-1:])
+        self.assertEqual((obj.Format, obj.FileName, obj.Units), ("tsm", "fusion_mold.tsm", "mm"))
+        self.assertEqual((obj.Patches, obj.ExtraordinaryPoints), (32, 8))
+        self.assertEqual(sorted(obj.Valences.split()), ["3"] * 6 + ["5"] * 2)
+        ref = tsplcam.load(sample_path("fusion_mold"))
+        np.testing.assert_allclose(grid_points(obj.Proxy.model(obj)), grid_points(ref), rtol=0, atol=1e-12)
+
     def test_save_and_reload_without_the_original_file(self):
         src = os.path.join(self.tmp, "cap.obj")
         shutil.copyfile(sample_path("keycap"), src)

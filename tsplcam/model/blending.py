@@ -44,16 +44,21 @@ def bezier_1d(knots: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
     return vals @ _TO_BERNSTEIN.T
 
 
-def supports(walker: Walker, knots: LocalKnots, ep_interval: dict, ep_faces: dict) -> list[list]:
+def supports(walker: Walker, knots: LocalKnots, stars: set, zone: dict | None = None) -> list[list]:
     """For every face, the vertices whose blending functions are non-zero on it, with the
     map from the face's frame to the vertex's frame: ``out[f]`` = [(vertex, map), ...].
 
-    ``ep_interval``: the extraordinary vertices, ``ep_faces``: the faces around them (their
-    functions may reach a face by two ways; that is refused elsewhere)."""
+    ``stars``: the extraordinary vertices (their own functions live on the two rings of faces
+    around them only, where ``stars.py`` evaluates them: left out here). ``zone``: per face
+    of those rings, (star, sector, allowed): a function may reach such a face by two ways
+    around the star (ignored there), and the functions of a star's neighbours spread only
+    through the rings' faces of the sectors next to them (``allowed``: vertex -> sectors)."""
     mesh, topo, lex = walker.mesh, walker.topo, walker.lex
+    zone = zone or {}
     contrib = [[] for _ in range(topo.nf)]
-    eps = set(ep_interval)
     for A in range(mesh.n_vertices):
+        if A in stars:
+            continue
         s5, t5 = knots.s[A], knots.t[A]
         if s5[4].real - s5[0].real <= walker.tol or t5[4].real - t5[0].real <= walker.tol:
             continue                      # identically zero
@@ -62,12 +67,14 @@ def supports(walker: Walker, knots: LocalKnots, ep_interval: dict, ep_faces: dic
             q = (a - topo.out_dir(f, i)) % 4
             px, py = rot(q, *topo.pos[f][i])
             starts.append((f, (q, -px, -py)))
-            if A in eps:
-                break
 
         def inside(f, m):
             x0, x1, y0, y1 = walker.face_rect(f, m)
             return lex.lt(x0, s5[4]) and lex.lt(s5[0], x1) and lex.lt(y0, t5[4]) and lex.lt(t5[0], y1)
+
+        def allowed(g):
+            z = zone.get(g)
+            return z is None or A not in z[2] or z[1] in z[2][A]
 
         visited = {}
         queue = []
@@ -83,21 +90,21 @@ def supports(walker: Walker, knots: LocalKnots, ep_interval: dict, ep_faces: dic
             nl = len(loop)
             for j in range(nl):
                 a, b = int(loop[j]), int(loop[(j + 1) % nl])
-                if a in eps or b in eps:
+                if a in stars or b in stars:
                     continue
                 hit = walker.cross_map(f, j)
                 if hit is None:
                     continue
                 g, mg = hit
                 mm = compose(m, mg)
-                if not inside(g, mm):
+                if not inside(g, mm) or not allowed(g):
                     continue
                 old = visited.get(g)
                 if old is None:
                     visited[g] = mm
                     queue.append(g)
                 elif not walker.same_map(old, mm):
-                    if A in eps or g in ep_faces:
+                    if g in zone:
                         continue
                     raise mesh.error(f"the blending function of {mesh.vertex_name(A)} wraps onto itself "
                                      f"at {mesh.face_name(g)} (its support goes around an extraordinary "

@@ -15,9 +15,10 @@ import numpy as np
 
 from ..errors import InputError
 from .basis import BSPLINE_TO_BEZIER
-from .cells import BezierCells, EigenCells, LevelCells
+from .adaptive import AdaptiveCells, classify, resolve
+from .cells import BezierCells, LevelCells
 from .decompose import QuadDecomposition, decompose
-from .eigen import NotSelfSimilar, scheme_for
+from .eigen import NotSelfSimilar
 from .model import ExtraordinaryPoint, FaceMap, Model, link_patches
 from .patch import CORNER_UV, Patch, rotation_map
 from .quadmesh import QuadMesh
@@ -57,7 +58,10 @@ def cage_model(cage: Cage, name: str | None = None) -> Model:
     H0 = cage.homogeneous()
     mesh.validate(H0)
     dec = decompose(mesh)
+    # faces with two irregular corners are refined once first (Stam's assumption); corners
+    # near semi-sharp creases are left to the local refinement of ``adaptive``
     irregular = np.array([bool(mesh.valence(v)) and not mesh.is_regular_vertex(v)
+                          and not (mesh.creased and mesh.has_semi_sharp_at(v))
                           for v in range(mesh.n_vertices)])
     level = 1 if (irregular[mesh.faces].sum(axis=1) >= 2).any() else 0
     while True:
@@ -76,8 +80,6 @@ def _build_patches(mesh: QuadMesh, H0: np.ndarray, dec: QuadDecomposition, level
     for _ in range(level):
         emesh, R, _ = emesh.refine()
         He = R @ He
-    e_irregular = np.array([bool(emesh.valence(v)) and not emesh.is_regular_vertex(v)
-                            for v in range(emesh.n_vertices)])
     M = BSPLINE_TO_BEZIER
     patches = []
     for r, reg in enumerate(dec.regions):
@@ -86,37 +88,40 @@ def _build_patches(mesh: QuadMesh, H0: np.ndarray, dec: QuadDecomposition, level
         nu, nv = nc * sub, nr * sub
         group = np.zeros((nu, nv), dtype=int)
         local = np.zeros((nu, nv), dtype=int)
-        bez, eig = [], {}
+        bez, eig, deep = [], {}, []
         items = _children([(int(f), int(i), int(j), int(rot))
                            for f, (i, j), rot in zip(reg.faces, reg.cell, reg.rot)], level)
         for e, ci, cj, re in items:
-            corners = [k for k in range(4) if e_irregular[emesh.faces[e][k]]]
-            if not corners:
-                G = (emesh.regular_stencil(e, re) @ He).reshape(4, 4, 4)      # [j, i, c]
+            leaf = classify(emesh, e, re)
+            if leaf is None:                 # near semi-sharp creases, several irregular corners
+                local[ci, cj] = len(deep)
+                group[ci, cj] = -3
+                deep.append((e, re))
+                continue
+            if leaf[0] == "bezier":
+                G = (leaf[1] @ He).reshape(4, 4, 4)      # [j, i, c]
                 local[ci, cj] = len(bez)
                 group[ci, cj] = -1
                 bez.append(np.einsum("aj,bi,jic->abc", M, M, G))
                 continue
-            if len(corners) > 1:
-                raise AssertionError("face with two irregular corners after refinement")
-            k = corners[0]
-            scheme, cfg = scheme_for(emesh, e, k)
-            data = He[cfg]
+            _, scheme, cfg, k = leaf
             lst = eig.setdefault(id(scheme), (scheme, [], [], []))
             local[ci, cj] = len(lst[1])
-            group[ci, cj] = -2 - list(eig).index(id(scheme))
-            lst[1].append(data)
+            group[ci, cj] = -4 - list(eig).index(id(scheme))
+            lst[1].append(He[cfg])
             lst[2].append(rotation_map((re - k) % 4))
             lst[3].append((int(emesh.faces[e][k]), e))
         groups, gid = [], {}
         if bez:
             gid[-1] = len(groups)
             groups.append(BezierCells(np.array(bez)))
+        if deep:
+            gid[-3] = len(groups)
+            groups.append(AdaptiveCells(resolve(emesh, He, deep)))
         for n, (scheme, data, maps, where) in enumerate(eig.values()):
-            gid[-2 - n] = len(groups)
-            cls = LevelCells if scheme.defective else EigenCells
+            gid[-4 - n] = len(groups)
             try:
-                groups.append(cls(scheme, np.array(data), np.array(maps)))
+                groups.append(LevelCells(scheme, np.array(data), np.array(maps)))
             except InputError:
                 _name_irregular_vertex(emesh, scheme, data, where)
                 raise

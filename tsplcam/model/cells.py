@@ -3,9 +3,10 @@
 A patch's domain (the unit square) is cut into rectangular cells. A cell is either a
 rational Bezier piece (any degree; T-spline and B-spline faces after Bezier extraction,
 regular subdivision faces after the B-spline-to-Bezier change of basis) or an
-extraordinary cell: a subdivision face with one irregular corner, evaluated exactly by the
-eigen-decomposition of its local subdivision matrix (Stam 1998, generalised: the matrix is
-computed numerically for the configuration at hand, see ``eigen.py``).
+extraordinary cell: a subdivision face with one irregular corner, evaluated exactly by
+subdividing its neighbourhood to the level where the point lies in a regular sub-patch
+(Stam 1998's tiling, with the local subdivision matrix computed numerically for the
+configuration at hand, see ``eigen.py``).
 
 Every evaluator takes cell indices and local parameters (a, b) in [0, 1]^2 and returns
 homogeneous values and derivatives coordinate-major, shape (6, 4, n): H, H_a, H_b, H_aa,
@@ -214,53 +215,19 @@ def _per_cell_product(coeff: np.ndarray, key: np.ndarray, mats: np.ndarray) -> n
     return out.transpose(1, 2, 0)
 
 
-class EigenCells:
-    """Subdivision faces with one irregular corner, all of one configuration (one scheme).
-
-    ``C0`` (ncell, K, 4): the cells' homogeneous control points in configuration order; they
-    are kept projected on the scheme's eigenvectors (``hat`` = V^-1 C0). ``maps`` (ncell,) index of SQUARE_MAPS taking the cell's local
-    (a, b) to the face frame (s, t) in which the irregular vertex sits at (0, 0).
-    """
-
-    kind = "eigen"
-    EPS_LEVEL = 40       # derivatives at the irregular vertex itself are taken at (2^-40, 2^-40)
-    MAX_LEVEL = 1070     # below 2^-1070 parameters are zero in double precision anyway
-
-    def __init__(self, scheme, C0: np.ndarray, maps: np.ndarray):
-        self.scheme = scheme
-        self.hat = np.ascontiguousarray([scheme.project(c) for c in C0], dtype=float)
-        self.maps = np.asarray(maps, dtype=int)
-        self.limit_normal = np.array([scheme.limit_normal(c) for c in C0]).reshape(-1, 3)
-
-    def __len__(self) -> int:
-        return len(self.hat)
-
-    def evaluate(self, idx: np.ndarray, a: np.ndarray, b: np.ndarray):
-        sch = self.scheme
-        A, at_vertex, level, k, sh, th = _ring_coordinates(self.maps[idx], a, b, self.EPS_LEVEL,
-                                                           self.MAX_LEVEL)
-        coeff = _subpatch_coefficients(sch.phi, k, sh, th)
-        # lambda_i^(level-1) and the 2^level scale of each derivative order
-        lam_pow = np.exp(np.multiply.outer(level - 1, sch.log_abs_lam)) * sch.sign_lam ** (level - 1)[:, None]
-        lam_pow[:, sch.zero_lam] = np.where((level - 1)[:, None] == 0, 1.0, 0.0)
-        coeff *= lam_pow[:, None, :]
-        coeff *= np.ldexp(1.0, np.multiply.outer(level, _ORDER))[:, :, None]
-        coeff[:, 1:, sch.dominant] = 0.0              # the limit point does not move
-        H = _chain(_per_cell_product(coeff, idx, self.hat), A)
-        ep_normal = None
-        if at_vertex.any():
-            H[0][:, at_vertex] = self.hat[idx[at_vertex], sch.dominant].T
-            ep_normal = np.zeros((len(a), 3))
-            ep_normal[at_vertex] = self.limit_normal[idx[at_vertex]]
-        return H, at_vertex, ep_normal
-
-
 class LevelCells:
-    """Like EigenCells, for configurations whose subdivision matrix is defective (Jordan
-    blocks, as at some boundary vertices under OpenSubdiv's rules): the control points of
-    every level are precomputed per cell as d_m = A^m (C0 - L) (``SubdivisionScheme.levels``),
-    which is exact and keeps full relative precision; below 2^-MAX_LEVEL the point is the
-    limit point."""
+    """Subdivision faces with one irregular corner, all of one configuration (one scheme),
+    evaluated by subdividing to the regular level: the control points of every level are
+    precomputed per cell as d_m = A^m (C0 - L) (``SubdivisionScheme.levels``), and a point
+    at level n is the regular sub-patch k of level n, b(s', t')^T S_k (d_(n-1) + L). Iterating
+    on the difference from the limit point L keeps full relative precision at every level;
+    unlike powers of an eigenbasis (Stam 1998), it needs no eigenvectors (none exist where A
+    is defective, as at some boundary vertices, and they are ill-conditioned near such
+    configurations). Below 2^-MAX_LEVEL the point is the limit point.
+
+    ``C0`` (ncell, K, 4): the cells' homogeneous control points in configuration order;
+    ``maps`` (ncell,) index of SQUARE_MAPS taking the cell's local (a, b) to the face frame
+    (s, t) in which the irregular vertex sits at (0, 0)."""
 
     kind = "levels"
     EPS_LEVEL = 50

@@ -55,12 +55,15 @@ class Decomposition:
     lex: Lex
 
 
-def decompose_tmesh(walker: Walker) -> Decomposition:
-    """The patch regions of the T-mesh ``walker`` walks on."""
+def decompose_tmesh(walker: Walker, creases: set | None = None, crease_starts: set | None = None
+                    ) -> Decomposition:
+    """The patch regions of the T-mesh ``walker`` walks on. ``creases``: edges (a, b), a < b,
+    that bound patches whatever else (infinitely sharp creases), and ``crease_starts`` the
+    vertices where they end, meet or turn, from which lines start as from corners."""
     mesh, topo = walker.mesh, walker.topo
-    starts = {v for v in range(mesh.n_vertices) if topo.is_layout_vertex(v)}
+    starts = {v for v in range(mesh.n_vertices) if topo.is_layout_vertex(v)} | set(crease_starts or ())
     for _attempt in range(mesh.n_vertices + 1):
-        traced, chords = _trace_all(walker, starts)
+        traced, chords = _trace_all(walker, starts, creases)
         dec, bad = _regions(walker, traced, chords)
         if bad is None:
             return dec
@@ -74,10 +77,10 @@ def decompose_tmesh(walker: Walker) -> Decomposition:
 
 
 # -- patch boundaries -------------------------------------------------------------------------
-def _trace_all(walker: Walker, starts: set):
+def _trace_all(walker: Walker, starts: set, creases: set | None = None):
     """Lines from the start vertices: traced edges and chords through faces."""
     topo = walker.topo
-    traced = set()
+    traced = set(creases or ())
     chords = defaultdict(lambda: ([], []))         # face -> (x values of vertical, y of horizontal)
     for v in sorted(starts):
         T = int(topo.total[v])
@@ -419,14 +422,17 @@ class QuadDecomposition:
 
 def decompose(mesh: QuadMesh) -> QuadDecomposition:
     """Patches of a (validated) quad cage: the T-mesh decomposition with every knot
-    interval 1, read back as rectangles of whole faces."""
+    interval 1, read back as rectangles of whole faces. Infinitely sharp creases are patch
+    boundaries (a tool path line never crosses one)."""
     faces = np.asarray(mesh.faces, dtype=int)
     tmesh = TMesh(np.zeros((mesh.n_vertices, 3)), None, list(faces), [(0, 1, 2, 3)] * len(faces),
                   [np.ones(4)] * len(faces), source=mesh.source,
                   face_labels=[mesh.face_name(f) for f in range(len(faces))],
                   vertex_labels=[mesh.vertex_name(v) for v in range(mesh.n_vertices)])
     walker = Walker(tmesh, Topology(tmesh))
-    dec = decompose_tmesh(walker)
+    creases = mesh.crease_edges() if mesh.creased else None
+    starts = {v for v in range(mesh.n_vertices) if mesh.is_layout_vertex(v)} if creases else None
+    dec = decompose_tmesh(walker, creases, starts)
     links, keys = region_links(walker, dec)
     regions = []
     for r, comp in enumerate(dec.regions):

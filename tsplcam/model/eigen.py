@@ -1,4 +1,5 @@
-"""Exact evaluation next to irregular vertices by eigen-analysis of the subdivision matrix.
+"""Subdivision matrices of irregular configurations, for exact evaluation next to irregular
+vertices.
 
 Stam (1998, "Exact evaluation of Catmull-Clark subdivision surfaces at arbitrary parameter
 values") writes the surface over a face F with one extraordinary corner as
@@ -7,25 +8,27 @@ where C0 are the K control points around F, A the K x K subdivision matrix (one
 refinement maps the configuration to the same configuration one level down), n the level
 at which (s, t) falls into one of the three regular sub-patches k of the ring
 [0, 2^(1-n)]^2 minus [0, 2^-n]^2, S_k picks that sub-patch's 16 B-spline control points,
-and b the bicubic B-spline basis. With A = V diag(lambda) V^-1 this is
-    P(s, t) = sum_i lambda_i^(n-1) (b^T S_k V)_i (V^-1 C0)_i,
-exact at any (s, t), cheap, and precise near the vertex because every term carries its
-own power of lambda (the dominant term, lambda = 1, is the limit point).
+and b the bicubic B-spline basis. Stam evaluates A^(n-1) through A's eigenvectors; tsplcam
+subdivides instead (``cells.LevelCells``: the configuration of every level, kept as its
+difference from the limit point), which needs no eigenvectors and keeps full precision
+where they are ill-conditioned or do not exist (Jordan blocks at some boundary vertices).
+The eigenvalues still give the limit point (the left eigenvector of 1), the tangent plane
+(left eigenvectors of the subdominant eigenvalues) and the checks against published spectra.
 
 Unlike Stam's paper, A and S_k are not written out by hand for interior vertices only:
 they are computed for the configuration at hand by refining its own neighbourhood with the
-mesh's Catmull-Clark rules (``QuadMesh.refine``) and read off the sparse refinement
-matrix, so the same code covers any valence and boundary vertices under OpenSubdiv's
-rules. The eigen-decomposition is numpy's, for the valence at hand; no tables are shipped.
+mesh's subdivision rules (``QuadMesh.refine``: boundaries and creases as OpenSubdiv) and
+read off the sparse refinement matrix, so the same code covers any valence, boundary
+vertices and crease configurations. No tables are shipped.
 """
 from __future__ import annotations
 
 import numpy as np
 
 from ..errors import InputError
-from .quadmesh import QuadMesh
+from .quadmesh import INFINITE, QuadMesh
 
-# sub-patches of Stam's ring, in the order cells.EigenCells uses:
+# sub-patches of Stam's ring, in the order cells.LevelCells uses:
 # k = 0: s' >= 1/2, t' < 1/2; k = 1: both >= 1/2; k = 2: s' < 1/2, t' >= 1/2.
 # (child corner offset d from the irregular corner, stencil frame corner k0 of that child)
 _SUBPATCH_CHILDREN = ((1, 3), (2, 2), (3, 1))
@@ -36,7 +39,8 @@ class NotSelfSimilar(InputError):
 
 
 class SubdivisionScheme:
-    """Eigen-structure of one local configuration (one irregular vertex type)."""
+    """The subdivision matrix of one local configuration (one irregular vertex type), its
+    sub-patch pickers, limit-point and tangent masks and spectrum."""
 
     def __init__(self, template: QuadMesh, face: int, corner: int, cut_edges: set, label: str):
         self.label = label
@@ -54,7 +58,8 @@ class SubdivisionScheme:
             child_cut.add((min(a, e), max(a, e)))
             child_cut.add((min(b, e), max(b, e)))
         cfg1 = child.config(4 * face + corner, 0)
-        if len(cfg1) != K or tainted[cfg1].any():
+        if (len(cfg1) != K or tainted[cfg1].any()
+                or not _same_features(template, config, cut_edges, child, cfg1, child_cut)):
             raise NotSelfSimilar(f"{label}: the neighbourhood of this irregular vertex does not "
                              f"subdivide into the same configuration")
         Rd = R.toarray()
@@ -78,49 +83,11 @@ class SubdivisionScheme:
             raise InputError(f"{label}: eigenvalue 1 is not simple (no unique limit point)")
         l0 = vt[-1]
         self.limit_mask = l0 / l0.sum()
-        self.defective = False
         self.tangent_masks = _tangent_masks(A, label)
-        lam, V = np.linalg.eig(A)
-        if np.abs(lam.imag).max() > 1e-9:
-            self.defective = True
-        else:
-            # numpy returns a repeated real eigenvalue as a "conjugate pair" with ~1e-17
-            # imaginary parts and complex eigenvectors: their real and imaginary parts span
-            # the same real eigenspace.
-            V = V.copy()
-            i = 0
-            while i < K:
-                if np.abs(V[:, i].imag).max() > 1e-12 and i + 1 < K:
-                    re, im = V[:, i].real.copy(), V[:, i].imag.copy()
-                    V[:, i], V[:, i + 1] = re, im
-                    i += 2
-                else:
-                    i += 1
-            lam, V = lam.real, V.real
-            order = np.argsort(-np.abs(lam), kind="stable")
-            lam, V = lam[order], V[:, order]
-            if not np.linalg.cond(V) < 1e10:
-                self.defective = True
-            else:
-                Vinv = np.linalg.inv(V)
-                if np.abs(V @ np.diag(lam) @ Vinv - A).max() > 1e-9:
-                    self.defective = True
-        if self.defective:
-            # Jordan blocks (OpenSubdiv's boundary rules at some boundary vertices): evaluate
-            # level by level instead, see LevelCells.
-            self.lam = np.sort(np.abs(np.linalg.eigvals(A)))[::-1]
-            return
-        self.lam = lam
-        self.V = V
-        self.Vinv = Vinv
-        self.dominant = int(np.argmin(np.abs(lam - 1.0)))
-        if abs(lam[self.dominant] - 1.0) > 1e-9:
-            raise InputError(f"{label}: no eigenvalue 1 (not an affine-invariant scheme)")
-        self.zero_lam = np.abs(lam) < 1e-14
-        with np.errstate(divide="ignore"):
-            self.log_abs_lam = np.where(self.zero_lam, 0.0, np.log(np.abs(lam)))
-        self.sign_lam = np.sign(lam)
-        self.phi = np.stack([Sk @ V for Sk in S])          # (3, 16, K)
+        lam = np.linalg.eigvals(A)
+        if np.abs(lam.imag).max() <= 1e-9:
+            lam = lam.real
+        self.lam = lam[np.argsort(-np.abs(lam), kind="stable")]
 
     def levels(self, C0: np.ndarray, count: int) -> tuple[np.ndarray, np.ndarray]:
         """Limit point L (4,) and d_m = A^m (C0 - L) for m < count, (count, K, 4).
@@ -140,14 +107,6 @@ class SubdivisionScheme:
         lam = np.sort(np.abs(self.lam))[::-1]
         return float(lam[1])
 
-    def project(self, C0: np.ndarray) -> np.ndarray:
-        """Eigen-coefficients V^-1 C0 of control points given in configuration order (K, 4)."""
-        return self.Vinv @ C0
-
-    def limit_point(self, hat: np.ndarray) -> np.ndarray:
-        h = hat[self.dominant]
-        return h[:3] / h[3]
-
     def limit_normal(self, C0: np.ndarray) -> np.ndarray:
         """Unit normal of the tangent plane at the irregular vertex (orientation unfixed),
         from the tangent masks (left eigenvectors of the largest eigenvalues below 1)
@@ -163,6 +122,38 @@ class SubdivisionScheme:
             raise InputError(f"{self.label.split(' (')[0]}: degenerate tangent plane at the "
                              f"irregular vertex")
         return n / length
+
+
+def _same_features(parent: QuadMesh, cfg0: list, cut0: set, child: QuadMesh, cfg1: list, cut1: set) -> bool:
+    """Whether the infinitely sharp edges and corners sit at the same places of the two
+    configurations (creases and corners that do not pass through the irregular vertex move
+    outward under refinement: such a neighbourhood is not yet self-similar). Edges where the
+    configuration was cut out of its mesh are not features."""
+    if not parent.creased and not child.creased:
+        return True
+
+    def sharp_edge(mesh, cut, a, b):
+        if mesh.is_boundary_edge(a, b):
+            return (min(a, b), max(a, b)) not in cut
+        return (mesh.sharpness or {}).get((min(a, b), max(a, b)), 0.0) >= INFINITE
+
+    def sharp_vertex(mesh, cut, v):
+        if (mesh.corner_sharpness or {}).get(v, 0.0) >= INFINITE:
+            return True
+        fan, boundary = mesh.fan(v)
+        if not (boundary and len(fan) == 1 and mesh.boundary_rule == "edge-and-corner"):
+            return False
+        nb = mesh.neighbours(v)
+        return not any((min(v, w), max(v, w)) in cut for w in (nb[0], nb[-1]))
+
+    for f in range(len(parent.faces)):
+        quad = parent.faces[f]
+        for k in range(4):
+            a, b = int(quad[k]), int(quad[(k + 1) % 4])
+            i, j = cfg0.index(a), cfg0.index(b)
+            if sharp_edge(parent, cut0, a, b) != sharp_edge(child, cut1, cfg1[i], cfg1[j]):
+                return False
+    return all(sharp_vertex(parent, cut0, a) == sharp_vertex(child, cut1, b) for a, b in zip(cfg0, cfg1))
 
 
 def _tangent_masks(A: np.ndarray, label: str) -> tuple[np.ndarray, np.ndarray]:
@@ -219,14 +210,28 @@ def scheme_for(mesh: QuadMesh, face: int, corner: int) -> tuple[SubdivisionSchem
             else:
                 cut.add(key)
     fi = faces.index(face)
-    signature = (mesh.boundary_rule, fi, corner, tuple(map(tuple, tfaces)), tuple(sorted(real_boundary)))
+    sharp, corners = {}, {}
+    if mesh.sharpness:
+        for g in faces:
+            quad = mesh.faces[g]
+            for k in range(4):
+                a, b = int(quad[k]), int(quad[(k + 1) % 4])
+                s = mesh.sharpness.get((min(a, b), max(a, b)), 0.0)
+                if s > 0.0:
+                    la, lb = local[a], local[b]
+                    sharp[(min(la, lb), max(la, lb))] = s
+    if mesh.corner_sharpness:
+        corners = {local[v]: s for v, s in mesh.corner_sharpness.items() if v in local}
+    signature = (mesh.boundary_rule, fi, corner, tuple(map(tuple, tfaces)), tuple(sorted(real_boundary)),
+                 tuple(sorted(sharp.items())), tuple(sorted(corners.items())))
     sch = _SCHEMES.get(signature)
     if sch is None:
         v = int(mesh.faces[face][corner])
         fan, boundary = mesh.fan(v)
         label = (f"{'boundary' if boundary else 'interior'} vertex of {len(fan)} faces "
                  f"({mesh.vertex_name(v)}{', ' + mesh.source if mesh.source else ''})")
-        template = QuadMesh(tfaces, len(config), mesh.boundary_rule, mesh.source)
+        template = QuadMesh(tfaces, len(config), mesh.boundary_rule, mesh.source,
+                            sharpness=sharp or None, corner_sharpness=corners or None)
         sch = SubdivisionScheme(template, fi, corner, cut, label)
         _SCHEMES[signature] = sch
     return sch, config

@@ -9,8 +9,9 @@ crossed give the knots (``twalk.py`` walks the rays on the mesh itself). Convent
   boundary). A grid T-mesh with zero outer intervals is therefore a clamped B-spline, and
   boundary curves interpolate their control points; boundaries must be clamped
   (``check_clamped``).
-* A ray that passes through an extraordinary point continues with its uniform interval,
-  and an extraordinary point's own knots are uniform (T-NURCC, ``extraordinary.py``).
+* A ray that passes through an extraordinary point continues with its mean spoke interval,
+  and an extraordinary point's own knots are uniform: only pieces of functions on the two
+  rings of faces around the point depend on these, and there ``stars.py`` takes over.
 """
 from __future__ import annotations
 
@@ -18,7 +19,6 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .extraordinary import find_extraordinary
 from .tmesh import TMesh
 from .twalk import Walker, inverse, map_knots
 
@@ -57,8 +57,9 @@ class LocalKnots:
 
 
 def local_knots(walker: Walker, ep_interval: dict) -> LocalKnots:
-    """Local knot vectors of every vertex (``ep_interval``: the uniform knot interval of each
-    extraordinary vertex)."""
+    """Local knot vectors of every vertex (``ep_interval``: the mean spoke interval of each
+    extraordinary vertex; the functions that see it are replaced next to the star by
+    ``stars.py``)."""
     n = walker.mesh.n_vertices
     sk = np.zeros((n, 5), dtype=complex)
     tk = np.zeros((n, 5), dtype=complex)
@@ -82,9 +83,10 @@ def knot_vectors(mesh: TMesh) -> tuple[np.ndarray, np.ndarray]:
     expressed in the frame of the first face of its fan (``mesh.topology.fan[v][0]``); for
     meshes laid out in one plane with aligned face frames (``tmesh.from_lines``) that is the
     plane's frame. Greville points: the vertex's knot position plus the mean of knots 1..3."""
+    from .extraordinary import find_extraordinary
     mesh.validate()
     walker = Walker(mesh)
-    knots = local_knots(walker, find_extraordinary(mesh).interval)
+    knots = local_knots(walker, find_extraordinary(mesh, walker).interval)
     topo = mesh.topology
     S = np.empty((mesh.n_vertices, 5))
     T = np.empty((mesh.n_vertices, 5))

@@ -37,7 +37,7 @@ class ExtraordinaryPoint:
 class Model:
     """Patches of one surface; ``units`` is always mm inside tsplcam.
 
-    The last five attributes belong to some kinds of model only (None on the others); the
+    The last six attributes belong to some kinds of model only (None on the others); the
     reader or builder of that kind sets them.
     """
 
@@ -68,6 +68,9 @@ class Model:
     iga: object | None
     #: CAD imports (the workbench's STEP/IGES reader): the face each patch was made from
     faces: list | None
+    #: ``.tsm`` files: what the file said and how it was read (``formats.tsm.TsmInfo``: dialect,
+    #: scale applied to its coordinates, surface construction, footer)
+    tsm: object | None
 
     def __init__(self, patches: list[Patch], node_points: np.ndarray,
                  extraordinary: list[ExtraordinaryPoint], kind: str, source: str | None = None,
@@ -86,6 +89,7 @@ class Model:
         self.mesh_info = None
         self.iga = None
         self.faces = None
+        self.tsm = None
 
     def __repr__(self) -> str:
         return (f"<Model {self.name!r}: {len(self.patches)} patches, "

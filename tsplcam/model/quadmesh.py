@@ -11,6 +11,18 @@ Boundary rules follow OpenSubdiv (``Sdc::Options::VtxBoundaryInterpolation``):
 boundary vertex uses the crease rule (a + 6 v + b)/8, so the boundary limit curve is the
 uniform cubic B-spline of the boundary vertices; ``edge-and-corner`` (tag value 1): as
 edge-only, but vertices with a single face are infinitely sharp corners (v' = v).
+
+Creases follow OpenSubdiv's Catmull-Clark rules with the uniform creasing method
+(``Sdc::Crease``, ``Sdc::Scheme``): an edge of sharpness s (``sharpness``, 0-based vertex
+pairs) is refined with the crease rule (midpoint) while s >= 1 and blends the smooth and
+crease rules with weight s when 0 < s < 1; its two child edges get s - 1 (s >= 10 is
+infinitely sharp and stays so). A vertex's rule comes from its sharp edges (boundary edges
+count as infinitely sharp) and its own sharpness (``corner_sharpness``, the ``corner`` tag):
+none or one sharp edge smooth, two a crease ((a + 6 v + b) / 8 with a, b the crease
+neighbours), more, or a sharp vertex, a corner (v' = v). Where the rule of the child vertex
+differs from the parent's, the two masks are blended with the parent's fractional weight
+(the mean sharpness of the edges that become smooth, and the vertex's own, capped at 1).
+Sharpness values are single precision, as OpenSubdiv keeps them.
 """
 from __future__ import annotations
 
@@ -22,6 +34,23 @@ import scipy.sparse as sp
 from ..errors import InputError
 
 BOUNDARY_RULES = ("edge-only", "edge-and-corner")
+#: sharpness at or above which an edge or vertex is infinitely sharp (OpenSubdiv's
+#: ``Sdc::Crease::SHARPNESS_INFINITE``)
+INFINITE = 10.0
+
+
+def decrement(s: float) -> float:
+    """The sharpness of a child edge or vertex under the uniform creasing method, in single
+    precision as OpenSubdiv computes it: s - 1 while s > 1, infinite stays infinite."""
+    if s >= INFINITE:
+        return INFINITE
+    if s > 1.0:
+        return float(np.float32(s) - np.float32(1.0))
+    return 0.0
+
+
+def is_semi_sharp(s: float) -> bool:
+    return 0.0 < s < INFINITE
 
 
 @dataclass
@@ -31,6 +60,10 @@ class QuadMesh:
     boundary_rule: str = "edge-only"
     source: str | None = None              # file, for error messages
     face_lines: np.ndarray | None = None   # (F,) 1-based line of each face in the source file
+    #: crease sharpness of interior edges, (a, b) with a < b -> s > 0 (single-precision values)
+    sharpness: dict | None = None
+    #: vertex sharpness (OpenSubdiv's ``corner`` tag), v -> s > 0
+    corner_sharpness: dict | None = None
     _edges: dict = field(default=None, init=False, repr=False)
     _fans: list = field(default=None, init=False, repr=False)
 
@@ -156,24 +189,152 @@ class QuadMesh:
             fans.append((order, boundary))
         self._fans = fans
 
+    # -- creases --------------------------------------------------------------------------
+    @property
+    def creased(self) -> bool:
+        return bool(self.sharpness) or bool(self.corner_sharpness)
+
+    def edge_sharpness(self, a: int, b: int) -> float:
+        """Sharpness of edge a-b: boundary edges are infinitely sharp."""
+        if self.is_boundary_edge(a, b):
+            return INFINITE
+        return (self.sharpness or {}).get((a, b) if a < b else (b, a), 0.0)
+
+    def vertex_sharpness(self, v: int) -> float:
+        """The vertex's own sharpness; a vertex with one face under the edge-and-corner
+        rule is an infinitely sharp corner."""
+        fan, boundary = self.fan(v)
+        if boundary and len(fan) == 1 and self.boundary_rule == "edge-and-corner":
+            return INFINITE
+        return (self.corner_sharpness or {}).get(v, 0.0)
+
+    def neighbours(self, v: int) -> list[int]:
+        """Vertices at the other end of v's edges, in fan order (n + 1 of them on the
+        boundary, from the leading to the trailing boundary edge)."""
+        fan, boundary = self.fan(v)
+        out = [int(self.faces[f][(k + 1) % 4]) for f, k in fan]
+        if boundary and fan:
+            f, k = fan[-1]
+            out.append(int(self.faces[f][(k + 3) % 4]))
+        return out
+
+    def vertex_rule(self, v: int, child: bool = False) -> tuple[str, tuple]:
+        """OpenSubdiv's rule of vertex v ("smooth", "crease" with the two crease neighbours,
+        or "corner"), from the sharpness now or, with ``child``, after one refinement."""
+        step = decrement if child else (lambda x: x)
+        if step(self.vertex_sharpness(v)) > 0.0:
+            return "corner", ()
+        sharp = [w for w in self.neighbours(v) if step(self.edge_sharpness(v, w)) > 0.0]
+        if len(sharp) > 2:
+            return "corner", ()
+        if len(sharp) == 2:
+            return "crease", tuple(sharp)
+        return "smooth", ()
+
+    def _fractional_weight(self, v: int) -> float:
+        """Weight of the parent rule where a vertex's rule changes (uniform creasing)."""
+        count, total = 0, 0.0
+        sv = self.vertex_sharpness(v)
+        if sv > 0.0 and decrement(sv) <= 0.0:
+            count, total = 1, sv
+        for w in self.neighbours(v):
+            s = self.edge_sharpness(v, w)
+            if 0.0 < s <= 1.0:
+                count += 1
+                total += s
+        return 0.0 if count == 0 else min(1.0, total / count)
+
+    def sectors(self, v: int) -> list[list[tuple[int, int]]]:
+        """v's faces split into runs between infinitely sharp edges (and the boundary)."""
+        fan, boundary = self.fan(v)
+        if not fan:
+            return []
+        cuts = [j for j in range(len(fan))
+                if self.edge_sharpness(v, int(self.faces[fan[j][0]][(fan[j][1] + 3) % 4])) >= INFINITE
+                and (boundary is False or j < len(fan) - 1)]
+        if not boundary:
+            if not cuts:
+                return [list(fan)]
+            start = cuts[-1] + 1                  # a closed fan: start after the last cut
+            fan = fan[start:] + fan[:start]
+            cuts = [(j - start) % len(fan) for j in cuts]
+        out, run = [], []
+        for j, fk in enumerate(fan):
+            run.append(fk)
+            if j in cuts:
+                out.append(run)
+                run = []
+        out.append(run)
+        return [r for r in out if r]
+
+    def sector_of(self, v: int, f: int) -> list[tuple[int, int]]:
+        for run in self.sectors(v):
+            if any(g == f for g, _ in run):
+                return run
+        raise KeyError((v, f))
+
+    def has_semi_sharp_at(self, v: int) -> bool:
+        """Whether v or one of its edges is semi-sharp (its rules still change)."""
+        if is_semi_sharp(self.vertex_sharpness(v)):
+            return True
+        return any(is_semi_sharp(self.edge_sharpness(v, w)) for w in self.neighbours(v))
+
+    def is_regular_in(self, v: int, f: int) -> bool:
+        """Whether the limit surface of face f near its corner v is a plain B-spline (with
+        phantom points beyond infinitely sharp creases and boundaries): interior valence 4
+        without sharp edges, a straight crease or boundary (two faces on f's side) or a
+        corner with f alone in its sector."""
+        if self.has_semi_sharp_at(v):
+            return False
+        rule, _ = self.vertex_rule(v)
+        fan, boundary = self.fan(v)
+        if rule == "smooth":
+            return not boundary and len(fan) == 4 and all(
+                self.edge_sharpness(v, w) <= 0.0 for w in self.neighbours(v))
+        n = len(self.sector_of(v, f))
+        return n == (2 if rule == "crease" else 1)
+
     def valence(self, v: int) -> int:
         """Number of faces around v."""
         return len(self.fan(v)[0])
 
     def is_regular_vertex(self, v: int) -> bool:
-        """Whether the limit surface near v is a plain (boundary) B-spline: interior valence 4,
-        boundary with 2 faces, or a 1-face corner under the edge-and-corner rule."""
-        fan, boundary = self.fan(v)
-        if not boundary:
-            return len(fan) == 4
-        if len(fan) == 2:
-            return True
-        return len(fan) == 1 and self.boundary_rule == "edge-and-corner"
+        """Whether the limit surface near v is a plain (boundary) B-spline in every face
+        around it: interior valence 4, boundary with 2 faces, a 1-face corner under the
+        edge-and-corner rule, a straight infinitely sharp crease (``is_regular_in``)."""
+        fan, _ = self.fan(v)
+        if not self.creased:
+            boundary = self.fan(v)[1]
+            if not boundary:
+                return len(fan) == 4
+            if len(fan) == 2:
+                return True
+            return len(fan) == 1 and self.boundary_rule == "edge-and-corner"
+        return all(self.is_regular_in(v, f) for f, _ in fan)
 
     def is_layout_vertex(self, v: int) -> bool:
-        """Whether v starts patch boundaries: extraordinary points and boundary corners."""
+        """Whether v starts patch boundaries: extraordinary points, boundary corners, and
+        where infinitely sharp creases end, meet or turn."""
         fan, boundary = self.fan(v)
-        return (len(fan) != 2) if boundary else (len(fan) != 4)
+        if (len(fan) != 2) if boundary else (len(fan) != 4):
+            return True
+        if not self.sharpness and not self.corner_sharpness:
+            return False
+        if self.vertex_sharpness(v) >= INFINITE and not (boundary and len(fan) == 1):
+            return True
+        nb = self.neighbours(v)
+        sharp = [j for j, w in enumerate(nb) if not self.is_boundary_edge(v, w)
+                 and self.edge_sharpness(v, w) >= INFINITE]
+        if not sharp:
+            return False
+        if boundary:
+            return True                      # a crease reaching the boundary
+        return not (len(sharp) == 2 and (sharp[1] - sharp[0]) == 2)
+
+    def crease_edges(self) -> set:
+        """Interior edges (a < b) that are infinitely sharp: patch boundaries."""
+        return {e for e, s in (self.sharpness or {}).items() if s >= INFINITE
+                and not self.is_boundary_edge(*e)}
 
     def validate(self, points: np.ndarray | None = None):
         """Raise InputError for what the kernel cannot evaluate, naming the face or vertex."""
@@ -204,15 +365,17 @@ class QuadMesh:
             self.fan(v)
 
     # -- refinement -----------------------------------------------------------------------
-    def refine(self, cut_edges: set | None = None) -> tuple["QuadMesh", sp.csr_matrix, np.ndarray]:
-        """One Catmull-Clark step: (child mesh, R, tainted).
+    def refine(self, cut_edges: set | None = None, tainted_in: np.ndarray | None = None
+               ) -> tuple["QuadMesh", sp.csr_matrix, np.ndarray]:
+        """One Catmull-Clark step (with OpenSubdiv's crease rules): (child mesh, R, tainted).
 
         New vertex numbering: vertex points keep the old indices, then one edge point per
         edge of ``undirected_edges()``, then one face point per face. Child face 4 f + k is
         (V(v_k), E(v_k, v_k+1), F(f), E(v_k-1, v_k)) for face f = (v_0..v_3), so children keep
         the parent's orientation and child 4 f + k has its corner 0 at the parent's corner k.
         ``cut_edges``: edges (a, b) with a < b where this mesh was cut out of a bigger one;
-        new points whose rule would need the missing faces are flagged in ``tainted``.
+        new points whose rule would need the missing faces are flagged in ``tainted``, and so
+        are points made from vertices flagged in ``tainted_in``.
         """
         cut_edges = cut_edges or set()
         nv = self.n_vertices
@@ -231,52 +394,51 @@ class QuadMesh:
             for v in quad:
                 put(nv + ne + f, int(v), 0.25)
         tainted = np.zeros(nv + ne + nf, dtype=bool)
-        # edge points
+        # edge points: smooth (a + b + F1 + F2) / 4, crease (a + b) / 2, blended for 0 < s < 1
         for i, (a, b) in enumerate(und):
             r = nv + i
             fa = self.edges.get((a, b))
             fb = self.edges.get((b, a))
             if (a, b) in cut_edges:
                 tainted[r] = True
-            if fa is not None and fb is not None:
-                put(r, a, 0.25)
-                put(r, b, 0.25)
-                for f, _ in (fa, fb):
-                    for v in self.faces[f]:
-                        put(r, int(v), 0.0625)
-            else:
+            sharp = INFINITE if (fa is None or fb is None) else (self.sharpness or {}).get((a, b), 0.0)
+            if sharp >= 1.0:
                 put(r, a, 0.5)
                 put(r, b, 0.5)
+                continue
+            put(r, a, 0.25 + 0.25 * sharp)
+            put(r, b, 0.25 + 0.25 * sharp)
+            for f, _ in (fa, fb):
+                for v in self.faces[f]:
+                    put(r, int(v), 0.0625 * (1.0 - sharp))
         # vertex points
         for v in range(nv):
             fan, boundary = self.fan(v)
             if not fan:
                 continue
-            nbrs = [int(self.faces[f][(k + 1) % 4]) for f, k in fan]
-            if boundary:
-                last_f, last_k = fan[-1]
-                nbrs_b = [int(self.faces[fan[0][0]][(fan[0][1] + 1) % 4]),
-                          int(self.faces[last_f][(last_k + 3) % 4])]
-            if any(((v, w) if v < w else (w, v)) in cut_edges for w in nbrs) or (
-                    boundary and any(((v, w) if v < w else (w, v)) in cut_edges for w in nbrs_b)):
+            nbrs = self.neighbours(v)
+            if any(((v, w) if v < w else (w, v)) in cut_edges for w in nbrs):
                 tainted[v] = True
-            if boundary:
-                if len(fan) == 1 and self.boundary_rule == "edge-and-corner":
-                    put(v, v, 1.0)
+            if not self.creased:                     # the common case: boundary rules only
+                if boundary:
+                    rule = (("corner", ()) if len(fan) == 1 and self.boundary_rule == "edge-and-corner"
+                            else ("crease", (nbrs[0], nbrs[-1])))
                 else:
-                    put(v, v, 0.75)
-                    put(v, nbrs_b[0], 0.125)
-                    put(v, nbrs_b[1], 0.125)
-            else:
-                n = len(fan)
-                put(v, v, (n - 2.0) / n)
-                for w in nbrs:
-                    put(v, w, 1.0 / (n * n))
-                for f, _ in fan:
-                    for w in self.faces[f]:
-                        put(v, int(w), 0.25 / (n * n))
+                    rule = ("smooth", ())
+                self._put_vertex_mask(put, v, fan, nbrs, rule, 1.0)
+                continue
+            rule = self.vertex_rule(v)
+            child = self.vertex_rule(v, child=True)
+            if rule[0] == "smooth" or child[0] == rule[0]:
+                self._put_vertex_mask(put, v, fan, nbrs, rule, 1.0)
+                continue
+            w = self._fractional_weight(v)
+            self._put_vertex_mask(put, v, fan, nbrs, rule, w)
+            self._put_vertex_mask(put, v, fan, nbrs, child, 1.0 - w)
         R = sp.csr_matrix((vals, (rows, cols)), shape=(nv + ne + nf, nv))
         R.sum_duplicates()
+        if tainted_in is not None and tainted_in.any():
+            tainted |= (abs(R) @ tainted_in.astype(float)) > 0
         child = np.empty((4 * nf, 4), dtype=int)
         for f, quad in enumerate(self.faces):
             for k in range(4):
@@ -284,15 +446,50 @@ class QuadMesh:
                 child[4 * f + k] = (a, nv + eid[(a, b) if a < b else (b, a)], nv + ne + f,
                                     nv + eid[(c, a) if c < a else (a, c)])
         lines = None if self.face_lines is None else np.repeat(self.face_lines, 4)
-        mesh = QuadMesh(child, nv + ne + nf, self.boundary_rule, self.source, lines)
+        sharpness, corners = None, None
+        if self.sharpness:
+            sharpness = {}
+            for (a, b), s_ in self.sharpness.items():
+                c_ = decrement(s_)
+                if c_ > 0.0 and (a, b) in eid:
+                    e = nv + eid[(a, b)]
+                    sharpness[(a, e)] = c_
+                    sharpness[(b, e)] = c_
+        if self.corner_sharpness:
+            corners = {v: decrement(s_) for v, s_ in self.corner_sharpness.items() if decrement(s_) > 0.0}
+        mesh = QuadMesh(child, nv + ne + nf, self.boundary_rule, self.source, lines, sharpness or None,
+                        corners or None)
         return mesh, R, tainted
+
+    def _put_vertex_mask(self, put, v, fan, nbrs, rule, weight):
+        """Add ``weight`` times the mask of ``rule`` for vertex v (OpenSubdiv's Catmark
+        masks: smooth (n-2)/n v + sum of neighbours and face points over n^2, crease
+        3/4 v + 1/8 of each crease neighbour, corner v)."""
+        if weight == 0.0:
+            return
+        kind, ends = rule
+        if kind == "corner":
+            put(v, v, weight)
+        elif kind == "crease":
+            put(v, v, 0.75 * weight)
+            put(v, ends[0], 0.125 * weight)
+            put(v, ends[1], 0.125 * weight)
+        else:
+            n = len(fan)
+            put(v, v, weight * (n - 2.0) / n)
+            for w in nbrs[:n]:
+                put(v, w, weight / (n * n))
+            for f, _ in fan:
+                for w in self.faces[f]:
+                    put(v, int(w), weight * 0.25 / (n * n))
 
     # -- stencils -------------------------------------------------------------------------
     def regular_stencil(self, f: int, k0: int, cut_edges: set | None = None) -> sp.csr_matrix:
         """The 16 B-spline control points of face f (all corners regular) as rows of a sparse
         matrix on the mesh vertices, grid index j*4+i with i along corner k0 -> k0+1 and j
         along k0 -> k0-1. Missing points beyond the boundary are the phantom points
-        2 P_edge - P_inner (OpenSubdiv's regular boundary and corner patches). ``cut_edges``
+        2 P_edge - P_inner (OpenSubdiv's regular boundary and corner patches), and so are
+        points beyond infinitely sharp creases, which bound the patch like a boundary. ``cut_edges``
         (a < b) mark where this mesh was cut out of a bigger one: no phantom may stand there."""
         grid = {}
 
@@ -319,6 +516,8 @@ class QuadMesh:
                 k = (rot + m) % 4
                 a, b = int(self.faces[face][k]), int(self.faces[face][(k + 1) % 4])
                 hit = self.edges.get((b, a))
+                if hit is not None and self.sharpness and self.edge_sharpness(a, b) >= INFINITE:
+                    hit = None                   # an infinitely sharp crease: a boundary here
                 if hit is None:
                     if cut_edges and (min(a, b), max(a, b)) in cut_edges:
                         raise AssertionError("stencil reaches the cut of a local neighbourhood")

@@ -323,6 +323,58 @@ def figure4(k: int = 2) -> Cage:
 TJUNCTION_MOLD_SIZE = (60.0, 40.0, 8.0)
 
 
+FUSION_MOLD_BLOCK = (18.0, 18.0, 8.6)
+
+
+def fusion_mold_cage() -> tuple[Cage, list, list]:
+    """The cage of :func:`fusion_mold`, its crease edges (vertex pairs) and the vertices of
+    valence 3 and 5 made by the flipped edge (cavity floor)."""
+    n, m = 4, 3
+    cage = _open_box(n=n, m=m, bottom_half=7.6, top_half=6.2, height=7.2, dish=0.9)
+    P = cage.points.copy()
+    faces = [list(f) for f in cage.mesh.faces]
+    top = [f for f in range(len(faces)) if f >= m * 4 * n]
+    g = {}                                           # floor grid (i, j) -> vertex
+    for f in top:
+        i, j = (f - m * 4 * n) % n, (f - m * 4 * n) // n
+        for (di, dj), v in zip(((0, 0), (1, 0), (1, 1), (0, 1)), faces[f]):
+            g[(i + di, j + dj)] = v
+    # flip the edge between floor faces (1, 1) and (2, 1): two vertices of valence 3, two of 5
+    a, b, c = g[(1, 1)], g[(2, 1)], g[(3, 1)]
+    d, e, f_ = g[(1, 2)], g[(2, 2)], g[(3, 2)]
+    faces[m * 4 * n + 1 * n + 1] = [a, b, c, d]
+    faces[m * 4 * n + 1 * n + 2] = [c, f_, e, d]
+    step = P[c, :2] - P[b, :2]
+    P[b, 1] -= 0.3 * abs(step[0])
+    P[e, 1] += 0.3 * abs(step[0])
+    # the crease: floor line j = 3, on to the rim down both walls; a groove on the part, a
+    # ridge in the cavity
+    ring = lambda k, i: k * 4 * n + (i % (4 * n))    # noqa: E731
+    line = [g[(i, 3)] for i in range(n + 1)]
+    creases = list(zip(line[:-1], line[1:]))
+    for idx in (3 * n + 1, n + 3):                   # the wall columns that reach g(0, 3), g(4, 3)
+        creases += [(ring(k, idx), ring(k + 1, idx)) for k in range(m)]
+    P[line[1:-1], 2] -= 0.8
+    cage = Cage(QuadMesh(np.array(faces), len(P), "edge-and-corner"), P)
+    sx, sy, sz = KEYCAP_SIZE
+    cage = _mirrored(_fit(cage, (sx, sy, sz), (-sx / 2, -sy / 2, 0.0)), FUSION_MOLD_BLOCK[2])
+    return cage, creases, [b, e, c, d]
+
+
+def fusion_mold() -> Cage:
+    """A mold cavity written as Fusion writes T-splines (``.tsm``, centimetres): the
+    keycap's cavity with an edge of its floor flipped (star points of valence 3 and 5
+    besides the four of valence 3 in the floor's corners) and an infinitely sharp crease:
+    a ridge across the floor, on up both walls to the rim. 14.4 x 14.4 mm, 6.8 mm deep, in
+    an 18 x 18 x 8.6 mm block (``fusion_mold_stock``)."""
+    return fusion_mold_cage()[0]
+
+
+def fusion_mold_stock(hole_margin: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
+    """The block around :func:`fusion_mold`'s cavity, as :func:`keycap_mold_stock`."""
+    return _block_with_opening(FUSION_MOLD_BLOCK, KEYCAP_SIZE, hole_margin)
+
+
 def tjunction_mold():
     """A mold pocket floor with a rib: a clamped T-mesh with T-junctions and non-uniform knot
     intervals (60 x 40 mm, floor 8 mm below the rim, rib 2 mm high along x = 30 mm)."""
@@ -360,8 +412,11 @@ SAMPLES = {
     "head": head,
     "figure4": figure4,
     "tjunction_mold": tjunction_mold,
+    "fusion_mold": fusion_mold,
 }
 TSPLINE_SAMPLES = frozenset({"tjunction_mold"})       # shipped as native .tspl files
+FUSION_SAMPLES = frozenset({"fusion_mold"})           # shipped as Fusion-dialect .tsm files
+STOCKS["fusion_mold"] = fusion_mold_stock
 
 
 def sample_stock(model: str):
@@ -374,8 +429,9 @@ def sample_stock(model: str):
 
 
 def sample_path(name: str) -> str:
-    """Path of a shipped sample file (.obj cages, .tspl T-splines)."""
-    return os.path.join(SAMPLE_DIR, name + (".tspl" if name in TSPLINE_SAMPLES else ".obj"))
+    """Path of a shipped sample file (.obj cages, .tspl T-splines, .tsm Fusion files)."""
+    ext = ".tspl" if name in TSPLINE_SAMPLES else ".tsm" if name in FUSION_SAMPLES else ".obj"
+    return os.path.join(SAMPLE_DIR, name + ext)
 
 
 def write_samples(folder: str = SAMPLE_DIR) -> list[str]:
@@ -387,6 +443,13 @@ def write_samples(folder: str = SAMPLE_DIR) -> list[str]:
             from .formats.native import write_native
             path = os.path.join(folder, name + ".tspl")
             write_native(fn(), path, name=name)
+            out.append(path)
+            continue
+        if name in FUSION_SAMPLES:
+            from .formats.tsm_fusion import write_fusion_tsm
+            path = os.path.join(folder, name + ".tsm")
+            cage, creases, _ = fusion_mold_cage()
+            write_fusion_tsm(cage, path, creases=creases)
             out.append(path)
             continue
         path = os.path.join(folder, name + ".obj")

@@ -20,9 +20,11 @@ Extraordinary points are interior vertices whose faces do not add up to a full t
 Zero knot intervals are allowed (clamped boundaries, multiple knots). Where they meet,
 faces have zero size in knot space and their topology can no longer be read off knot
 values. Positions in knot space are therefore kept as pairs (value, order): the order
-part gives every zero interval a positive infinitesimal length, chosen by least squares so
-that every face stays a rectangle (``Topology``); it only decides which of two points with
-the same knot value comes first, never a value.
+part gives every zero interval a positive infinitesimal length, chosen so that every face
+stays a rectangle. That choice is a feasibility problem (opposite sides of every face equal,
+every zero interval at least 1), solved exactly by a linear program (``Topology``); a mesh
+where some zero interval can only be a point is refused naming that edge. The order part
+only decides which of two points with the same knot value comes first, never a value.
 
 ``from_lines`` builds a T-mesh from horizontal and vertical segments on a grid of knot
 lines (samples, tests, B-spline surfaces: ``bspline_tmesh``).
@@ -51,6 +53,8 @@ class TMesh:
     name: str | None = None
     vertex_labels: list | None = None    # how errors name vertices (default "vertex k+1")
     face_labels: list | None = None      # how errors name faces (default "face k+1")
+    #: how errors name edges: (a, b) with a < b -> (name, file line); default "edge a+1-b+1"
+    edge_labels: dict | None = None
     _topology: "Topology" = field(default=None, init=False, repr=False)
 
     def __post_init__(self):
@@ -74,9 +78,20 @@ class TMesh:
         line = f" (line {self.vertex_lines[v]})" if self.vertex_lines is not None else ""
         return f"vertex {v + 1}{line}"
 
-    def error(self, message: str, face: int | None = None, vertex: int | None = None) -> InputError:
-        """An InputError on the mesh's file, at the line of ``face`` or ``vertex`` when known."""
-        line = None
+    def edge_name(self, a: int, b: int) -> str:
+        label = (self.edge_labels or {}).get((min(a, b), max(a, b)))
+        return label[0] if label else f"edge {a + 1}-{b + 1}"
+
+    def edge_line(self, a: int, b: int) -> int | None:
+        label = (self.edge_labels or {}).get((min(a, b), max(a, b)))
+        return label[1] if label else None
+
+    def error(self, message: str, face: int | None = None, vertex: int | None = None,
+              line: int | None = None) -> InputError:
+        """An InputError on the mesh's file, at ``line`` or else the line of ``face`` or
+        ``vertex`` when known."""
+        if line is not None:
+            return InputError(message, path=self.source, line=line)
         if face is not None and self.face_lines is not None:
             line = self.face_lines[face]
         elif vertex is not None and self.vertex_lines is not None:
@@ -198,7 +213,8 @@ class TMesh:
     def copy(self) -> "TMesh":
         return TMesh(self.points.copy(), self.weights.copy(), [f.copy() for f in self.faces],
                      list(self.corners), [d.copy() for d in self.intervals], self.source,
-                     self.face_lines, self.vertex_lines, self.name, self.vertex_labels, self.face_labels)
+                     self.face_lines, self.vertex_lines, self.name, self.vertex_labels, self.face_labels,
+                     self.edge_labels)
 
 
 class Lex:
@@ -286,8 +302,11 @@ class Topology:
 
     # knot intervals as (value, order) -------------------------------------------------------
     def _orders(self):
-        """Order parts of the knot intervals: 1 for zero intervals, adjusted by least squares
-        so that opposite sides of every face have equal totals."""
+        """Order parts of the knot intervals, found by a linear program (a feasibility problem,
+        solved exactly): every face stays a rectangle (opposite sides have equal order totals)
+        while every zero interval gets an order part of at least 1; positive intervals take
+        whatever order parts that needs, as small as possible in total. Refused, naming an edge
+        that can only have length zero, when no such arrangement exists."""
         mesh = self.mesh
         und = {}
         for (a, b), (f, i) in self.edge_at.items():
@@ -298,36 +317,69 @@ class Topology:
         zero = np.array([und[k] <= 0.0 for k in keys])
         xi = np.zeros(len(keys))
         if zero.any():
-            import scipy.sparse as sp
-            from scipy.sparse.linalg import lsqr
-            rows, cols, vals = [], [], []
-            for f, loop in enumerate(mesh.faces):
-                m = len(loop)
-                for i in range(m):
-                    a, b = int(loop[i]), int(loop[(i + 1) % m])
-                    e = eid[(min(a, b), max(a, b))]
-                    k = int(self.side[f][i])
-                    rows.append(2 * f + (k % 2))
-                    cols.append(e)
-                    vals.append(1.0 if k < 2 else -1.0)
-            A = sp.csr_matrix((vals, (rows, cols)), shape=(2 * self.nf, len(keys)))
-            xi0 = zero.astype(float)
-            rhs = -(A @ xi0)
-            delta = lsqr(A, rhs, atol=1e-14, btol=1e-14, iter_lim=20 * len(keys) + 100)[0]
-            xi = xi0 + delta
-            resid = np.abs(A @ xi)
-            if resid.max() > 1e-6:
-                f = int(np.argmax(resid) // 2)
-                raise mesh.error(f"{mesh.face_name(f)}: the zero knot intervals around this face "
-                                 f"cannot be arranged into a rectangle", f)
-            small = zero & (xi < 1e-3)
-            if small.any():
-                a, b = keys[int(np.nonzero(small)[0][0])]
-                raise mesh.error(f"zero knot interval of edge {a + 1}-{b + 1}: the T-mesh's zero "
-                                 f"intervals are inconsistent (faces of zero size cannot be ordered)")
+            xi = self._solve_orders(keys, eid, zero)
         self.edge_len = {}
         for k, e in eid.items():
             self.edge_len[k] = complex(und[k], xi[e])
+
+    def _order_matrix(self, eid: dict):
+        """Rows 2 f (sides 0 - 2) and 2 f + 1 (sides 1 - 3) of every face over the edges."""
+        import scipy.sparse as sp
+        rows, cols, vals = [], [], []
+        for f, loop in enumerate(self.mesh.faces):
+            m = len(loop)
+            for i in range(m):
+                a, b = int(loop[i]), int(loop[(i + 1) % m])
+                k = int(self.side[f][i])
+                rows.append(2 * f + (k % 2))
+                cols.append(eid[(min(a, b), max(a, b))])
+                vals.append(1.0 if k < 2 else -1.0)
+        A = sp.csr_matrix((vals, (rows, cols)), shape=(2 * self.nf, len(eid)))
+        A.sum_duplicates()
+        return A
+
+    def _solve_orders(self, keys: list, eid: dict, zero: np.ndarray) -> np.ndarray:
+        """The order parts by ``scipy.optimize.linprog`` (HiGHS): variables x (one per edge) and
+        p, q >= 0 with x = p - q for positive intervals; A x = 0, x >= 1 on zero intervals;
+        minimise the sum of the zero intervals' x and of |x| on the others."""
+        import scipy.sparse as sp
+        from scipy.optimize import linprog
+        mesh = self.mesh
+        A = self._order_matrix(eid)
+        n = len(keys)
+        pos = np.nonzero(~zero)[0]
+        # columns: x (n), then q for every positive interval (x = x+ - q with x+ >= 0 the x column)
+        S = sp.csr_matrix((-np.ones(len(pos)), (pos, np.arange(len(pos)))), shape=(n, len(pos)))
+        A_eq = sp.hstack([A, A @ S]).tocsr()
+        c = np.ones(n + len(pos))
+        lower = np.concatenate([np.where(zero, 1.0, 0.0), np.zeros(len(pos))])
+        res = linprog(c, A_eq=A_eq, b_eq=np.zeros(A.shape[0]),
+                      bounds=np.column_stack([lower, np.full(n + len(pos), np.inf)]), method="highs")
+        if res.status == 0:
+            x = res.x[:n].copy()
+            x[pos] -= res.x[n:]
+            resid = np.abs(A @ x)
+            if resid.max() <= 1e-9 * max(1.0, np.abs(x).max()):
+                return x
+        # infeasible: the zero intervals that cannot have a positive order part in any
+        # arrangement (the largest set that can is unique: arrangements add), by a second
+        # programme maximising sum min(x, 1) over the zero intervals
+        zi = np.nonzero(zero)[0]
+        nz = len(zi)
+        T = sp.csr_matrix((np.ones(nz), (np.arange(nz), zi)), shape=(nz, n))
+        # variables x (n, free for positive, >= 0 for zero intervals), t (nz) in [0, 1]; t <= x
+        A_ub = sp.hstack([-T, sp.identity(nz)]).tocsr()
+        A_eq = sp.hstack([A, sp.csr_matrix((A.shape[0], nz))]).tocsr()
+        bounds = [(0.0, None) if z else (None, None) for z in zero] + [(0.0, 1.0)] * nz
+        res = linprog(np.concatenate([np.zeros(n), -np.ones(nz)]), A_ub=A_ub, b_ub=np.zeros(nz),
+                      A_eq=A_eq, b_eq=np.zeros(A.shape[0]), bounds=bounds, method="highs")
+        stuck = zi if res.status != 0 else zi[res.x[n:] < 0.5]
+        a, b = keys[int(stuck[0])] if len(stuck) else keys[int(zi[0])]
+        f, _ = self.edge_at.get((a, b)) or self.edge_at[(b, a)]
+        raise mesh.error(f"zero knot interval of {mesh.edge_name(a, b)}: the T-mesh's zero intervals "
+                         f"are inconsistent (this edge would have to be a point: no arrangement of "
+                         f"the faces of zero size keeps them all rectangles)", f,
+                         line=mesh.edge_line(a, b))
 
     def length(self, a: int, b: int) -> complex:
         return self.edge_len[(min(a, b), max(a, b))]

@@ -1,21 +1,23 @@
-"""T-spline surfaces: the surface of a T-mesh as patches of Bezier (and extraordinary) cells.
+"""T-spline surfaces: the surface of a T-mesh as patches of Bezier cells (and star cells).
 
 The surface of a T-mesh (``tmesh.py``) is S = sum w_i B_i P_i / sum w_i B_i
 (docs/method.md section 1.1; Sederberg et al. 2003, "T-splines and T-NURCCs").
 ``tspline_model`` builds it in steps, each in the module named for it:
 
 1. ``knots.check_clamped``: boundaries need zero outer knot intervals;
-2. ``extraordinary.find_extraordinary``: the extraordinary points (T-NURCC rule) and the
-   faces around them;
+2. ``extraordinary.find_extraordinary``: the star points (extraordinary points) and the
+   faces around them (``stars.find_stars``; stars closer than three edges on a T-mesh that is
+   a Catmull-Clark cage go to the subdivision path, ``cage.py``);
 3. ``knots.local_knots``: every blending function's local knot vectors, by ray casting on
    the mesh (``twalk.py`` walks the rays);
-4. ``blending.supports``: the faces each blending function is non-zero on;
-5. ``extraordinary.extraordinary_cells``: exact Catmull-Clark evaluation of the faces
-   around extraordinary points, with the check that the functions there are uniform;
+4. ``stars.build_zone``: per star, the T-NURCC construction on its two rings of faces (the
+   functions of the star and its neighbours by refinement to the regular level);
+5. ``blending.supports``: the faces each other blending function is non-zero on;
 6. ``decompose.decompose_tmesh``: four-sided patches between lines from extraordinary
    points and boundary corners (the same decomposition as for cages);
 7. Bezier extraction (here): every patch's cells are cut by the knot lines inside it and
-   each piece of each function becomes Bernstein coefficients (exact: a cubic per cell).
+   each piece of each function becomes Bernstein coefficients (exact: a cubic per cell);
+   cells on a star's first faces add its subdivided part (``stars.StarCells``).
 
 API: ``tspline_model(mesh)`` -> ``TSplineModel`` (a ``Model``; ``evaluate_faces`` in T-mesh
 face coordinates), ``knots.knot_vectors(mesh)`` (every vertex's local knot vectors),
@@ -27,44 +29,16 @@ import numpy as np
 
 from ..errors import InputError
 from .blending import bezier_1d, supports
-from .cells import BezierCells, EigenCells, LevelCells, _chain
+from .cells import BezierCells, _chain
 from .decompose import Decomposition, decompose_tmesh, region_links
 from .diffgeom import SurfacePoints
-from .extraordinary import extraordinary_cells, find_extraordinary
+from .extraordinary import find_extraordinary
 from .knots import LocalKnots, check_clamped, local_knots
 from .model import ExtraordinaryPoint, Model, link_patches
-from .patch import CORNER_UV, Patch, rotation_map
+from .patch import CORNER_UV, Patch
+from .stars import StarCells, StarLevels, StarsTooClose, SumCells, build_zone, direct_functions, find_stars
 from .tmesh import TMesh
-from .twalk import Walker, apply, compose, map_knots, rot
-
-
-class SubCells:
-    """A cell group evaluated on sub-rectangles of another group's cells (faces evaluated
-    whole, like extraordinary faces, that a patch's grid of knot lines cuts into pieces):
-    cell i is the part [a0, a1] x [b0, b1] of the base group's cell ``parent[i]``."""
-
-    def __init__(self, base, parent, box):
-        self.base = base
-        self.kind = base.kind
-        self.parent = np.asarray(parent, dtype=int)
-        self.box = np.asarray(box, dtype=float).reshape(-1, 4)
-
-    def __len__(self) -> int:
-        return len(self.parent)
-
-    def evaluate(self, idx, a, b):
-        a0, a1, b0, b1 = self.box[idx].T
-        wa, wb = a1 - a0, b1 - b0
-        A = np.where(a <= 0.0, a0, np.where(a >= 1.0, a1, a0 + wa * a))
-        B = np.where(b <= 0.0, b0, np.where(b >= 1.0, b1, b0 + wb * b))
-        H, at_vertex, normal = self.base.evaluate(self.parent[idx], A, B)
-        H = H.copy()
-        H[1] *= wa
-        H[2] *= wb
-        H[3] *= wa * wa
-        H[4] *= wa * wb
-        H[5] *= wb * wb
-        return H, at_vertex, normal
+from .twalk import Walker, apply, compose, inverse, map_knots, rot
 
 
 class TSplineModel(Model):
@@ -147,29 +121,93 @@ def homogeneous_parts(patch: Patch) -> tuple[Patch, Patch]:
     return out[0], out[1]
 
 
-def tspline_model(mesh: TMesh, name: str | None = None) -> TSplineModel:
-    """The surface of a T-mesh as patches over Bezier (and extraordinary) cells."""
+def tspline_model(mesh: TMesh, name: str | None = None, subdivide_at=()) -> TSplineModel:
+    """The surface of a T-mesh as patches over Bezier cells (and subdivided cells next to star
+    points). ``subdivide_at``: regular interior vertices evaluated by the star construction
+    too (valence 4; it must give the same surface: a check of the construction)."""
     mesh.validate()                   # points and weights may have changed since the topology
     walker = Walker(mesh)
     Pw = mesh.homogeneous()
     check_clamped(mesh)
-    ep = find_extraordinary(mesh)
+    try:
+        ep = find_extraordinary(mesh, walker)
+    except StarsTooClose:
+        cage = _as_cage(mesh)
+        if cage is None:
+            raise
+        return _cage_tspline(mesh, cage, name)
     knots = local_knots(walker, ep.interval)
-    support = supports(walker, knots, ep.interval, ep.face_vertex)
-    cc_cells = extraordinary_cells(mesh, ep, knots, support, Pw)
+    stars = dict(ep.stars)
+    if subdivide_at:
+        stars = find_stars(walker, extra=set(subdivide_at))
+    zones = [build_zone(walker, v, star, knots, Pw) for v, star in stars.items()]
+    near = _zone_faces(zones)
+    support = supports(walker, knots, set(stars), near)
     dec = decompose_tmesh(walker)
-    patches, face_pieces = _extract(walker, dec, knots, support, cc_cells, Pw)
+    patches, face_pieces = _extract(walker, dec, knots, support, zones, Pw)
     return _assemble(walker, dec, patches, face_pieces, ep.interval, name)
 
 
-def _extract(walker: Walker, dec: Decomposition, knots: LocalKnots, support: list, cc_cells: dict,
+def _as_cage(mesh: TMesh):
+    """The T-mesh as a Catmull-Clark cage when it is one (Sederberg et al. 2003): closed, no
+    T-junctions, one knot interval everywhere; None otherwise."""
+    from .cage import Cage
+    from .quadmesh import QuadMesh
+    topo = mesh.topology
+    if any(len(f) != 4 for f in mesh.faces) or any((b, a) not in topo.edge_at for a, b in topo.edge_at):
+        return None
+    d = np.concatenate(mesh.intervals)
+    if d.min() <= topo.tol or d.max() - d.min() > 1e-12 * d.max():
+        return None
+    return Cage(QuadMesh(np.array([[int(x) for x in f] for f in mesh.faces]), mesh.n_vertices), mesh.points,
+                mesh.weights)
+
+
+def _cage_tspline(mesh: TMesh, cage, name):
+    """Star points closer than the T-NURCC construction takes (``stars.py``), on a T-mesh that is
+    a Catmull-Clark cage: its limit surface by the subdivision path (``cage.py``, which takes
+    extraordinary points two edges apart), the T-mesh kept as the model's control mesh."""
+    from .cage import cage_model
+    model = cage_model(cage, name or mesh.name)
+    model.kind = "t-spline"
+    model.source = mesh.source
+    model.control = mesh
+    return model
+
+
+def _zone_faces(zones: list) -> dict:
+    """Per face of a star's two rings: (star, sector, which neighbours' functions may spread
+    through it): a spoke vertex's through the two sectors beside its spoke, a diagonal
+    vertex's through its own sector and the two beside it."""
+    out = {}
+    for z_i, z in enumerate(zones):
+        n = z.n
+        for g, (j, _) in z.chart.items():
+            ok = out.setdefault(g, (z_i, j, {}))[2]
+            for k in range(n):
+                ok.setdefault(z.spokes[k], set()).update({j} if j in ((k - 1) % n, k) else set())
+                ok.setdefault(z.diags[k], set()).update({j} if j in ((k - 1) % n, k, (k + 1) % n) else set())
+    # supports() asks: is the face's sector among the vertex's sectors
+    return {g: (z_i, j, {A: ({j} if sec else set()) for A, sec in ok.items()}) for g, (z_i, j, ok) in out.items()}
+
+
+def _extract(walker: Walker, dec: Decomposition, knots: LocalKnots, support: list, zones: list,
              Pw: np.ndarray) -> tuple[list[Patch], list]:
     """Bezier extraction: every region of ``dec`` becomes a patch whose cells are cut by the
-    knot lines of the blending functions on its faces (``support``), each cell's Bernstein
-    coefficients exact; faces around extraordinary points (``cc_cells``) are cut out of
-    their Catmull-Clark cells (``SubCells``). Returns the patches (region r is patch r) and
-    every face's pieces in them (``TSplineModel.face_pieces``)."""
+    knot lines of the blending functions on its faces (``support``; on the two rings of
+    faces around a star, the plain B-splines of its construction in place of its W0
+    functions), each cell's Bernstein coefficients exact; on a star's first faces every cell
+    adds the star's subdivided part (``stars.StarCells``). Returns the patches (region r is
+    patch r) and every face's pieces in them (``TSplineModel.face_pieces``)."""
     mesh, topo, tol = walker.mesh, walker.topo, walker.tol
+    levels = [StarLevels(z) for z in zones]
+    direct, excluded, first = {}, {}, {}
+    for z_i, z in enumerate(zones):
+        for g, rows in direct_functions(z, walker).items():
+            direct.setdefault(g, []).extend(rows)
+            excluded.setdefault(g, set()).update(z.w0)
+        for j, f in enumerate(z.faces):
+            first[f] = (z_i, j, z.chart[f][1])
     patches = []
     face_pieces = [[] for _ in range(topo.nf)]
     for r, comp in enumerate(dec.regions):
@@ -187,31 +225,36 @@ def _extract(walker: Walker, dec: Decomposition, knots: LocalKnots, support: lis
             if (x1 - x0).real <= tol or (y1 - y0).real <= tol:
                 continue                   # no area: no cells
             m = compose(shift, fm[f])     # face -> patch frame
+            mr = (m[0], m[1].real, m[2].real)
             px0, px1, py0, py1 = (c.real for c in dec.rects[p])
             px0, px1, py0, py1 = px0 - X0.real, px1 - X0.real, py0 - Y0.real, py1 - Y0.real
-            fn_knots = []                  # (vertex, u knots, v knots) of the functions on it
-            if f not in cc_cells:
-                for A, ma in support[f]:
-                    xk, yk = knots.in_frame(A, ma)
-                    mr = (m[0], m[1].real, m[2].real)
-                    uk, vk = map_knots(xk, yk, mr)
-                    fn_knots.append((A, uk, vk))
-                    ub.extend(k for k in uk if px0 < k < px1)
-                    vb.extend(k for k in vk if py0 < k < py1)
+            fns = []                       # (homogeneous point, u knots, v knots) of the functions on it
+            skip = excluded.get(f, ())
+            for A, ma in support[f]:
+                if A in skip:
+                    continue
+                xk, yk = knots.in_frame(A, ma)
+                uk, vk = map_knots(xk, yk, mr)
+                fns.append((Pw[A], uk, vk))
+            for point, xk, yk in direct.get(f, ()):
+                uk, vk = map_knots(xk, yk, mr)
+                fns.append((point, uk, vk))
+            for _, uk, vk in fns:
+                ub.extend(k for k in uk if px0 < k < px1)
+                vb.extend(k for k in vk if py0 < k < py1)
             ub.extend((px0, px1))
             vb.extend((py0, py1))
-            items.append((p, f, m, (px0, px1, py0, py1), fn_knots))
-            face_pieces[f].append((r, (x0.real, x1.real, y0.real, y1.real),
-                                   (m[0], m[1].real, m[2].real), (PW, PH)))
+            items.append((p, f, mr, (px0, px1, py0, py1), fns))
+            face_pieces[f].append((r, (x0.real, x1.real, y0.real, y1.real), mr, (PW, PH)))
         ub = _cluster(ub, tol)
         vb = _cluster(vb, tol)
         nu, nv = len(ub) - 1, len(vb) - 1
         owner = np.full((nu, nv), -1)
-        group = np.zeros((nu, nv), dtype=int)
         local = np.zeros((nu, nv), dtype=int)
+        group = np.zeros((nu, nv), dtype=int)
         bez = []                                    # bicubic Bezier cells
-        cc = {}                # id(scheme) -> (scheme, C0s, maps, parent face, box in it, patch cell)
-        for n_item, (p, f, m, (px0, px1, py0, py1), fn_knots) in enumerate(items):
+        star_entries, star_cells = [], []           # (star, sector, q, shift, widths), (iu, iv, bezier)
+        for n_item, (p, f, m, (px0, px1, py0, py1), fns) in enumerate(items):
             iu0, iu1 = _locate(ub, px0, tol), _locate(ub, px1, tol)
             iv0, iv1 = _locate(vb, py0, tol), _locate(vb, py1, tol)
             if np.any(owner[iu0:iu1, iv0:iv1] >= 0):
@@ -219,48 +262,41 @@ def _extract(walker: Walker, dec: Decomposition, knots: LocalKnots, support: lis
             owner[iu0:iu1, iv0:iv1] = n_item
             lo_u, hi_u = np.array(ub[iu0:iu1]), np.array(ub[iu0 + 1:iu1 + 1])
             lo_v, hi_v = np.array(vb[iv0:iv1]), np.array(vb[iv0 + 1:iv1 + 1])
-            if f in cc_cells:
-                scheme, C0, k = cc_cells[f]
-                W, H = topo.size[f]                          # the whole face in patch units
-                fx = [apply((m[0], m[1].real, m[2].real), x, y)
-                      for x, y in ((0.0, 0.0), (W.real, H.real))]
-                FX0, FX1 = sorted((fx[0][0], fx[1][0]))
-                FY0, FY1 = sorted((fx[0][1], fx[1][1]))
-                entry = cc.setdefault(id(scheme), (scheme, [], [], [], [], []))
-                parent = len(entry[1])
-                entry[1].append(C0)
-                entry[2].append(rotation_map((-m[0] - k) % 4))
-                for iu in range(iu0, iu1):
-                    for iv in range(iv0, iv1):
-                        entry[3].append(parent)
-                        entry[4].append(((ub[iu] - FX0) / (FX1 - FX0), (ub[iu + 1] - FX0) / (FX1 - FX0),
-                                         (vb[iv] - FY0) / (FY1 - FY0), (vb[iv + 1] - FY0) / (FY1 - FY0)))
-                        entry[5].append((iu, iv))
-                continue
-            As = np.array([A for A, _, _ in fn_knots], dtype=int)
-            UK = np.array([uk for _, uk, _ in fn_knots])
-            VK = np.array([vk for _, _, vk in fn_knots])
+            pts = np.array([pt for pt, _, _ in fns]).reshape(-1, 4)
+            UK = np.array([uk for _, uk, _ in fns]).reshape(-1, 5)
+            VK = np.array([vk for _, _, vk in fns]).reshape(-1, 5)
             Cu = bezier_1d(UK, lo_u, hi_u)                 # (k, cu, 4)
             Cv = bezier_1d(VK, lo_v, hi_v)                 # (k, cv, 4)
-            ctrl = np.einsum("kbj,kai,kc->abjic", Cv, Cu, Pw[As])   # (cu, cv, 4, 4, 4)
+            ctrl = np.einsum("kbj,kai,kc->abjic", Cv, Cu, pts)   # (cu, cv, 4, 4, 4)
+            star = first.get(f)
+            if star is not None:
+                z_i, j, mc = star
+                to_chart = compose(mc, inverse(m))         # patch frame -> sector chart
+                q = to_chart[0]
             for a in range(iu1 - iu0):
                 for b in range(iv1 - iv0):
                     cell = ctrl[a, b]
-                    if min(cell[0, 0, 3], cell[0, -1, 3], cell[-1, 0, 3], cell[-1, -1, 3]) <= 0.0:
-                        raise mesh.error(f"the surface has no point at a corner of a cell of "
-                                         f"{mesh.face_name(f)} (no blending function reaches it)")
                     local[iu0 + a, iv0 + b] = len(bez)
                     bez.append(cell)
+                    if star is None:
+                        if min(cell[0, 0, 3], cell[0, -1, 3], cell[-1, 0, 3], cell[-1, -1, 3]) <= 0.0:
+                            raise mesh.error(f"the surface has no point at a corner of a cell of "
+                                             f"{mesh.face_name(f)} (no blending function reaches it)")
+                        continue
+                    u0, v0 = ub[iu0 + a], vb[iv0 + b]
+                    sx, sy = apply(to_chart, u0, v0)
+                    star_entries.append((z_i, j, q, (complex(sx).real, complex(sy).real),
+                                         (ub[iu0 + a + 1] - u0, vb[iv0 + b + 1] - v0)))
+                    star_cells.append((iu0 + a, iv0 + b, len(bez) - 1))
         if np.any(owner < 0):
             raise mesh.error(f"the patch around {mesh.face_name(dec.pieces[comp[0]][0])} is not covered "
                              f"by its faces")
         groups = [BezierCells(np.array(bez))] if bez else []
-        for scheme, C0s, maps, parents, boxes, cells in cc.values():
-            cls = LevelCells if scheme.defective else EigenCells
-            base = cls(scheme, np.array(C0s), np.array(maps))
+        if star_cells:
+            sc = StarCells(levels, star_entries)
             g = len(groups)
-            groups.append(SubCells(base, parents, boxes))
-            for n_cell, (iu, iv) in enumerate(cells):
+            groups.append(SumCells(groups[0], [c[2] for c in star_cells], sc, np.arange(len(star_cells))))
+            for n_cell, (iu, iv, _) in enumerate(star_cells):
                 group[iu, iv] = g
                 local[iu, iv] = n_cell
         patch = Patch(len(patches), np.array(ub) / PW, np.array(vb) / PH, group, local, groups,

@@ -39,8 +39,8 @@ from .collision import CollisionChecker
 from .controls import limit_halfspaces, point_settings, runs, target_axes
 from .settings import STRATEGIES, OrientationSettings  # noqa: F401 (STRATEGIES: orient.STRATEGIES)
 from .rotary import Rotary
-from .smoothing import (NoPath, SmoothingCost, cone_halfspaces, free_tilts, joint_programme,
-                        meridian_grid, smooth_joints)
+from .smoothing import (NoPath, SmoothingCost, cone_halfspaces, forced_rotary_travel, free_tilts,
+                        joint_programme, meridian_grid, resolve_meridians, smooth_joints)
 from ..toolpath.path import Move
 
 # The rotary axis's velocity counts twice its share of the tilt axis's time: with the squared
@@ -54,6 +54,13 @@ ROTARY_WEIGHT = 2.0
 # walls set; the full jobs measured estimated time / length-feed time 1.092 on the mold half
 # with 1/16 against 1.100 (1/4), 1.110 (1), 1.217 (4) and 1.134 without acceleration terms.
 ACCELERATION_WEIGHT = 1.0 / 16.0
+# The rotary travel sum |dC| (rad) in the programme, at this weight per radian: C moves only
+# where the cones and the collisions make it, and the programme then meets the least travel
+# its grid allows (forced_rotary_travel). Measured on the coarse test paths (scallop 0.2 mm):
+# keycap_mold 2698 -> 2680, 2488, 2363 deg of C at weights 0.1, 1, 10 (100 and 1000 as 10),
+# deep_mold 2056 -> 2056, 1978, 1598, the time ratio falling a little with it (1.091 ->
+# 1.087, 1.062 -> 1.056). "closest" leaves it out: there the deviation decides.
+TRAVEL_WEIGHT = 10.0
 
 
 @dataclass
@@ -69,15 +76,18 @@ class OrientationReport:
     max_step_deg: float = 0.0
     mean_step_deg: float = 0.0
     max_deviation_deg: float = 0.0     # largest angle to the preferred axis
+    c_travel_forced_deg: float | None = None   # least C travel the cones and collisions allow (grid)
     tolerance: float = 0.0
     triangles: int = 0
     settings: dict = field(default_factory=dict)
 
     def summary(self) -> str:
+        forced = "" if self.c_travel_forced_deg is None else \
+            f", C travel the cones and collisions force {self.c_travel_forced_deg:.0f} deg"
         return (f"orientation {self.strategy}: {self.points} points, {self.checks} collision checks "
                 f"in {self.seconds:.2f} s, largest step {self.max_step_deg:.2f} deg, mean "
                 f"{self.mean_step_deg:.3f} deg, largest deviation from preferred "
-                f"{self.max_deviation_deg:.1f} deg (mesh {self.triangles} triangles within "
+                f"{self.max_deviation_deg:.1f} deg{forced} (mesh {self.triangles} triangles within "
                 f"{self.tolerance:g} mm)")
 
 
@@ -246,10 +256,11 @@ def orient_smooth(path, checker, preferred, limits: Limits, reach, feed, smoothi
     ds = _spacing(path)
     free_step = path.move != Move.CUT          # links and retracts: no hard step limit
     half = np.concatenate([[ds[0]], ds]) * 0.5 + np.concatenate([ds, [ds[-1]]]) * 0.5
+    air = np.isin(path.move, (Move.RETRACT, Move.RAPID))
     try:
         states, rounds, checks, status = joint_programme(checker, C, grid, cost, pref, ds, half / smoothing_length,
                                                  max_step, free_step, limits.resolution, tick=lambda: tick(M),
-                                                 air=np.isin(path.move, (Move.RETRACT, Move.RAPID)))
+                                                 air=air)
     except NoPath as e:
         i = e.point
         if e.kind == "point":
@@ -260,6 +271,8 @@ def orient_smooth(path, checker, preferred, limits: Limits, reach, feed, smoothi
         raise CollisionError(f"{_where(path, i)} -> {_where(path, i + 1)}: no pair of collision-free "
                              f"axes within the maximum step of {max_step / DEG:.1f} deg (raise max_step "
                              "or the cone limits, or split the path there)") from None
+    # the least rotary travel any sequence of the grid's poses known or presumed free can have
+    forced, _ = forced_rotary_travel(grid, status, ds, air=air)
     theta = grid.theta[np.arange(n), states].copy()
     phi = grid.phi[states]
     phi = phi[0] + np.concatenate([[0.0], np.cumsum(np.pi - np.mod(np.pi - np.diff(phi), 2 * np.pi))])
@@ -268,16 +281,44 @@ def orient_smooth(path, checker, preferred, limits: Limits, reach, feed, smoothi
                                      free_tilt=free_tilts(grid, status), move_free=moving, pole_tilt=pole_tilt, tick=lambda: tick(M))
     return rot.axis(theta, phi), {"dp_rounds": rounds, "resolved_points": 0,
                                   "relaxation_moves": info["joint_checks"], "candidates": M,
-                                  "dp_checks": checks} | info
+                                  "dp_checks": checks, "c_travel_forced_deg": forced / DEG} | info
+
+
+def forced_c_travel(path, checker, machine=None, *, resolution: float = 10.0, lead_max: float = 60.0,
+                    tilt_max: float = 60.0, preferred=(0.0, 0.0, 1.0)) -> float:
+    """The C travel (deg) the cones force on ``path``, every pose of the grid checked: the
+    smooth strategy's grid (rotary values every ``resolution`` degrees, on each the admissible
+    tilts searched every ``resolution`` degrees from the one nearest ``preferred`` and the
+    boundary bisected), each rotary value collision-checked along its whole arc, then
+    :func:`~tsplcam.orientation.smoothing.forced_rotary_travel`. The reference for the figure
+    the smooth strategy reports from its lazy checks (``c_travel_forced_deg``), and, at a finer
+    resolution, how much of it the grid's coarseness makes. Costs about 100 checks a point."""
+    n = len(path)
+    rot = Rotary.from_machine(machine) if machine is not None else Rotary()
+    M = max(12, int(round(360.0 / resolution)))
+    feed = cutting_directions(path)
+    pref = unit(np.broadcast_to(np.asarray(preferred, float), (n, 3)).copy())
+    cons = [(h, np.zeros(n)) for h in cone_halfspaces(path.normal, feed, lead_max * DEG, tilt_max * DEG)]
+    grid = meridian_grid(rot, pref, path.normal, cons, M)
+    status = np.where(grid.ok, -1, 2).astype(np.int8)
+    pj, pk = np.nonzero(status == -1)
+    step = resolution * DEG
+    resolve_meridians(checker, path.center, rot, grid, status, pj, pk, step,
+                      count=int(np.ceil(np.pi / step)))
+    travel, _ = forced_rotary_travel(grid, status, _spacing(path),
+                                     air=np.isin(path.move, (Move.RETRACT, Move.RAPID)))
+    return travel / DEG
 
 
 def smoothing_cost(machine, reach, smoothing_length: float, rotary_weight: float | None,
-                   feed: float, acceleration_weight: float = ACCELERATION_WEIGHT) -> SmoothingCost:
+                   feed: float, acceleration_weight: float = ACCELERATION_WEIGHT,
+                   travel: float = 0.0) -> SmoothingCost:
     """The smooth strategy's weights (orientation.smoothing). With a machine: its rotary axes'
     joint space, rotary motion counted ``rotary_weight`` (default ``ROTARY_WEIGHT``) times in tilt-axis time
     (the machine's (tilt speed / rotary speed)^2), accelerations against its limits at the
-    path's feed. Without one: the tool-axis direction (a rotary weight > 0 is refused: there is
-    no rotary axis to weigh)."""
+    path's feed, the rotary travel at ``travel`` per radian (``TRAVEL_WEIGHT`` for smooth; none
+    when the rotary weight is 0). Without one: the tool-axis direction (a rotary weight > 0 is
+    refused: there is no rotary axis to weigh)."""
     for name, v in (("rotary weight", rotary_weight), ("acceleration weight", acceleration_weight)):
         if v is not None and (not np.isfinite(v) or v < 0):
             raise InputError(f"{name} must be a number >= 0, not {v}")
@@ -292,6 +333,8 @@ def smoothing_cost(machine, reach, smoothing_length: float, rotary_weight: float
     cost = SmoothingCost.build(Rotary.from_machine(machine), smoothing_length, rw, acceleration_weight, feed)
     if rw == 0.0:
         cost.beta = 1.0                          # C not weighed: keep the axis direction smooth
+    else:
+        cost.travel = float(travel)
     return cost
 
 
@@ -453,6 +496,7 @@ def orient(path, model=None, tool=None, strategy: str | None = None, *, settings
     axes = np.zeros((n, 3))
     info: dict = {}
     cost = None
+    forced = 0.0                       # the C travel the cones force, summed over the runs
     for a, b in runs(strat):
         seg = path if (a, b) == (0, n) else _segment(path, a, b)
         cons = [(lim_h[a:b], lim_b[a:b])] if limited else []
@@ -465,11 +509,16 @@ def orient(path, model=None, tool=None, strategy: str | None = None, *, settings
                                     s.max_step * DEG, cost=c2, constraints=cons, pole_tilt=pole * DEG,
                                     tick=tick)
         else:
-            cost = smoothing_cost(machine, reach, s.smoothing_length, s.rotary_weight, path.feed)
+            cost = smoothing_cost(machine, reach, s.smoothing_length, s.rotary_weight, path.feed,
+                                  travel=TRAVEL_WEIGHT)
             ax, inf = orient_smooth(seg, checker, pref[a:b], limits, reach, feed[a:b], s.smoothing_length,
                                     s.max_step * DEG, cost=cost, constraints=cons, pole_tilt=pole * DEG,
                                     tick=tick)
         axes[a:b] = ax
+        # the forced C travel from the smooth strategy's checks only: "closest" checks too few
+        # poses for its lazy figure to be near the grid's
+        f = inf.pop("c_travel_forced_deg", None) if kind == "smooth" else None
+        forced = None if forced is None or f is None else forced + f
         for k, v in inf.items():
             info[k] = info.get(k, 0) + v if isinstance(v, (int, float)) else v
     if progress is not None:
@@ -488,6 +537,7 @@ def orient(path, model=None, tool=None, strategy: str | None = None, *, settings
                             relaxation_moves=info.get("relaxation_moves", 0),
                             max_step_deg=float(steps.max()), mean_step_deg=float(steps.mean()),
                             max_deviation_deg=float((angle(axes, pref) / DEG).max()),
+                            c_travel_forced_deg=None if forced is None else round(float(forced), 6),
                             tolerance=checker.tolerance, triangles=checker.triangles, settings=settings_used)
-    out.info["orientation"] = settings_used | {"report": rep.summary()}
+    out.info["orientation"] = settings_used | {"report": rep.summary(), "c_travel_forced_deg": rep.c_travel_forced_deg}
     return out, rep

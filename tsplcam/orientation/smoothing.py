@@ -5,6 +5,7 @@ The smooth strategy (orient.orient_smooth, after xu2013) minimises along the pat
     J = sum_i  L / ds_i * (dtheta_i^2 + w dphi_i^2)                      velocity
       + sum_i  L * ds_i * (l_t^2 k_theta,i^2 + w l_p^2 k_phi,i^2)          acceleration
       + sum_i  dev_i^2 * ds_i / L                                          tilt where needed
+      + tau sum_i |dphi_i|                                                 rotary travel
 
 over collision-free axes inside the admissible cone. ``theta``, ``phi`` are the signed tilt
 and the rotary angle of the machine's pose (orientation.rotary: joint values are affine in
@@ -17,7 +18,9 @@ velocity term is the time integral of (axis speed / its limit)^2, scaled; ``l = 
 (feed F, axis limits v, a) is the path length over which an axis reaches full speed, which
 puts (axis acceleration / its limit)^2 on the same scale. Without a machine a virtual A/C
 table with equal axis speeds stands in. With ``rotary_weight`` 0 the change of the tool
-axis direction replaces the rotary term (``beta``).
+axis direction replaces the rotary term (``beta``). The travel term (``tau``, the
+programme's only: the polish would hold C in the grid's steps) makes C move only where the
+cones and collisions make it; :func:`forced_rotary_travel` measures how much that is.
 
 Two stages:
 
@@ -51,7 +54,7 @@ import numpy as np
 from scipy.linalg import solveh_banded
 
 from .rotary import DEG, Rotary, angle_between
-from .viterbi import viterbi
+from .viterbi import from_blocks, viterbi
 
 
 @dataclass
@@ -68,6 +71,7 @@ class SmoothingCost:
     alpha: float = 1.0
     beta: float = 0.0
     feed: float = 0.0            # mm/s: > 0 weighs moves beyond an axis's speed at this feed more
+    travel: float = 0.0          # weight of the rotary travel |dphi| (rad) in the programme
     over: float = 4.0            # how much more (the polish, iteratively reweighted)
 
     @staticmethod
@@ -120,7 +124,7 @@ def meridian_grid(rot: Rotary, pref, normal, constraints, M: int, pole_tilt: flo
     return MeridianGrid(phis, th, lo, hi, tp, ok, th.copy(), np.zeros(th.shape, bool))
 
 
-IN_PLACE = (0.1, 10.0 * DEG)     # no rotary step above 10 deg while the contact moves less than 0.1 mm
+IN_PLACE = (0.1, 10.0 * DEG)
 
 
 def joint_transitions(grid: MeridianGrid, cost: SmoothingCost, ds: np.ndarray, max_step: float,
@@ -133,6 +137,7 @@ def joint_transitions(grid: MeridianGrid, cost: SmoothingCost, ds: np.ndarray, m
     phis = grid.phi
     dphi = np.pi - np.mod(np.pi - (phis[None, :] - phis[:, None]), 2 * np.pi)
     D2 = cost.w * dphi ** 2
+    D1 = cost.travel * np.abs(dphi)
     cosD = np.cos(dphi)
     cmax = np.cos(max_step)
     alpha, beta, L = cost.alpha, cost.beta, cost.length
@@ -153,17 +158,15 @@ def joint_transitions(grid: MeridianGrid, cost: SmoothingCost, ds: np.ndarray, m
         if beta:
             t += beta * (2.0 - 2.0 * dots)
         t *= (L / ds[i0 - 1:i1 - 1])[:, None, None]
+        if cost.travel:
+            t += D1
         hard = ~free_step[i0:i1]
         np.copyto(t, np.inf, where=hard[:, None, None] & (dots < cmax - 1e-12))
         short = (ds[i0 - 1:i1 - 1] < IN_PLACE[0]) & ~air[i0:i1]
         if short.any():
             np.copyto(t, np.inf, where=short[:, None, None] & swing[None])
         return t
-
-    def trans(i: int) -> np.ndarray:
-        return block(i, i + 1)[0]
-    trans.block = block
-    return trans
+    return from_blocks(block)
 
 
 def resolve_meridians(checker, C, rot: Rotary, grid: MeridianGrid, status, pts, ks, step: float,
@@ -684,3 +687,38 @@ def smooth_joints(path, rot: Rotary, theta0, phi0, pref, normal, cost: Smoothing
         phi[bad] = phi[bad] + t_lo * (ph_c[bad] - phi[bad])
     info["held_points"] = int(held.sum())
     return theta, phi, info
+
+
+# --- the rotary travel the cones force -----------------------------------------------------------
+
+def forced_rotary_travel(grid: MeridianGrid, status, ds, air=None):
+    """The least rotary (C) travel (rad) of any pose sequence over the grid's rotary values:
+    a Viterbi programme minimising sum |dphi| alone, over the meridians that meet the
+    admissible cone (lead/tilt limits, the controls' cones, the tilt axis's range) and are
+    not known to collide at every admissible tilt (``status`` 2 from the checks of
+    :func:`joint_programme`; meridians never checked count as free, so the figure is a lower
+    bound for that grid), with the same ban on rotary steps above ``IN_PLACE`` on short
+    blocks (``ds`` (n-1,) contact spacing; ``air`` (n,) points reached by a retract or rapid
+    are exempt). Tilts and the maximum axis step are left free: what remains is what the
+    cones, the collisions and the tilt range force, e.g. a half-turn of C where the tool
+    must lean further to the other side than the other branch allows. A finer grid
+    (``resolution``) finds narrower collision-free windows and can do with less. Returns
+    ``(travel, states)``, ``(nan, None)`` when no sequence exists."""
+    n, M = grid.theta.shape
+    phis = grid.phi
+    D = np.abs(np.pi - np.mod(np.pi - (phis[None, :] - phis[:, None]), 2 * np.pi))
+    swing = D > IN_PLACE[1] + 1e-9
+    air = np.zeros(n, bool) if air is None else np.asarray(air, bool)
+    node = np.where(grid.ok & (np.asarray(status) != 2), 0.0, np.inf)
+    short = (np.asarray(ds) < IN_PLACE[0]) & ~air[1:]
+
+    def block(i0: int, i1: int) -> np.ndarray:
+        t = np.broadcast_to(D, (i1 - i0, M, M)).copy()
+        s = short[i0 - 1:i1 - 1]
+        if s.any():
+            np.copyto(t, np.inf, where=s[:, None, None] & swing[None])
+        return t
+    states, _ = viterbi(node, from_blocks(block))
+    if states is None:
+        return np.nan, None
+    return float(D[states[:-1], states[1:]].sum()), states

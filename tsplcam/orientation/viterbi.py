@@ -65,6 +65,15 @@ def _two_states(node: np.ndarray, trans: np.ndarray):
     return state, None
 
 
+def from_blocks(block):
+    """A transition function ``i -> (S, S)`` from ``block(i0, i1)``, the transitions into
+    points i0 .. i1 - 1 as one (i1 - i0, S, S) array, which :func:`viterbi` then calls."""
+    def trans(i: int) -> np.ndarray:
+        return block(i, i + 1)[0]
+    trans.block = block
+    return trans
+
+
 def viterbi(node: np.ndarray, transition) -> tuple:
     """The cheapest state sequence.
 

@@ -431,6 +431,8 @@ def machine_from_dict(doc: dict, path: str | None = None) -> Machine:
     for k in post:
         if k not in POST_KEYS and k != "comment":
             r.fail(f"post.{k}", f"unknown key (allowed: {', '.join(sorted(POST_KEYS))})")
+    if "inverse_time" in post and not (isinstance(post["inverse_time"], bool) or post["inverse_time"] == "auto"):
+        r.fail("post.inverse_time", f'must be true, false or "auto", not {post["inverse_time"]!r}')
     max_feed = r.num(doc, "", "max_feed", positive=True, allow_none=True)
     spindle_range = None
     if doc.get("spindle_range") is not None:

@@ -27,7 +27,7 @@ APPROACH, RETRACT_OUT = -1, -2
 # section nor the dialect sets them.
 GENERIC = {"tool": 1, "spindle": 10000.0, "coolant": "flood", "approach_distance": 5.0,
            "approach_height_max": 200.0, "swing_limit": 5.0,
-           "approach_feed": None, "link_feed": None, "retract_feed": None, "inverse_time": False,
+           "approach_feed": None, "link_feed": None, "retract_feed": None, "inverse_time": "auto",
            "orientation": "angles", "tcp": None, "refpnt": None, "linear_tolerance": 0.001,
            "singular_cone": 0.5, "blend_tolerance": 0.01, "program_name": "TSPLCAM",
            "inverse_time_max": None, "work_offset": "G54", "tool_length": None,
@@ -113,6 +113,7 @@ def resolve_settings(machine: Machine, dialect_module, options: dict) -> dict:
                          item="orientation")
     if dialect_module.NAME == "heidenhain" and s["tcp"] not in ("FUNCTION TCPM", "M128"):
         raise InputError(f"tcp must be 'FUNCTION TCPM' or 'M128', not {s['tcp']!r}", item="tcp")
+    s["inverse_time"] = inverse_time(dialect_module, s["inverse_time"])
     if s["coolant"] not in ("flood", "mist", "off", None):
         raise InputError(f"coolant must be flood, mist or off, not {s['coolant']!r}", item="coolant")
     for k in ("approach_distance", "linear_tolerance", "singular_cone", "swing_limit"):
@@ -124,6 +125,25 @@ def resolve_settings(machine: Machine, dialect_module, options: dict) -> dict:
         s["point"] = "center"
     s["vector_words"] = getattr(dialect_module, "VECTOR_WORDS", None)
     return s
+
+
+def inverse_time(dialect_module, value) -> bool:
+    """Whether the program feeds in inverse time (G93: F = 1 / block time in minutes).
+
+    ``"auto"`` (the default): only where the control cannot compute the tool tip's feed
+    itself, i.e. a program in machine-joint coordinates without tool centre point control
+    (LinuxCNC with identity kinematics). With TCP on (Heidenhain FUNCTION TCPM F TCP or
+    M128, Sinumerik TRAORI, Fanuc G43.4 / G43.5) the F word is the tool tip's feed over the
+    part in mm/min, and G94 says it directly (docs/post.md section 3.4). ``True`` or
+    ``False`` choose; the TNC has no inverse time."""
+    if value == "auto":
+        return not dialect_module.TIP_FEED
+    if not isinstance(value, bool):
+        raise InputError(f"inverse_time must be true, false or \"auto\", not {value!r}", item="inverse_time")
+    if value and not getattr(dialect_module, "INVERSE_TIME", True):
+        raise InputError(f"dialect {dialect_module.NAME} has no inverse-time feed: its F is the tool "
+                         "point's feed already (FUNCTION TCPM F TCP, M128)", item="inverse_time")
+    return value
 
 
 def _approach_height(machine, tip0, axis0, q0, L, origin, d):
@@ -154,7 +174,8 @@ def post_program(toolpath: ToolPath, machine, dialect: str | None = None, progre
     Options (defaults from the machine file's "post" section, then the dialect): tool,
     spindle (rpm), coolant (flood/mist/off), approach_distance (mm along the tool axis),
     approach_feed / link_feed / retract_feed (mm/min, default the path feed),
-    inverse_time (G93), orientation (angles/vector), tcp and refpnt (Heidenhain),
+    inverse_time (G93: true, false, or "auto": only for programs in machine-joint coordinates,
+    see :func:`inverse_time`), orientation (angles/vector), tcp and refpnt (Heidenhain),
     linear_tolerance (mm, joint-space linearisation), singular_cone (deg), blend_tolerance,
     program_name, inverse_time_max, work_offset, tool_length, part_origin, decimals
     ({"linear", "angle", "vector", "feed"}).
@@ -316,8 +337,10 @@ def post_program(toolpath: ToolPath, machine, dialect: str | None = None, progre
         t_feed = np.where(rapid, 0.0, length / fmm)
     t_axis = (dJ / vmax_min).max(axis=1)
     t_block = np.maximum(t_feed, t_axis)
-    floor = 1.0 / float(s["inverse_time_max"]) if s["inverse_time_max"] else 1e-7
-    clamped = int(np.count_nonzero(~rapid[1:] & (t_block[1:] < floor)))
+    # the control's G93 range (inverse_time_max) only binds programs in inverse time
+    inv_max = s["inverse_time_max"] if s["inverse_time"] else None
+    floor = 1.0 / float(inv_max) if inv_max else 1e-7
+    clamped = int(np.count_nonzero(~rapid[1:] & (t_block[1:] < floor))) if inv_max else 0
     t_block = np.maximum(t_block, floor)
     inv_time = np.where(rapid, np.nan, 1.0 / t_block)
     cmd_feed = np.where(rapid, np.nan, np.where(t_feed > 0, np.minimum(fmm, length / t_block), fmm))

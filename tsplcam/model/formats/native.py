@@ -17,7 +17,8 @@ from ...errors import InputError
 from ...inputfile import first_coordinate_error, naming, read_json, weight_error
 
 FORMAT = "tsplcam-model"
-VERSION = 1
+VERSION = 2                    # 2 adds "creases" and "corners" to catmull-clark cages
+CREASE_VERSION = 2
 KINDS = ("t-spline", "catmull-clark")
 T_SPLINE_BOUNDARY = "repeat-last-knot"
 CAGE_BOUNDARIES = ("edge-only", "edge-and-corner")
@@ -55,8 +56,10 @@ def dumps(control, name: str | None = None) -> str:
     else:
         raise InputError(f"cannot write a {type(control).__name__} as a native model (only T-meshes and "
                          f"cages have a native file)")
-    out = ["{", f'  "format": "{FORMAT}",', f'  "version": {VERSION},', '  "units": "mm",',
-           f'  "kind": "{kind}",']
+    creased = kind == "catmull-clark" and control.mesh.creased
+    # a file without creases is written as version 1, which every tsplcam reads
+    out = ["{", f'  "format": "{FORMAT}",', f'  "version": {CREASE_VERSION if creased else 1},',
+           '  "units": "mm",', f'  "kind": "{kind}",']
     if name:
         out.append(f'  "name": {json.dumps(str(name))},')
     out.append(f'  "boundary": "{boundary}",')
@@ -78,7 +81,15 @@ def dumps(control, name: str | None = None) -> str:
         faces = control.mesh.faces
         for f, quad in enumerate(faces):
             out.append("    [" + ", ".join(str(int(v)) for v in quad) + "]" + ("," if f < len(faces) - 1 else ""))
-    out.append("  ]")
+    if creased:
+        mesh = control.mesh
+        out.append("  ],")
+        rows = [f"    [{a}, {b}, {_num(x)}]" for (a, b), x in sorted((mesh.sharpness or {}).items())]
+        out.append('  "creases": [' + ("\n" + ",\n".join(rows) + "\n  " if rows else "") + "],")
+        rows = [f"    [{v}, {_num(x)}]" for v, x in sorted((mesh.corner_sharpness or {}).items())]
+        out.append('  "corners": [' + ("\n" + ",\n".join(rows) + "\n  " if rows else "") + "]")
+    else:
+        out.append("  ]")
     out.append("}")
     return "\n".join(out) + "\n"
 
@@ -171,7 +182,10 @@ def read_native(path):
     if boundary not in allowed:
         raise InputError(f'"boundary" of a {kind} model must be {" or ".join(allowed)} (got {boundary!r})',
                          path=path, item="boundary")
-    unknown = set(data) - {"format", "version", "units", "kind", "name", "boundary", "vertices", "faces"}
+    known = {"format", "version", "units", "kind", "name", "boundary", "vertices", "faces"}
+    if version >= CREASE_VERSION and kind == "catmull-clark":
+        known |= {"creases", "corners"}
+    unknown = set(data) - known
     if unknown:
         raise InputError(f"unknown keys {sorted(unknown)} (version {VERSION} files have none)", path=path,
                          item=repr(sorted(unknown)[0]))
@@ -215,6 +229,7 @@ def read_native(path):
                           "faces", k)
             quads.append(f)
         mesh = QuadMesh(np.array(quads), len(P), boundary, path, np.array(flines) if flines else None)
+        mesh.sharpness, mesh.corner_sharpness = _sharp_features(data, mesh, len(P), err)
         # exact by construction: weights as written in the file (absent = 1.0)
         cage = Cage(mesh, P, None if np.all(W == 1.0) else W, {"interpolateboundary": boundary})
         mesh.validate(cage.homogeneous())
@@ -237,6 +252,36 @@ def read_native(path):
                  name=name)
     mesh.validate()
     return kind, mesh, name
+
+
+def _sharp_features(data: dict, mesh, n: int, err):
+    """Crease sharpness [[a, b, s], ...] (a, b 0-based vertices joined by an edge) and corner
+    sharpness [[v, s], ...], as OpenSubdiv's crease and corner tags."""
+    sharp, corners = {}, {}
+    for key, width in (("creases", 3), ("corners", 2)):
+        rows = data.get(key, [])
+        if not isinstance(rows, list):
+            raise err(f'"{key}" must be a list', key, 0)
+        for k, row in enumerate(rows):
+            if (not isinstance(row, list) or len(row) != width
+                    or not all(isinstance(i, int) and not isinstance(i, bool) for i in row[:-1])
+                    or not isinstance(row[-1], (int, float)) or isinstance(row[-1], bool)
+                    or not np.isfinite(row[-1]) or row[-1] < 0):
+                raise err(f"{key[:-1]} {k + 1}: needs [{'a, b' if width == 3 else 'v'}, sharpness >= 0]", key, k)
+            ids = row[:-1]
+            if not all(0 <= i < n for i in ids):
+                raise err(f"{key[:-1]} {k + 1}: vertex {ids} does not exist", key, k)
+            value = float(np.float32(row[-1]))
+            if width == 2:
+                if value > 0:
+                    corners[ids[0]] = value
+                continue
+            a, b = ids
+            if (a, b) not in mesh.edges and (b, a) not in mesh.edges:
+                raise err(f"crease {k + 1}: vertices {a} and {b} are not joined by an edge", key, k)
+            if value > 0:
+                sharp[(min(a, b), max(a, b))] = value
+    return sharp or None, corners or None
 
 
 def native_model(path, **options):

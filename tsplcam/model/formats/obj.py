@@ -1,11 +1,19 @@
 """Wavefront OBJ quad cages with OpenSubdiv's tag lines (docs/formats.md section 3).
 
-Reads ``v``, ``f v[/vt[/vn]]`` (1-based, negative indices relative), and the tags
-``t interpolateboundary 1/0/0 <0|1|2>`` (1 = edge-and-corner, 2 = edge-only, the default
-when absent, as in OpenSubdiv's regression harness). Crease, corner, hole and hierarchical
-edit tags, and boundary rule 0 (none) are refused with the line that carries them rather
-than evaluated wrongly. ``vt``, ``vn``, ``g``, ``o``, ``s``, ``usemtl`` are ignored.
-``write_obj`` writes a cage so (the shipped samples).
+Reads ``v``, ``f v[/vt[/vn]]`` (1-based, negative indices relative), and OpenSubdiv's tags
+``t <name> <nints>/<nfloats>/<nstrings> <ints> <floats> <strings>`` as its regression
+harness applies them (``far_utils.h``):
+
+* ``interpolateboundary`` 1 edge-and-corner, 2 edge-only (the default when absent);
+* ``crease``: pairs of 0-based vertex ids, one sharpness for all pairs or one per pair
+  (s >= 10 infinitely sharp, negative values read as 0);
+* ``corner``: 0-based vertex ids with one sharpness for all or one per vertex;
+* ``creasemethod normal`` (OpenSubdiv's uniform creasing, the default).
+
+Boundary rule 0 (none), holes, Chaikin creasing, hierarchical edits and other tags are
+refused with the line that carries them rather than evaluated wrongly, and so is a crease
+on a pair of vertices that is not an edge of the cage. ``vt``, ``vn``, ``g``, ``o``, ``s``,
+``usemtl`` are ignored. ``write_obj`` writes a cage so (the shipped samples).
 """
 from __future__ import annotations
 
@@ -22,6 +30,7 @@ _RULES = {1: "edge-and-corner", 2: "edge-only"}
 def read_obj(path: str, boundary_rule: str | None = None) -> Cage:
     points, faces, lines, vlines = [], [], [], []
     rule = None
+    tags = []
     try:
         with open(path, "r", encoding="utf-8", errors="replace") as fh:
             text = split_lines(fh.read())
@@ -54,7 +63,11 @@ def read_obj(path: str, boundary_rule: str | None = None) -> Cage:
                 faces.append(idx)
                 lines.append(ln)
             elif kind == "t":
-                rule = _tag(tok, path, ln, rule)
+                tag = _tag(tok, path, ln)
+                if tag[0] == "interpolateboundary":
+                    rule = tag[1]
+                elif tag[0] in ("crease", "corner"):
+                    tags.append((ln,) + tag)
             elif kind in ("vt", "vn", "vp", "g", "o", "s", "usemtl", "mtllib", "l"):
                 continue
             else:
@@ -65,6 +78,7 @@ def read_obj(path: str, boundary_rule: str | None = None) -> Cage:
         raise InputError("no faces (f lines)", path=path, line=max(1, len(text)))
     mesh = QuadMesh(np.array(faces), len(points), boundary_rule or rule or "edge-only", path,
                     np.array(lines))
+    sharpness, corners = _sharp_features(tags, mesh, len(points), path)
     # the cage's own checks in their order (indices, then edges), then unused vertices here,
     # where their lines are known
     for f, idx in enumerate(faces):
@@ -78,25 +92,77 @@ def read_obj(path: str, boundary_rule: str | None = None) -> Cage:
         k = int(np.nonzero(~used)[0][0])
         raise InputError(f"vertex {k + 1} is not used by any face ({int((~used).sum())} unused "
                          f"vertices)", path=path, line=vlines[k])
+    mesh.sharpness = sharpness or None
+    mesh.corner_sharpness = corners or None
     return Cage(mesh, np.array(points, dtype=float).reshape(-1, 3), None,
                 {"interpolateboundary": mesh.boundary_rule})
 
 
-def _tag(tok, path, ln, rule):
+def _tag(tok, path, ln):
+    """One ``t`` line: ("interpolateboundary", rule), ("crease"/"corner", ints, floats) or
+    ("creasemethod", None)."""
     name = tok[1] if len(tok) > 1 else ""
+    try:
+        counts = [int(x) for x in tok[2].split("/")]
+        if len(counts) != 3 or min(counts) < 0:
+            raise ValueError
+        nint, nfloat, nstring = counts
+        ints = [int(x) for x in tok[3:3 + nint]]
+        floats = [float(x) for x in tok[3 + nint:3 + nint + nfloat]]
+        strings = tok[3 + nint + nfloat:3 + nint + nfloat + nstring]
+        if len(ints) != nint or len(floats) != nfloat or len(strings) != nstring:
+            raise ValueError
+    except (IndexError, ValueError):
+        raise InputError(f"tag {excerpt(name, 40)!r}: expected '<ints>/<floats>/<strings>' counts and "
+                         f"that many values", path=path, line=ln)
     if name == "interpolateboundary":
-        try:
-            value = int(tok[3])
-        except (IndexError, ValueError):
-            raise InputError("interpolateboundary tag needs an integer value", path=path, line=ln)
-        if value not in _RULES:
-            raise InputError(f"interpolateboundary {value} is not supported (1 edge-and-corner, "
+        if nint != 1:
+            raise InputError("interpolateboundary tag needs one integer value", path=path, line=ln)
+        if ints[0] not in _RULES:
+            raise InputError(f"interpolateboundary {ints[0]} is not supported (1 edge-and-corner, "
                              f"2 edge-only)", path=path, line=ln)
-        return _RULES[value]
+        return ("interpolateboundary", _RULES[ints[0]])
     if name in ("crease", "corner"):
-        raise InputError(f"'{name}' tags are not supported yet: tsplcam refuses sharp features "
-                         f"rather than evaluating them wrongly", path=path, line=ln)
-    raise InputError(f"tag '{name}' is not supported", path=path, line=ln)
+        per = 2 if name == "crease" else 1
+        items = nint // per
+        if nint == 0 or nint % per or not (nfloat == 1 or nfloat == items):
+            raise InputError(f"'{name}' tag: {nint} vertex ids and {nfloat} sharpness values (expected "
+                             f"{'pairs of vertex ids' if per == 2 else 'vertex ids'} and one sharpness "
+                             f"for all or one each)", path=path, line=ln)
+        if not all(np.isfinite(floats)):
+            raise InputError(f"'{name}' tag: sharpness is not a number", path=path, line=ln)
+        return (name, ints, floats)
+    if name == "creasemethod":
+        if strings != ["normal"]:
+            raise InputError(f"creasemethod {' '.join(strings)!r} is not supported (only 'normal', "
+                             f"OpenSubdiv's uniform creasing)", path=path, line=ln)
+        return ("creasemethod", None)
+    raise InputError(f"tag '{excerpt(name, 40)}' is not supported", path=path, line=ln)
+
+
+def _sharp_features(tags, mesh: QuadMesh, n_points: int, path):
+    """Edge and vertex sharpness from the crease and corner tags (the last tag naming an
+    edge or vertex wins), single precision as OpenSubdiv stores it."""
+    sharpness, corners = {}, {}
+    for ln, name, ints, floats in tags:
+        per = 2 if name == "crease" else 1
+        for k in range(len(ints) // per):
+            value = float(np.float32(max(0.0, floats[k] if len(floats) > 1 else floats[0])))
+            ids = ints[per * k:per * k + per]
+            bad = [i for i in ids if not 0 <= i < n_points]
+            if bad:
+                raise InputError(f"'{name}' tag: vertex id {bad[0]} does not exist (0-based ids, "
+                                 f"{n_points} vertices)", path=path, line=ln)
+            if name == "corner":
+                corners[ids[0]] = value
+                continue
+            a, b = ids
+            if (a, b) not in mesh.edges and (b, a) not in mesh.edges:
+                raise InputError(f"'crease' tag: vertices {a} and {b} (0-based) are not joined by an "
+                                 f"edge of the cage", path=path, line=ln)
+            sharpness[(min(a, b), max(a, b))] = value
+    return ({e: s for e, s in sharpness.items() if s > 0.0},
+            {v: s for v, s in corners.items() if s > 0.0})
 
 
 def write_obj(cage: Cage, path: str, comment: str = "") -> None:

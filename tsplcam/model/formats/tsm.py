@@ -40,14 +40,23 @@ metadata (``100001uv``, ``100001uvr``, ``50000grip``, ``105sym``, ``105plane``, 
 from __future__ import annotations
 
 import os
+from dataclasses import dataclass
 
 import numpy as np
 
 from ...errors import InputError
 from ...inputfile import COORDINATE_LIMIT, coordinate_error, excerpt, naming, split_lines, weight_error
 
-SKIPPED = {"100001uv", "100001uvr", "50000grip", "105sym", "105plane", "105a", "tol", "ver",
-           "geom-tol", "behavior-version", "compat-version"}
+#: editor data (selection, symmetry, display parameters): skipped
+SKIPPED = {"100001uv", "100001uvr", "50000grip", "105sym", "105plane", "105a", "105r"}
+#: footer metadata, kept in ``TsmInfo.footer``: tolerances (numbers) and versions (text)
+FOOTER = {"tol": float, "geom-tol": float, "ver": int, "behavior-version": str, "compat-version": str}
+CAP_TYPES = ("1", "G1CAPS")
+#: the end conditions of files written through Fusion / ASM (docs/formats.md section 2.5)
+FUSION_END_CONDITIONS = ("MULTIPLE_KNOTS", "SUBD_CREASES")
+STAR_KNOT_RULES = ("NURCCS",)
+#: Fusion's coordinates are centimetres whatever the units line says
+FUSION_MM_PER_UNIT = 10.0
 DIRECTIONS = {"EAST": 0, "NORTH": 1, "WEST": 2, "SOUTH": 3}
 UNIT_NAMES = {"millimeters": 0.001, "centimeters": 0.01, "meters": 1.0, "inches": 0.0254, "feet": 0.3048}
 _STEP = ((1, 0), (0, 1), (-1, 0), (0, -1))
@@ -60,6 +69,29 @@ PATTERNS = {
 }
 SHIFT = {1: (-1, -1), 2: (0, -1), 3: (1, -1)}
 TYPE_NAMES = {1: "convex corner", 2: "straight boundary", 3: "concave corner"}
+
+
+@dataclass
+class TsmInfo:
+    """What a ``.tsm`` file said and how it was read (``Model.tsm``)."""
+    dialect: str               # "fusion" (end-conditions ...) or "rhino" (force-bezier-end-conditions)
+    end_conditions: str
+    cap_type: str
+    star_smoothness: int
+    star_knot_rule: str | None
+    mm_per_unit: float         # the scale applied to the file's coordinates
+    scale_rule: str            # which rule gave it, in words
+    surface: str               # how the surface was built, in words
+    crease_edges: int          # infinitely sharp crease edges (100edges, interior ones)
+    sharp_vertices: int        # infinitely sharp vertices (100verts)
+    footer: dict               # tol, geom-tol, ver, behavior-version, compat-version as given
+
+    @classmethod
+    def of(cls, r, surface: str, crease_edges: int = 0, sharp_vertices: int = 0) -> "TsmInfo":
+        h = r.header
+        return cls(r.dialect, h["end-conditions"][0], h["cap-type"][0], h["star-smoothness"][0],
+                   h.get("star-knot-rule", (None,))[0], r.scale, r.scale_rule, surface, crease_edges,
+                   sharp_vertices, {k: v for k, (v, _) in r.footer.items()})
 
 
 def _rot(q, x, y):
@@ -119,6 +151,11 @@ class _Reader:
         self.f, self.e, self.v, self.l, self.ec = [], [], [], [], []
         self.grip_of, self.cg, self.g = [], {}, []
         self.header = {}
+        self.footer = {}
+        self.dialect = "rhino"
+        self.grip_map_line = None             # the line of '0m odd-grip-map'
+        self.crease_edges, self.crease_vertices = [], []      # (line, id)
+        self.ek = []                          # 106ek: (line, interval)
         order = ["degree", "cap-type", "star-smoothness", "units", "end-conditions"]
         for ln, raw_line in enumerate(lines[first + 1:], start=first + 2):
             body = raw_line.split("#", 1)[0]
@@ -147,30 +184,65 @@ class _Reader:
             raise self.err("no control points (0g records): the file is truncated or empty", len(lines))
 
     def _header(self, key, tok, ln):
+        if len(tok) < 2:
+            raise self.err(f"{key} needs a value", ln)
         if key == "degree":
             if int(tok[1]) != 3:
                 raise self.err(f"degree {tok[1]} is not supported (T-splines here are bicubic)", ln)
         elif key == "cap-type":
-            if tok[1] != "1":
-                raise self.err(f"cap-type {tok[1]} is not supported (only 1)", ln)
+            if tok[1] not in CAP_TYPES:
+                raise self.err(f"cap-type {excerpt(tok[1], 40)} is not supported (1 or G1CAPS)", ln)
+            self.header["cap-type"] = (tok[1], ln)
         elif key == "star-smoothness":
-            self.header["star-smoothness"] = (int(tok[1]), ln)
+            value = int(tok[1])
+            if value < 0:
+                raise self.err(f"star-smoothness {value} is not a smoothness (0, 1, 2, ...)", ln)
+            self.header["star-smoothness"] = (value, ln)
         elif key == "units":
             value = float(tok[1])
             name = tok[2] if len(tok) > 2 else ""
-            if not value > 0:
-                raise self.err(f"units {tok[1]}: the unit length must be positive (metres)", ln)
-            if name in UNIT_NAMES and abs(UNIT_NAMES[name] - value) > 1e-9 * value:
-                raise self.err(f"units {value:g} does not match the unit name {excerpt(name, 40)}", ln)
-            self.scale = value * 1000.0           # to mm
+            if not value > 0 or not value < float("inf"):
+                raise self.err(f"units {tok[1]}: the unit length must be a positive number", ln)
+            if name and name not in UNIT_NAMES:
+                raise self.err(f"unknown unit name {excerpt(name, 40)} (known: {', '.join(UNIT_NAMES)})", ln)
+            self.header["units"] = (value, name, ln)
         elif key == "end-conditions":
-            value = tok[1] if len(tok) > 1 else ""
-            if tok[0] == "end-conditions" or value != "1":
-                raise self.err(f"end conditions {excerpt(' '.join(tok[1:]), 40)} are not supported (only "
-                               f"force-bezier-end-conditions 1)", ln)
+            value = tok[1]
+            if tok[0] == "end-conditions":
+                if value not in FUSION_END_CONDITIONS:
+                    raise self.err(f"end-conditions {excerpt(value, 40)} are not supported "
+                                   f"({' or '.join(FUSION_END_CONDITIONS)})", ln)
+                self.dialect = "fusion"
+            elif value != "1":
+                raise self.err(f"end conditions force-bezier-end-conditions {excerpt(value, 40)} are not supported "
+                               f"(only 1, or the Fusion dialect's end-conditions)", ln)
+            self.header["end-conditions"] = (value, ln)
+            self._set_scale()
+
+    def _set_scale(self):
+        """mm per file unit: Fusion writes centimetres whatever its units line says; the
+        older files give metres per unit on the units line (a known unit name must agree)."""
+        value, name, ln = self.header["units"]
+        if self.dialect == "fusion":
+            self.scale = FUSION_MM_PER_UNIT
+            said = f"{value:g} {name}".strip()
+            self.scale_rule = (f"centimetres, as Fusion writes them (1 file unit = 10 mm); the units "
+                               f"line ({said}, line {ln}) is not used")
+            return
+        if name in UNIT_NAMES and abs(UNIT_NAMES[name] - value) > 1e-9 * value:
+            raise self.err(f"units {value:g} does not match the unit name {excerpt(name, 40)}", ln)
+        self.scale = value * 1000.0
+        self.scale_rule = f"the units line (line {ln}): {value:g} m per file unit (1 file unit = {self.scale:g} mm)"
+
+    def _ids(self, tok, ln, what):
+        ids = [int(x) for x in tok[1:]]
+        if any(i < 0 for i in ids):
+            raise self.err(f"{tok[0]}: a negative {what} id", ln)
+        return [(ln, i) for i in ids]
 
     def _record(self, key, tok, ln):
         n = len(tok)
+        fusion = self.dialect == "fusion"
         if key == "f":
             if n > 1 and int(tok[2] if n > 2 else 0) != 0:
                 raise self.err(f"face flag {tok[2]} is not supported", ln)
@@ -196,10 +268,21 @@ class _Reader:
         elif key == "0m":
             kind = tok[1]
             if kind == "odd-grip-map":
+                if self.grip_map_line is not None:
+                    raise self.err(f"a second '0m odd-grip-map' (the first is on line {self.grip_map_line})", ln)
+                self.grip_map_line = ln
                 return
+            if self.grip_map_line is None:
+                raise self.err(f"grip map record '0m {excerpt(kind, 20)}' before '0m odd-grip-map'", ln)
             if kind in ("gvp", "gv"):
+                if fusion and kind == "gv":
+                    raise self.err("extra grips ('0m gv') are not part of the Fusion dialect (its files "
+                                   "give every vertex one grip)", ln)
                 self.grip_of.append((ln, int(tok[2]), kind == "gvp"))
             elif kind == "cg":
+                if fusion:
+                    raise self.err("grip blocks ('0m cg') are not part of the Fusion dialect (they belong "
+                                   "to force-bezier-end-conditions 1)", ln)
                 vertex, valence = int(tok[2]), int(tok[3])
                 if valence != 4:
                     raise self.err(f"a grip block of valence {valence} (a star point on the boundary) is "
@@ -210,7 +293,7 @@ class _Reader:
                     raise self.err(f"a second grip block for vertex {vertex}", ln)
                 self.cg[vertex] = (ln, dims, grips)
             else:
-                raise self.err(f"grip map record '0m {kind}' is not supported", ln)
+                raise self.err(f"grip map record '0m {excerpt(kind, 20)}' is not supported", ln)
         elif key == "0g":
             if n == 1:
                 self.g.append(None)               # a null slot (its grip map entry is vertex -1)
@@ -222,7 +305,26 @@ class _Reader:
                 raise self.err(f"control point {len(self.g)}: {why}", ln)
             self.g.append((ln, x, y, z, w))
         elif key == "star-knot-rule":
-            self.header["star-knot-rule"] = (tok[1] if n > 1 else "", ln)
+            if n < 2 or tok[1] not in STAR_KNOT_RULES:
+                raise self.err(f"star-knot-rule {excerpt(' '.join(tok[1:]), 40)} is not supported (only "
+                               f"NURCCS, the T-NURCC rule)", ln)
+            self.header["star-knot-rule"] = (tok[1], ln)
+        elif key == "100edges" and fusion:
+            self.crease_edges += self._ids(tok, ln, "edge")
+        elif key == "100verts" and fusion:
+            self.crease_vertices += self._ids(tok, ln, "vertex")
+        elif key == "106ek" and fusion:
+            value = float(tok[1])
+            if not 0 <= value <= COORDINATE_LIMIT:
+                raise self.err(f"106ek: knot interval {tok[1]} is not a number in [0, {COORDINATE_LIMIT:g}]", ln)
+            self.ek.append((ln, value))
+        elif key in FOOTER:
+            if key in self.footer:
+                raise self.err(f"a second {key!r} (the first is on line {self.footer[key][1]})", ln)
+            value = FOOTER[key](tok[1])
+            if FOOTER[key] is float and not abs(value) < float("inf"):
+                raise self.err(f"{key} {tok[1]} is not a number", ln)
+            self.footer[key] = (value, ln)
         elif key in SKIPPED:
             return
         else:
@@ -312,20 +414,25 @@ class _Reader:
         return mesh
 
     # -- grips ----------------------------------------------------------------------------------------
-    def grips(self, old):
-        """Per old vertex (compact id): {ring-view position: grip id}."""
+    def mapped_grips(self):
+        """The grip map's entries (grip, line, vertex, own grip?) without the null ones,
+        after checking there is one per control point and nulls go together."""
         if len(self.grip_of) != len(self.g):
-            last = next((g[0] for g in reversed(self.g) if g is not None), None)
+            last = next((g[0] for g in reversed(self.g) if g is not None), self.grip_map_line)
             raise self.err(f"{len(self.grip_of)} grip map records (0m gvp/gv) for {len(self.g)} control "
                            f"points (0g): the file is truncated or inconsistent", last)
-        topo = old.topology
-        prime, extra = {}, {}
         for gi, (ln, v, is_prime) in enumerate(self.grip_of):
             if (v < 0) != (self.g[gi] is None):
                 raise self.err(f"grip {gi}: a null grip map entry (vertex -1) must go with a null control "
                                f"point (a bare 0g) and only with one", ln)
-            if v < 0:
-                continue
+            if v >= 0:
+                yield gi, ln, v, is_prime
+
+    def grips(self, old):
+        """Per old vertex (compact id): {ring-view position: grip id}."""
+        topo = old.topology
+        prime, extra = {}, {}
+        for gi, ln, v, is_prime in self.mapped_grips():
             if v not in self.compact:
                 raise self.err(f"grip {gi} belongs to vertex {v}, which no face uses", ln)
             if is_prime:
@@ -387,14 +494,23 @@ class _Reader:
         return out
 
     # -- the tsplcam T-mesh -----------------------------------------------------------------------------
-    def build(self):
+    def build(self, old=None, pos=None, G=None, grip_lines=None, grip_names=None, origin=None):
+        """The T-mesh with the boundary made explicit. By default from the file's grips and
+        blocks; the Fusion dialect passes its own T-mesh ``old``, ring-view positions
+        ``pos`` and grips ``G`` ((x, y, z, w) rows, file units) with their lines and names,
+        and for a T-mesh cut along creases the vertex of the file's T-mesh every vertex of
+        ``old`` was copied from (``origin``)."""
         from ..tmesh import TMesh
-        old = self.topology()
+        own = pos is None
+        old = self.topology() if old is None else old
         topo = old.topology
-        pos = self.grips(old)
+        if own:
+            pos = self.grips(old)
+            G = np.array([g[1:5] if g is not None else (np.nan,) * 4 for g in self.g], float)
+            grip_lines = [g[0] if g is not None else None for g in self.g]
+        glines = grip_lines
+        names = grip_names or [f"grip {g} (line {ln})" for g, ln in enumerate(glines)]
         P, labels, vlines = [], [], []
-        G = np.array([g[1:5] if g is not None else (np.nan,) * 4 for g in self.g], float)
-        glines = [g[0] if g is not None else None for g in self.g]
         vid = {}                                           # (old vertex, ring-view position) -> new id
 
         def vertex(k, p):
@@ -405,9 +521,9 @@ class _Reader:
                 P.append(G[g])
                 vlines.append(glines[g])
                 if p == (0, 0):
-                    labels.append(old.vertex_labels[k] + f", grip {g}")
+                    labels.append(old.vertex_labels[k] + f", {names[g].split(' (')[0]}")
                 else:
-                    labels.append(f"grip {g} (line {glines[g]}) of {old.vertex_labels[k]}")
+                    labels.append(f"{names[g]} of {old.vertex_labels[k]}")
             return vid[key]
 
         for k in range(old.n_vertices):
@@ -457,8 +573,9 @@ class _Reader:
             # ring faces outside, one per chain edge: (offset p, offset q, q, p)
             na = _STEP[3]                                      # right of the walk along a's +x
             nb = _STEP[(Tb + 1) % 4]                           # right of the arrival at b
-            e_line = self.e[self.l[self._link_of(a, b)][6]][0]
-            e_id = self.l[self._link_of(a, b)][6]
+            oa, ob = (a, b) if origin is None else (origin[a], origin[b])
+            e_id = self.l[self._link_of(oa, ob)][6]
+            e_line = self.e[e_id][0]
             for (kp, pp), (kq, pq), dd in zip(chain[:-1], chain[1:], d):
                 op = (pp[0] + (na if kp == a else nb)[0], pp[1] + (na if kp == a else nb)[1])
                 oq = (pq[0] + (na if kq == a else nb)[0], pq[1] + (na if kq == a else nb)[1])
@@ -468,7 +585,7 @@ class _Reader:
             if Ta == 1:
                 loop_c = [vertex(a, (-1, -1)), vertex(a, (0, -1)), vertex(a, (0, 0)), vertex(a, (-1, 0))]
                 add_face(loop_c, [0, 1, 2, 3], [0.0] * 4, f"boundary corner at {old.vertex_labels[a]}",
-                         self.v[self.old_ids[a]][0])
+                         old.vertex_lines[a])
         P = np.array(P, float)
         mesh = TMesh(P[:, :3] * self.scale, P[:, 3], faces, corners, intervals, source=self.path,
                      face_lines=face_lines, vertex_lines=vlines, vertex_labels=labels,
@@ -477,7 +594,7 @@ class _Reader:
         mesh.validate()
         used = {pos[k][p] for k, p in vid}
         unused = [g for g in range(len(self.g)) if g not in used and self.g[g] is not None]
-        if unused:
+        if own and unused:
             raise self.err(f"grip {unused[0]} is not placed by the grip map", self.g[unused[0]][0])
         stars = [k for k in range(old.n_vertices) if topo.is_extraordinary(k)]
         if stars and self.header.get("star-smoothness", (0, None))[0] != 0:
@@ -498,16 +615,32 @@ class _Reader:
         return self._links_by_ends[(va, vb)]
 
 
-def read_tsm(path):
-    """The T-mesh of a .tsm file, boundary made explicit (see the module docstring)."""
+def _parse(path) -> _Reader:
     reader = _Reader(path)
     reader.scale = 1.0
     reader.parse()
+    return reader
+
+
+def read_tsm(path):
+    """The T-mesh of a .tsm file with Bezier end conditions, boundary made explicit (see the
+    module docstring)."""
+    reader = _parse(path)
+    if reader.dialect == "fusion":
+        raise reader.err("a Fusion-dialect file (end-conditions) has no T-mesh with explicit boundary "
+                         "grips: read it with tsm_model", reader.header["end-conditions"][1])
     return reader.build()
 
 
 def tsm_model(path, **options):
+    """The surface of a .tsm file, either dialect (the Fusion one: ``tsm_fusion``)."""
     from ..tspline import tspline_model
-    mesh = read_tsm(path)
+    reader = _parse(path)
+    if reader.dialect == "fusion":
+        from .tsm_fusion import fusion_model
+        return fusion_model(reader, **options)
+    mesh = reader.build()
     with naming(path):
-        return tspline_model(mesh, name=mesh.name)
+        model = tspline_model(mesh, name=mesh.name)
+    model.tsm = TsmInfo.of(reader, "T-spline with Bezier end conditions (boundary grip blocks)")
+    return model

@@ -12,9 +12,12 @@ from __future__ import annotations
 from . import Job, ReadMove, clean_comment, fmt, iso_motion, spindle_coolant, tcp_columns, words
 
 NAME = "fanuc"
+# the control computes the tool tip's feed itself (G43.4 / G43.5: F is the tool tip's feed
+# over the part): inverse time (G93) only on request
+TIP_FEED = True
 JOINT_SPACE = False
 ORIENTATIONS = ("angles", "vector")
-DEFAULTS = {"decimals": {"linear": 4, "angle": 4, "vector": 7, "feed": 3}, "inverse_time": True,
+DEFAULTS = {"decimals": {"linear": 4, "angle": 4, "vector": 7, "feed": 3},
             "orientation": "angles", "inverse_time_max": 9999.999, "work_offset": "G54",
             "program_number": 1000}
 VECTOR_WORDS = ("I", "J", "K")

@@ -15,9 +15,13 @@ from __future__ import annotations
 from . import Job, ReadMove, clean_comment, fmt, fmt_col, fmt_feed, words
 
 NAME = "heidenhain"
+# the control computes the tool point's feed itself (FUNCTION TCPM F TCP, M128: F is that
+# feed); the TNC has no inverse-time feed
+TIP_FEED = True
+INVERSE_TIME = False
 JOINT_SPACE = False
 ORIENTATIONS = ("angles", "vector")
-DEFAULTS = {"decimals": {"linear": 4, "angle": 4, "vector": 7, "feed": 0}, "inverse_time": False,
+DEFAULTS = {"decimals": {"linear": 4, "angle": 4, "vector": 7, "feed": 0},
             "orientation": "angles", "tcp": "FUNCTION TCPM", "refpnt": None,
             "program_name": "TSPLCAM"}
 VECTOR_WORDS = ("TX", "TY", "TZ")

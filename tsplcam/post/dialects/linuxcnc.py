@@ -16,9 +16,12 @@ import numpy as np
 from . import Job, ReadMove, clean_comment, fmt, fmt_col, fmt_feed, spindle_coolant, words
 
 NAME = "linuxcnc"
+# joint coordinates: the interpreter does not know the tool tip (with G94, F is the joints'
+# XYZ length per minute), so inverse time (G93) by default
+TIP_FEED = False
 JOINT_SPACE = True
 ORIENTATIONS = ("angles",)
-DEFAULTS = {"decimals": {"linear": 4, "angle": 6, "feed": 4}, "inverse_time": True,
+DEFAULTS = {"decimals": {"linear": 4, "angle": 6, "feed": 4},
             "orientation": "angles", "blend_tolerance": 0.01, "work_offset": "G54"}
 
 

@@ -11,9 +11,12 @@ from __future__ import annotations
 from . import Job, ReadMove, clean_comment, fmt, iso_motion, spindle_coolant, tcp_columns, words
 
 NAME = "sinumerik"
+# the control computes the tool tip's feed itself (TRAORI: F is the tool tip's path feed):
+# inverse time (G93) only on request
+TIP_FEED = True
 JOINT_SPACE = False
 ORIENTATIONS = ("angles", "vector")
-DEFAULTS = {"decimals": {"linear": 4, "angle": 5, "vector": 7, "feed": 4}, "inverse_time": True,
+DEFAULTS = {"decimals": {"linear": 4, "angle": 5, "vector": 7, "feed": 4},
             "orientation": "angles", "work_offset": "G54"}
 VECTOR_WORDS = ("A3", "B3", "C3")
 

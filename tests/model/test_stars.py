@@ -1,0 +1,298 @@
+"""Star points (extraordinary points) of the T-spline kernel, evaluated by T-NURCC refinement
+to the regular level (tsplcam/model/stars.py), against independent references:
+
+* uniform knot intervals without T-junctions: the Catmull-Clark limit of the same cage by the
+  subdivision path (cage_model, itself tested against OpenSubdiv data), far from and next to
+  the star down to 2^-30 of a face;
+* the construction applied at a regular vertex (valence 4: there the NURCC rules are knot
+  insertion) with non-uniform intervals, rational weights and T-junctions around: the
+  brute-force rational sum of the T-spline's B-splines (scipy's basis, rays cast on the grid);
+* non-uniform spoke intervals at stars of valence 3 to 8: closed-form properties (partition of
+  unity, the faces on both sides of every edge meet, one normal at the star) and finite
+  differences for the derivatives."""
+import unittest
+
+import numpy as np
+
+from tsplcam.errors import InputError
+from tsplcam.model import samples
+from tsplcam.model.cage import Cage, cage_model
+from tsplcam.model.stars import SumCells
+from tsplcam.model.tmesh import TMesh, quad_tmesh
+from tsplcam.model.tspline import tspline_model
+from conftest import angle_between, brute_force, faces_meet, ngon_prism, split_face, t_junction_mesh
+
+POS_TOL, DER_TOL = 1e-10, 1e-8        # of the model size, of the derivative's own size
+FAR_TOL = 1e-9                        # of the model size
+G1_DEG = 0.01                         # normal jump at a star point
+
+
+def refined(cage: Cage, times: int) -> Cage:
+    """The same limit surface on a finer cage (Catmull-Clark steps of the subdivision path),
+    so that star points lie at least three edges apart."""
+    mesh, P = cage.mesh, cage.points
+    for _ in range(times):
+        mesh, R, _ = mesh.refine()
+        P = R @ P
+    return Cage(mesh, P)
+
+
+def star_disc(n: int, intervals, seed: int = 0, noise: float = 0.05) -> TMesh:
+    """An open T-mesh around one star point (vertex 0) of valence n: sector j is a k x k grid of
+    quads between spokes j and j + 1, intervals[j] (k,) the knot intervals along spoke j from
+    the star outwards (the last zero: a clamped boundary)."""
+    a = [np.asarray(x, float) for x in intervals]
+    k = len(a[0])
+    rng = np.random.default_rng(seed)
+    ids, pts = {}, []
+
+    def node(j, p, q):
+        key = ("c",) if p == q == 0 else ("s", j % n, p) if q == 0 else ("s", (j + 1) % n, q) if p == 0 \
+            else ("i", j % n, p, q)
+        if key not in ids:
+            ids[key] = len(pts)
+            ang = 2 * np.pi / n
+            xy = (np.sum(a[j % n][:p]) * np.array([np.cos(ang * j), np.sin(ang * j)])
+                  + np.sum(a[(j + 1) % n][:q]) * np.array([np.cos(ang * (j + 1)), np.sin(ang * (j + 1))]))
+            z = 0.3 * np.sin(0.7 * xy[0]) * np.cos(0.5 * xy[1]) + 0.1 * xy[0]
+            pts.append(np.array([xy[0], xy[1], z]) + noise * rng.standard_normal(3))
+        return ids[key]
+
+    faces, iv = [], []
+    for j in range(n):
+        for p in range(k):
+            for q in range(k):
+                faces.append([node(j, p, q), node(j, p + 1, q), node(j, p + 1, q + 1), node(j, p, q + 1)])
+                iv.append([a[j][p], a[(j + 1) % n][q]] * 2)
+    return TMesh(np.array(pts), None, faces, [(0, 1, 2, 3)] * len(faces), iv)
+
+
+def random_intervals(n: int, seed: int, k: int = 5):
+    rng = np.random.default_rng(seed)
+    return [np.concatenate([rng.uniform(0.5, 2.0, k - 1), [0.0]]) for _ in range(n)]
+
+
+def corner_param(model, mesh, f, v):
+    """(s, t) of vertex v as a corner of face f, in the face's unit square."""
+    k = [int(x) for x in mesh.faces[f]].index(v)
+    W, H = model.face_size[f]
+    p = mesh.topology.pos[f][k]
+    return p[0].real / W, p[1].real / H
+
+
+def near_vertex(model, mesh, v, dist, count, rng):
+    """Face points at distance up to ``dist`` (of a face) from vertex v on every face at it."""
+    fan = [f for f, _ in mesh.topology.fan[v]]
+    f = np.repeat(fan, count)
+    st = np.array([corner_param(model, mesh, g, v) for g in f])
+    r = rng.random((len(f), 2)) * dist
+    return f, np.abs(st[:, 0] - r[:, 0]), np.abs(st[:, 1] - r[:, 1])
+
+
+def meet(model, mesh, tau=np.linspace(0.0, 1.0, 17)):
+    """Every interior edge sampled from the faces on both sides: the largest position gap (of
+    the model size) and normal angle (degrees)."""
+    A, B = faces_meet(model, mesh, tau)
+    gap = np.abs(A.P - B.P).max() / np.abs(mesh.points).max()
+    return gap, np.degrees(angle_between(A.normal, B.normal)).max()
+
+
+class UniformStarsAreCatmullClark(unittest.TestCase):
+    """Uniform intervals, no T-junctions: the surface is the Catmull-Clark limit of the cage."""
+
+    def test_valences_3_to_8(self):
+        rng = np.random.default_rng(18)
+        for n in (3, 5, 6, 8):
+            cage = refined(ngon_prism(n, seed=n), 2)
+            tmesh = quad_tmesh(cage.points, cage.mesh.faces, interval=0.7)
+            model = tspline_model(tmesh)
+            ref = cage_model(cage)
+            self.assertIn(n, [e.valence for e in model.extraordinary])
+            scale = np.abs(cage.points).max()
+            F = len(cage.mesh.faces)
+            f, s, t = rng.integers(0, F, 3000), rng.random(3000), rng.random(3000)
+            a, b = model.evaluate_faces(f, s, t), ref.evaluate_faces(f, s, t)
+            for k in ("P", "Pu", "Pv", "Puu", "Puv", "Pvv"):
+                self.assertLess(np.abs(getattr(a, k) - getattr(b, k)).max(), FAR_TOL * scale, (n, k))
+            # next to the star of valence n (vertex 0 of the prism keeps its index), off the star
+            for e in range(2, 31, 4):
+                f, s, t = near_vertex(model, tmesh, 0, 2.0 ** -e, 12, rng)
+                a, b = model.evaluate_faces(f, s, t), ref.evaluate_faces(f, s, t)
+                self.assertLess(np.abs(a.P - b.P).max(), POS_TOL * scale, (n, e))
+                for ks in (("Pu", "Pv"), ("Puu", "Puv", "Pvv")):
+                    size = np.max([np.linalg.norm(getattr(b, k), axis=1) for k in ks], axis=0)
+                    err = np.max([np.linalg.norm(getattr(a, k) - getattr(b, k), axis=1) for k in ks], axis=0)
+                    self.assertLess((err / size).max(), DER_TOL, (n, e, ks))
+            # at the star itself: the limit point and normal
+            f, s, t = near_vertex(model, tmesh, 0, 0.0, 1, rng)
+            a, b = model.evaluate_faces(f, s, t), ref.evaluate_faces(f, s, t)
+            self.assertLess(np.abs(a.P - b.P).max(), POS_TOL * scale)
+            self.assertLess(np.degrees(angle_between(a.normal, b.normal)).max(), 1e-7)
+
+
+class RegularVertexAsStar(unittest.TestCase):
+    """At a valence-4 vertex the NURCC rules are knot insertion: the construction must give the
+    T-spline's own B-spline sum, with non-uniform intervals, weights and T-junctions around."""
+
+    def test_equals_brute_force_rational_sum(self):
+        mesh, X, Y, hsegs, vsegs = t_junction_mesh(1)
+        topo = mesh.topology
+        rng = np.random.default_rng(4)
+        scale = np.abs(mesh.points).max()
+        checked, refused = 0, 0
+        for v in range(mesh.n_vertices):
+            if topo.boundary[v] or topo.total[v] != 4 or checked >= 6:
+                continue
+            try:
+                model = tspline_model(mesh, subdivide_at=[v])
+            except InputError as exc:
+                self.assertIn("vertex", str(exc))
+                refused += 1
+                continue
+            patch = model.patches[0]
+            W, H = patch.knot_size
+            i, j = mesh.grid_index[v]
+            # around the vertex (two knot intervals each way) and right next to it
+            x = np.clip(X[i] + rng.uniform(-2, 2, 300) * (X[i + 1] - X[i]), 1e-9 * W, (1 - 1e-9) * W)
+            y = np.clip(Y[j] + rng.uniform(-2, 2, 300) * (Y[j + 1] - Y[j]), 1e-9 * H, (1 - 1e-9) * H)
+            d = 2.0 ** -rng.integers(5, 40, 100) * rng.choice([-1, 1], 100)
+            x = np.concatenate([x, X[i] + d])
+            y = np.concatenate([y, Y[j] + d[::-1]])
+            S, Ss, St = brute_force(mesh, X, Y, hsegs, vsegs, x, y)
+            sp = patch.evaluate(x / W, y / H)
+            self.assertLess(np.abs(sp.P - S).max(), 1e-13 * scale, v)
+            self.assertLess(np.abs(sp.Pu / W - Ss).max(), 1e-11 * scale, v)
+            self.assertLess(np.abs(sp.Pv / H - St).max(), 1e-11 * scale, v)
+            checked += 1
+        self.assertEqual(checked, 6)
+        self.assertGreater(refused, 0)
+
+
+class NonUniformStars(unittest.TestCase):
+    """Random spoke intervals (ratios up to 4) at stars of valence 3 to 8."""
+
+    @classmethod
+    def setUpClass(cls):
+        cls.models = {}
+        for n in (3, 5, 6, 8):
+            mesh = star_disc(n, random_intervals(n, n))
+            cls.models[n] = (mesh, tspline_model(mesh))
+
+    def test_spokes_are_non_uniform(self):
+        for n, (mesh, _) in self.models.items():
+            d = [mesh.intervals[f][i] for f, i in mesh.topology.fan[0]]
+            self.assertGreater(max(d) / min(d), 1.5, n)
+
+    def test_watertight_and_tangent_continuous_across_edges(self):
+        for n, (mesh, model) in self.models.items():
+            gap, angle = meet(model, mesh)
+            self.assertLess(gap, FAR_TOL, n)
+            self.assertLess(angle, 1e-6, n)
+
+    def test_one_normal_at_the_star(self):
+        """Normals at points within 2^-30 of a face from the star, from every face around it,
+        agree with the star's limit normal (the construction's: its Catmull-Clark rules from
+        the second level on have a double subdominant eigenvalue)."""
+        rng = np.random.default_rng(7)
+        for n, (mesh, model) in self.models.items():
+            f, s, t = near_vertex(model, mesh, 0, 2.0 ** -30, 20, rng)
+            near = model.evaluate_faces(f, s, t)
+            at = model.evaluate_faces(*near_vertex(model, mesh, 0, 0.0, 1, rng))
+            self.assertLess(np.degrees(angle_between(at.normal, np.repeat(at.normal[:1], len(at.normal), 0))).max(),
+                            1e-9, n)
+            jump = np.degrees(angle_between(near.normal, np.repeat(at.normal[:1], len(f), 0))).max()
+            self.assertLess(jump, G1_DEG, n)
+
+    def test_rational_weights(self):
+        """Weights on the star and its neighbours: still watertight, one normal at the star."""
+        rng = np.random.default_rng(12)
+        for n in (3, 5):
+            mesh = star_disc(n, random_intervals(n, 30 + n))
+            mesh.weights = rng.uniform(0.5, 2.0, mesh.n_vertices)
+            model = tspline_model(mesh)
+            gap, angle = meet(model, mesh)
+            self.assertLess(gap, FAR_TOL, n)
+            self.assertLess(angle, 1e-6, n)
+            near = model.evaluate_faces(*near_vertex(model, mesh, 0, 2.0 ** -30, 20, rng))
+            at = model.evaluate_faces(*near_vertex(model, mesh, 0, 0.0, 1, rng))
+            jump = np.degrees(angle_between(near.normal, np.repeat(at.normal[:1], len(near.normal), 0))).max()
+            self.assertLess(jump, G1_DEG, n)
+
+    def test_partition_of_unity_on_star_cells(self):
+        rng = np.random.default_rng(8)
+        for n, (mesh, model) in self.models.items():
+            groups = [g for p in model.patches for g in p.groups if isinstance(g, SumCells)]
+            self.assertTrue(groups)
+            for g in groups:
+                idx = np.repeat(np.arange(len(g)), 40)
+                H, _, _ = g.evaluate(idx, rng.random(len(idx)), rng.random(len(idx)))
+                self.assertLess(np.abs(H[0, 3] - 1.0).max(), 1e-13, n)
+
+    def test_derivatives_match_finite_differences(self):
+        """Central differences in the face parameters, on the faces around the star and near it."""
+        rng = np.random.default_rng(9)
+        for n, (mesh, model) in self.models.items():
+            for dist in (1.0, 1e-2, 1e-4):
+                h = 1e-5 * dist
+                f, s, t = near_vertex(model, mesh, 0, dist, 10, rng)
+                s = np.clip(s, 2 * h, 1 - 2 * h)
+                t = np.clip(t, 2 * h, 1 - 2 * h)
+
+                def ev(ds, dt):
+                    return model.evaluate_faces(f, s + ds, t + dt)
+                c = ev(0, 0)
+                fd = ((ev(h, 0).P - ev(-h, 0).P) / (2 * h), (ev(0, h).P - ev(0, -h).P) / (2 * h),
+                      (ev(h, 0).Pu - ev(-h, 0).Pu) / (2 * h), (ev(0, h).Pu - ev(0, -h).Pu) / (2 * h),
+                      (ev(0, h).Pv - ev(0, -h).Pv) / (2 * h))
+                for k, ref in zip(("Pu", "Pv", "Puu", "Puv", "Pvv"), fd):
+                    got = getattr(c, k)
+                    self.assertLess(np.abs(got - ref).max(), 1e-5 * (1.0 + np.abs(got).max()), (n, dist, k))
+
+
+class CloseStars(unittest.TestCase):
+    def test_two_edges_apart_on_a_cage_is_catmull_clark(self):
+        """Stars two edges apart (a cube of 2 x 2 faces a side) are closer than the T-NURCC
+        construction takes; a T-mesh that is a Catmull-Clark cage is evaluated by the
+        subdivision path instead. With a T-junction or unequal intervals it is refused."""
+        cage = samples.head(2)
+        mesh = quad_tmesh(cage.points, cage.mesh.faces, interval=1.5)
+        model = tspline_model(mesh)
+        self.assertIs(model.control, mesh)
+        self.assertEqual(sorted(e.valence for e in model.extraordinary), [3] * 8)
+        ref = cage_model(cage)
+        rng = np.random.default_rng(11)
+        f = rng.integers(0, len(mesh.faces), 500)
+        s, t = rng.random(500), rng.random(500)
+        a, b = model.evaluate_faces(f, s, t), ref.evaluate_faces(f, s, t)
+        self.assertLess(np.abs(a.P - b.P).max(), 1e-14 * np.abs(cage.points).max())
+        with self.assertRaises(InputError) as cm:
+            tspline_model(split_face(mesh, 0))
+        self.assertIn("extraordinary", str(cm.exception))
+
+
+class NextToTJunctions(unittest.TestCase):
+    def test_t_junction_beyond_the_second_ring(self):
+        """A face three rings out split in two: the star still evaluates, watertight, one
+        normal at it; a split that cuts the second ring's knot lines is refused by name."""
+        rng = np.random.default_rng(10)
+        for n in (3, 5):
+            mesh = star_disc(n, random_intervals(n, 20 + n))
+            # face (p, q) = (2, 1) of sector 0 (third ring): T-junctions on the knot lines of
+            # the star's neighbours' functions beyond the second ring
+            split = split_face(mesh, 2 * 5 + 1)
+            model = tspline_model(split)
+            gap, angle = meet(model, split)
+            self.assertLess(gap, FAR_TOL, n)
+            self.assertLess(angle, 1e-6, n)
+            f, s, t = near_vertex(model, split, 0, 2.0 ** -30, 10, rng)
+            near = model.evaluate_faces(f, s, t)
+            at = model.evaluate_faces(*near_vertex(model, split, 0, 0.0, 1, rng))
+            self.assertLess(np.degrees(angle_between(near.normal, np.repeat(at.normal[:1], len(f), 0))).max(), G1_DEG)
+            # face (p, q) = (1, 0) of sector 0 (second ring, on spoke 0): split across spoke 0
+            with self.assertRaises(InputError) as cm:
+                tspline_model(split_face(mesh, 1 * 5 + 0))
+            self.assertIn("extraordinary", str(cm.exception))
+
+
+if __name__ == "__main__":
+    unittest.main()

@@ -1,0 +1,859 @@
+"""Star points (extraordinary points) of T-splines: the surface on the two rings of faces
+around them, by subdividing to the regular level.
+
+Around a star point S of valence n the T-spline's blending functions are not all tensor
+B-splines: the functions of S and of its 2n neighbours (the spoke vertices s_j and the
+diagonal vertices q_j of its faces, together W0) wrap around S, where no single knot frame
+exists. They are defined by the T-NURCC rule (Sederberg et al. 1998, 2003): refinement.
+Every other function is the T-spline's own (ray-cast knots), T-junctions and all.
+
+The construction, in sector charts (sector j: S at the origin, x along spoke j, y along
+spoke j+1; the first face F_j is [0, d_j] x [0, d_(j+1)], d_j the spoke's knot interval):
+
+* Each W0 function is split into its 25 children of the halved knot vector (exact midpoint
+  knot insertion, per direction). Children at the level-1 nodes next to S (the new spoke
+  and face points, W1) are summed into one function per node; the new point at S itself is
+  the NURCC vertex rule (Sederberg et al. 1998, eq. 16-18: (n-3)/n S + 3/(n sum(m+f))
+  sum(m_i M_i + f_i F_i), M_i the spoke midpoints, F_i the face points, m_i =
+  (d_(i-1) + d_(i+1))(d_(i-2) + d_(i+2))/2, f_i = d_(i-1) d_(i+2)); all other children are
+  plain B-splines from then on. The same step takes W1 to W2 and so on. With uniform
+  intervals this is exactly Catmull-Clark.
+* The knot interval "behind" S along spoke j (which a ray through S would need) is
+  b_j = (d_(j+2) + d_(j-2)) / 2, the mean of the spokes two steps away (the NURCC rule; for
+  valence 4 it is the opposite spoke). It serves the rules and the children on spoke j
+  itself; children on the rows through the neighbouring spokes' vertices cross those
+  spokes at regular vertices, where the T-mesh itself gives d_(j+2) and d_(j-2)
+  (``children``): so every child is the refined T-mesh's own B-spline and the functions
+  stay a partition of unity for any spoke intervals.
+* The NURCC rules with unequal spoke intervals can have two different subdominant
+  eigenvalues (valence 8, intervals in ratio 4: 0.72 and 0.57 with 0.52 next), so that the
+  normal at S converges too slowly or not at all (the defect that Li, Finnigan and
+  Sederberg 2016, "G1 non-uniform Catmull-Clark surfaces", address with eigen-polyhedra).
+  Here the NURCC rules make levels 1 and 2, and the star's own points follow
+  Catmull-Clark's rules from level 2 on: its stationary matrix then has Catmull-Clark's
+  double subdominant eigenvalue, so the limit is G1 at S whatever the intervals. Only the
+  points next to S change (the functions and their knots do not), so the surface stays C2
+  away from S, and uniform stars are still exactly Catmull-Clark. At valence 4 the rules
+  are knot insertion throughout (``tspline_model(subdivide_at=...)`` checks that the
+  construction then gives the T-spline's own surface).
+* The knot lines beyond the star's neighbours must run on across its second ring (one knot
+  vector per level-1 function); a T-junction that cuts them is refused by name.
+* W_k functions reach only 1.5 level-k intervals from S, so the two rings of faces around
+  S (the zone) contain every piece that is not a plain B-spline: the surface there is
+  the sum of plain B-splines (the other functions, and the children split off at every
+  level) plus the W_k functions of the level whose ring [2, 4] x 2^-k the point falls in.
+  Outside the zone the W0 functions are their ray-cast B-splines, so the surface joins
+  the rest of the T-spline C2.
+* From level 2 on, every knot near S is a scaled copy of the spoke intervals: one
+  stationary matrix A takes the level-k configuration (W_k and the accumulated children
+  within 5 intervals, 1 + 30 n functions) to level k+1. Configurations are precomputed
+  level by level (as differences from the limit point, ``cells.LevelCells``' method).
+
+``find_stars(walker)`` finds and checks the stars; ``build_zone`` makes one star's
+construction (``StarZone``); ``StarLevels`` holds its subdivided part, ``StarCells``
+evaluates it on the star's first faces (array calls: one product per cell and level met).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from functools import lru_cache
+
+import numpy as np
+
+from ..errors import InputError
+from .basis import bernstein
+from .cells import DERIVS, _chain
+from .twalk import Walker, apply, compose, inverse, map_knots, rot
+
+MAX_LEVEL = 56                 # below 2^-56 of a face the point is the limit point
+EPS_LEVEL = 50                 # derivatives at S itself are taken this close to it (as LevelCells)
+RADIUS = 5                     # configuration nodes per sector: 0..5 along x and y
+
+
+# -- one-dimensional midpoint refinement -------------------------------------------------
+@lru_cache(maxsize=None)
+def _split(knots: tuple) -> tuple[np.ndarray, np.ndarray]:
+    """The cubic B-spline N[t0..t4] as a combination of the B-splines of its knot vector with
+    every positive interval halved (zero intervals stay zero, as in the refined T-mesh):
+    (children knots (k + 1, 5), coefficients (k + 1,)) for k positive intervals, by Boehm's
+    knot insertion (one midpoint at a time, exact up to rounding)."""
+    t = [float(x) for x in knots]
+    T = [t[0]] * 3 + t + [t[-1]] * 3            # N[t0..t4] is basis function 3 of T
+    c = [0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0]
+    ins = [(t[i] + t[i + 1]) / 2 for i in range(4) if t[i + 1] > t[i]]
+    for u in ins:
+        l = max(i for i in range(len(T) - 1) if T[i] <= u < T[i + 1])
+        new = []
+        for i in range(len(c) + 1):
+            if i <= l - 3:
+                new.append(c[i])
+            elif i > l:
+                new.append(c[i - 1])
+            else:
+                den = T[i + 3] - T[i]
+                alpha = (u - T[i]) / den if den > 0 else 0.0
+                new.append((1 - alpha) * c[i - 1] + alpha * c[i])
+        c = new
+        T = T[:l + 1] + [u] + T[l + 1:]
+    r = np.sort(np.array(t + ins))
+    k = len(ins)
+    kids = np.array([r[j:j + 5] for j in range(k + 1)])
+    # the refined padded vector is [t0 x3, r, t4 x3]: the children are its basis functions 3..3+k
+    return kids, np.array(c[3:4 + k])
+
+
+def split(knots: np.ndarray):
+    return _split(tuple(float(x) for x in knots))
+
+
+@dataclass
+class Fn:
+    """A tensor B-spline in sector chart ``sector``: centre (x, y), knots (5,) per direction,
+    and its coefficient row over the star's W0 control points (homogeneous)."""
+    sector: int
+    cx: float
+    cy: float
+    xk: np.ndarray
+    yk: np.ndarray
+    row: np.ndarray
+
+
+def _canon(n: int, sector: int, x: float, y: float, xk, yk):
+    """A node given in ``sector``'s chart, re-expressed in the chart of the sector it lies
+    in (x > 0, y >= 0; points on spoke j belong to sector j), with its knots; None behind S."""
+    tol = 1e-12 * (1.0 + abs(x) + abs(y))
+    if x > tol and y >= -tol:
+        return sector, x, max(y, 0.0), xk, yk
+    if x <= tol and y > tol:           # sector + 1: x' = y, y' = -x
+        xk2, yk2 = map_knots(np.asarray(xk), np.asarray(yk), (3, 0.0, 0.0))
+        return (sector + 1) % n, y, max(-x, 0.0), xk2, yk2
+    if y < -tol and x >= -tol:         # sector - 1: x' = -y, y' = x
+        xk2, yk2 = map_knots(np.asarray(xk), np.asarray(yk), (1, 0.0, 0.0))
+        return (sector - 1) % n, -y, max(x, 0.0), xk2, yk2
+    if abs(x) <= tol and abs(y) <= tol:
+        return None                    # S itself
+    return None                        # behind S: not a node of this chart's neighbourhood
+
+
+def children(n: int, f: Fn, own_chart: bool = False, behind_rows=None):
+    """The 25 children of ``f`` (midpoint refinement), canonicalised; those at S or behind
+    it are left out (S's new point is the vertex rule). ``own_chart``: keep only children in
+    ``f``'s own sector (S is split once per sector chart).
+
+    ``behind_rows`` (b_j, d_(j+2), d_(j-2)) for ``f``'s sector: a function on spoke j (S, the
+    spoke vertex and the spoke points of every level) reaches behind S along the spoke,
+    where no single knot frame exists. Its children on the spoke keep the spoke's interval
+    b_j; those on the rows through the neighbouring spokes' vertices (y > 0 and y < 0) cross
+    S's neighbouring spokes at regular vertices, where the T-mesh gives the interval behind
+    as d_(j+2) and d_(j-2) (the faces of sectors j+1 and j-1 there): they are split from the
+    function with that interval in place of b_j, so that every child is the refined T-mesh's
+    own B-spline (ray cast on the level below) with the knot-insertion coefficient of the
+    NURCC rules. With b_j = d_(j+2) = d_(j-2) (valence 4, uniform stars) this is plain
+    knot insertion."""
+    kx, cx_ = split(f.xk)
+    ky, cy_ = split(f.yk)
+    rows_x = None
+    tol = 1e-12 * float(f.xk[-1] - f.xk[0])
+    if behind_rows is not None and abs(f.cy) <= tol and f.xk[0] < -tol:
+        b, up, down = behind_rows
+        neg = np.asarray(f.xk) < -tol
+        rows_x = {}
+        for sign, beh in ((1, up), (-1, down)):
+            xk = np.where(neg, np.asarray(f.xk) * (beh / b), f.xk)
+            rows_x[sign] = split(xk)
+    out = []
+    for b_ in range(len(cy_)):
+        if cy_[b_] == 0.0:
+            continue
+        yc = ky[b_][2]
+        kxx, cxx = kx, cx_
+        if rows_x is not None and abs(yc) > tol:
+            kxx, cxx = rows_x[1 if yc > 0.0 else -1]
+        for a in range(len(cxx)):
+            if cxx[a] == 0.0:
+                continue
+            xk, yk = kxx[a], ky[b_]
+            c = _canon(n, f.sector, xk[2], yk[2], xk, yk)
+            if c is None or (own_chart and c[0] != f.sector):
+                continue
+            s, x, y, xk, yk = c
+            out.append(Fn(s, x, y, np.asarray(xk, float), np.asarray(yk, float), f.row * (cxx[a] * cy_[b_])))
+    return out
+
+
+# -- one star -------------------------------------------------------------------------------
+@dataclass
+class StarZone:
+    """One star point: its sectors, the W0 functions, the subdivision and the functions to
+    add directly on every face of its two rings."""
+    v: int
+    n: int
+    faces: list            # F_j
+    spokes: list           # s_j
+    diags: list            # q_j
+    d: np.ndarray          # spoke intervals d_j
+    b: np.ndarray          # intervals behind S along spoke j
+    chart: dict            # zone face -> (sector, map face frame -> sector chart)
+    ring1: set = field(default_factory=set)
+    direct: list = field(default_factory=list)        # Fn, plain B-splines (D1, D2, W1 on ring 2)
+    w1: list = field(default_factory=list)            # W1 functions (evaluated directly on ring 2)
+
+    def behind_rows(self, j: int):
+        """Intervals behind S along spoke j: on the spoke, and on the rows through the
+        neighbouring spokes' vertices (``children``)."""
+        n = self.n
+        return float(self.b[j]), float(self.d[(j + 2) % n]), float(self.d[(j - 2) % n])
+
+    @property
+    def w0(self) -> list:
+        return [self.v] + list(self.spokes) + list(self.diags)
+
+    # -- nodes near S at level k: S, E_j (spoke j), F_j (face j) ---------------------------------
+    def w_index(self, sector, x, y, level, tol) -> int | None:
+        h = 0.5 ** level
+        if abs(x - h * self.d[sector]) <= tol and abs(y) <= tol:
+            return 1 + sector
+        if abs(x - h * self.d[sector]) <= tol and abs(y - h * self.d[(sector + 1) % self.n]) <= tol:
+            return 1 + self.n + sector
+        return None
+
+    def w_knots(self, node: int, level: int, beyond=None):
+        """Knots of W_k node ``node`` (1..n spoke points, n+1..2n face points) in its chart:
+        the level-k mesh's, scaled spoke intervals. At level 1 the outermost knots lie in the
+        second ring of faces: ``beyond`` = (e, gx, gy), the T-mesh's intervals beyond the
+        spoke vertices and beyond the diagonal vertices along x and y, halved there."""
+        n, d, b = self.n, self.d, self.b
+        h = 0.5 ** level
+        j = (node - 1) % n
+        dj, dn, dp, dnn = d[j], d[(j + 1) % n], d[(j - 1) % n], d[(j + 2) % n]
+        x3, y3 = 3 * h * dj, 3 * h * dn
+        if beyond is not None:
+            e, gx, gy = beyond
+            x3 = dj + (e[j] if node <= n else gx[j]) / 2
+            y3 = dn + gy[j] / 2
+        if node <= n:                                  # spoke point (h dj, 0)
+            xk = np.array([-h * b[j], 0.0, h * dj, 2 * h * dj, x3])
+            yk = h * np.array([-2 * dp, -dp, 0.0, dn, 2 * dn])
+        else:                                          # face point (h dj, h dn)
+            xk = np.array([-h * dnn, 0.0, h * dj, 2 * h * dj, x3])
+            yk = np.array([-h * dp, 0.0, h * dn, 2 * h * dn, y3])
+        return j, xk, yk
+
+    def s_knots(self, sector: int, level: int):
+        n, d, b = self.n, self.d, self.b
+        h = 0.5 ** level
+        j = sector
+        return (h * np.array([-2 * b[j], -b[j], 0.0, d[j], 2 * d[j]]),
+                h * np.array([-2 * d[(j - 1) % n], -d[(j - 1) % n], 0.0, d[(j + 1) % n], 2 * d[(j + 1) % n]]))
+
+    def point_rules(self, rows: np.ndarray, e, gx, gy, uniform: bool = False) -> np.ndarray:
+        """The next level's S, spoke and face points from this level's (``rows``: S, s_j,
+        q_j, any trailing columns), by the NURCC rules (Sederberg et al. 1998; affine, and
+        exact knot insertion wherever the knots are a tensor grid). ``e[j]``: the interval
+        beyond s_j along spoke j; ``gx[j]``, ``gy[j]``: beyond q_j along x and y of sector j.
+        ``uniform``: every interval equal (Catmull-Clark's rules)."""
+        n, d, b = self.n, self.d, self.b
+        if uniform:
+            d = b = e = gx = gy = np.ones(n)
+        S, sp, fq = rows[0], rows[1:1 + n], rows[1 + n:1 + 2 * n]
+        new = np.zeros_like(rows[:2 * n + 1])
+        M = []
+        for i in range(n):
+            di, dn = d[i], d[(i + 1) % n]
+            # face point: each corner weighted by the intervals beyond the far corners
+            wl = di + e[i] + gx[i]                     # corners at x = 0 (S, s_(i+1))
+            wr = di + b[i] + d[(i + 2) % n]            # corners at x = d_i (s_i, q_i)
+            wb = dn + e[(i + 1) % n] + gy[i]           # corners at y = 0 (S, s_i)
+            wt = dn + b[(i + 1) % n] + d[(i - 1) % n]  # corners at y = d_(i+1) (s_(i+1), q_i)
+            new[1 + n + i] = (wl * wb * S + wr * wb * sp[i] + wr * wt * fq[i] + wl * wt * sp[(i + 1) % n]) / (
+                (wl + wr) * (wb + wt))
+            M.append(((di + 2 * e[i]) * S + (di + 2 * b[i]) * sp[i]) / (2 * (b[i] + di + e[i])))
+        F = new[1 + n:]
+        total = 0.0
+        acc = np.zeros_like(S)
+        for i in range(n):
+            up, down = d[(i + 1) % n], d[(i - 1) % n]
+            new[1 + i] = 0.5 * M[i] + (down * F[i] + up * F[(i - 1) % n]) / (2 * (up + down))
+            m = 0.5 * (d[(i - 1) % n] + d[(i + 1) % n]) * (d[(i - 2) % n] + d[(i + 2) % n])
+            f = d[(i - 1) % n] * d[(i + 2) % n]
+            acc += m * M[i] + f * F[i]
+            total += m + f
+        new[0] = (n - 3.0) / n * S + 3.0 / (n * total) * acc
+        return new
+
+    def step(self, level: int, rows: np.ndarray, fns: list, e, gx, gy):
+        """One refinement of the W_level functions ``fns`` (their coefficient ``rows``: S,
+        spoke points, face points): the next level's W rows (the NURCC point rules) and the
+        other children (plain B-splines, exact). Children at the new W nodes are dropped:
+        those functions stay inside the two rings of faces, where the rules define them."""
+        n = self.n
+        tol = 1e-9 * float(self.d.max()) * 0.5 ** level
+        plain = []
+        for f in fns:
+            for c in children(n, f, own_chart=(f.cx == 0.0 and f.cy == 0.0), behind_rows=self.behind_rows(f.sector)):
+                if self.w_index(c.sector, c.cx, c.cy, level + 1, tol) is None:
+                    plain.append(c)
+        return self.point_rules(rows, e, gx, gy), plain
+
+    def self_similar(self):
+        """The beyond-intervals of every level >= 1 (e, gx, gy), in level-0 units."""
+        d = self.d
+        return d, d.copy(), np.roll(d, -1)
+
+    def level_fns(self, rows: np.ndarray, level: int, beyond=None) -> list:
+        """W_level as Fn objects (S in every sector's chart, for its children there)."""
+        out = []
+        for j in range(self.n):
+            xk, yk = self.s_knots(j, level)
+            out.append(Fn(j, 0.0, 0.0, xk, yk, rows[0]))
+        for node in range(1, 2 * self.n + 1):
+            j, xk, yk = self.w_knots(node, level, beyond)
+            out.append(Fn(j, xk[2], yk[2], xk, yk, rows[node]))
+        return out
+
+    # -- the stationary configuration (levels >= 2) ----------------------------------------------
+    def stationary(self):
+        """A (K, K): the configuration of level k+1 from level k's, k >= 2, and the
+        configuration's functions at level 2 (for the patches). The configuration is W_k
+        (S, spoke and face points) followed by every plain B-spline within RADIUS level-k
+        intervals of S that refinement of W_k and of these produces: a function is a grid node
+        of a sector with its knot vectors; near S the same node can carry several (the rows
+        through S see the interval behind it, the others the next sector's), and the set
+        closes because every knot scales by 1/2 per level."""
+        n = self.n
+        Wn = 2 * n + 1
+        tol = 1e-9 * float(self.d.max()) / 8
+        fns = self.level_fns(np.eye(Wn), 2)             # rows over W only, for now
+        classes = {}                                    # key -> index among the plain functions
+        plain = []                                      # Fn at level 2, row = its own unit later
+        edges = []                                      # (parent: ("w", i) or ("y", i), child class, coefficient)
+
+        def key_of(c):
+            h = 0.125                                   # children are at level 3
+            gx, gy = self.d[c.sector], self.d[(c.sector + 1) % n]
+            p, q = c.cx / (h * gx), c.cy / (h * gy)
+            if p > RADIUS + 1e-9 or q > RADIUS + 1e-9:
+                return None
+            return (c.sector, round(p, 9), round(q, 9), tuple(np.round(c.xk * 8 / gx, 9)),
+                    tuple(np.round(c.yk * 8 / gy, 9)))
+
+        def expand(parent, f, own):
+            for c in children(n, f, own_chart=own, behind_rows=self.behind_rows(f.sector)):
+                if self.w_index(c.sector, c.cx, c.cy, 3, tol) is not None:
+                    continue
+                k = key_of(c)
+                if k is None:
+                    continue
+                if k not in classes:
+                    classes[k] = len(plain)
+                    # the same function one level up (knots doubled)
+                    plain.append(Fn(c.sector, 2 * c.cx, 2 * c.cy, 2 * c.xk, 2 * c.yk, None))
+                weight = float(c.row[np.argmax(np.abs(c.row))]) if parent[0] == "y" else None
+                edges.append((parent, classes[k], c.row if parent[0] == "w" else weight))
+
+        for f in fns:
+            expand(("w", None), f, own=(f.cx == 0.0 and f.cy == 0.0))
+        done = 0
+        while done < len(plain):
+            f = plain[done]
+            expand(("y", done), Fn(f.sector, f.cx, f.cy, f.xk, f.yk, np.ones(1)), own=False)
+            done += 1
+        K = Wn + len(plain)
+        A = np.zeros((K, K))
+        A[:Wn] = self.point_rules(np.eye(K)[:Wn], *self.self_similar(), uniform=self.n != 4)
+        for parent, child, coef in edges:
+            if parent[0] == "w":
+                A[Wn + child, :Wn] += coef
+            else:
+                A[Wn + child, Wn + parent[1]] += coef
+        out = self.level_fns(np.eye(K)[:Wn], 2)
+        for i, f in enumerate(plain):
+            out.append(Fn(f.sector, f.cx, f.cy, f.xk, f.yk, np.eye(K)[Wn + i]))
+        return A, out
+
+
+def bezier_of(xk: np.ndarray, yk: np.ndarray, x0, x1, y0, y1) -> np.ndarray:
+    """Bernstein coefficients (4, 4) [j (along y), i (along x)] of the tensor B-spline with
+    knots xk, yk on the rectangle [x0, x1] x [y0, y1]."""
+    from .blending import bezier_1d
+    cx = bezier_1d(np.asarray(xk)[None], np.array([x0]), np.array([x1]))[0, 0]
+    cy = bezier_1d(np.asarray(yk)[None], np.array([y0]), np.array([y1]))[0, 0]
+    return np.outer(cy, cx)
+
+
+def to_chart(n: int, f: Fn, sector: int):
+    """Knots of ``f`` in the chart of ``sector`` (the same or a neighbouring sector), or None."""
+    if f.sector == sector:
+        return f.xk, f.yk
+    if (f.sector + 1) % n == sector:
+        return map_knots(f.xk, f.yk, (3, 0.0, 0.0))
+    if (f.sector - 1) % n == sector:
+        return map_knots(f.xk, f.yk, (1, 0.0, 0.0))
+    return None
+
+
+def overlaps(xk, yk, rect, tol) -> bool:
+    x0, x1, y0, y1 = rect
+    return xk[0] < x1 - tol and xk[-1] > x0 + tol and yk[0] < y1 - tol and yk[-1] > y0 + tol
+
+
+# -- stars of a T-mesh --------------------------------------------------------------------------
+class StarsTooClose(InputError):
+    """Star points closer than the construction takes (less than three edges apart)."""
+
+
+def _too_close(mesh, message: str, **where) -> StarsTooClose:
+    exc = mesh.error(message, **where)
+    return StarsTooClose(exc.message, path=exc.path, line=exc.line, item=exc.item)
+
+
+def find_stars(walker: Walker, extra=()) -> dict:
+    """Every star point of the T-mesh: vertex -> (faces F_j, spokes s_j, diagonals q_j, d_j),
+    refusing what the construction cannot take (named). ``extra``: interior regular vertices
+    to treat as stars of valence 4 as well (where the construction must give the T-spline's
+    own B-splines: a check of it)."""
+    mesh, topo = walker.mesh, walker.topo
+    out = {}
+    for v in range(mesh.n_vertices):
+        if not topo.is_extraordinary(v) and v not in extra:
+            continue
+        name = mesh.vertex_name(v)
+        if topo.boundary[v]:
+            raise mesh.error(f"{name} is a star point on the boundary ({topo.total[v]} quarter turns of "
+                             f"faces): not supported in T-spline models (save it as a Catmull-Clark cage, "
+                             f"or split the faces)", vertex=v)
+        if any(topo.span(f, i) != 1 for f, i in topo.fan[v]):
+            raise mesh.error(f"{name} is a T-junction whose faces do not make a full turn: "
+                             f"extraordinary points must be corners of all their faces", vertex=v)
+        n = int(topo.total[v])
+        if n < 3:
+            raise mesh.error(f"{name} is an interior vertex with only {n} faces", vertex=v)
+        faces, spokes, diags, d = [], [], [], []
+        for f, i in topo.fan[v]:
+            loop = [int(x) for x in mesh.faces[f]]
+            if len(loop) != 4:
+                raise mesh.error(f"{mesh.face_name(f)} touches extraordinary {name} and has T-junctions: "
+                                 f"the faces around a star point must be four-sided", f)
+            faces.append(f)
+            spokes.append(loop[(i + 1) % 4])
+            diags.append(loop[(i + 2) % 4])
+            d.append(topo.length(v, loop[(i + 1) % 4]).real)
+        if min(d) <= walker.tol:
+            raise mesh.error(f"a knot interval at extraordinary {name} is zero: star points need "
+                             f"positive intervals on their spokes", vertex=v)
+        out[v] = (faces, spokes, diags, np.array(d))
+    seen = {}
+    for v, (faces, spokes, diags, _) in out.items():
+        for f in faces:
+            if f in seen:
+                raise _too_close(mesh, f"{mesh.face_name(f)} has two extraordinary corners "
+                                 f"({mesh.vertex_name(seen[f])} and {mesh.vertex_name(v)}): refine the "
+                                 f"T-mesh so that they are further apart", face=f)
+            seen[f] = v
+    for v, (faces, spokes, diags, _) in out.items():
+        name = mesh.vertex_name(v)
+        for w in set(spokes) | set(diags):
+            if topo.boundary[w] or topo.total[w] != 4 or any(topo.span(f, i) != 1 for f, i in topo.fan[w]):
+                close = topo.is_extraordinary(w) and not topo.boundary[w]
+                kind = "extraordinary" if close else "not a plain grid vertex"
+                message = (f"{mesh.vertex_name(w)} next to extraordinary {name} is {kind}: the faces "
+                           f"around a star point must be surrounded by plain four-valent vertices "
+                           f"(the star points are too close; refine the T-mesh)")
+                raise _too_close(mesh, message, vertex=w) if close else mesh.error(message, vertex=w)
+    owner = {}
+    for v, (faces, spokes, diags, _) in out.items():
+        for w in [v] + spokes + diags:
+            if w in owner and owner[w] != v:
+                raise _too_close(mesh, f"extraordinary {mesh.vertex_name(owner[w])} and {mesh.vertex_name(v)} share "
+                                 f"the neighbour {mesh.vertex_name(w)}: star points must be at least three "
+                                 f"edges apart (refine the T-mesh)", vertex=w)
+            owner[w] = v
+    return out
+
+
+def behind(d: np.ndarray) -> np.ndarray:
+    """The interval behind a star point along each spoke: the mean of the spokes two steps
+    away on either side (the opposite spoke at valence 4). It serves the rules and the
+    functions on the spoke itself; off the spoke the T-mesh's own intervals apply
+    (``StarZone.behind_rows``)."""
+    n = len(d)
+    return np.array([0.5 * (d[(j + 2) % n] + d[(j - 2) % n]) for j in range(n)])
+
+
+def _vertex_to_chart(walker: Walker, A: int, f: int, chart_map):
+    """The map from vertex A's own frame (the one its local knots are in) to the chart in
+    which face f has ``chart_map``."""
+    topo = walker.topo
+    loop = [int(x) for x in walker.mesh.faces[f]]
+    i = loop.index(A)
+    a = topo.fan_position[(f, i)]
+    q = (a - topo.out_dir(f, i)) % 4
+    px, py = rot(q, *topo.pos[f][i])
+    to_vertex = (q, -px, -py)
+    m = compose(chart_map, inverse(to_vertex))
+    return (m[0], complex(m[1]).real, complex(m[2]).real)
+
+
+def build_zone(walker: Walker, v: int, star, knots, Pw: np.ndarray) -> StarZone:
+    """The construction for star v: charts of its two rings of faces, the W0 functions with
+    their T-spline knots (knot ``behind`` the star along its spokes), the subdivision of
+    levels 0 -> 1 -> 2 (plain children kept as functions of their own) and the
+    stationary configuration beyond."""
+    mesh, topo = walker.mesh, walker.topo
+    faces, spokes, diags, d = star
+    n = len(faces)
+    b = behind(d)
+    chart = {}
+    for j, f in enumerate(faces):
+        i = [int(x) for x in mesh.faces[f]].index(v)
+        q = (-topo.out_dir(f, i)) % 4
+        px, py = rot(q, *topo.pos[f][i])
+        chart[f] = (j, (q, -complex(px).real, -complex(py).real))
+    zone = StarZone(v, n, list(faces), list(spokes), list(diags), d, b, chart, set(faces))
+    # the second ring, each face in its sector's chart (reached across edges not at the star)
+    members = {g for w in spokes + diags for g, _ in topo.fan[w]}
+    for j, f in enumerate(faces):
+        stack = [f]
+        while stack:
+            g = stack.pop()
+            mg = chart[g][1]
+            loop = mesh.faces[g]
+            for k in range(len(loop)):
+                if v in (int(loop[k]), int(loop[(k + 1) % len(loop)])):
+                    continue
+                hit = walker.cross_map(g, k)
+                if hit is None or hit[0] in chart or hit[0] not in members:
+                    continue
+                h, m_hg = hit
+                m = compose(mg, m_hg)
+                m = (m[0], complex(m[1]).real, complex(m[2]).real)
+                x0, x1, y0, y1 = (complex(c).real for c in walker.face_rect(h, m))
+                tol = 1e-9 * max(d)
+                if x0 >= -tol and y0 >= -tol:             # in sector j
+                    chart[h] = (j, m)
+                    stack.append(h)
+    missing = members - set(chart)
+    if missing:
+        g = min(missing)
+        raise mesh.error(f"{mesh.face_name(g)} next to extraordinary {mesh.vertex_name(v)} does not fit "
+                         f"the star's sectors", g)
+    # W0: the star in every sector's chart, s_j and q_j in sector j's, their T-spline knots
+    W = 2 * n + 1
+    eye = np.eye(W)
+    fns, e, gx, gy = [], np.zeros(n), np.zeros(n), np.zeros(n)
+    for j in range(n):
+        m = chart[faces[j]][1]
+        sx, sy = (np.asarray(k).real for k in knots.in_frame(spokes[j], inverse(_vertex_to_chart(
+            walker, spokes[j], faces[j], m))))
+        qx, qy = (np.asarray(k).real for k in knots.in_frame(diags[j], inverse(_vertex_to_chart(
+            walker, diags[j], faces[j], m))))
+        sx = sx.copy()
+        sx[0] = -b[j]                                   # the ray through the star
+        e[j] = sx[3] - sx[2]
+        gx[j] = qx[3] - qx[2]
+        gy[j] = qy[3] - qy[2]
+        fns.append(Fn(j, d[j], 0.0, sx, sy, eye[1 + j]))
+        fns.append(Fn(j, d[j], d[(j + 1) % n], qx, qy, eye[1 + n + j]))
+    # the W1 functions are B-splines with one knot vector each: the knot lines beyond the
+    # star's neighbours must continue across its first ring (no T-junction on the sides of
+    # the second ring's faces that meet the first ring's corners)
+    tol = 1e-9 * float(max(d))
+    for j in range(n):
+        beyond = (e[j], gx[j], gy[(j - 1) % n])
+        if max(beyond) - min(beyond) > tol:
+            raise mesh.error(f"a T-junction within two rings of faces of extraordinary {mesh.vertex_name(v)} "
+                             f"(beyond {mesh.vertex_name(spokes[j])}: the knot intervals next along spoke "
+                             f"{j} and its two neighbours are {', '.join(f'{x:g}' for x in beyond)}): the "
+                             f"T-NURCC construction needs the knot lines across the star's second ring "
+                             f"to continue; move the T-junction one face further out", vertex=spokes[j])
+    for j in range(n):
+        xk = np.array([-2 * b[j], -b[j], 0.0, d[j], d[j] + e[j]])
+        yk = np.array([-(d[(j - 1) % n] + e[(j - 1) % n]), -d[(j - 1) % n], 0.0, d[(j + 1) % n],
+                       d[(j + 1) % n] + e[(j + 1) % n]])
+        fns.append(Fn(j, 0.0, 0.0, xk, yk, eye[0]))
+    rows1, plain1 = zone.step(0, eye, fns, e, gx, gy)
+    # W1 as functions: their outermost knots in the second ring, where the T-mesh's are
+    zone.w1 = zone.level_fns(rows1, 1, beyond=(e, gx, gy))
+    rows2, plain2 = zone.step(1, rows1, zone.w1, *zone.self_similar())
+    zone.d1, zone.d2 = _merge(plain1), _merge(plain2)
+    zone.points = Pw[zone.w0]
+    zone.rows2 = rows2
+    return zone
+
+
+def _merge(fns: list) -> list:
+    """Children with the same knots (the same function) summed into one."""
+    out = {}
+    for f in fns:
+        key = (f.sector, tuple(np.round(f.xk, 12)), tuple(np.round(f.yk, 12)))
+        if key in out:
+            out[key].row = out[key].row + f.row
+        else:
+            out[key] = Fn(f.sector, f.cx, f.cy, f.xk, f.yk, f.row.copy())
+    return list(out.values())
+
+
+def direct_functions(zone: StarZone, walker: Walker) -> dict:
+    """Per face of the star's two rings, the plain B-splines the construction adds there:
+    [(homogeneous point (4,), knots along the face's x, along its y)] in the face's own frame.
+    First ring: the children split off at levels 1 and 2; second ring: those of level 1 and
+    the level-1 functions next to the star (which are plain B-splines there)."""
+    out = {}
+    tol = 1e-9 * float(zone.d.max())
+    for g, (j, m) in zone.chart.items():
+        rect = tuple(complex(c).real for c in walker.face_rect(g, m))
+        cands = zone.d1 + (zone.d2 if g in zone.ring1 else zone.w1)
+        back = inverse(m)
+        rows = []
+        for f in cands:
+            if f.cx == 0.0 and f.cy == 0.0 and f.sector != j:
+                continue                    # the star's own function lives in each sector's chart
+            k = to_chart(zone.n, f, j)
+            if k is None or not overlaps(k[0], k[1], rect, tol):
+                continue
+            xk, yk = map_knots(np.asarray(k[0]), np.asarray(k[1]), back)
+            rows.append((f.row @ zone.points, np.asarray(xk).real, np.asarray(yk).real))
+        out[g] = rows
+    return out
+
+
+@dataclass
+class _Pieces:
+    """What a star's subdivided part needs besides its points (the same for every star with
+    the same valence and spoke intervals, up to scale): the stationary matrix A, the
+    configuration's share of the limit point ``xinf``, the tangent masks, and the Bezier
+    matrices Z (cells, 16, K) of the level-2 functions on the ring faces of every sector."""
+    A: np.ndarray
+    xinf: np.ndarray
+    masks: tuple
+    spectrum: np.ndarray
+    face_index: dict
+    breaks: dict
+    first_cell: dict
+    Z: np.ndarray
+    Zinf: np.ndarray
+
+
+_PIECES: dict = {}
+
+
+def _pieces(zone: StarZone) -> _Pieces:
+    n = zone.n
+    key = (n, tuple(np.round(zone.d / zone.d.max(), 13)))
+    hit = _PIECES.get(key)
+    if hit is not None and abs(hit[0] - zone.d.max()) <= 1e-13 * zone.d.max():
+        return hit[1]
+    from .blending import bezier_1d
+    from .eigen import _tangent_masks
+    A, fns = zone.stationary()
+    K = A.shape[0]
+    Wn = 2 * n + 1
+    xinf = np.ones(K)
+    xinf[Wn:] = np.linalg.solve(np.eye(K - Wn) - A[Wn:, Wn:], A[Wn:, :Wn] @ np.ones(Wn))
+    AW = A[:Wn, :Wn]
+    masks = tuple(_tangent_masks(AW, f"extraordinary {zone.v}"))
+    spectrum = np.sort(np.abs(np.linalg.eigvals(AW)))[::-1]
+    # Bezier matrices of the level-2 functions on the ring faces of every sector, each face
+    # cut at the knot lines of the functions on it (those of functions next to the star fall
+    # between the grid lines where the spokes' intervals differ)
+    faces = [(p, q) for p in range(4) for q in range(4) if p >= 2 or q >= 2]
+    face_index = {pq: k for k, pq in enumerate(faces)}
+    tol = 1e-12 * float(zone.d.max())
+    breaks, first_cell, Zc = {}, {}, []
+    ncells = 0
+    for j in range(n):
+        hx, hy = zone.d[j] / 4, zone.d[(j + 1) % n] / 4
+        for k, (p, q) in enumerate(faces):
+            rect = (p * hx, (p + 1) * hx, q * hy, (q + 1) * hy)
+            cols, XK, YK = [], [], []
+            for f in fns:
+                if f.cx == 0.0 and f.cy == 0.0 and f.sector != j:
+                    continue                            # the star, in another sector's chart
+                kn = to_chart(n, f, j)
+                if kn is not None and overlaps(kn[0], kn[1], rect, tol):
+                    cols.append(int(np.argmax(f.row)))
+                    XK.append(kn[0])
+                    YK.append(kn[1])
+            XK, YK = np.array(XK, float).reshape(-1, 5), np.array(YK, float).reshape(-1, 5)
+            xs = np.array(sorted({0.0, 1.0} | {round((x - rect[0]) / hx, 12) for x in XK.ravel()
+                                                if rect[0] + tol < x < rect[1] - tol}))
+            ys = np.array(sorted({0.0, 1.0} | {round((y - rect[2]) / hy, 12) for y in YK.ravel()
+                                                if rect[2] + tol < y < rect[3] - tol}))
+            breaks[(j, k)] = (xs, ys)
+            first_cell[(j, k)] = ncells
+            Cx = bezier_1d(XK, rect[0] + xs[:-1] * hx, rect[0] + xs[1:] * hx)        # (m, cx, 4)
+            Cy = bezier_1d(YK, rect[2] + ys[:-1] * hy, rect[2] + ys[1:] * hy)        # (m, cy, 4)
+            onehot = np.zeros((len(cols), K))
+            np.add.at(onehot, (np.arange(len(cols)), cols), 1.0)
+            T = np.einsum("mbj,mai,mk->bajik", Cy, Cx, onehot)   # (cy, cx, 4 [y], 4 [x], K)
+            Zc.append(T.reshape(-1, 16, K))
+            ncells += T.shape[0] * T.shape[1]
+    Z = np.concatenate(Zc)                                       # (cells, 16, K)
+    out = _Pieces(A, xinf, masks, spectrum, face_index, breaks, first_cell, Z, Z @ xinf)
+    if len(_PIECES) > 64:
+        _PIECES.clear()
+    _PIECES[key] = (float(zone.d.max()), out)
+    return out
+
+
+class StarLevels:
+    """The subdivided part of one star, levels 2 .. MAX_LEVEL: the configuration of every
+    level (differences from its limit), the Bezier pieces of its functions on the twelve
+    faces of each sector's ring [2, 4]^2 (one matrix per face: the same at every level)."""
+
+    def __init__(self, zone: StarZone):
+        n = zone.n
+        self.zone = zone
+        pieces = _pieces(zone)
+        A, xinf = pieces.A, pieces.xinf
+        K = A.shape[0]
+        Wn = 2 * n + 1
+        X2 = np.zeros((K, zone.points.shape[1]))
+        X2[:Wn] = zone.rows2 @ zone.points
+        AW = A[:Wn, :Wn]
+        _, sv, vt = np.linalg.svd((AW - np.eye(Wn)).T)
+        l0 = vt[-1] / vt[-1].sum()
+        self.limit = l0 @ X2[:Wn]                                  # (4,)
+        dm = np.empty((MAX_LEVEL + 1, K, X2.shape[1]))
+        dm[2] = X2 - np.outer(xinf, self.limit)
+        for m in range(3, MAX_LEVEL + 1):
+            dm[m] = A @ dm[m - 1]
+        self.d = dm
+        L = self.limit
+        X = L[:3] / L[3]
+        t1, t2 = ((mk @ X2[:Wn])[:3] - X * (mk @ X2[:Wn])[3] for mk in pieces.masks)
+        nrm = np.cross(t1, t2)
+        self.normal = nrm / max(np.linalg.norm(nrm), 1e-300)
+        self.spectrum = pieces.spectrum
+        self.face_index, self.breaks, self.first_cell = pieces.face_index, pieces.breaks, pieces.first_cell
+        self.face_lut = np.full((4, 4), -1, dtype=int)          # (p, q) of the ring -> face index
+        for (pp, qq), k in self.face_index.items():
+            self.face_lut[pp, qq] = k
+        self.Z, self.Zinf = pieces.Z, pieces.Zinf
+
+    def evaluate(self, sector: np.ndarray, x: np.ndarray, y: np.ndarray):
+        """Homogeneous value and derivatives (6, 4, n) with respect to the sector chart's
+        (x, y), and the points at the star itself."""
+        zone = self.zone
+        n = len(x)
+        dx = zone.d[sector]
+        dy = zone.d[(sector + 1) % zone.n]
+        u, w = np.maximum(x / dx, 0.0), np.maximum(y / dy, 0.0)
+        mx = np.maximum(u, w)
+        at_vertex = mx < 2.0 ** (2 - MAX_LEVEL)
+        mx = np.where(at_vertex, 2.0 ** (2 - EPS_LEVEL), mx)
+        u = np.where(at_vertex, mx, u)
+        w = np.where(at_vertex, mx, w)
+        _, ex = np.frexp(mx)                       # mx in [2^(ex-1), 2^ex)
+        level = np.clip(2 - ex, 2, MAX_LEVEL)
+        scale = np.ldexp(1.0, level)
+        P, Q = u * scale, w * scale
+        p = np.clip(np.floor(P), 0, 3).astype(int)
+        q = np.clip(np.floor(Q), 0, 3).astype(int)
+        inner = (p < 2) & (q < 2)
+        p = np.where(inner, 2, p)                  # rounding at the ring's inner edge
+        a, b = np.clip(P - p, 0.0, 1.0), np.clip(Q - q, 0.0, 1.0)
+        face = self.face_lut[p, q]
+        # the sub-cell of the face, and the point in it
+        cell = np.empty(n, dtype=int)
+        sxw, syw = np.ones(n), np.ones(n)
+        for key in set(zip(sector.tolist(), face.tolist())):
+            sel = np.nonzero((sector == key[0]) & (face == key[1]))[0]
+            xs, ys = self.breaks[key]
+            ix = np.clip(np.searchsorted(xs, a[sel], side="right") - 1, 0, len(xs) - 2)
+            iy = np.clip(np.searchsorted(ys, b[sel], side="right") - 1, 0, len(ys) - 2)
+            cell[sel] = self.first_cell[key] + iy * (len(xs) - 1) + ix
+            sxw[sel] = xs[ix + 1] - xs[ix]
+            syw[sel] = ys[iy + 1] - ys[iy]
+            a[sel] = np.clip((a[sel] - xs[ix]) / sxw[sel], 0.0, 1.0)
+            b[sel] = np.clip((b[sel] - ys[iy]) / syw[sel], 0.0, 1.0)
+        # one product per (cell, level) met, not per point
+        key, inv = np.unique(cell * (MAX_LEVEL + 1) + level, return_inverse=True)
+        uc, ul = np.divmod(key, MAX_LEVEL + 1)
+        ctrl = np.einsum("npc,ncd->npd", self.Z[uc], self.d[ul])[inv.reshape(-1)]      # (n, 16, 4)
+        # the limit's share separately, relative to its first coefficient: where it is
+        # constant its derivatives are exactly zero (no rounding of O(1) terms near S)
+        zinf = self.Zinf[cell]
+        z0 = zinf[:, :1]
+        bs = bernstein(3, a)                                       # (n, 3, 4)
+        bt = bernstein(3, b)
+        H = np.empty((6, 4, n))
+        # the differences and the limit's share beyond the cell's first coefficient together
+        # (exactly the differences where that share is constant), then the Bernstein sums as
+        # batched 4 x 4 products: (n, c, j, i) @ (n, 1, i, 1) -> (n, c, j)
+        c4 = (ctrl + (zinf - z0)[:, :, None] * self.limit[None, None, :]).reshape(n, 4, 4, -1)
+        X = c4.transpose(0, 3, 1, 2)                                # (n, c, j [y], i [x])
+        along_x = [np.matmul(X, bs[:, da][:, None, :, None])[..., 0] for da in range(3)]   # (n, c, j)
+        for k, (da, db) in enumerate(DERIVS):
+            H[k] = np.matmul(along_x[da], bt[:, db][:, :, None])[..., 0].T
+        H[0] += z0[:, 0][None, :] * self.limit[:, None]
+        sx, sy = scale / (dx * sxw), scale / (dy * syw)
+        H[1] *= sx
+        H[2] *= sy
+        H[3] *= sx * sx
+        H[4] *= sx * sy
+        H[5] *= sy * sy
+        if at_vertex.any():
+            H[0][:, at_vertex] = self.limit[:, None]
+        return H, at_vertex
+
+
+_ROT = np.array([[[1.0, 0.0], [0.0, 1.0]], [[0.0, -1.0], [1.0, 0.0]], [[-1.0, 0.0], [0.0, -1.0]],
+                 [[0.0, 1.0], [-1.0, 0.0]]])         # twalk.rot(q) as matrices
+
+
+class StarCells:
+    """Cells on the first faces of stars: the subdivided part (``StarLevels``) of sector
+    ``sector``, a cell's (a, b) in [0, 1]^2 being the chart point R_q (w_a a, w_b b) + shift
+    (``entries``: (star, sector, q, shift (2,), (w_a, w_b)))."""
+
+    kind = "star"
+
+    def __init__(self, stars: list, entries: list):
+        self.stars = stars                                          # StarLevels
+        self.star = np.array([e[0] for e in entries], dtype=int)
+        self.sector = np.array([e[1] for e in entries], dtype=int)
+        self.rot = np.array([e[2] for e in entries], dtype=int)
+        self.shift = np.array([e[3] for e in entries], dtype=float).reshape(-1, 2)
+        self.width = np.array([e[4] for e in entries], dtype=float).reshape(-1, 2)
+
+    def __len__(self) -> int:
+        return len(self.star)
+
+    def evaluate(self, idx: np.ndarray, a: np.ndarray, b: np.ndarray):
+        n = len(a)
+        H = np.empty((6, 4, n))
+        at_vertex = np.zeros(n, bool)
+        normal = np.zeros((n, 3))
+        J = _ROT[self.rot[idx]] * self.width[idx][:, None, :]      # d chart / d (a, b)
+        cx = J[:, 0, 0] * a + J[:, 0, 1] * b + self.shift[idx, 0]
+        cy = J[:, 1, 0] * a + J[:, 1, 1] * b + self.shift[idx, 1]
+        for s in np.unique(self.star[idx]):
+            sel = np.nonzero(self.star[idx] == s)[0]
+            Hs, atv = self.stars[s].evaluate(self.sector[idx[sel]], cx[sel], cy[sel])
+            H[:, :, sel] = _chain(Hs, J[sel])
+            if atv.any():
+                at_vertex[sel[atv]] = True
+                normal[sel[atv]] = self.stars[s].normal
+        return H, (at_vertex if at_vertex.any() else None), (normal if at_vertex.any() else None)
+
+
+class SumCells:
+    """Cells whose surface is the sum of two groups' homogeneous parts (a Bezier piece of
+    plain B-splines and the subdivided part of a star): cell i is cell ``first[i]`` of
+    ``a`` plus cell ``second[i]`` of ``b``."""
+
+    kind = "sum"
+
+    def __init__(self, a, first, b, second):
+        self.a, self.b = a, b
+        self.first = np.asarray(first, dtype=int)
+        self.second = np.asarray(second, dtype=int)
+
+    def __len__(self) -> int:
+        return len(self.first)
+
+    def evaluate(self, idx: np.ndarray, a: np.ndarray, b: np.ndarray):
+        Ha, _, _ = self.a.evaluate(self.first[idx], a, b)
+        Hb, at_vertex, normal = self.b.evaluate(self.second[idx], a, b)
+        return Ha + Hb, at_vertex, normal

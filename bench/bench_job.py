@@ -11,9 +11,10 @@ every core it is allowed (the path and fcl use both); the machine and its load a
 1. Reference: OpenCAMLib's ``BatchDropCutter`` (the drop-cutter behind FreeCAD CAM's 3D
    Surface: three axes, no holder) on a 51,200-triangle tessellation of the keycap with the
    same ball, CL points on an xy grid as dense as the job's path points: CL points/s.
-2. The keycap main job (``python3 -m tsplcam job``: model to G-code, smooth collision-checked
-   five-axis axes) timed by the job's own clock (``seconds`` in report.json, interpreter
-   start-up excluded): path points/s against 1.
+2. The keycap main job (``python3 -m tsplcam job --no-verify --no-html-report``: model to
+   G-code, smooth collision-checked five-axis axes) timed by the job's own clock (``seconds``
+   in report.json, interpreter start-up excluded): path points/s against 1; then once with
+   the job's default outputs (surface verification and HTML report), stage by stage.
 3. The ``keycap_mold`` sample as the README runs it (ball1_keycap, scallop 0.02, LinuxCNC
    A/C table) and with a long tool (the same ball on a 15 mm stick-out), by the job's clock.
 4. Tool-axis search: the keycap job's collision questions replayed on a checker with the
@@ -112,11 +113,16 @@ finally:
 """
 
 
-def job(args: list, out: str):
+# model to G-code: the job's surface verification and HTML report (on by default) are timed
+# apart (section 2b)
+G_CODE_ONLY = ["--no-verify", "--no-html-report"]
+
+
+def job(args: list, out: str, outputs=G_CODE_ONLY):
     """(report.json, peak RSS in MB of the job process, of its largest worker) of
-    ``python3 -m tsplcam job``."""
+    ``python3 -m tsplcam job`` (by default without verification and HTML report)."""
     mem = os.path.join(os.path.dirname(out), os.path.basename(out) + "-memory.json")
-    subprocess.run([PY, "-c", WRAP, mem, "job", "--out", out] + args, cwd=REPO_DIR, check=True,
+    subprocess.run([PY, "-c", WRAP, mem, "job", "--out", out] + list(outputs) + args, cwd=REPO_DIR, check=True,
                    stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     with open(mem, encoding="utf-8") as fh:
         own, workers = json.load(fh)
@@ -297,6 +303,11 @@ def main(argv=None) -> int:
     print("  stages: " + ", ".join(f"{k[:-2]} {tm[k]:.2f} s" for k in ("model_s", "plan_s", "path_s", "orientation_s",
                                                                        "post_s") if k in tm)
           + " (tool axes: checker, smoothing, checks again)")
+    full, _, _ = job([], os.path.join(tmp, "full"), outputs=[])
+    tm = full["timing"]
+    print(f"  2b. the same job with its default outputs (surface verification, HTML report): "
+          f"{full['seconds']:.2f} s, of which verification {tm.get('verify_s', 0):.2f} s, report "
+          f"{tm.get('report_s', 0):.2f} s (one run)")
 
     if not args.quick:
         print("\n3. keycap_mold sample by the job's clock (ball 0.5 mm, scallop 0.02 mm, linuxcnc_xyzac_trt)")

@@ -130,6 +130,26 @@ class AgreesWithFcl(unittest.TestCase):
         B = np.cos(ang)[:, None] * A + np.sin(ang)[:, None] * v
         self.assertFalse(ch.collides_fcl(C, B).any())
 
+    def test_some_parts(self):
+        """A question about some parts (shank and holder, the clearance's): the broad phase's
+        answers and collides_parts's (also below a growth, with that growth's masks) equal
+        fcl's with the tool mesh of those parts alone."""
+        rng = np.random.default_rng(9)
+        for checker, path in ((self.mold, self.mold_path), (self.keycap, self.keycap_path)):
+            only, _ = checker.clearance_parts()
+            self.assertEqual(only, 0b1110)                  # every part but the flutes
+            C, A = random_poses(path, 1500, rng, spread=0.1, tilt=np.radians(75))
+            for grow in (0.2, 0.5):
+                ref = checker._fcl(C, A, "tool", grow, np.full(len(C), only))
+                st = checker.broad.decide(C, A, grow, only)
+                self.assertEqual(int(((st == FREE) & ref).sum()), 0)
+                self.assertEqual(int(((st == HIT) & ~ref).sum()), 0)
+                hit, masks = checker.collides_parts(C, A, grow, only=only)
+                np.testing.assert_array_equal(hit, ref)
+                self.assertFalse((masks & ~only).any())
+            below, _ = checker.collides_parts(C, A, 0.35, parts=(0.5, masks), only=only)
+            np.testing.assert_array_equal(below, checker._fcl(C, A, "tool", 0.35, np.full(len(C), only)))
+
     def test_batches_agree_with_fcl(self):
         """collides (broad phase, swing cones, fcl) returns fcl's answers, batch after batch."""
         rng = np.random.default_rng(8)

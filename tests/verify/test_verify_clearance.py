@@ -17,8 +17,8 @@ from tsplcam.model.bspline import bspline_patch
 from tsplcam.orientation import CollisionChecker, load_tool
 from tsplcam.orientation.collision import axis_quaternions, tool_primitives
 from tsplcam.orientation.tool import ToolPart
-from tsplcam.verify.orientation import (ClearanceGauge, clearance_levels, clearance_profile, offset_profile,
-                                        revolved_mesh)
+from tsplcam.verify.orientation import (ClearanceGauge, clearance_levels, clearance_profile, min_clearance,
+                                        offset_profile, revolved_mesh)
 
 
 def big_plane(half=120.0):
@@ -80,6 +80,21 @@ class PlaneClearance(unittest.TestCase):
         self.check([p.name for p in self.tool.parts() if p.name != "flutes"], got)
         with self.assertRaises(ValueError):
             ClearanceGauge(self.checker, ["spindle"])
+
+    def test_smallest_clearance_is_the_shank_and_holder(self):
+        """The orientation metrics' smallest clearance: of the parts that keep it (the flutes,
+        which come closer at the steep poses, are left out), the closed form's smallest over
+        the poses, and the same pose and value as fcl.distance measured at every pose."""
+        keep = [p.name for p in self.tool.parts() if p.name != "flutes"]
+        want = np.array([closed_form(self.tool, keep, t) for t in self.theta])
+        flutes = np.array([closed_form(self.tool, ["flutes"], t) for t in self.theta])
+        self.assertLess(flutes.min(), want.min() - 0.3)
+        got, at = min_clearance(self.checker, self.centers, self.axes)
+        only, margin = self.checker.clearance_parts()
+        every = self.checker.clearance_of(self.centers, self.axes, only) + margin
+        self.assertEqual(at, int(np.argmin(every)))
+        self.assertAlmostEqual(got, float(every.min()), delta=1e-12)
+        self.assertAlmostEqual(got, float(want.min()), delta=self.checker.margin + 1e-3)
 
 
 

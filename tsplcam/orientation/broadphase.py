@@ -77,6 +77,7 @@ CONE_WANT = np.radians(2.0)   # free cones the bounds are refined for
 EXACT_LEVELS = 3              # the exact pass splits a part's sphere this often at most
 EXACT_COST = 3                # spheres of the exact pass that cost about as much as one fcl query
 EXACT_PROBE = 2000            # spheres the exact pass is tried on before its gain counts
+GRID_ROWS = 16384             # points a distance grid reads at a time
 _CORNERS = np.array([(i, j, k) for i in (0, 1) for j in (0, 1) for k in (0, 1)], np.int64)
 DIRECTIONS = np.array([(i, j, k) for i in (-1, 0, 1) for j in (-1, 0, 1) for k in (-1, 0, 1)
                        if (i, j, k) != (0, 0, 0)], float)
@@ -231,7 +232,14 @@ class DistanceGrid:
     def __call__(self, x: np.ndarray):
         """(lower bound, sample index or -1, inside the grid) at points x: the best over the
         eight nodes around x of the node's bound less the distance to it; the sample is the
-        nearest node's."""
+        nearest node's. ``GRID_ROWS`` points at a time (the (rows, 8) temporaries then stay in
+        the processor's cache)."""
+        if len(x) > GRID_ROWS:
+            parts = [self._read(x[s:s + GRID_ROWS]) for s in range(0, len(x), GRID_ROWS)]
+            return tuple(np.concatenate(c) for c in zip(*parts))
+        return self._read(x)
+
+    def _read(self, x: np.ndarray):
         f = (x - self.origin) / self.h
         k0 = np.floor(f).astype(np.int64)
         ins = np.all((k0 >= 0) & (k0 < self.shape - 1), axis=1)
@@ -461,11 +469,14 @@ class BroadPhase:
         z = _dot(w, A)
         return z, np.maximum(_dot(w, w) - z * z, 0.0)
 
-    def _inside(self, q, C, A, prof: Profile) -> np.ndarray:
-        """Points q strictly inside some part's inscribed frustum at poses (C, A)."""
+    def _inside(self, q, C, A, prof: Profile, parts: int = -1) -> np.ndarray:
+        """Points q strictly inside some part's inscribed frustum at poses (C, A), of the parts
+        in the bit mask ``parts`` (-1 all)."""
         z, rad2 = self._tool_frame(q, C, A)
         out = np.zeros(z.shape, bool)
         for k in range(len(prof.z0)):
+            if not (parts >> k) & 1:
+                continue
             r = prof.rin(k, np.clip(z, prof.z0[k], prof.z1[k])) - EPS
             out |= (z >= prof.z0[k] + EPS) & (z <= prof.z1[k] - EPS) & (rad2 < r * r)
         return out
@@ -479,7 +490,7 @@ class BroadPhase:
             out &= (z < prof.z0[k] - EPS) | (z > prof.z1[k] + EPS) | (rad2 > r * r)
         return out
 
-    def _hits(self, status, q, j, pose, C, A, prof) -> np.ndarray:
+    def _hits(self, status, q, j, pose, C, A, prof, parts: int = -1) -> np.ndarray:
         """Mark HIT the poses where sample q (index j) lies inside the tool and its piece of
         the mesh reaches outside the tool (module doc): the piece's anchors are tried one
         direction at a time until one lies outside. Returns the witnesses (pose, sample)."""
@@ -487,7 +498,7 @@ class BroadPhase:
         q, j, pose = q[live], j[live], pose[live]
         if len(pose) == 0:
             return np.zeros((0, 2), np.int64)
-        cand = self._inside(q, C[pose], A[pose], prof)
+        cand = self._inside(q, C[pose], A[pose], prof, parts)
         if not cand.any():
             return np.zeros((0, 2), np.int64)
         pairs = np.unique(np.column_stack([pose[cand], self.sample_comp[j[cand]], j[cand]]), axis=0)
@@ -560,7 +571,7 @@ class BroadPhase:
             if len(slot) == 0:
                 break
 
-    def _exact_pass(self, C, A, cov: SphereCover, status, unresolved, phi, cell):
+    def _exact_pass(self, C, A, cov: SphereCover, status, unresolved, phi, cell, parts: int = -1):
         """The parts the grids left unresolved, asked again with exact bounds
         (:meth:`exact_bound`: the samples, and near the mesh their triangles), level by level
         from one sphere per part: a sphere is split while no smaller one is known to fail
@@ -588,11 +599,11 @@ class BroadPhase:
             if k and got * EXACT_COST < spent:                 # the first few did not pay
                 break
             sel = np.isin(pose, grp)
-            g, a = self._exact_run(C, A, cov, status, unresolved, phi, cell, pose[sel], part[sel], grp)
+            g, a = self._exact_run(C, A, cov, status, unresolved, phi, cell, pose[sel], part[sel], grp, parts)
             got, spent = got + g, spent + a
         self._exact_gain = (0.5 * decided + got, 0.5 * asked + spent)
 
-    def _exact_run(self, C, A, cov, status, unresolved, phi, cell, pose, part, members):
+    def _exact_run(self, C, A, cov, status, unresolved, phi, cell, pose, part, members, parts: int = -1):
         """One run of the exact pass over the (pose, part) pairs given, all of the poses
         ``members``; returns (poses decided, spheres asked)."""
         prof = cov.prof
@@ -614,7 +625,7 @@ class BroadPhase:
             bad = np.nonzero(~cert)[0]
             has = bad[near[bad] >= 0]
             if len(has):
-                found = self._hits(status, self.samples[near[has]], near[has], pose[has], C, A, prof)
+                found = self._hits(status, self.samples[near[has]], near[has], pose[has], C, A, prof, parts)
                 self._remember(cell, found)
             hopeless = bad[(eb[bad] + half[bad] < rmin[bad] + EPS)
                            | (level >= np.minimum(cov.max_level[part[bad]], EXACT_LEVELS))]
@@ -630,12 +641,15 @@ class BroadPhase:
         unresolved[done] = False
         return len(done) + int((status[members] == HIT).sum()) - before, self.stats["exact"] - asked0
 
-    def decide(self, C: np.ndarray, A: np.ndarray, grow: float = 0.0) -> np.ndarray:
-        """FREE (0), HIT (1) or UNKNOWN (-1) per pose (ball centre, unit axis)."""
+    def decide(self, C: np.ndarray, A: np.ndarray, grow: float = 0.0, parts: int = -1) -> np.ndarray:
+        """FREE (0), HIT (1) or UNKNOWN (-1) per pose (ball centre, unit axis), for the tool
+        parts in the bit mask ``parts`` (-1 all: the others are left out of the question; its
+        free cones are then neither kept nor given, its hits hold for the whole tool)."""
         C = np.asarray(C, float).reshape(-1, 3)
         A = np.asarray(A, float).reshape(-1, 3)
         n = len(C)
         grow = float(grow)
+        parts = int(parts)
         status = np.full(n, UNKNOWN, np.int8)
         cov = self._cover(grow)
         self.open_parts = np.ones((n, len(cov.prof.z0)), bool)
@@ -660,14 +674,15 @@ class BroadPhase:
         r, k = np.nonzero(wit >= 0)
         if len(r):
             before = status == HIT
-            self._hits(status, self.samples[wit[r, k]], wit[r, k], todo[r], C, A, prof)
+            self._hits(status, self.samples[wit[r, k]], wit[r, k], todo[r], C, A, prof, parts)
             self.stats["witness"] += int((~before & (status == HIT)).sum())
         todo = np.nonzero(status == UNKNOWN)[0]
         phi = np.full(n, np.inf)                 # free cone of each pose, from its spheres
         K = len(prof.z0)
         unresolved = np.zeros((n, K), bool)      # parts the spheres could not clear
-        pose = np.repeat(todo, K)
-        part = np.tile(np.arange(K), len(todo))
+        asked = np.nonzero((parts >> np.arange(K)) & 1)[0]
+        pose = np.repeat(todo, len(asked))
+        part = np.tile(asked, len(todo))
         seg = np.zeros(len(pose), np.int64)
         level = 0
         while len(pose):
@@ -682,7 +697,7 @@ class BroadPhase:
                 # the grid node's sample: inside the tool (hit)
                 jr = jg[rest]
                 has = jr >= 0
-                found = self._hits(status, self.samples[jr[has]], jr[has], pose[rest[has]], C, A, prof)
+                found = self._hits(status, self.samples[jr[has]], jr[has], pose[rest[has]], C, A, prof, parts)
                 self._remember(cell, found)
                 # the sphere is split while it can be, and a pose left with spheres the grids
                 # cannot clear is asked again with exact bounds (_exact_pass), else of fcl
@@ -702,7 +717,7 @@ class BroadPhase:
         if grow == 0.0:
             # (a grown tool is what the clearance measurement asks, of poses within a hair
             # of the surface by construction: there the pass decided one pose in 70 spheres)
-            self._exact_pass(C, A, cov, status, unresolved, phi, cell)
+            self._exact_pass(C, A, cov, status, unresolved, phi, cell, parts)
         free = np.zeros(n, bool)
         free[todo] = True
         free &= (status != HIT) & ~unresolved.any(axis=1)
@@ -712,7 +727,7 @@ class BroadPhase:
         self.open_parts = unresolved
         self.open_phi = np.where(unresolved.any(axis=1), phi, np.inf)
         # remember the new free cones (replacing each centre's narrower one)
-        fi = np.nonzero(free & (phi > 0))[0]
+        fi = np.nonzero(free & (phi > 0))[0] if parts == -1 or parts == (1 << K) - 1 else np.zeros(0, int)
         if len(fi):
             self._store_cones(slot[fi], A[fi], np.cos(np.minimum(phi[fi], np.pi)), grow)
         st = self.stats

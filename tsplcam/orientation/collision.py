@@ -41,7 +41,7 @@ import numpy as np
 
 from ..errors import GeometryError, InputError
 from ..toolpath.parallel import map_pieces, worker_count
-from .broadphase import HIT, UNKNOWN, BroadPhase, Profile
+from .broadphase import FREE, HIT, UNKNOWN, BroadPhase, Profile
 from .tool import Tool
 
 try:                                   # python-fcl is a dependency of this stage only
@@ -93,8 +93,9 @@ def _plane_distance(P, A, B, C):
     return np.abs(np.einsum("ij,ij->i", P - A, nrm)) / np.where(ln > 0, ln, 1.0)
 
 
-def _patch_grid_error(patch, gu: np.ndarray, gv: np.ndarray) -> tuple[float, float]:
-    """Chordal error of the grid gu x gv measured on the patch: (along u, along v) maxima.
+def _patch_grid_error(patch, gu: np.ndarray, gv: np.ndarray) -> tuple[float, float, object]:
+    """Chordal error of the grid gu x gv measured on the patch: (along u, along v) maxima,
+    and the grid's own points (SurfacePoints, the tessellation's vertices once it is fine).
 
     Sampled at edge midpoints (distance from the chord) and at the quarter points of each
     cell's diagonals (distance from the triangle planes): the error of a smooth surface
@@ -105,7 +106,8 @@ def _patch_grid_error(patch, gu: np.ndarray, gv: np.ndarray) -> tuple[float, flo
     mv = 0.5 * (gv[:-1] + gv[1:])
     # u-edges: (mu, gv)
     Pm = patch.evaluate_grid(mu, gv).P.reshape(nu, nv + 1, 3)
-    G = patch.evaluate_grid(gu, gv).P.reshape(nu + 1, nv + 1, 3)
+    grid = patch.evaluate_grid(gu, gv)
+    G = grid.P.reshape(nu + 1, nv + 1, 3)
     eu = np.linalg.norm(Pm - 0.5 * (G[:-1] + G[1:]), axis=2).max()
     Pm = patch.evaluate_grid(gu, mv).P.reshape(nu + 1, nv, 3)
     ev = np.linalg.norm(Pm - 0.5 * (G[:, :-1] + G[:, 1:]), axis=2).max()
@@ -116,7 +118,7 @@ def _patch_grid_error(patch, gu: np.ndarray, gv: np.ndarray) -> tuple[float, flo
         # the points of every cell form a tensor grid: one grid evaluation
         P = patch.evaluate_grid(gu[:-1] + fa * np.diff(gu), gv[:-1] + fb * np.diff(gv)).P
         ec = max(ec, _plane_distance(P, *(t.reshape(-1, 3) for t in tri)).max())
-    return max(eu, ec), max(ev, ec)
+    return max(eu, ec), max(ev, ec), grid
 
 
 def tessellate_patch(patch, tolerance: float, max_cells: int = 4000) -> tuple:
@@ -132,7 +134,7 @@ def tessellate_patch(patch, tolerance: float, max_cells: int = 4000) -> tuple:
     for _ in range(12):
         gu = np.linspace(0.0, 1.0, nu + 1)
         gv = np.linspace(0.0, 1.0, nv + 1)
-        eu, ev = _patch_grid_error(patch, gu, gv)
+        eu, ev, sp = _patch_grid_error(patch, gu, gv)
         if eu <= tolerance and ev <= tolerance:
             break
         if eu > tolerance:
@@ -144,7 +146,6 @@ def tessellate_patch(patch, tolerance: float, max_cells: int = 4000) -> tuple:
                                 f"{max_cells} grid lines (error {max(eu, ev):.3g} mm at {nu} x {nv})")
     else:                                                      # pragma: no cover
         raise GeometryError(f"{patch.name}: tessellation did not reach {tolerance:g} mm")
-    sp = patch.evaluate_grid(gu, gv)
     return np.ascontiguousarray(sp.P), _grid_triangles(nu, nv), np.column_stack([sp.u, sp.v]), max(eu, ev)
 
 
@@ -532,6 +533,58 @@ class CollisionChecker:
             self.checks += len(C)
         return out
 
+    def collides_parts(self, centers, axes, grow: float, parts=None, only: int = -1):
+        """Whether the tool parts in the bit mask ``only`` (-1: every part), grown by ``grow``
+        mm, touch the workpiece: (hits, per pose the bit mask of the parts among them not
+        proven clear). ``parts``: (a larger growth, the masks a call at it gave); then only
+        those parts are asked, of fcl directly (poses that touch at a larger growth lie a
+        hair from the workpiece, where the broad phase seldom decides), with every part added
+        whose circumscribed frustum is not inside the larger growth's (:meth:`parts_within`).
+        With every part, the same answers as :meth:`collides`."""
+        C = np.asarray(centers, float).reshape(-1, 3)
+        A = np.asarray(axes, float).reshape(-1, 3)
+        C, A = (np.ascontiguousarray(x) for x in np.broadcast_arrays(C, A)) if len(C) != len(A) else (C, A)
+        grow = float(grow)
+        every = (1 << len(self.tool.parts())) - 1
+        only = every if only == -1 else int(only) & every
+        known = np.zeros(len(C), bool)                   # hits proven by the broad phase
+        if parts is not None:
+            larger, masks = parts
+            masks = (np.asarray(masks, np.int64) | (every & ~self.parts_within(grow, float(larger)))) & only
+        elif self.broad is None:
+            masks = np.full(len(C), only, np.int64)
+        else:
+            st = self.broad.decide(C, A, grow, only)
+            bits = self.broad.open_parts @ (1 << np.arange(self.broad.open_parts.shape[1]))
+            # (a pose proved hit may have parts the broad phase never looked at)
+            masks = np.where(st == FREE, 0, np.where(st == UNKNOWN, bits, every)) & only
+            if only == every:                            # its hit proofs may come from any part
+                known = st == HIT
+        out = known.copy()
+        ask = np.nonzero((masks != 0) & ~known)[0]
+        if len(ask):
+            out[ask] = self._fcl(C[ask], A[ask], "tool", grow, masks[ask])
+        return out, masks
+
+    def clearance_parts(self) -> tuple[int, float]:
+        """(bit mask, margin) of the tool parts that keep the clearance: every part but the
+        flutes, grown by ``margin``; a tool of flutes alone: the flutes, grown by the cutting
+        margin. The flutes cut, so next to the contact they come as close as the tilt puts them
+        and keep only the cutting margin from other surfaces."""
+        names = [p.name for p in self.tool.parts()]
+        keep = [k for k, n in enumerate(names) if n != "flutes"]
+        if not keep:
+            return (1 << len(names)) - 1, self.cutting_margin
+        return int(sum(1 << k for k in keep)), self.margin
+
+    def parts_within(self, grow: float, larger: float) -> int:
+        """Bit mask of the tool parts whose circumscribed frustum grown by ``grow`` lies inside
+        the one grown by ``larger`` (so a part the broad phase cleared at ``larger`` is clear
+        at ``grow``): the polygons' corners move with the growth's side count."""
+        a, b = self.profile(grow), self.profile(larger)
+        ok = ((a.rout0 <= b.rout0) & (a.rout1 <= b.rout1) & (a.z0 >= b.z0) & (a.z1 <= b.z1))
+        return int(np.sum(ok.astype(np.int64) << np.arange(len(ok))))
+
     def collides_fcl(self, centers, axes, grow: float = 0.0) -> np.ndarray:
         """:meth:`collides` asked of fcl alone: one BVH-BVH query per pose."""
         C = np.asarray(centers, float).reshape(-1, 3)
@@ -577,10 +630,13 @@ class CollisionChecker:
             out[k] = fcl.collide(obj, wp, req, fcl.CollisionResult()) > 0
         return out
 
-    def clearance_of(self, centers, axes) -> np.ndarray:
-        """Distance (mm) between the tool parts above the ball and the workpiece per pose
-        (fcl.distance on the exact primitives; 0 where they touch). The tool is grown by the
-        margin, so the true distance is this plus ``margin``.
+    def clearance_of(self, centers, axes, parts: int = -1, smallest: bool = False) -> np.ndarray:
+        """Distance (mm) between the tool parts above the ball (those in the bit mask
+        ``parts``, -1 all) and the workpiece per pose (fcl.distance on the exact primitives; 0
+        where they touch). The tool is grown by the margin, so the true distance is this plus
+        ``margin`` (the flutes: ``cutting_margin``). ``smallest``: only the smallest distance
+        over the poses is wanted; a pose shown farther than the smallest one measured before it
+        is not measured (inf), so the smallest value and its first pose are the same.
 
         Parts are measured nearest first by the broad phase's lower bound of their distance;
         a part is skipped when that bound, or a collision query of the part grown by the
@@ -591,34 +647,59 @@ class CollisionChecker:
         C = np.asarray(centers, float).reshape(-1, 3)
         A = np.asarray(axes, float).reshape(-1, 3)
         Q = axis_quaternions(A)
-        out = np.empty(len(Q))
+        out = np.full(len(Q), np.inf)
         req = fcl.DistanceRequest()
         bound = (np.zeros((len(C), len(self._prims))) if self.broad is None
                  else self.broad.part_lower_bounds(C, A))
-        parts = [p for p in self.tool.parts()]
+        mask = int(parts)
+        parts = self.tool.parts()
+        floor = np.inf                              # the smallest distance measured so far
         for k in range(len(Q)):
-            best = np.inf
+            best = floor if smallest else np.inf
+            own = np.inf
             for j in np.argsort(bound[k], kind="stable"):
                 if bound[k, j] >= best:
                     break
+                if not (mask >> int(j)) & 1:
+                    continue
                 _, obj, z = self._prims[j]
-                if np.isfinite(best):
-                    g = _part_margin(parts[j].name, self.margin, self.cutting_margin) + best
-                    grown = fcl.CollisionObject(frustum_shape(parts[j].r0 + g, parts[j].r1 + g,
-                                                              parts[j].z1 - parts[j].z0 + 2 * best,
-                                                              self.polygon_tolerance), fcl.Transform())
-                    grown.setQuatRotation(Q[k])
-                    grown.setTranslation(C[k] + z * A[k])
-                    if not fcl.collide(grown, self._wp, self._req, fcl.CollisionResult()):
-                        continue
+                if np.isfinite(best) and not self._touches_grown(parts[j], z, Q[k], C[k], A[k], best):
+                    continue
                 obj.setQuatRotation(Q[k])
                 obj.setTranslation(C[k] + z * A[k])
-                d = fcl.distance(obj, self._wp, req, fcl.DistanceResult())
-                best = min(best, max(d, 0.0))
+                d = max(fcl.distance(obj, self._wp, req, fcl.DistanceResult()), 0.0)
+                best, own = min(best, d), min(own, d)
                 if best <= 0:
                     break
-            out[k] = best
+            out[k] = own
+            floor = min(floor, own)
         return out
+
+    def _touches_grown(self, part, z, q, c, a, by: float) -> bool:
+        """Whether some point within ``by`` mm of the part's primitive lies in the workpiece
+        (a part it clears lies farther than ``by``): the points within ``by`` of a frustum lie
+        in the frustum whose radii grow by ``by / cos`` of the side's slope (the side's offset
+        measured across the axis), or in a disc of radius ``by`` more and thickness ``2 by`` at
+        either end; for a cylinder, one cylinder ``2 by`` longer."""
+        m = _part_margin(part.name, self.margin, self.cutting_margin)
+        length = part.z1 - part.z0
+        slope = abs(part.r1 - part.r0) / max(length, 1e-12)
+        if slope < 1e-12:
+            shapes = [(frustum_shape(part.r0 + m + by, part.r1 + m + by, length + 2 * by, self.polygon_tolerance), z)]
+        else:
+            side = m + by * np.sqrt(1.0 + slope * slope)
+            shapes = [(frustum_shape(part.r0 + side, part.r1 + side, length, self.polygon_tolerance), z),
+                      (frustum_shape(part.r0 + m + by, part.r0 + m + by, 2 * by, self.polygon_tolerance),
+                       z - 0.5 * length),
+                      (frustum_shape(part.r1 + m + by, part.r1 + m + by, 2 * by, self.polygon_tolerance),
+                       z + 0.5 * length)]
+        for shape, h in shapes:
+            grown = fcl.CollisionObject(shape, fcl.Transform())
+            grown.setQuatRotation(q)
+            grown.setTranslation(c + h * a)
+            if fcl.collide(grown, self._wp, self._req, fcl.CollisionResult()):
+                return True
+        return False
 
     # --- one pose, for messages ------------------------------------------------------------
     def hit(self, center, axis) -> Hit | None:

@@ -4,10 +4,12 @@ rotary travel and machining time.
 * collisions: poses whose flutes, shank or holder touch the workpiece, asked of fcl with
   the tool as primitives (``CollisionChecker.collides_exact``: Cylinder / Convex), and
   ball gouges (the shrunk-ball check); both must be 0.
-* smallest clearance: fcl distance between the tool parts and the tessellated workpiece
-  (plus the margin the checker grew the tool by). Computed exactly only on the poses that
-  come closest: the tool is grown by 0.05, 0.1, 0.2 ... mm until some pose touches, the
-  growth is bisected until a few dozen touch, and fcl.distance runs on those.
+* smallest clearance: fcl distance between the tool parts that keep the clearance (shank
+  and holder; the flutes cut, so next to the contact they come as close as the tilt puts
+  them) and the tessellated workpiece, plus the margin the checker grew them by. Computed
+  exactly only on the poses that come closest: the smallest of the growths 0.05, 0.1, 0.2 ...
+  mm at which some pose touches is found, the growth is bisected until a few dozen touch, and
+  fcl.distance runs on those.
 * angular change per block ``arccos(K_i . K_i+1)``: largest and mean over cutting blocks;
   total variation; per mm.
 * rotary travel for an A/C table machine: ``sum |dA| + |dC|`` with the machine poses of
@@ -69,37 +71,73 @@ class OrientationMetrics:
 
 
 def min_clearance(checker, centers, axes, levels=(0.05, 0.1, 0.2, 0.5, 1.0, 2.0, 5.0, 10.0, 20.0),
-                  exact: int = 40):
-    """(smallest clearance in mm, index of the pose) over the poses, see the module.
+                  exact: int = 40, first: int = 3):
+    """(smallest clearance in mm, index of the pose) over the poses, see the module: of the
+    parts that keep the clearance (every part but the flutes, :meth:`clearance_parts`), the
+    distance plus the margin they were grown by.
 
-    The tool is grown level by level until some pose touches; between that level and the one
-    before, the growth is bisected among the touching poses until at most ``exact`` are left
-    (the closest pose touches at every growth above its clearance), and fcl.distance runs on
-    those only: each distance query costs tens of ms against a fine workpiece mesh."""
+    The smallest growth among ``levels`` at which some pose touches is found, the growth is
+    bisected between it and the level below among the touching poses until at most ``exact``
+    are left (the closest pose touches at every growth above its clearance), and fcl.distance
+    runs on those only: each distance query costs tens of ms against a fine workpiece mesh.
+    A pose that touches at some growth touches at every larger one, so every pose is asked
+    only at ``levels[first]`` (and above while none touches there), and below a growth where
+    poses touched only those poses, about the parts the broad phase could not clear there;
+    the bisection's first step is taken before the level below is asked (whatever touches
+    there touches at the step), so that level is asked of fewer poses."""
     C = np.asarray(centers, float)
     A = np.asarray(axes, float)
-    pick, lo, hi = None, 0.0, None
-    for g in levels:
-        hit = checker.collides(C, A, grow=g)
+    levels = sorted(levels)
+    only, margin = checker.clearance_parts()
+    start = min(first, len(levels) - 1)
+    pick, lo, hi, steps = None, 0.0, None, 20
+    for i in range(start, len(levels)):
+        hit, parts = checker.collides_parts(C, A, levels[i], only=only)
         if hit.any():
-            pick, hi = np.nonzero(hit)[0], g
+            pick, hi, parts, top, j = np.nonzero(hit)[0], levels[i], parts[hit], levels[i], i
             break
-        lo = g
+        lo = levels[i]
+
+    def touching(sel, masks, g):
+        return checker.collides_parts(C[sel], A[sel], g, parts=(top, masks), only=only)[0]
+
+    if pick is not None and j == start:
+        while j > 0:
+            below = levels[j - 1]
+            if len(pick) > exact and hi - below >= 1e-4:
+                mid = 0.5 * (below + hi)
+                at_mid = touching(pick, parts, mid)
+                if not at_mid.any():                      # then none touches below either
+                    lo, steps = mid, steps - 1
+                    break
+                p2, m2 = pick[at_mid], parts[at_mid]
+                at_below = touching(p2, m2, below)
+                if not at_below.any():
+                    lo, hi, pick, parts, steps = below, mid, p2, m2, steps - 1
+                    break
+                pick, parts, hi = p2[at_below], m2[at_below], below
+            else:
+                at_below = touching(pick, parts, below)
+                if not at_below.any():
+                    lo = below
+                    break
+                pick, parts, hi = pick[at_below], parts[at_below], below
+            j -= 1
     if pick is None:
         pick = np.arange(len(C))[:: max(1, len(C) // 200)]
     else:
-        for _ in range(20):
+        for _ in range(steps):
             if len(pick) <= exact or hi - lo < 1e-4:
                 break
             mid = 0.5 * (lo + hi)
-            hit = checker.collides(C[pick], A[pick], grow=mid)
+            hit = touching(pick, parts, mid)
             if hit.any():
-                pick, hi = pick[hit], mid
+                pick, hi, parts = pick[hit], mid, parts[hit]
             else:
                 lo = mid
     if len(pick) > 400:
         pick = pick[np.linspace(0, len(pick) - 1, 400).astype(int)]
-    d = checker.clearance_of(C[pick], A[pick]) + checker.margin
+    d = checker.clearance_of(C[pick], A[pick], only, smallest=True) + margin
     k = int(np.argmin(d))
     return float(d[k]), int(pick[k])
 

@@ -392,12 +392,15 @@ def machine_motion(posted, toolpath=None) -> dict:
     J = mo.joints
     info = posted.solution.info
     dtip = np.linalg.norm(np.diff(mo.tip, axis=0), axis=1)
+    dA = np.abs(np.diff(J[:, 3]))
     dC = np.abs(np.diff(J[:, 4]))
     feed_rows = ~mo.rapid[1:]
     out = {"machine": posted.machine.name, "dialect": posted.dialect,
            "time_s": float(posted.time.total_s), "length_feed_time_s": float(posted.time.feed_only_s),
            "time_ratio": float(posted.time.total_s / posted.time.feed_only_s) if posted.time.feed_only_s else 0.0,
-           "tilt_travel_deg": float(info["tilt_travel_deg"]), "c_travel_deg": float(info["rotary_travel_deg"]),
+           # travel over the feed blocks as posted (the joints the program writes: the
+           # inverse kinematics' own values carry their last bits, which vary with the heap)
+           "tilt_travel_deg": round(float(dA[feed_rows].sum()), 6), "c_travel_deg": round(float(dC[feed_rows].sum()), 6),
            "branch_flips": int(info["branch_flips"]), "pole_points": int(info["singular_points"]),
            "max_c_step_deg": float(dC[feed_rows].max()) if feed_rows.any() else 0.0,
            "c_steps_over_10_deg_within_0_1_mm": int(np.count_nonzero(feed_rows & (dC > 10.0) & (dtip < 0.1))),

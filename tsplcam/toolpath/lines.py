@@ -616,23 +616,23 @@ class Placer:
         paper's scallop tuning."""
         h = self.target.h
         trials = []
+        results = []                                      # (factor, result) of every trial
 
         def run(factor):
             tg = self.target.scaled(factor)
             pos, ratios, full = self.place(tg)
             trials.append((h * factor, len(pos)))
-            return pos, ratios, full, tg
+            results.append((factor, (pos, ratios, full, tg)))
+            return results[-1][1]
 
         best = run(1.0)
         n0 = len(best[0])
         if parity is not None and n0 % 2 != parity:
             found = None
-            results = []                                  # (factor, result) of every trial
             hi_f, lo_f = 1.0, None                        # hi_f: count <= n0; lo_f: count > n0+1
             for j in range(1, 10):
                 f = 1.0 - 0.1 * j
                 res = run(f)
-                results.append((f, res))
                 n = len(res[0])
                 if n == n0 + 1:
                     found = res
@@ -648,7 +648,6 @@ class Placer:
                         break
                     f = 0.5 * (hi_f + lo_f)
                     res = run(f)
-                    results.append((f, res))
                     n = len(res[0])
                     if n == n0 + 1:
                         found = res
@@ -659,7 +658,7 @@ class Placer:
                         lo_f = f
             if found is None:
                 # the count jumped over n0 + 1 (the accepted steps move in steps too): take
-                # the largest scallop whose count has the needed parity
+                # the largest scallop whose count has the needed parity (not the first trial's)
                 ok = [(f, res) for f, res in results if len(res[0]) % 2 == parity]
                 if not ok:
                     raise GeometryError(f"{self.frame.patch.name}: scallop tuning found no line "

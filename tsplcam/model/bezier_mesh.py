@@ -47,6 +47,7 @@ from ..errors import InputError
 from .basis import bernstein, to_bernstein
 from .cells import BezierCells
 from .components import components, groups, merge_points
+from .decompose import trace_lines
 from .diffgeom import rational_from_homogeneous
 from .model import ExtraordinaryPoint, Model
 from .patch import EdgeNeighbour, Patch
@@ -398,20 +399,20 @@ class _Mesh:
 
 # -- patch boundaries -------------------------------------------------------------------
 def _trace(mesh: _Mesh, singular: set) -> tuple[set, dict]:
-    """Segments on patch boundaries, and the cuts needed where a line meets a T-junction by
-    its stem: {piece: (side, tau)}."""
+    """Segments on patch boundaries (``decompose.trace_lines``), and the cuts needed where a
+    line meets a T-junction by its stem: {piece: (side, tau)}."""
     traced = {key for key, users in mesh.seg_users.items() if len(users) == 1}
     splits: dict[int, tuple[int, float]] = {}
     elements_of = {key: {u[0] for u in users} for key, users in mesh.seg_users.items()}
 
-    def run(v: int, key):
-        for _ in range(len(mesh.seg_users) + 1):
-            if key in traced:
-                return
-            traced.add(key)
+    def line(v: int, key):
+        """The steps of a line from v along segment ``key``: straight through regular
+        vertices, along the bar of T-junctions; ("stem", piece, side, tau) where it meets a
+        T-junction by its stem."""
+        while True:
             w = key[1] if key[0] == v else key[0]
-            if w in singular or mesh.boundary[w]:
-                return
+            yield ("edge", v, w)
+            yield ("vertex", w, None if mesh.boundary[w] else key)
             if mesh.kind[w] == "regular":
                 nxt = [k for k in mesh.v_segs[w] if k != key and not (elements_of[k] & elements_of[key])]
                 if len(nxt) != 1:
@@ -422,16 +423,20 @@ def _trace(mesh: _Mesh, singular: set) -> tuple[set, dict]:
                 e, m, k = mesh.side_uses[w][0]
                 verts = mesh.side_verts[e][m]
                 bars = [_key(verts[k - 1], verts[k]), _key(verts[k], verts[k + 1])]
-                if key in bars:
-                    v, key = w, bars[1 - bars.index(key)]
-                else:
-                    splits.setdefault(e, (m, mesh.side_tau[e][m][k]))
+                if key not in bars:
+                    yield ("stem", e, m, mesh.side_tau[e][m][k])
                     return
+                v, key = w, bars[1 - bars.index(key)]
 
-    for v in sorted(singular):
-        for key in mesh.v_segs[v]:
-            if len(mesh.seg_users[key]) == 2:
-                run(v, key)
+    def walks(v: int):
+        return (line(v, key) for key in mesh.v_segs[v] if len(mesh.seg_users[key]) == 2)
+
+    def on_stem(step) -> bool:
+        _, e, m, tau = step
+        splits.setdefault(e, (m, tau))
+        return False
+
+    trace_lines(singular, walks, traced, on_stem)
     return traced, splits
 
 

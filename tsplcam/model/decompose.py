@@ -77,44 +77,55 @@ def decompose_tmesh(walker: Walker, creases: set | None = None, crease_starts: s
 
 
 # -- patch boundaries -------------------------------------------------------------------------
+def trace_lines(starts, walks, traced: set, on_chord, boundary_edge=None) -> None:
+    """The patch boundaries' tracing, for every mesh that is split into patches (T-meshes
+    and cages here, Bezier extractions in ``bezier_mesh.py``): from every start vertex
+    (ascending), every line of ``walks(v)`` runs until it reaches another start or the open
+    boundary, or runs onto a line traced before. A line is a sequence of steps, as
+    ``Walker.walk`` gives them: ("edge", a, w, ...) along the edge from a to w, ("vertex",
+    w, d) at vertex w (d None where the line cannot go on), and any other step crosses a
+    face, handed to ``on_chord(step)``, which records it and says whether the line goes on.
+    ``traced`` collects the edges (a, b), a < b; ``boundary_edge(a, w)`` stops a line at an
+    edge of the open boundary (unless those edges are in ``traced`` from the start)."""
+    for v in sorted(starts):
+        for steps in walks(v):
+            for step in steps:
+                if step[0] == "vertex":
+                    if step[1] in starts or step[2] is None:
+                        break
+                elif step[0] == "edge":
+                    a, w = step[1], step[2]
+                    key = (min(a, w), max(a, w))
+                    if key in traced or (boundary_edge is not None and boundary_edge(a, w)):
+                        break
+                    traced.add(key)
+                elif not on_chord(step):
+                    break
+
+
 def _trace_all(walker: Walker, starts: set, creases: set | None = None):
-    """Lines from the start vertices: traced edges and chords through faces."""
-    topo = walker.topo
+    """Lines from the start vertices: traced edges and chords through faces (a line that
+    meets a T-junction by its stem goes on through the face, straight across)."""
+    topo, lex = walker.topo, walker.lex
     traced = set(creases or ())
     chords = defaultdict(lambda: ([], []))         # face -> (x values of vertical, y of horizontal)
-    for v in sorted(starts):
+
+    def walks(v):
         T = int(topo.total[v])
-        dirs = range(1, T) if topo.boundary[v] else range(T)
-        for th in dirs:
-            _trace(walker, v, th, starts, traced, chords)
+        for th in (range(1, T) if topo.boundary[v] else range(T)):
+            yield walker.walk(v, th, walker.straight)
+
+    def on_chord(step):
+        _, f, x0, y0, dirf = step
+        xs, ys = chords[f]
+        values, c = (ys, y0) if dirf % 2 == 0 else (xs, x0)
+        if any(lex.eq(c, x) for x in values):
+            return False
+        values.append(c)
+        return True
+
+    trace_lines(starts, walks, traced, on_chord, topo.is_boundary_edge)
     return traced, chords
-
-
-def _trace(walker: Walker, v, th, starts, traced, chords):
-    """One line from start vertex v in direction th, until it reaches another start, the
-    boundary, or a line traced before."""
-    topo, lex = walker.topo, walker.lex
-    for step in walker.walk(v, th, walker.straight):
-        if step[0] == "vertex":
-            if step[1] in starts or step[2] is None:
-                return
-        elif step[0] == "edge":
-            _, a, w, _ = step
-            key = (min(a, w), max(a, w))
-            if key in traced or topo.is_boundary_edge(a, w):
-                return
-            traced.add(key)
-        else:
-            _, f, x0, y0, dirf = step
-            xs, ys = chords[f]
-            if dirf % 2 == 0:
-                if any(lex.eq(y0, y) for y in ys):
-                    return
-                ys.append(y0)
-            else:
-                if any(lex.eq(x0, x) for x in xs):
-                    return
-                xs.append(x0)
 
 
 # -- regions ----------------------------------------------------------------------------------

@@ -14,7 +14,7 @@ T-junctions and the extraordinary points are, is recovered here from the geometr
    corners and a side a T-junction, any other corner count an extraordinary point (EP) of
    that valence. A boundary vertex with two corners is regular, otherwise a patch corner
    (valence 1) or a boundary EP (valence 3 and more).
-3. **Patch boundaries** (shang2020 section 2.2, as ``decompose.py`` for cages): lines from
+3. **Patch boundaries** (shang2020 section 2.2, traced by ``decompose.trace_lines``): lines from
    every EP and boundary corner, straight through regular vertices and along the bar of
    T-junctions, to the next such point or the boundary. A line that reaches a T-junction
    by its stem continues straight through the element across (which is split there
@@ -47,7 +47,7 @@ from ..errors import InputError
 from .basis import bernstein, to_bernstein
 from .cells import BezierCells
 from .components import components, groups, merge_points
-from .decompose import trace_lines
+from .decompose import region_frames, trace_lines
 from .diffgeom import rational_from_homogeneous
 from .model import ExtraordinaryPoint, Model
 from .patch import EdgeNeighbour, Patch
@@ -489,11 +489,10 @@ class _NotRectangle(Exception):
 
 
 def _frames(mesh: _Mesh, comp: list[int], traced: set) -> dict:
-    side_dir = {comp[0]: [0, 1, 2, 3]}
-    queue = [comp[0]]
-    while queue:
-        e = queue.pop()
-        de = side_dir[e]
+    """The patch edge each side of each piece faces (``decompose.region_frames``): a
+    neighbour across a segment faces the other way there, turning the same way round
+    when the two run the segment in opposite directions, else mirrored."""
+    def steps(e, de):
         he = 1 if de[1] == (de[0] + 1) % 4 else -1
         for m in range(4):
             for k in range(len(mesh.side_verts[e][m]) - 1):
@@ -505,12 +504,11 @@ def _frames(mesh: _Mesh, comp: list[int], traced: set) -> dict:
                 f, mf, _ = other
                 hf = he if mesh.reversed_pair((e, m, k), other) else -he
                 d0 = (de[m] + 2) % 4
-                want = [(d0 + hf * ((j - mf) % 4)) % 4 for j in range(4)]
-                if f not in side_dir:
-                    side_dir[f] = want
-                    queue.append(f)
-                elif side_dir[f] != want:
-                    raise _NotRectangle
+                yield f, [(d0 + hf * ((j - mf) % 4)) % 4 for j in range(4)]
+
+    side_dir = region_frames(comp[0], [0, 1, 2, 3], steps)
+    if side_dir is None:
+        raise _NotRectangle
     return side_dir
 
 

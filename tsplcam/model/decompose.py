@@ -13,9 +13,12 @@ to start a line from) is cut by seeding a line at one of its vertices, and all i
 again, so every closed or periodic part still becomes four-sided patches.
 
 ``decompose_tmesh`` is the algorithm; ``decompose`` gives a quad cage's patches as
-rectangles of faces (``cage.py``). Bezier extractions (``bezier_mesh.py``) follow the same
-rule but carry no knot intervals until their patches are known (they are solved per patch
-afterwards), so that module groups its elements on the mesh's topology alone.
+rectangles of faces (``cage.py``). Bezier extractions (``bezier_mesh.py``) carry no knot
+intervals until their patches are known (they are solved per patch afterwards), so they
+share the two steps that need none: ``trace_lines`` (the lines, over steps each mesh gives:
+``Walker.walk`` here, element segments there) and ``region_frames`` (every piece's frame in
+its region, failing where a region is twisted); the rectangle checks are each mesh's own
+(here in knot units, there on the lines' order alone).
 """
 from __future__ import annotations
 
@@ -206,33 +209,47 @@ def _piece_rect(lex: Lex, piece, fm: dict):
     return xs[0], xs[1], ys[0], ys[1]
 
 
-def _place(walker: Walker, pieces, comp, adj) -> dict | None:
-    """Maps of the region's faces into the frame of its first face, or None when two ways
-    across the region give a face two different maps."""
-    fm = {pieces[comp[0]][0]: (0, 0j, 0j)}
-    queue = [comp[0]]
-    seen = {comp[0]}
+def region_frames(first, frame, steps, same=None, key=None) -> dict | None:
+    """Every piece's frame in its region, for every mesh split into patches (T-meshes and
+    cages here, Bezier extractions in ``bezier_mesh.py``): the frame of the piece ``first``
+    is ``frame``; ``steps(piece, its frame)`` yields (a piece joined to it inside the region,
+    that piece's frame seen from this one). None when two ways across the region give a
+    piece two frames (the region is twisted or wraps around: not a rectangle). ``key(piece)``
+    names what a frame belongs to (a face holds one frame for all its pieces), ``same``
+    compares frames (``==`` by default)."""
+    key = key or (lambda piece: piece)
+    frames = {key(first): frame}
+    queue = [first]
+    seen = {first}
     while queue:
         P = queue.pop()
-        fP = pieces[P][0]
-        for Q, f, j in adj[P]:
-            fQ = pieces[Q][0]
-            # crossing from fP to fQ over f's loop edge j (f is one of the two)
-            if f == fP:
-                _, mg = walker.cross_map(fP, j)              # map fQ -> fP
-                mq = compose(fm[fP], mg)
-            else:
-                _, mg = walker.cross_map(fQ, j)              # map fP -> fQ
-                mq = compose(fm[fP], inverse(mg))
-            old = fm.get(fQ)
+        for Q, fq in steps(P, frames[key(P)]):
+            old = frames.get(key(Q))
             if old is None:
-                fm[fQ] = mq
-            elif not walker.same_map(old, mq):
+                frames[key(Q)] = fq
+            elif not (same(old, fq) if same else old == fq):
                 return None
             if Q not in seen:
                 seen.add(Q)
                 queue.append(Q)
-    return fm
+    return frames
+
+
+def _place(walker: Walker, pieces, comp, adj) -> dict | None:
+    """Maps of the region's faces into the frame of its first face, or None when two ways
+    across the region give a face two different maps."""
+    def steps(P, mP):
+        fP = pieces[P][0]
+        for Q, f, j in adj[P]:
+            # crossing from fP to fQ over f's loop edge j (f is one of the two)
+            if f == fP:
+                _, mg = walker.cross_map(fP, j)              # map fQ -> fP
+                yield Q, compose(mP, mg)
+            else:
+                _, mg = walker.cross_map(pieces[Q][0], j)    # map fP -> fQ
+                yield Q, compose(mP, inverse(mg))
+
+    return region_frames(comp[0], (0, 0j, 0j), steps, walker.same_map, key=lambda p: pieces[p][0])
 
 
 def _tiling(dec: Decomposition, comp):

@@ -14,7 +14,7 @@ T-junctions and the extraordinary points are, is recovered here from the geometr
    corners and a side a T-junction, any other corner count an extraordinary point (EP) of
    that valence. A boundary vertex with two corners is regular, otherwise a patch corner
    (valence 1) or a boundary EP (valence 3 and more).
-3. **Patch boundaries** (shang2020 section 2.2, as ``decompose.py`` for cages): lines from
+3. **Patch boundaries** (shang2020 section 2.2, traced by ``decompose.trace_lines``): lines from
    every EP and boundary corner, straight through regular vertices and along the bar of
    T-junctions, to the next such point or the boundary. A line that reaches a T-junction
    by its stem continues straight through the element across (which is split there
@@ -47,6 +47,7 @@ from ..errors import InputError
 from .basis import bernstein, to_bernstein
 from .cells import BezierCells
 from .components import components, groups, merge_points
+from .decompose import region_frames, trace_lines
 from .diffgeom import rational_from_homogeneous
 from .model import ExtraordinaryPoint, Model
 from .patch import EdgeNeighbour, Patch
@@ -398,20 +399,20 @@ class _Mesh:
 
 # -- patch boundaries -------------------------------------------------------------------
 def _trace(mesh: _Mesh, singular: set) -> tuple[set, dict]:
-    """Segments on patch boundaries, and the cuts needed where a line meets a T-junction by
-    its stem: {piece: (side, tau)}."""
+    """Segments on patch boundaries (``decompose.trace_lines``), and the cuts needed where a
+    line meets a T-junction by its stem: {piece: (side, tau)}."""
     traced = {key for key, users in mesh.seg_users.items() if len(users) == 1}
     splits: dict[int, tuple[int, float]] = {}
     elements_of = {key: {u[0] for u in users} for key, users in mesh.seg_users.items()}
 
-    def run(v: int, key):
-        for _ in range(len(mesh.seg_users) + 1):
-            if key in traced:
-                return
-            traced.add(key)
+    def line(v: int, key):
+        """The steps of a line from v along segment ``key``: straight through regular
+        vertices, along the bar of T-junctions; ("stem", piece, side, tau) where it meets a
+        T-junction by its stem."""
+        while True:
             w = key[1] if key[0] == v else key[0]
-            if w in singular or mesh.boundary[w]:
-                return
+            yield ("edge", v, w)
+            yield ("vertex", w, None if mesh.boundary[w] else key)
             if mesh.kind[w] == "regular":
                 nxt = [k for k in mesh.v_segs[w] if k != key and not (elements_of[k] & elements_of[key])]
                 if len(nxt) != 1:
@@ -422,16 +423,20 @@ def _trace(mesh: _Mesh, singular: set) -> tuple[set, dict]:
                 e, m, k = mesh.side_uses[w][0]
                 verts = mesh.side_verts[e][m]
                 bars = [_key(verts[k - 1], verts[k]), _key(verts[k], verts[k + 1])]
-                if key in bars:
-                    v, key = w, bars[1 - bars.index(key)]
-                else:
-                    splits.setdefault(e, (m, mesh.side_tau[e][m][k]))
+                if key not in bars:
+                    yield ("stem", e, m, mesh.side_tau[e][m][k])
                     return
+                v, key = w, bars[1 - bars.index(key)]
 
-    for v in sorted(singular):
-        for key in mesh.v_segs[v]:
-            if len(mesh.seg_users[key]) == 2:
-                run(v, key)
+    def walks(v: int):
+        return (line(v, key) for key in mesh.v_segs[v] if len(mesh.seg_users[key]) == 2)
+
+    def on_stem(step) -> bool:
+        _, e, m, tau = step
+        splits.setdefault(e, (m, tau))
+        return False
+
+    trace_lines(singular, walks, traced, on_stem)
     return traced, splits
 
 
@@ -484,11 +489,10 @@ class _NotRectangle(Exception):
 
 
 def _frames(mesh: _Mesh, comp: list[int], traced: set) -> dict:
-    side_dir = {comp[0]: [0, 1, 2, 3]}
-    queue = [comp[0]]
-    while queue:
-        e = queue.pop()
-        de = side_dir[e]
+    """The patch edge each side of each piece faces (``decompose.region_frames``): a
+    neighbour across a segment faces the other way there, turning the same way round
+    when the two run the segment in opposite directions, else mirrored."""
+    def steps(e, de):
         he = 1 if de[1] == (de[0] + 1) % 4 else -1
         for m in range(4):
             for k in range(len(mesh.side_verts[e][m]) - 1):
@@ -500,12 +504,11 @@ def _frames(mesh: _Mesh, comp: list[int], traced: set) -> dict:
                 f, mf, _ = other
                 hf = he if mesh.reversed_pair((e, m, k), other) else -he
                 d0 = (de[m] + 2) % 4
-                want = [(d0 + hf * ((j - mf) % 4)) % 4 for j in range(4)]
-                if f not in side_dir:
-                    side_dir[f] = want
-                    queue.append(f)
-                elif side_dir[f] != want:
-                    raise _NotRectangle
+                yield f, [(d0 + hf * ((j - mf) % 4)) % 4 for j in range(4)]
+
+    side_dir = region_frames(comp[0], [0, 1, 2, 3], steps)
+    if side_dir is None:
+        raise _NotRectangle
     return side_dir
 
 

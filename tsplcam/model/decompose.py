@@ -13,9 +13,12 @@ to start a line from) is cut by seeding a line at one of its vertices, and all i
 again, so every closed or periodic part still becomes four-sided patches.
 
 ``decompose_tmesh`` is the algorithm; ``decompose`` gives a quad cage's patches as
-rectangles of faces (``cage.py``). Bezier extractions (``bezier_mesh.py``) follow the same
-rule but carry no knot intervals until their patches are known (they are solved per patch
-afterwards), so that module groups its elements on the mesh's topology alone.
+rectangles of faces (``cage.py``). Bezier extractions (``bezier_mesh.py``) carry no knot
+intervals until their patches are known (they are solved per patch afterwards), so they
+share the two steps that need none: ``trace_lines`` (the lines, over steps each mesh gives:
+``Walker.walk`` here, element segments there) and ``region_frames`` (every piece's frame in
+its region, failing where a region is twisted); the rectangle checks are each mesh's own
+(here in knot units, there on the lines' order alone).
 """
 from __future__ import annotations
 
@@ -77,44 +80,55 @@ def decompose_tmesh(walker: Walker, creases: set | None = None, crease_starts: s
 
 
 # -- patch boundaries -------------------------------------------------------------------------
+def trace_lines(starts, walks, traced: set, on_chord, boundary_edge=None) -> None:
+    """The patch boundaries' tracing, for every mesh that is split into patches (T-meshes
+    and cages here, Bezier extractions in ``bezier_mesh.py``): from every start vertex
+    (ascending), every line of ``walks(v)`` runs until it reaches another start or the open
+    boundary, or runs onto a line traced before. A line is a sequence of steps, as
+    ``Walker.walk`` gives them: ("edge", a, w, ...) along the edge from a to w, ("vertex",
+    w, d) at vertex w (d None where the line cannot go on), and any other step crosses a
+    face, handed to ``on_chord(step)``, which records it and says whether the line goes on.
+    ``traced`` collects the edges (a, b), a < b; ``boundary_edge(a, w)`` stops a line at an
+    edge of the open boundary (unless those edges are in ``traced`` from the start)."""
+    for v in sorted(starts):
+        for steps in walks(v):
+            for step in steps:
+                if step[0] == "vertex":
+                    if step[1] in starts or step[2] is None:
+                        break
+                elif step[0] == "edge":
+                    a, w = step[1], step[2]
+                    key = (min(a, w), max(a, w))
+                    if key in traced or (boundary_edge is not None and boundary_edge(a, w)):
+                        break
+                    traced.add(key)
+                elif not on_chord(step):
+                    break
+
+
 def _trace_all(walker: Walker, starts: set, creases: set | None = None):
-    """Lines from the start vertices: traced edges and chords through faces."""
-    topo = walker.topo
+    """Lines from the start vertices: traced edges and chords through faces (a line that
+    meets a T-junction by its stem goes on through the face, straight across)."""
+    topo, lex = walker.topo, walker.lex
     traced = set(creases or ())
     chords = defaultdict(lambda: ([], []))         # face -> (x values of vertical, y of horizontal)
-    for v in sorted(starts):
+
+    def walks(v):
         T = int(topo.total[v])
-        dirs = range(1, T) if topo.boundary[v] else range(T)
-        for th in dirs:
-            _trace(walker, v, th, starts, traced, chords)
+        for th in (range(1, T) if topo.boundary[v] else range(T)):
+            yield walker.walk(v, th, walker.straight)
+
+    def on_chord(step):
+        _, f, x0, y0, dirf = step
+        xs, ys = chords[f]
+        values, c = (ys, y0) if dirf % 2 == 0 else (xs, x0)
+        if any(lex.eq(c, x) for x in values):
+            return False
+        values.append(c)
+        return True
+
+    trace_lines(starts, walks, traced, on_chord, topo.is_boundary_edge)
     return traced, chords
-
-
-def _trace(walker: Walker, v, th, starts, traced, chords):
-    """One line from start vertex v in direction th, until it reaches another start, the
-    boundary, or a line traced before."""
-    topo, lex = walker.topo, walker.lex
-    for step in walker.walk(v, th, walker.straight):
-        if step[0] == "vertex":
-            if step[1] in starts or step[2] is None:
-                return
-        elif step[0] == "edge":
-            _, a, w, _ = step
-            key = (min(a, w), max(a, w))
-            if key in traced or topo.is_boundary_edge(a, w):
-                return
-            traced.add(key)
-        else:
-            _, f, x0, y0, dirf = step
-            xs, ys = chords[f]
-            if dirf % 2 == 0:
-                if any(lex.eq(y0, y) for y in ys):
-                    return
-                ys.append(y0)
-            else:
-                if any(lex.eq(x0, x) for x in xs):
-                    return
-                xs.append(x0)
 
 
 # -- regions ----------------------------------------------------------------------------------
@@ -195,33 +209,47 @@ def _piece_rect(lex: Lex, piece, fm: dict):
     return xs[0], xs[1], ys[0], ys[1]
 
 
-def _place(walker: Walker, pieces, comp, adj) -> dict | None:
-    """Maps of the region's faces into the frame of its first face, or None when two ways
-    across the region give a face two different maps."""
-    fm = {pieces[comp[0]][0]: (0, 0j, 0j)}
-    queue = [comp[0]]
-    seen = {comp[0]}
+def region_frames(first, frame, steps, same=None, key=None) -> dict | None:
+    """Every piece's frame in its region, for every mesh split into patches (T-meshes and
+    cages here, Bezier extractions in ``bezier_mesh.py``): the frame of the piece ``first``
+    is ``frame``; ``steps(piece, its frame)`` yields (a piece joined to it inside the region,
+    that piece's frame seen from this one). None when two ways across the region give a
+    piece two frames (the region is twisted or wraps around: not a rectangle). ``key(piece)``
+    names what a frame belongs to (a face holds one frame for all its pieces), ``same``
+    compares frames (``==`` by default)."""
+    key = key or (lambda piece: piece)
+    frames = {key(first): frame}
+    queue = [first]
+    seen = {first}
     while queue:
         P = queue.pop()
-        fP = pieces[P][0]
-        for Q, f, j in adj[P]:
-            fQ = pieces[Q][0]
-            # crossing from fP to fQ over f's loop edge j (f is one of the two)
-            if f == fP:
-                _, mg = walker.cross_map(fP, j)              # map fQ -> fP
-                mq = compose(fm[fP], mg)
-            else:
-                _, mg = walker.cross_map(fQ, j)              # map fP -> fQ
-                mq = compose(fm[fP], inverse(mg))
-            old = fm.get(fQ)
+        for Q, fq in steps(P, frames[key(P)]):
+            old = frames.get(key(Q))
             if old is None:
-                fm[fQ] = mq
-            elif not walker.same_map(old, mq):
+                frames[key(Q)] = fq
+            elif not (same(old, fq) if same else old == fq):
                 return None
             if Q not in seen:
                 seen.add(Q)
                 queue.append(Q)
-    return fm
+    return frames
+
+
+def _place(walker: Walker, pieces, comp, adj) -> dict | None:
+    """Maps of the region's faces into the frame of its first face, or None when two ways
+    across the region give a face two different maps."""
+    def steps(P, mP):
+        fP = pieces[P][0]
+        for Q, f, j in adj[P]:
+            # crossing from fP to fQ over f's loop edge j (f is one of the two)
+            if f == fP:
+                _, mg = walker.cross_map(fP, j)              # map fQ -> fP
+                yield Q, compose(mP, mg)
+            else:
+                _, mg = walker.cross_map(pieces[Q][0], j)    # map fP -> fQ
+                yield Q, compose(mP, inverse(mg))
+
+    return region_frames(comp[0], (0, 0j, 0j), steps, walker.same_map, key=lambda p: pieces[p][0])
 
 
 def _tiling(dec: Decomposition, comp):

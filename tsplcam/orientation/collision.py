@@ -702,32 +702,32 @@ class CollisionChecker:
         return False
 
     # --- one pose, for messages ------------------------------------------------------------
+    def _contact(self, obj):
+        """fcl's first contact of ``obj`` (placed) with the workpiece, or None."""
+        res = fcl.CollisionResult()
+        if not fcl.collide(obj, self._wp, fcl.CollisionRequest(num_max_contacts=1, enable_contact=True), res):
+            return None
+        return res.contacts[0]
+
+    def _obstacle(self, triangle: int, part: str, pos) -> Hit:
+        """A hit of tool part ``part`` on workpiece triangle ``triangle`` at ``pos``."""
+        own = int(self.mesh.owner[triangle]) if 0 <= triangle < len(self.mesh.owner) else -1
+        return Hit(part, self.mesh.owners[own] if own >= 0 else "the workpiece",
+                   self.mesh.owner_patch[own] if own >= 0 else None, np.asarray(pos, float))
+
     def hit(self, center, axis) -> Hit | None:
         """What the pose touches (tool part, obstacle), or None when it is free."""
-        q = axis_quaternions(np.asarray(axis, float))[0]
-        self._tool.setQuatRotation(q)
+        self._tool.setQuatRotation(axis_quaternions(np.asarray(axis, float))[0])
         self._tool.setTranslation(np.asarray(center, float))
-        req = fcl.CollisionRequest(num_max_contacts=1, enable_contact=True)
-        res = fcl.CollisionResult()
-        if not fcl.collide(self._tool, self._wp, req, res):
+        c = self._contact(self._tool)
+        if c is None:
             return None
-        c = res.contacts[0]
-        b1, b2 = c.b1, c.b2                  # triangles of o1 (the tool) and o2 (the workpiece)
+        b1 = c.b1                            # triangles of o1 (the tool) and o2 (the workpiece)
         part = self.part_names[int(self._tool_owner[b1])] if 0 <= b1 < len(self._tool_owner) else "tool"
-        own = int(self.mesh.owner[b2]) if 0 <= b2 < len(self.mesh.owner) else -1
-        obstacle = self.mesh.owners[own] if own >= 0 else "the workpiece"
-        patch = self.mesh.owner_patch[own] if own >= 0 else None
-        return Hit(part, obstacle, patch, np.asarray(c.pos, float))
+        return self._obstacle(c.b2, part, c.pos)
 
     def ball_hit(self, center) -> Hit | None:
         """What the shrunk ball touches at this centre, or None."""
         self._ball.setTranslation(np.asarray(center, float))
-        req = fcl.CollisionRequest(num_max_contacts=1, enable_contact=True)
-        res = fcl.CollisionResult()
-        if not fcl.collide(self._ball, self._wp, req, res):
-            return None
-        c = res.contacts[0]
-        b = c.b2 if c.b2 >= 0 else c.b1
-        own = int(self.mesh.owner[b]) if 0 <= b < len(self.mesh.owner) else -1
-        return Hit("ball", self.mesh.owners[own] if own >= 0 else "the workpiece",
-                   self.mesh.owner_patch[own] if own >= 0 else None, np.asarray(c.pos, float))
+        c = self._contact(self._ball)
+        return None if c is None else self._obstacle(c.b2 if c.b2 >= 0 else c.b1, "ball", c.pos)

@@ -347,7 +347,12 @@ def post_program(toolpath: ToolPath, machine, dialect: str | None = None, progre
     motion = Motion(tip=tips, axis=axes, joints=J, rapid=rapid, feed=cmd_feed, inverse_time=inv_time,
                     source=source, move=move)
 
-    time = estimate(J, np.where(rapid, 0.0, t_feed)[1:] * 60.0, machine.max_velocity,
+    # Time the joints as the program positions them (rounded as printed): the unrounded ones
+    # carry last bits that vary from run to run, and an axis's acceleration-limited time grows
+    # with the square root of its move, so a 1e-14 deg wobble would show as 1e-8 s.
+    dl = int(s["decimals"]["linear"])
+    J_printed = np.column_stack([np.round(J[:, :3], dl), np.round(J[:, 3:], da)])
+    time = estimate(J_printed, np.where(rapid, 0.0, t_feed)[1:] * 60.0, machine.max_velocity,
                     machine.max_acceleration, axis_names=machine.axis_names,
                     cut=(move[1:] == Move.CUT), rapid=rapid[1:])
     report(progress, "program", steps - 1, steps)

@@ -399,7 +399,8 @@ def make_job(s: JobSettings, log=None, progress=None, baseline_axes: str = "job"
         if baseline_axes == "job" and s.orientation != "normal":
             renamed = None if progress is None else (
                 lambda stage, done, total: progress("baseline axes" if stage == "tool axes" else stage, done, total))
-            base = make_program(base, model, s, stock=stock, progress=renamed, post=False)
+            base = make_program(base, model, s, stock=stock, progress=renamed, post=False,
+                                checker=job.program.checker)
         job.baseline = base
         timing["baseline_s"] = time.perf_counter() - t
         b = path_metrics(getattr(base, "path", base))

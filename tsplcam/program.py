@@ -141,7 +141,7 @@ class Program:
 
 
 def make_program(path, model, settings: JobSettings, stock=None, progress=None, post: bool = True,
-                 plist=None) -> Program:
+                 plist=None, checker=None) -> Program:
     """Tool axes and machine program of ``path`` (a ToolPath of ``model``) by ``settings``
     (its ``tool``, ``orientation``, ``holder_clearance``, ``smoothing_length``,
     ``rotary_weight``, ``machine`` and ``dialect``).
@@ -151,7 +151,9 @@ def make_program(path, model, settings: JobSettings, stock=None, progress=None, 
     tool axes ("tool axes": poses checked) and the program ("program"), and may raise
     Cancelled to stop; ``post``:
     False stops before the machine program; ``plist``: the processing list, whose steps may
-    carry tool-axis settings for their patch. Raises InputError, CollisionError or
+    carry tool-axis settings for their patch; ``checker``: a CollisionChecker already built
+    for this model, tool, stock and holder clearance (another path of the same job), reused
+    rather than built again. Raises InputError, CollisionError or
     KinematicsError naming the place; a path that collides is never returned."""
     one_blas_thread()
     machine = load_machine(settings)
@@ -166,7 +168,7 @@ def make_program(path, model, settings: JobSettings, stock=None, progress=None, 
                              f"made for {path.tool_radius:g} mm: pick a matching tool or make the path for "
                              "that radius", item="tool")
         program = _orient(path, model, settings, tool, machine,
-                          load_stock(settings) if stock is None else stock, progress, plist)
+                          load_stock(settings) if stock is None else stock, progress, plist, checker)
         program.seconds["orientation_s"] = time.perf_counter() - t
     else:
         program = Program(path)
@@ -181,7 +183,8 @@ def make_program(path, model, settings: JobSettings, stock=None, progress=None, 
     return program
 
 
-def _orient(path, model, settings: JobSettings, tool, machine, stock, progress, plist=None) -> Program:
+def _orient(path, model, settings: JobSettings, tool, machine, stock, progress, plist=None,
+            checker=None) -> Program:
     """Tool axes by the orientation settings (and a processing list's per-step blocks),
     checked again with the same collision checker."""
     from .orientation import CollisionChecker, orient
@@ -195,7 +198,8 @@ def _orient(path, model, settings: JobSettings, tool, machine, stock, progress, 
         blocks = orientation_blocks(plist, settings.processing_list)
         per_patch = step_settings(base, blocks) if blocks else None
     meshes = [] if stock is None else [("stock", stock[0], stock[1])]
-    checker = CollisionChecker(model, tool, meshes=meshes, clearance=settings.holder_clearance)
+    if checker is None:
+        checker = CollisionChecker(model, tool, meshes=meshes, clearance=settings.holder_clearance)
     from .progress import report as tick
     oriented, report = orient(path, model, tool, settings=base, per_patch=per_patch, checker=checker,
                               machine=machine, progress=for_stage(progress, "tool axes"))

@@ -1,0 +1,113 @@
+"""Compiled kernels (numba) for the orientation's sequential loops, with numpy as fallback.
+
+The Viterbi recurrence (:mod:`tsplcam.orientation.viterbi`) is sequential along the path:
+numpy spends one sequence of array calls per point, about 11 us for 36 x 36 states, and
+cannot go lower. The kernel here does the same arithmetic per point, element for element (one
+addition per move, the same minimum, the same relative tie tolerance, the same first-index
+tie-breaking), so the chosen states and their costs are the numpy version's bit for bit, at
+about a tenth of the time.
+
+numba is optional: :func:`kernels` returns None when it cannot be imported (a FreeCAD
+without it) or when ``TSPLCAM_COMPILED=0`` is set, and the callers run their numpy version.
+Kernels are compiled on first use and cached on disk (``cache=True``: in ``__pycache__``
+beside this file, else in the user's cache directory); with neither writable they are
+compiled in each process (``kernels`` still works, just slower to start).
+"""
+from __future__ import annotations
+
+import os
+import time
+
+_STATE = {}
+
+
+def _build():
+    """Compile (lazily) the kernels; None without numba."""
+    if os.environ.get("TSPLCAM_COMPILED", "1") == "0":
+        return None
+    try:
+        import numba
+    except ImportError:
+        return None
+    import numpy as np
+
+    def jit(f):
+        try:
+            return numba.njit(cache=True, nogil=True)(f)
+        except RuntimeError:          # no writable cache location: compile in each process
+            return numba.njit(cache=False, nogil=True)(f)
+
+    @jit
+    def viterbi_steps(acc, node, T, i0, tie, back):
+        """The Viterbi recurrence for points ``i0 .. i0 + len(T) - 1``: ``T[r]`` (S, S) the
+        transitions into point ``i0 + r``; updates ``acc`` (S,) and ``back`` (n, S) in place.
+        Returns -1, or the point at which no state is reachable any more."""
+        B, S = T.shape[0], T.shape[1]
+        tot = np.empty((S, S))
+        m = np.empty(S)
+        nan = np.empty(S, np.bool_)
+        for r in range(B):
+            i = i0 + r
+            m[:] = np.inf
+            nan[:] = False
+            for a in range(S):
+                x = acc[a]
+                for b in range(S):
+                    v = x + T[r, a, b]
+                    tot[a, b] = v
+                    if v < m[b]:
+                        m[b] = v
+                    elif v != v:
+                        nan[b] = True
+            live = False
+            for b in range(S):
+                mb = np.nan if nan[b] else m[b]
+                lim = mb + tie * max(1.0, abs(mb))
+                k = 0
+                for a in range(S):
+                    if tot[a, b] <= lim:
+                        k = a
+                        break
+                back[i, b] = k
+                v = tot[k, b] + node[i, b]
+                acc[b] = v
+                if np.isfinite(v):
+                    live = True
+            if not live:
+                return i
+        return -1
+
+    @jit
+    def viterbi_path(back, last, states):
+        """Read the states off the back pointers, from ``last`` at the final point."""
+        s = last
+        n = states.shape[0]
+        states[n - 1] = s
+        for i in range(n - 1, 0, -1):
+            s = back[i, s]
+            states[i - 1] = s
+
+    return {"viterbi_steps": viterbi_steps, "viterbi_path": viterbi_path}
+
+
+def kernels():
+    """The compiled kernels (a dict of numba functions), or None without numba."""
+    if "k" not in _STATE:
+        _STATE["k"] = _build()
+    return _STATE["k"]
+
+
+def warm() -> float:
+    """Compile (or load from the cache) every kernel on a tiny input; returns the seconds
+    taken (0 without numba). ``scripts/install.sh`` calls it, so a job does not carry the
+    compilation."""
+    import numpy as np
+
+    from .viterbi import viterbi
+
+    t0 = time.perf_counter()
+    if kernels() is None:
+        return 0.0
+    node = np.zeros((3, 3))
+    viterbi(node, np.ones((2, 3, 3)))
+    return time.perf_counter() - t0

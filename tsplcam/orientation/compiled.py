@@ -87,7 +87,44 @@ def _build():
             s = back[i, s]
             states[i - 1] = s
 
-    return {"viterbi_steps": viterbi_steps, "viterbi_path": viterbi_path}
+    @jit
+    def banded_solve(ab, rhs):
+        """Solve H x = rhs for a symmetric positive definite band matrix H in LAPACK's upper
+        band form ``ab`` (u + 1, N) (``ab[u + i - j, j] = H[i, j]``), by the Cholesky
+        factorisation H = U^T U and two triangular solves in the order of LAPACK's dpbtf2
+        and OpenBLAS's dtbsv (scipy's ``solveh_banded`` here): the same x, bit for bit on
+        the keycap job's systems, and to rounding where a BLAS orders its sums otherwise. ``ab`` and ``rhs``
+        are overwritten (with U and x). Returns 0, or the 1-based leading minor that is not
+        positive definite."""
+        u, N = ab.shape[0] - 1, ab.shape[1]
+        for j in range(N):
+            d = ab[u, j]
+            if not d > 0.0:
+                return j + 1
+            d = np.sqrt(d)
+            ab[u, j] = d
+            kn = min(u, N - 1 - j)
+            r = 1.0 / d
+            for c in range(1, kn + 1):              # row j of U right of the diagonal
+                ab[u - c, j + c] *= r
+            for c in range(1, kn + 1):              # the trailing block -= row^T row
+                t = -ab[u - c, j + c]
+                for a in range(1, c + 1):
+                    ab[u + a - c, j + c] += ab[u - a, j + a] * t
+        for j in range(N):                          # U^T y = rhs (the dot product first)
+            t = 0.0
+            for i in range(max(0, j - u), j):
+                t += ab[u + i - j, j] * rhs[i]
+            rhs[j] = (rhs[j] - t) / ab[u, j]
+        for j in range(N - 1, -1, -1):              # U x = y
+            if rhs[j] != 0.0:
+                rhs[j] /= ab[u, j]
+                t = rhs[j]
+                for i in range(j - 1, max(0, j - u) - 1, -1):
+                    rhs[i] -= t * ab[u + i - j, j]
+        return 0
+
+    return {"viterbi_steps": viterbi_steps, "viterbi_path": viterbi_path, "banded_solve": banded_solve}
 
 
 def kernels():
@@ -110,4 +147,5 @@ def warm() -> float:
         return 0.0
     node = np.zeros((3, 3))
     viterbi(node, np.ones((2, 3, 3)))
+    kernels()["banded_solve"](np.array([[0.0, 0.0, 1.0], [0.0, 1.0, 1.0], [2.0, 2.0, 2.0]]), np.ones(3))
     return time.perf_counter() - t0

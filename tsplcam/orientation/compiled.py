@@ -103,6 +103,12 @@ def _build():
                 return j + 1
             d = np.sqrt(d)
             ab[u, j] = d
+            # U^T y = rhs, row j (the dot product first), as soon as column j of U is final:
+            # the two recurrences overlap in the processor, the arithmetic is unchanged
+            t = 0.0
+            for i in range(max(0, j - u), j):
+                t += ab[u + i - j, j] * rhs[i]
+            rhs[j] = (rhs[j] - t) / d
             kn = min(u, N - 1 - j)
             r = 1.0 / d
             for c in range(1, kn + 1):              # row j of U right of the diagonal
@@ -111,11 +117,6 @@ def _build():
                 t = -ab[u - c, j + c]
                 for a in range(1, c + 1):
                     ab[u + a - c, j + c] += ab[u - a, j + a] * t
-        for j in range(N):                          # U^T y = rhs (the dot product first)
-            t = 0.0
-            for i in range(max(0, j - u), j):
-                t += ab[u + i - j, j] * rhs[i]
-            rhs[j] = (rhs[j] - t) / ab[u, j]
         for j in range(N - 1, -1, -1):              # U x = y
             if rhs[j] != 0.0:
                 rhs[j] /= ab[u, j]

@@ -2,6 +2,7 @@
 kernel against the numpy loop and against enumerating every sequence, the banded solve
 against scipy's ``solveh_banded`` (LAPACK), on random problems with ties and forbidden
 states, and on every problem the keycap main job poses them."""
+import importlib.util
 import itertools
 import os
 import tempfile
@@ -15,8 +16,12 @@ from tsplcam.orientation import compiled, smoothing
 from tsplcam.orientation.smoothing import _Banded
 from tsplcam.orientation.viterbi import TIE, from_blocks, viterbi
 
-KERNELS = compiled.kernels()
-needs_numba = unittest.skipIf(KERNELS is None, "numba is not installed (the numpy versions run)")
+def needs_numba(cls):
+    """Skip without numba (the numpy versions run); else the kernels loaded for the class."""
+    if importlib.util.find_spec("numba") is None or os.environ.get("TSPLCAM_COMPILED") == "0":
+        return unittest.skip("numba is not installed (the numpy versions run)")(cls)
+    cls.setUpClass = classmethod(lambda c: compiled.kernels())
+    return cls
 
 
 def same_result(test, node, trans, msg=""):
@@ -96,6 +101,14 @@ class CompiledViterbi(unittest.TestCase):
         with mock.patch.dict(compiled._STATE, {"k": None}):
             np.testing.assert_array_equal(viterbi(node, trans)[0], want)
             self.assertIsNone(compiled.kernels())
+
+    def test_loaded_once_the_work_pays(self):
+        """A process loads the kernels only once the work asked of it reaches LOAD_WORK."""
+        with mock.patch.dict(compiled._STATE, {"work": 0.0}):
+            del compiled._STATE["k"]
+            self.assertIsNone(compiled.kernels(work=0.6 * compiled.LOAD_WORK))
+            self.assertIsNotNone(compiled.kernels(work=0.6 * compiled.LOAD_WORK))
+            self.assertIsNotNone(compiled.kernels(work=1.0))
 
 
 def random_band(rng, N, u=2, fixed=0.3):

@@ -517,7 +517,7 @@ def _solve_banded(ab: np.ndarray, rhs: np.ndarray) -> np.ndarray:
     """scipy's ``solveh_banded`` (upper form) for the system :meth:`_Banded.solve_box` builds,
     in the compiled kernel when numba is there (LAPACK's order of operations: the same x);
     ``ab`` and ``rhs`` are overwritten."""
-    k = compiled.kernels()
+    k = compiled.kernels(work=8.0 * ab.shape[1])     # LAPACK: about 70 ns a row
     if k is None or len(ab) < 3:        # (one off-diagonal: scipy takes LAPACK's LDL^T, ptsv)
         return solveh_banded(ab, rhs, lower=False, check_finite=False)
     ab = np.require(ab, np.float64, ("C", "W"))

@@ -108,7 +108,7 @@ def viterbi(node: np.ndarray, transition, kernel: bool = True) -> tuple:
         block = lambda i0, i1: trans[i0 - 1:i1 - 1]      # noqa: E731
     acc = node[0].copy()
     back = np.zeros((n, S), np.int32)
-    k = compiled.kernels() if kernel else None
+    k = compiled.kernels(work=float(n) * S * S) if kernel else None
     if k is not None:
         return _compiled(k, node, acc, back, block)
     cols = np.arange(S)

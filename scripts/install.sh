@@ -16,7 +16,9 @@
 #     distributed and dask, pinned, with --no-deps; their dependencies come from Debian where
 #     Debian 12's version meets theirs (click, fsspec, jinja2, locket, msgpack, packaging,
 #     psutil, pyyaml, tblib, toolz, tornado, zipp) and from pip, pinned, where it does not
-#     (cloudpickle >= 3, partd >= 1.4, zict >= 3, importlib_metadata >= 4.13).
+#     (cloudpickle >= 3, partd >= 1.4, zict >= 3, importlib_metadata >= 4.13). numba (with its
+#     llvmlite), pinned, with --no-deps, for the orientation's compiled kernels (optional: the
+#     engine falls back to numpy without it); its kernels are compiled once here, into the cache.
 #  3. Links this checkout as the workbench "tsplcam" into an isolated FreeCAD user home
 #     ($TSPLCAM_FC_HOME, default <repo>/build/fchome, used as FREECAD_USER_HOME); the user's real home only with --user.
 set -euo pipefail
@@ -31,7 +33,7 @@ PIP_PACKAGES=("python-fcl==0.7.0.11:fcl" "elkai==2.0.1:elkai"
               "sortedcontainers==2.4.0:sortedcontainers" "hypothesis==6.170.17:hypothesis"
               "cloudpickle==3.1.2:cloudpickle" "partd==1.4.2:partd" "zict==3.0.0:zict"
               "importlib_metadata==8.0.0:importlib_metadata" "dask==2026.8.0:dask"
-              "distributed==2026.8.0:distributed")
+              "distributed==2026.8.0:distributed" "llvmlite==0.42.0:llvmlite" "numba==0.59.1:numba")
 
 SUDO=""
 if [ "$(id -u)" -ne 0 ]; then SUDO="sudo"; fi
@@ -61,7 +63,7 @@ for spec in "${PIP_PACKAGES[@]}"; do
     $SUDO $PY -m pip install -q --break-system-packages --no-deps --root-user-action=ignore "$req"
   fi
 done
-$PY -c "import numpy, scipy, fcl, elkai, hypothesis, distributed" || { say "a Python dependency does not import"; exit 1; }
+$PY -c "import numpy, scipy, fcl, elkai, hypothesis, distributed, numba" || { say "a Python dependency does not import"; exit 1; }
 $PY -c "import numpy, sys; sys.exit(not numpy.__file__.startswith('/usr/lib/python3/dist-packages/'))" \
   || { say "numpy is not Debian's python3-numpy any more (a wheel replaced it)"; exit 1; }
 $PY -c "import matplotlib, sys; sys.exit(tuple(map(int, matplotlib.__version__.split('.')[:2])) < (3, 5))" \
@@ -78,6 +80,9 @@ link_into() {  # $1 = a FreeCAD Mod directory
   ln -sfn "$REPO" "$target"
   say "linked $target -> $REPO"
 }
+# the compiled kernels into numba's cache (beside the source), so a job does not compile them
+PYTHONPATH="$REPO" $PY -c "from tsplcam.orientation.compiled import warm; warm()" \
+  || { say "the compiled kernels do not build (numba)"; exit 1; }
 FC_HOME="${TSPLCAM_FC_HOME:-$REPO/build/fchome}"
 # FreeCAD 0.20 with FREECAD_USER_HOME=$FC_HOME uses $FC_HOME itself as the user data directory.
 link_into "$FC_HOME/Mod"

@@ -53,6 +53,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.linalg import solveh_banded
 
+from . import compiled
 from .rotary import DEG, Rotary, angle_between
 from .viterbi import from_blocks, viterbi
 
@@ -496,7 +497,7 @@ class _Banded:
                     ab[u - k, c] = 0.0           # H[f - k, f]
                 ab[u, f] = 1.0
                 rhs[f] = 0.0
-            x = solveh_banded(ab, rhs, lower=False, check_finite=False) + xf
+            x = _solve_banded(ab, rhs) + xf
             change = False
             low, high = ~fixed & (x < lo - 1e-12), ~fixed & (x > hi + 1e-12)
             if low.any() or high.any():
@@ -510,6 +511,21 @@ class _Banded:
             if not change:
                 break
         return np.clip(x, lo, hi)
+
+
+def _solve_banded(ab: np.ndarray, rhs: np.ndarray) -> np.ndarray:
+    """scipy's ``solveh_banded`` (upper form) for the system :meth:`_Banded.solve_box` builds,
+    in the compiled kernel when numba is there (LAPACK's order of operations: the same x);
+    ``ab`` and ``rhs`` are overwritten."""
+    k = compiled.kernels(work=8.0 * ab.shape[1])     # LAPACK: about 70 ns a row
+    if k is None or len(ab) < 3:        # (one off-diagonal: scipy takes LAPACK's LDL^T, ptsv)
+        return solveh_banded(ab, rhs, lower=False, check_finite=False)
+    ab = np.require(ab, np.float64, ("C", "W"))
+    rhs = np.require(rhs, np.float64, ("C", "W"))
+    info = k["banded_solve"](ab, rhs)
+    if info > 0:
+        raise np.linalg.LinAlgError(f"{info}th leading minor not positive definite")
+    return rhs
 
 
 def _quadratic(x0_len: int, ds, couple, L: float, w_vel: float, l_acc: float, block=None) -> _Banded:

@@ -12,10 +12,16 @@ poses (inverse-kinematics branches and C representatives per point) both use thi
 function. Ties, and costs equal up to a relative ``TIE``, go to the lowest state: vectorised
 sums may differ in the last bits with memory alignment from run to run, and no decision
 (and so no program byte) may hang on them.
+
+The recurrence runs in a compiled kernel (:mod:`tsplcam.orientation.compiled`, numba) when
+numba is installed: the same arithmetic, so the same states and costs bit for bit; this
+module's numpy loop is the reference and the fallback.
 """
 from __future__ import annotations
 
 import numpy as np
+
+from . import compiled
 
 TIE = 1e-9
 BLOCK = 32               # transitions fetched this many points at a time (arrays that stay in cache)
@@ -74,7 +80,7 @@ def from_blocks(block):
     return trans
 
 
-def viterbi(node: np.ndarray, transition) -> tuple:
+def viterbi(node: np.ndarray, transition, kernel: bool = True) -> tuple:
     """The cheapest state sequence.
 
     ``node``: (n, S) node costs (``inf``: the state is not allowed at that point);
@@ -82,7 +88,8 @@ def viterbi(node: np.ndarray, transition) -> tuple:
     of going from state a at point ``i - 1`` to state b at point ``i`` (``inf``: forbidden).
     Returns ``(states, None)`` with ``states`` (n,) int, or ``(None, i)`` when no allowed
     sequence reaches point ``i + 1`` (the chain breaks between ``i`` and ``i + 1``; ``i = -1``
-    when the first point has no allowed state).
+    when the first point has no allowed state). ``kernel`` False: the numpy loop even where
+    the compiled kernel is available.
     """
     node = np.asarray(node, float)
     n, S = node.shape
@@ -101,6 +108,9 @@ def viterbi(node: np.ndarray, transition) -> tuple:
         block = lambda i0, i1: trans[i0 - 1:i1 - 1]      # noqa: E731
     acc = node[0].copy()
     back = np.zeros((n, S), np.int32)
+    k = compiled.kernels(work=float(n) * S * S) if kernel else None
+    if k is not None:
+        return _compiled(k, node, acc, back, block)
     cols = np.arange(S)
     T, lo = np.zeros((0, S, S)), 1
     for i in range(1, n):
@@ -118,4 +128,19 @@ def viterbi(node: np.ndarray, transition) -> tuple:
     states[-1] = int(first_min(acc))
     for i in range(n - 1, 0, -1):
         states[i - 1] = back[i, states[i]]
+    return states, None
+
+
+def _compiled(k, node, acc, back, block) -> tuple:
+    """:func:`viterbi`'s forward and backward passes in the compiled kernels (the same
+    arithmetic as its numpy loop), a block of transitions per call."""
+    n = len(node)
+    node = np.require(node, np.float64, ("C", "W"))
+    for i0 in range(1, n, BLOCK):
+        T = np.require(block(i0, min(n, i0 + BLOCK)), np.float64, ("C", "W"))
+        broke = k["viterbi_steps"](acc, node, T, i0, TIE, back)
+        if broke >= 0:
+            return None, int(broke) - 1
+    states = np.zeros(n, np.int64)
+    k["viterbi_path"](back, int(first_min(acc)), states)
     return states, None

@@ -1,0 +1,218 @@
+"""The compiled kernels (orientation.compiled, numba) against their references: the Viterbi
+kernel against the numpy loop and against enumerating every sequence, the banded solve
+against scipy's ``solveh_banded`` (LAPACK), on random problems with ties and forbidden
+states, and on every problem the keycap main job poses them."""
+import importlib.util
+import itertools
+import os
+import tempfile
+import unittest
+from unittest import mock
+
+import numpy as np
+from scipy.linalg import solveh_banded
+
+from tsplcam.orientation import compiled, smoothing
+from tsplcam.orientation.smoothing import _Banded
+from tsplcam.orientation.viterbi import TIE, from_blocks, viterbi
+
+def needs_numba(cls):
+    """Skip without numba (the numpy versions run); else the kernels loaded for the class."""
+    if importlib.util.find_spec("numba") is None or os.environ.get("TSPLCAM_COMPILED") == "0":
+        return unittest.skip("numba is not installed (the numpy versions run)")(cls)
+    cls.setUpClass = classmethod(lambda c: compiled.kernels())
+    return cls
+
+
+def same_result(test, node, trans, msg=""):
+    """The compiled and numpy Viterbi: the same states (and so the same cost, to the bit)
+    and the same break point."""
+    a, ba = viterbi(node, trans, kernel=False)
+    b, bb = viterbi(node, trans, kernel=True)
+    test.assertEqual(ba, bb, msg)
+    test.assertEqual(a is None, b is None, msg)
+    if a is not None:
+        np.testing.assert_array_equal(a, b, err_msg=msg)
+    return b, bb
+
+
+def chain_cost(node, trans, s):
+    n = len(s)
+    return sum(node[i, s[i]] for i in range(n)) + sum(trans[i, s[i], s[i + 1]] for i in range(n - 1))
+
+
+@needs_numba
+class CompiledViterbi(unittest.TestCase):
+    def test_random_with_ties_and_forbidden(self):
+        """Small integer costs (many exact ties, which the lowest state wins), costs equal up
+        to a few ulps (within the relative TIE: also the lowest state), ``inf`` states and
+        moves, broken chains: the kernel's states and break points are the numpy loop's, and
+        where a chain exists its cost is the least over every sequence (enumerated; equal
+        within TIE relative, the tolerance that decides ties)."""
+        rng = np.random.default_rng(11)
+        broken = 0
+        for trial in range(400):
+            n, S = int(rng.integers(1, 6)), int(rng.integers(3, 6))
+            node = rng.integers(0, 3, (n, S)).astype(float)
+            trans = rng.integers(0, 3, (max(n - 1, 0), S, S)).astype(float)
+            if trial % 3 == 1:                   # near-ties: a few ulps apart
+                node = node * (1.0 + 1e-15 * rng.integers(-4, 5, node.shape))
+                trans = trans * (1.0 + 1e-15 * rng.integers(-4, 5, trans.shape))
+            node[rng.random(node.shape) < 0.2] = np.inf
+            trans[rng.random(trans.shape) < 0.3] = np.inf
+            states, broke = same_result(self, node, trans, f"trial {trial}")
+            for form in (lambda i: trans[i - 1], from_blocks(lambda i0, i1: trans[i0 - 1:i1 - 1])):
+                if n > 1:
+                    s2, b2 = viterbi(node, form)
+                    self.assertEqual(b2, broke)
+                    if states is not None:
+                        np.testing.assert_array_equal(s2, states)
+            best = min(chain_cost(node, trans, s) for s in itertools.product(range(S), repeat=n))
+            if states is None:
+                self.assertEqual(best, np.inf, f"trial {trial}")
+                broken += 1
+            else:
+                got = chain_cost(node, trans, states)
+                self.assertLessEqual(abs(got - best), TIE * max(1.0, abs(best)) * n, f"trial {trial}")
+        self.assertGreater(broken, 5)               # the break points were exercised
+
+    def test_large_random(self):
+        """The joint programme's size (36 states, 3000 points, blocks fetched from a function
+        as there), continuous costs with forbidden moves."""
+        rng = np.random.default_rng(3)
+        n, S = 3000, 36
+        node = rng.random((n, S))
+        node[rng.random(node.shape) < 0.1] = np.inf
+        trans = rng.random((n - 1, S, S)) * 10.0
+        trans[rng.random(trans.shape) < 0.5] = np.inf
+        states, broke = same_result(self, node, trans)
+        self.assertIsNone(broke)
+        b, _ = viterbi(node, from_blocks(lambda i0, i1: trans[i0 - 1:i1 - 1]))
+        np.testing.assert_array_equal(b, states)
+        # a wall: nothing allowed into point 1700
+        trans[1698] = np.inf
+        self.assertEqual(same_result(self, node, trans)[1], 1698)
+
+    def test_fallback_without_numba(self):
+        """Without numba (``kernels()`` None) the numpy loop runs and gives the same states."""
+        rng = np.random.default_rng(5)
+        node, trans = rng.random((50, 6)), rng.random((49, 6, 6))
+        want = viterbi(node, trans)[0]
+        with mock.patch.dict(compiled._STATE, {"k": None}):
+            np.testing.assert_array_equal(viterbi(node, trans)[0], want)
+            self.assertIsNone(compiled.kernels())
+
+    def test_loaded_once_the_work_pays(self):
+        """A process loads the kernels only once the work asked of it reaches LOAD_WORK."""
+        with mock.patch.dict(compiled._STATE, {"work": 0.0}):
+            del compiled._STATE["k"]
+            self.assertIsNone(compiled.kernels(work=0.6 * compiled.LOAD_WORK))
+            self.assertIsNotNone(compiled.kernels(work=0.6 * compiled.LOAD_WORK))
+            self.assertIsNotNone(compiled.kernels(work=1.0))
+
+
+def random_band(rng, N, u=2, fixed=0.3):
+    """A positive definite band matrix like solve_box's: weighted squared differences of
+    neighbours plus a small diagonal, some rows replaced by identity rows (fixed variables)."""
+    ab = np.zeros((u + 1, N))
+    for c in range(1, u + 1):
+        w = rng.random(N - c) * 10.0 ** rng.uniform(-3, 3, N - c)
+        ab[u, :-c] += w
+        ab[u, c:] += w
+        ab[u - c, c:] -= 0.9 * w
+    ab[u] += 1e-9 + (rng.random(N) < 0.3) * rng.random(N)
+    f = np.nonzero(rng.random(N) < fixed)[0]
+    for c in range(1, u + 1):
+        ab[u - c, f[f + c < N] + c] = 0.0
+        ab[u - c, f[f - c >= 0]] = 0.0
+    ab[u, f] = 1.0
+    return ab
+
+
+@needs_numba
+class CompiledBandedSolve(unittest.TestCase):
+    def test_against_lapack(self):
+        """The kernel against scipy's solveh_banded (LAPACK dpbsv): equal within 1e-12
+        relative to the largest |x| (bit for bit with this machine's OpenBLAS)."""
+        rng = np.random.default_rng(2)
+        for N in (3, 4, 7, 100, 5000):
+            for u in (2, 3):
+                ab = random_band(rng, N, u)
+                b = rng.standard_normal(N) * 10.0 ** rng.uniform(-3, 3, N)
+                want = solveh_banded(ab, b, lower=False)
+                got = smoothing._solve_banded(ab.copy(), b.copy())
+                scale = np.abs(want).max()
+                self.assertLessEqual(np.abs(got - want).max(), 1e-12 * scale, (N, u))
+
+    def test_not_positive_definite(self):
+        ab = np.array([[0.0, 0.0, 1.0], [0.0, 2.0, 2.0], [1.0, 1.0, -1.0]])
+        with self.assertRaises(np.linalg.LinAlgError):
+            smoothing._solve_banded(ab, np.ones(3))
+
+    def test_solve_box_unchanged(self):
+        """solve_box's active set gives the same x with the kernel and with scipy (both
+        within 1e-12), and x is the box-constrained minimum: inside the box, and the
+        gradient points out of the box where a bound is active and is 0 elsewhere."""
+        rng = np.random.default_rng(4)
+        N = 400
+        for trial in range(4):
+            B = _Banded(N, 2)
+            B.ab[:] = random_band(rng, N, 2, fixed=0.0)
+            B.g[:] = rng.standard_normal(N) * 10.0
+            lo = rng.uniform(-2.0, 0.0, N)
+            hi = lo + rng.uniform(0.0, 2.0, N)
+            x = B.solve_box(lo, hi)
+            with mock.patch.dict(compiled._STATE, {"k": None}):
+                x0 = B.solve_box(lo, hi)
+            np.testing.assert_allclose(x, x0, rtol=0, atol=1e-12)
+            self.assertTrue(((x >= lo) & (x <= hi)).all())
+            grad = B.matvec(x) + B.g
+            free = (x > lo + 1e-9) & (x < hi - 1e-9)
+            self.assertLess(np.abs(grad[free]).max(initial=0.0), 1e-8 * np.abs(B.g).max())
+            self.assertTrue((grad[x <= lo + 1e-9] >= -1e-8).all() and (grad[x >= hi - 1e-9] <= 1e-8).all())
+
+
+@needs_numba
+class KeycapJob(unittest.TestCase):
+    def test_every_call_of_the_main_job(self):
+        """The keycap main job (model to G-code): every Viterbi programme it runs (the joint
+        programme's, the forced-travel figure's, the post's pose choice) and every banded
+        system the polish solves is solved both ways, compiled and numpy / LAPACK, and the
+        answers agree exactly (the same states; the same x to the bit), so the program does
+        not depend on whether numba is installed."""
+        from tsplcam.job import run_job
+        from tsplcam.settings import JobSettings
+        from tsplcam.orientation import rotary
+
+        seen = {"viterbi": 0, "banded": 0}
+        real_solve = smoothing._solve_banded
+
+        def both_viterbi(node, trans, kernel=True):
+            a = viterbi(node, trans, kernel=False)
+            b = viterbi(node, trans, kernel=True)
+            self.assertEqual(a[1], b[1])
+            if a[0] is not None:
+                np.testing.assert_array_equal(a[0], b[0])
+            seen["viterbi"] += np.shape(node)[1] > 2
+            return b
+
+        def both_solve(ab, rhs):
+            want = solveh_banded(ab, rhs, lower=False, check_finite=False)
+            got = real_solve(ab.copy(), rhs.copy())
+            np.testing.assert_array_equal(got, want)
+            seen["banded"] += 1
+            return got
+
+        with tempfile.TemporaryDirectory() as tmp, \
+                mock.patch.object(smoothing, "viterbi", both_viterbi), \
+                mock.patch.object(rotary, "viterbi", both_viterbi), \
+                mock.patch.object(smoothing, "_solve_banded", both_solve):
+            figures = run_job(JobSettings(out=os.path.join(tmp, "job"), verify=False, html_report=False),
+                              log=None, progress=lambda stage, done, total: None)
+        self.assertGreaterEqual(seen["viterbi"], 2)       # the joint programme and the forced travel
+        self.assertGreater(seen["banded"], 100)
+        self.assertEqual(figures["orientation"]["collisions"], 0)
+
+
+if __name__ == "__main__":
+    unittest.main()

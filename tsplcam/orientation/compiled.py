@@ -1,0 +1,168 @@
+"""Compiled kernels (numba) for the orientation's sequential loops, with numpy as fallback.
+
+The Viterbi recurrence (:mod:`tsplcam.orientation.viterbi`) is sequential along the path:
+numpy spends one sequence of array calls per point, about 11 us for 36 x 36 states, and
+cannot go lower. The kernel here does the same arithmetic per point, element for element (one
+addition per move, the same minimum, the same relative tie tolerance, the same first-index
+tie-breaking), so the chosen states and their costs are the numpy version's bit for bit, at
+about a tenth of the time.
+
+The banded Cholesky solve of the smoothing's polish (``_Banded.solve_box``, 215 solves on
+the keycap) is latency-bound in LAPACK as here; the kernel takes LAPACK's operations in
+LAPACK's (and OpenBLAS's) order, so x is the same, with less overhead per call.
+
+numba is optional: :func:`kernels` returns None when it cannot be imported (a FreeCAD
+without it) or when ``TSPLCAM_COMPILED=0`` is set, and the callers run their numpy version.
+Loading numba and the cached kernels costs a process about 0.17 s, the numpy recurrence of
+15,000 points at 36 states: a process loads them only once the work it has asked for
+reaches ``LOAD_WORK`` (small paths stay in numpy). Kernels are compiled on first use and
+cached on disk (``cache=True``: in ``__pycache__`` beside this file, else in the user's
+cache directory); with neither writable they are compiled in each process (about 0.7 s).
+"""
+from __future__ import annotations
+
+import os
+import time
+
+_STATE = {"work": 0.0}
+#: work (elements of the Viterbi recurrence, S^2 per point, or their equivalent) after which
+#: a process loads the kernels: about half the load's time in numpy (8.5 ns an element)
+LOAD_WORK = 1.0e7
+
+
+def _build():
+    """Compile (lazily) the kernels; None without numba."""
+    if os.environ.get("TSPLCAM_COMPILED", "1") == "0":
+        return None
+    try:
+        import numba
+    except ImportError:
+        return None
+    import numpy as np
+
+    def jit(f):
+        try:
+            return numba.njit(cache=True, nogil=True)(f)
+        except RuntimeError:          # no writable cache location: compile in each process
+            return numba.njit(cache=False, nogil=True)(f)
+
+    @jit
+    def viterbi_steps(acc, node, T, i0, tie, back):
+        """The Viterbi recurrence for points ``i0 .. i0 + len(T) - 1``: ``T[r]`` (S, S) the
+        transitions into point ``i0 + r``; updates ``acc`` (S,) and ``back`` (n, S) in place.
+        Returns -1, or the point at which no state is reachable any more."""
+        B, S = T.shape[0], T.shape[1]
+        tot = np.empty((S, S))
+        m = np.empty(S)
+        nan = np.empty(S, np.bool_)
+        for r in range(B):
+            i = i0 + r
+            m[:] = np.inf
+            nan[:] = False
+            for a in range(S):
+                x = acc[a]
+                for b in range(S):
+                    v = x + T[r, a, b]
+                    tot[a, b] = v
+                    if v < m[b]:
+                        m[b] = v
+                    elif v != v:
+                        nan[b] = True
+            live = False
+            for b in range(S):
+                mb = np.nan if nan[b] else m[b]
+                lim = mb + tie * max(1.0, abs(mb))
+                k = 0
+                for a in range(S):
+                    if tot[a, b] <= lim:
+                        k = a
+                        break
+                back[i, b] = k
+                v = tot[k, b] + node[i, b]
+                acc[b] = v
+                if np.isfinite(v):
+                    live = True
+            if not live:
+                return i
+        return -1
+
+    @jit
+    def viterbi_path(back, last, states):
+        """Read the states off the back pointers, from ``last`` at the final point."""
+        s = last
+        n = states.shape[0]
+        states[n - 1] = s
+        for i in range(n - 1, 0, -1):
+            s = back[i, s]
+            states[i - 1] = s
+
+    @jit
+    def banded_solve(ab, rhs):
+        """Solve H x = rhs for a symmetric positive definite band matrix H in LAPACK's upper
+        band form ``ab`` (u + 1, N) (``ab[u + i - j, j] = H[i, j]``), by the Cholesky
+        factorisation H = U^T U and two triangular solves in the order of LAPACK's dpbtf2
+        and OpenBLAS's dtbsv (scipy's ``solveh_banded`` here): the same x, bit for bit on
+        the keycap job's systems, and to rounding where a BLAS orders its sums otherwise. ``ab`` and ``rhs``
+        are overwritten (with U and x). Returns 0, or the 1-based leading minor that is not
+        positive definite."""
+        u, N = ab.shape[0] - 1, ab.shape[1]
+        for j in range(N):
+            d = ab[u, j]
+            if not d > 0.0:
+                return j + 1
+            d = np.sqrt(d)
+            ab[u, j] = d
+            # U^T y = rhs, row j (the dot product first), as soon as column j of U is final:
+            # the two recurrences overlap in the processor, the arithmetic is unchanged
+            t = 0.0
+            for i in range(max(0, j - u), j):
+                t += ab[u + i - j, j] * rhs[i]
+            rhs[j] = (rhs[j] - t) / d
+            kn = min(u, N - 1 - j)
+            r = 1.0 / d
+            for c in range(1, kn + 1):              # row j of U right of the diagonal
+                ab[u - c, j + c] *= r
+            for c in range(1, kn + 1):              # the trailing block -= row^T row
+                t = -ab[u - c, j + c]
+                for a in range(1, c + 1):
+                    ab[u + a - c, j + c] += ab[u - a, j + a] * t
+        for j in range(N - 1, -1, -1):              # U x = y
+            if rhs[j] != 0.0:
+                rhs[j] /= ab[u, j]
+                t = rhs[j]
+                for i in range(j - 1, max(0, j - u) - 1, -1):
+                    rhs[i] -= t * ab[u + i - j, j]
+        return 0
+
+    return {"viterbi_steps": viterbi_steps, "viterbi_path": viterbi_path, "banded_solve": banded_solve}
+
+
+def kernels(work: float | None = None):
+    """The compiled kernels (a dict of numba functions), or None without numba. ``work``: the
+    size of the computation the caller would otherwise do in numpy; with it, the kernels are
+    only loaded once the work asked of this process reaches :data:`LOAD_WORK` (None till
+    then); without it, now."""
+    if "k" not in _STATE:
+        if work is not None:
+            _STATE["work"] += work
+            if _STATE["work"] < LOAD_WORK:
+                return None
+        _STATE["k"] = _build()
+    return _STATE["k"]
+
+
+def warm() -> float:
+    """Compile (or load from the cache) every kernel on a tiny input; returns the seconds
+    taken (0 without numba). ``scripts/install.sh`` calls it, so a job does not carry the
+    compilation."""
+    import numpy as np
+
+    from .viterbi import viterbi
+
+    t0 = time.perf_counter()
+    if kernels() is None:
+        return 0.0
+    node = np.zeros((3, 3))
+    viterbi(node, np.ones((2, 3, 3)))
+    kernels()["banded_solve"](np.array([[0.0, 0.0, 1.0], [0.0, 1.0, 1.0], [2.0, 2.0, 2.0]]), np.ones(3))
+    return time.perf_counter() - t0

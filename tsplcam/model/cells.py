@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .basis import bernstein, bernstein_rows, uniform_cubic
+from .basis import BSPLINE_TO_BEZIER, bernstein, bernstein_rows, uniform_cubic
 
 # derivative combinations in output order: (order in first variable, order in second)
 DERIVS = ((0, 0), (1, 0), (0, 1), (2, 0), (1, 1), (0, 2))
@@ -35,6 +35,24 @@ def tensor_basis(bs: np.ndarray, bt: np.ndarray) -> np.ndarray:
     for k, (ds, dt) in enumerate(DERIVS):
         out[:, k, :] = (bt[:, dt, :, None] * bs[:, ds, None, :]).reshape(n, -1)
     return out
+
+
+# (order in b, order in a) of DERIVS, to pick them from a 3 x 3 table of both
+_DT = np.array([dt for _, dt in DERIVS])
+_DS = np.array([ds for ds, _ in DERIVS])
+
+
+def bicubic_nets(X: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Bicubic Bezier pieces, one per point: nets X (n, C, 4 [j along b], 4 [i along a]) at
+    (a, b) -> the six derivatives (6, C, n). Two batched 4 x 4 products per point (along a
+    for all three orders, then along b), whatever the pieces: for points spread over many
+    small pieces (sub-cells next to extraordinary points), where runs of one piece are short."""
+    n = len(a)
+    B = bernstein_rows(3, np.concatenate([a, b]))          # (3 [order], 4, 2n)
+    bs = B[:, :, :n].transpose(2, 1, 0)[:, None]            # (n, 1, 4 [i], 3 [order in a])
+    bt = B[:, :, n:].transpose(2, 0, 1)[:, None]            # (n, 1, 3 [order in b], 4 [j])
+    R = np.matmul(bt, np.matmul(X, bs))                     # (n, C, 3 [b], 3 [a])
+    return R[:, :, _DT, _DS].transpose(2, 1, 0)
 
 
 class BezierCells:
@@ -232,6 +250,9 @@ class LevelCells:
     kind = "levels"
     EPS_LEVEL = 50
     MAX_LEVEL = 60
+    # levels whose sub-patches are kept as Bezier nets (points within 2^-NET_LEVELS of a
+    # cell's width from the irregular vertex go through the configuration of their level)
+    NET_LEVELS = 30
 
     def __init__(self, scheme, C0: np.ndarray, maps: np.ndarray):
         self.scheme = scheme
@@ -240,9 +261,44 @@ class LevelCells:
         self.limit = np.array([L for L, _ in pairs])                # (ncell, 4)
         self.d = np.array([d for _, d in pairs])                    # (ncell, M, K, 4)
         self.limit_normal = np.array([scheme.limit_normal(c) for c in C0]).reshape(-1, 3)
+        self._cache_nets()
 
     def __len__(self) -> int:
         return len(self.d)
+
+    def _cache_nets(self):
+        """The Bezier nets of every regular sub-patch of levels 1 .. NET_LEVELS, in each cell's
+        own (a, b) frame: nets[(cell * NET_LEVELS + level - 1) * 3 + key] (4, 4 [j along b],
+        4 [i along a], homogeneous differences from the limit), key = pa + 2 qa - 1 for the
+        sub-cell (pa, qa) in {(1, 0), (0, 1), (1, 1)} counted from the irregular corner in
+        units of the level's width 2^-level. A point is then one gather and one Bezier
+        evaluation (``bicubic_nets``), as in a plain Bezier cell.
+
+        ``_frame`` per cell: the irregular corner (ca, cb) in (a, b), and whether the face
+        frame (s, t) swaps a and b (the sub-patch a point past the deepest level is clamped
+        to is named in the face frame)."""
+        L, M = self.NET_LEVELS, self.MAX_LEVEL
+        ncell = len(self.d)
+        ncoord = self.d.shape[-1]
+        # B-spline sub-patch stencils -> Bezier nets of the same sub-patches: (3, 16, K)
+        Sb = np.einsum("ab,kbK->kaK", np.kron(BSPLINE_TO_BEZIER, BSPLINE_TO_BEZIER), self.scheme.S)
+        face = np.einsum("kaK,cmKx->cmkxa", Sb, self.d[:, :min(L, M)])   # (cell, level, k, x, 16)
+        face = face.reshape(ncell, -1, 3, ncoord, 4, 4)                  # [.., t index, s index]
+        nets = np.empty((ncell, face.shape[1], 3, ncoord, 4, 4))
+        frame = np.zeros((ncell, 3), dtype=int)
+        grid = np.stack(np.meshgrid(np.arange(4), np.arange(4), indexing="xy"), axis=-1)  # [j, i] -> (i, j)
+        for c, m in enumerate(self.maps):
+            A, o = SQUARE_MAPS[m]
+            st = np.rint(grid @ A.T + 3 * o).astype(int)       # net index (I, J) in the face frame
+            corner = np.rint(-A.T @ o).astype(int)              # where (s, t) = (0, 0)
+            swap = bool(abs(A[0, 1]) > 0.5)
+            frame[c] = (corner[0], corner[1], swap)
+            for pa, qa in ((1, 0), (0, 1), (1, 1)):
+                ps, qs = (qa, pa) if swap else (pa, qa)
+                k = {(1, 0): 0, (1, 1): 1, (0, 1): 2}[(ps, qs)]   # Stam's sub-patch order
+                nets[c, :, pa + 2 * qa - 1] = face[c, :, k][..., st[..., 1], st[..., 0]]
+        self.nets = np.ascontiguousarray(nets.reshape(-1, ncoord, 4, 4))
+        self._frame = frame
 
     def _evaluate(self, idx, a, b):
         A, at_vertex, level, k, sh, th = _ring_coordinates(self.maps[idx], a, b, self.EPS_LEVEL,
@@ -257,8 +313,45 @@ class LevelCells:
             H[0][:, at_vertex] = self.limit[idx[at_vertex]].T
         return H, at_vertex, level
 
+    def _evaluate_nets(self, idx, a, b):
+        """As ``_evaluate`` from the cached nets (``_cache_nets``); ``deep`` marks the points
+        below level NET_LEVELS, which it leaves unset."""
+        f = self._frame[idx]
+        ca, cb = f[:, 0], f[:, 1]
+        ea = np.minimum(np.abs(a - ca), 1.0)            # distances from the irregular corner
+        eb = np.minimum(np.abs(b - cb), 1.0)
+        mx = np.maximum(ea, eb)
+        at_vertex = mx <= 0.0
+        if at_vertex.any():
+            eps = 2.0 ** -self.EPS_LEVEL
+            ea, eb, mx = (np.where(at_vertex, eps, x) for x in (ea, eb, mx))
+        _, e = np.frexp(mx)
+        level = np.clip(1 - e, 1, self.MAX_LEVEL)
+        deep = level > self.NET_LEVELS
+        scale = np.ldexp(1.0, level)
+        P, Q = ea * scale, eb * scale
+        pa, qa = P >= 1.0, Q >= 1.0
+        # below the deepest level: the sub-patch (1, 0) of the face frame, as _ring_coordinates
+        low = ~(pa | qa)
+        if low.any():
+            swap = f[:, 2].astype(bool)
+            pa |= low & ~swap
+            qa |= low & swap
+        sa = np.clip(P - pa, 0.0, 1.0)
+        sb = np.clip(Q - qa, 0.0, 1.0)
+        key = (idx * self.NET_LEVELS + np.minimum(level, self.NET_LEVELS) - 1) * 3 + pa + 2 * qa - 1
+        H = bicubic_nets(self.nets[key], np.where(ca == 0, sa, 1.0 - sa), np.where(cb == 0, sb, 1.0 - sb))
+        H[1:3] *= scale
+        H[3:] *= scale * scale
+        H[0] += self.limit[idx].T
+        if at_vertex.any():
+            H[0][:, at_vertex] = self.limit[idx[at_vertex]].T
+        return H, at_vertex, deep
+
     def evaluate(self, idx: np.ndarray, a: np.ndarray, b: np.ndarray):
-        H, at_vertex, _ = self._evaluate(idx, a, b)
+        H, at_vertex, deep = self._evaluate_nets(idx, a, b)
+        if deep.any():
+            H[:, :, deep] = self._evaluate(idx[deep], a[deep], b[deep])[0]
         ep_normal = None
         if at_vertex.any():
             ep_normal = np.zeros((len(a), 3))

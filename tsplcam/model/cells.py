@@ -46,13 +46,29 @@ def bicubic_nets(X: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """Bicubic Bezier pieces, one per point: nets X (n, C, 4 [j along b], 4 [i along a]) at
     (a, b) -> the six derivatives (6, C, n). Two batched 4 x 4 products per point (along a
     for all three orders, then along b), whatever the pieces: for points spread over many
-    small pieces (sub-cells next to extraordinary points), where runs of one piece are short."""
+    small pieces (sub-cells next to extraordinary points), where runs of one piece are short.
+    The Bernstein values come from the monomials in one product (few array calls: these
+    batches are often a hundred points)."""
     n = len(a)
-    B = bernstein_rows(3, np.concatenate([a, b]))          # (3 [order], 4, 2n)
+    pw = np.empty((4, 2 * n))
+    pw[0] = 1.0
+    pw[1, :n] = a
+    pw[1, n:] = b
+    np.multiply(pw[1], pw[1], out=pw[2])
+    np.multiply(pw[2], pw[1], out=pw[3])
+    B = (_BERNSTEIN3_MONOMIAL @ pw).reshape(3, 4, 2 * n)     # (order, 4, 2n)
     bs = B[:, :, :n].transpose(2, 1, 0)[:, None]            # (n, 1, 4 [i], 3 [order in a])
     bt = B[:, :, n:].transpose(2, 0, 1)[:, None]            # (n, 1, 3 [order in b], 4 [j])
     R = np.matmul(bt, np.matmul(X, bs))                     # (n, C, 3 [b], 3 [a])
     return R[:, :, _DT, _DS].transpose(2, 1, 0)
+
+
+# cubic Bernstein polynomials and their first two derivatives on the monomials 1, t, t^2, t^3:
+# row 4 d + i is the d-th derivative of B_i
+_BERNSTEIN3_MONOMIAL = np.array([
+    [1, -3, 3, -1], [0, 3, -6, 3], [0, 0, 3, -3], [0, 0, 0, 1],
+    [-3, 6, -3, 0], [3, -12, 9, 0], [0, 6, -9, 0], [0, 0, 3, 0],
+    [6, -6, 0, 0], [-12, 18, 0, 0], [6, -18, 0, 0], [0, 6, 0, 0]], dtype=float)
 
 
 class BezierCells:
@@ -272,17 +288,17 @@ class LevelCells:
         4 [i along a], homogeneous differences from the limit), key = pa + 2 qa - 1 for the
         sub-cell (pa, qa) in {(1, 0), (0, 1), (1, 1)} counted from the irregular corner in
         units of the level's width 2^-level. A point is then one gather and one Bezier
-        evaluation (``bicubic_nets``), as in a plain Bezier cell.
+        evaluation (``bicubic_nets``), as in a plain Bezier cell. The values at the irregular
+        vertex itself (``_vertex``, (6, 4, cell)) are the same for every point there.
 
-        ``_frame`` per cell: the irregular corner (ca, cb) in (a, b), and whether the face
-        frame (s, t) swaps a and b (the sub-patch a point past the deepest level is clamped
-        to is named in the face frame)."""
-        L, M = self.NET_LEVELS, self.MAX_LEVEL
+        Per cell: the irregular corner (ca, cb) in (a, b) (``_corner``, (2, cell)), and whether
+        the face frame (s, t) swaps a and b (``_swap``: the sub-patch a point past the deepest
+        level is clamped to is named in the face frame)."""
         ncell = len(self.d)
         ncoord = self.d.shape[-1]
         # B-spline sub-patch stencils -> Bezier nets of the same sub-patches: (3, 16, K)
         Sb = np.einsum("ab,kbK->kaK", np.kron(BSPLINE_TO_BEZIER, BSPLINE_TO_BEZIER), self.scheme.S)
-        face = np.einsum("kaK,cmKx->cmkxa", Sb, self.d[:, :min(L, M)])   # (cell, level, k, x, 16)
+        face = np.einsum("kaK,cmKx->cmkxa", Sb, self.d[:, :self.NET_LEVELS])   # (cell, level, k, x, 16)
         face = face.reshape(ncell, -1, 3, ncoord, 4, 4)                  # [.., t index, s index]
         nets = np.empty((ncell, face.shape[1], 3, ncoord, 4, 4))
         frame = np.zeros((ncell, 3), dtype=int)
@@ -298,7 +314,9 @@ class LevelCells:
                 k = {(1, 0): 0, (1, 1): 1, (0, 1): 2}[(ps, qs)]   # Stam's sub-patch order
                 nets[c, :, pa + 2 * qa - 1] = face[c, :, k][..., st[..., 1], st[..., 0]]
         self.nets = np.ascontiguousarray(nets.reshape(-1, ncoord, 4, 4))
-        self._frame = frame
+        self._corner = np.ascontiguousarray(frame[:, :2].T, dtype=float)     # (2, cell)
+        self._swap = frame[:, 2].astype(bool)
+        self._vertex = self._evaluate(np.arange(ncell), self._corner[0], self._corner[1])[0]
 
     def _evaluate(self, idx, a, b):
         A, at_vertex, level, k, sh, th = _ring_coordinates(self.maps[idx], a, b, self.EPS_LEVEL,
@@ -315,37 +333,41 @@ class LevelCells:
 
     def _evaluate_nets(self, idx, a, b):
         """As ``_evaluate`` from the cached nets (``_cache_nets``); ``deep`` marks the points
-        below level NET_LEVELS, which it leaves unset."""
-        f = self._frame[idx]
-        ca, cb = f[:, 0], f[:, 1]
-        ea = np.minimum(np.abs(a - ca), 1.0)            # distances from the irregular corner
-        eb = np.minimum(np.abs(b - cb), 1.0)
-        mx = np.maximum(ea, eb)
+        below level NET_LEVELS, which it leaves unset. Both parameters as one (2, n) array:
+        half the array calls (batches are often a hundred points)."""
+        n = len(a)
+        corner = self._corner[:, idx]                   # (2, n)
+        E = np.empty((2, n))
+        E[0], E[1] = a, b
+        E -= corner
+        np.abs(E, out=E)                                # distances from the irregular corner
+        np.minimum(E, 1.0, out=E)
+        mx = np.maximum(E[0], E[1])
         at_vertex = mx <= 0.0
-        if at_vertex.any():
-            eps = 2.0 ** -self.EPS_LEVEL
-            ea, eb, mx = (np.where(at_vertex, eps, x) for x in (ea, eb, mx))
         _, e = np.frexp(mx)
-        level = np.clip(1 - e, 1, self.MAX_LEVEL)
-        deep = level > self.NET_LEVELS
+        level = np.minimum(np.maximum(1 - e, 1), self.MAX_LEVEL)
+        deep = (level > self.NET_LEVELS) & ~at_vertex
         scale = np.ldexp(1.0, level)
-        P, Q = ea * scale, eb * scale
-        pa, qa = P >= 1.0, Q >= 1.0
+        E *= scale
+        pq = E >= 1.0                                   # the sub-cell (pa, qa) of the level
         # below the deepest level: the sub-patch (1, 0) of the face frame, as _ring_coordinates
-        low = ~(pa | qa)
+        low = ~(pq[0] | pq[1])
         if low.any():
-            swap = f[:, 2].astype(bool)
-            pa |= low & ~swap
-            qa |= low & swap
-        sa = np.clip(P - pa, 0.0, 1.0)
-        sb = np.clip(Q - qa, 0.0, 1.0)
-        key = (idx * self.NET_LEVELS + np.minimum(level, self.NET_LEVELS) - 1) * 3 + pa + 2 * qa - 1
-        H = bicubic_nets(self.nets[key], np.where(ca == 0, sa, 1.0 - sa), np.where(cb == 0, sb, 1.0 - sb))
+            swap = self._swap[idx]
+            pq[0] |= low & ~swap
+            pq[1] |= low & swap
+        E -= pq
+        np.maximum(E, 0.0, out=E)
+        np.minimum(E, 1.0, out=E)
+        E -= corner                                     # the sub-cell's own (a, b): |corner - E|
+        np.abs(E, out=E)
+        key = (idx * self.NET_LEVELS + np.minimum(level, self.NET_LEVELS) - 1) * 3 + pq[0] + 2 * pq[1] - 1
+        H = bicubic_nets(self.nets[key], E[0], E[1])
         H[1:3] *= scale
         H[3:] *= scale * scale
         H[0] += self.limit[idx].T
         if at_vertex.any():
-            H[0][:, at_vertex] = self.limit[idx[at_vertex]].T
+            H[:, :, at_vertex] = self._vertex[:, :, idx[at_vertex]]
         return H, at_vertex, deep
 
     def evaluate(self, idx: np.ndarray, a: np.ndarray, b: np.ndarray):

@@ -46,29 +46,13 @@ def bicubic_nets(X: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """Bicubic Bezier pieces, one per point: nets X (n, C, 4 [j along b], 4 [i along a]) at
     (a, b) -> the six derivatives (6, C, n). Two batched 4 x 4 products per point (along a
     for all three orders, then along b), whatever the pieces: for points spread over many
-    small pieces (sub-cells next to extraordinary points), where runs of one piece are short.
-    The Bernstein values come from the monomials in one product (few array calls: these
-    batches are often a hundred points)."""
+    small pieces (sub-cells next to extraordinary points), where runs of one piece are short."""
     n = len(a)
-    pw = np.empty((4, 2 * n))
-    pw[0] = 1.0
-    pw[1, :n] = a
-    pw[1, n:] = b
-    np.multiply(pw[1], pw[1], out=pw[2])
-    np.multiply(pw[2], pw[1], out=pw[3])
-    B = (_BERNSTEIN3_MONOMIAL @ pw).reshape(3, 4, 2 * n)     # (order, 4, 2n)
+    B = bernstein_rows(3, np.concatenate([a, b]))           # (3 [order], 4, 2n)
     bs = B[:, :, :n].transpose(2, 1, 0)[:, None]            # (n, 1, 4 [i], 3 [order in a])
     bt = B[:, :, n:].transpose(2, 0, 1)[:, None]            # (n, 1, 3 [order in b], 4 [j])
     R = np.matmul(bt, np.matmul(X, bs))                     # (n, C, 3 [b], 3 [a])
     return R[:, :, _DT, _DS].transpose(2, 1, 0)
-
-
-# cubic Bernstein polynomials and their first two derivatives on the monomials 1, t, t^2, t^3:
-# row 4 d + i is the d-th derivative of B_i
-_BERNSTEIN3_MONOMIAL = np.array([
-    [1, -3, 3, -1], [0, 3, -6, 3], [0, 0, 3, -3], [0, 0, 0, 1],
-    [-3, 6, -3, 0], [3, -12, 9, 0], [0, 6, -9, 0], [0, 0, 3, 0],
-    [6, -6, 0, 0], [-12, 18, 0, 0], [6, -18, 0, 0], [0, 6, 0, 0]], dtype=float)
 
 
 class BezierCells:
@@ -268,7 +252,7 @@ class LevelCells:
     MAX_LEVEL = 60
     # levels whose sub-patches are kept as Bezier nets (points within 2^-NET_LEVELS of a
     # cell's width from the irregular vertex go through the configuration of their level)
-    NET_LEVELS = 30
+    NET_LEVELS = 24
 
     def __init__(self, scheme, C0: np.ndarray, maps: np.ndarray):
         self.scheme = scheme
@@ -371,11 +355,22 @@ class LevelCells:
         return H, at_vertex, deep
 
     def evaluate(self, idx: np.ndarray, a: np.ndarray, b: np.ndarray):
+        """From the cached nets; the few points below level NET_LEVELS through the
+        configuration of their level."""
         H, at_vertex, deep = self._evaluate_nets(idx, a, b)
         if deep.any():
             H[:, :, deep] = self._evaluate(idx[deep], a[deep], b[deep])[0]
-        ep_normal = None
-        if at_vertex.any():
-            ep_normal = np.zeros((len(a), 3))
-            ep_normal[at_vertex] = self.limit_normal[idx[at_vertex]]
-        return H, at_vertex, ep_normal
+        return H, at_vertex, self._ep_normal(idx, at_vertex)
+
+    def evaluate_levels(self, idx: np.ndarray, a: np.ndarray, b: np.ndarray):
+        """As ``evaluate``, every point from the configuration of its level (the reference
+        the cached nets are tested against)."""
+        H, at_vertex, _ = self._evaluate(idx, a, b)
+        return H, at_vertex, self._ep_normal(idx, at_vertex)
+
+    def _ep_normal(self, idx, at_vertex):
+        if not at_vertex.any():
+            return None
+        ep_normal = np.zeros((len(idx), 3))
+        ep_normal[at_vertex] = self.limit_normal[idx[at_vertex]]
+        return ep_normal

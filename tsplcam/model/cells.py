@@ -55,6 +55,17 @@ def bicubic_nets(X: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return R[:, :, _DT, _DS].transpose(2, 1, 0)
 
 
+def scale_derivatives(H: np.ndarray, sa, sb) -> np.ndarray:
+    """In place: derivatives (6, C, n) with respect to (a, b) taken with respect to (a / sa,
+    b / sb), i.e. first derivatives times sa or sb, second ones times their products."""
+    H[1] *= sa
+    H[2] *= sb
+    H[3] *= sa * sa
+    H[4] *= sa * sb
+    H[5] *= sb * sb
+    return H
+
+
 class BezierCells:
     """Rational Bezier cells of one degree pair: ``ctrl`` (ncell, q+1, p+1, 4) homogeneous
     (w x, w y, w z, w), index [j, i] with i along the cell's first parameter a."""
@@ -241,7 +252,9 @@ class LevelCells:
     on the difference from the limit point L keeps full relative precision at every level;
     unlike powers of an eigenbasis (Stam 1998), it needs no eigenvectors (none exist where A
     is defective, as at some boundary vertices, and they are ill-conditioned near such
-    configurations). Below 2^-MAX_LEVEL the point is the limit point.
+    configurations). Below 2^-MAX_LEVEL the point is the limit point. The sub-patches of the
+    first NET_LEVELS levels are kept as Bezier nets (``_cache_nets``), so that most points cost
+    one gather and one bicubic evaluation; ``evaluate_levels`` is the configuration route.
 
     ``C0`` (ncell, K, 4): the cells' homogeneous control points in configuration order;
     ``maps`` (ncell,) index of SQUARE_MAPS taking the cell's local (a, b) to the face frame

@@ -62,7 +62,7 @@ import numpy as np
 
 from ..errors import InputError
 from .basis import bernstein
-from .cells import DERIVS, _chain, bicubic_nets
+from .cells import DERIVS, _chain, bicubic_nets, scale_derivatives
 from .twalk import Walker, apply, compose, inverse, map_knots, rot
 
 MAX_LEVEL = 56                 # below 2^-56 of a face the point is the limit point
@@ -806,12 +806,7 @@ class StarLevels:
         b = np.minimum(np.maximum((b - y0) / syw, 0.0), 1.0)
         H = bicubic_nets(self.nets[cell * (NET_LEVEL - 1) + level - 2], a, b)
         H[0] += self._z0[cell][None, :] * self.limit[:, None]
-        sx, sy = scale / (dx * sxw), scale / (dy * syw)
-        H[1] *= sx
-        H[2] *= sy
-        H[3] *= sx * sx
-        H[4] *= sx * sy
-        H[5] *= sy * sy
+        scale_derivatives(H, scale / (dx * sxw), scale / (dy * syw))
         if at_vertex.any():
             H[:, :, at_vertex] = self._vertex[:, :, sector[at_vertex]]
         if deep.any():
@@ -874,12 +869,7 @@ class StarLevels:
         for k, (da, db) in enumerate(DERIVS):
             H[k] = np.matmul(along_x[da], bt[:, db][:, :, None])[..., 0].T
         H[0] += z0[:, 0][None, :] * self.limit[:, None]
-        sx, sy = scale / (dx * sxw), scale / (dy * syw)
-        H[1] *= sx
-        H[2] *= sy
-        H[3] *= sx * sx
-        H[4] *= sx * sy
-        H[5] *= sy * sy
+        scale_derivatives(H, scale / (dx * sxw), scale / (dy * syw))
         if at_vertex.any():
             H[0][:, at_vertex] = self.limit[:, None]
         return H, at_vertex

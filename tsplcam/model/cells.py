@@ -336,9 +336,10 @@ class LevelCells:
         corner = self._corner[:, idx]                   # (2, n)
         E = np.empty((2, n))
         E[0], E[1] = a, b
+        np.maximum(E, 0.0, out=E)                       # in the cell, as _ring_coordinates
+        np.minimum(E, 1.0, out=E)
         E -= corner
         np.abs(E, out=E)                                # distances from the irregular corner
-        np.minimum(E, 1.0, out=E)
         mx = np.maximum(E[0], E[1])
         at_vertex = mx <= 0.0
         _, e = np.frexp(mx)

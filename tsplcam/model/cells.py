@@ -360,9 +360,7 @@ class LevelCells:
         E -= corner                                     # the sub-cell's own (a, b): |corner - E|
         np.abs(E, out=E)
         key = (idx * self.NET_LEVELS + np.minimum(level, self.NET_LEVELS) - 1) * 3 + pq[0] + 2 * pq[1] - 1
-        H = bicubic_nets(self.nets[key], E[0], E[1])
-        H[1:3] *= scale
-        H[3:] *= scale * scale
+        H = scale_derivatives(bicubic_nets(self.nets[key], E[0], E[1]), scale, scale)
         H[0] += self.limit[idx].T
         if at_vertex.any():
             H[:, :, at_vertex] = self._vertex[:, :, idx[at_vertex]]

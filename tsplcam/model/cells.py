@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .basis import bernstein, bernstein_rows, uniform_cubic
+from .basis import BSPLINE_TO_BEZIER, bernstein, bernstein_rows, uniform_cubic
 
 # derivative combinations in output order: (order in first variable, order in second)
 DERIVS = ((0, 0), (1, 0), (0, 1), (2, 0), (1, 1), (0, 2))
@@ -35,6 +35,35 @@ def tensor_basis(bs: np.ndarray, bt: np.ndarray) -> np.ndarray:
     for k, (ds, dt) in enumerate(DERIVS):
         out[:, k, :] = (bt[:, dt, :, None] * bs[:, ds, None, :]).reshape(n, -1)
     return out
+
+
+# (order in b, order in a) of DERIVS, to pick them from a 3 x 3 table of both
+_DT = np.array([dt for _, dt in DERIVS])
+_DS = np.array([ds for ds, _ in DERIVS])
+
+
+def bicubic_nets(X: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Bicubic Bezier pieces, one per point: nets X (n, C, 4 [j along b], 4 [i along a]) at
+    (a, b) -> the six derivatives (6, C, n). Two batched 4 x 4 products per point (along a
+    for all three orders, then along b), whatever the pieces: for points spread over many
+    small pieces (sub-cells next to extraordinary points), where runs of one piece are short."""
+    n = len(a)
+    B = bernstein_rows(3, np.concatenate([a, b]))           # (3 [order], 4, 2n)
+    bs = B[:, :, :n].transpose(2, 1, 0)[:, None]            # (n, 1, 4 [i], 3 [order in a])
+    bt = B[:, :, n:].transpose(2, 0, 1)[:, None]            # (n, 1, 3 [order in b], 4 [j])
+    R = np.matmul(bt, np.matmul(X, bs))                     # (n, C, 3 [b], 3 [a])
+    return R[:, :, _DT, _DS].transpose(2, 1, 0)
+
+
+def scale_derivatives(H: np.ndarray, sa, sb) -> np.ndarray:
+    """In place: derivatives (6, C, n) with respect to (a, b) taken with respect to (a / sa,
+    b / sb), i.e. first derivatives times sa or sb, second ones times their products."""
+    H[1] *= sa
+    H[2] *= sb
+    H[3] *= sa * sa
+    H[4] *= sa * sb
+    H[5] *= sb * sb
+    return H
 
 
 class BezierCells:
@@ -223,7 +252,9 @@ class LevelCells:
     on the difference from the limit point L keeps full relative precision at every level;
     unlike powers of an eigenbasis (Stam 1998), it needs no eigenvectors (none exist where A
     is defective, as at some boundary vertices, and they are ill-conditioned near such
-    configurations). Below 2^-MAX_LEVEL the point is the limit point.
+    configurations). Below 2^-MAX_LEVEL the point is the limit point. The sub-patches of the
+    first NET_LEVELS levels are kept as Bezier nets (``_cache_nets``), so that most points cost
+    one gather and one bicubic evaluation; ``evaluate_levels`` is the configuration route.
 
     ``C0`` (ncell, K, 4): the cells' homogeneous control points in configuration order;
     ``maps`` (ncell,) index of SQUARE_MAPS taking the cell's local (a, b) to the face frame
@@ -232,6 +263,9 @@ class LevelCells:
     kind = "levels"
     EPS_LEVEL = 50
     MAX_LEVEL = 60
+    # levels whose sub-patches are kept as Bezier nets (points within 2^-NET_LEVELS of a
+    # cell's width from the irregular vertex go through the configuration of their level)
+    NET_LEVELS = 24
 
     def __init__(self, scheme, C0: np.ndarray, maps: np.ndarray):
         self.scheme = scheme
@@ -240,9 +274,46 @@ class LevelCells:
         self.limit = np.array([L for L, _ in pairs])                # (ncell, 4)
         self.d = np.array([d for _, d in pairs])                    # (ncell, M, K, 4)
         self.limit_normal = np.array([scheme.limit_normal(c) for c in C0]).reshape(-1, 3)
+        self._cache_nets()
 
     def __len__(self) -> int:
         return len(self.d)
+
+    def _cache_nets(self):
+        """The Bezier nets of every regular sub-patch of levels 1 .. NET_LEVELS, in each cell's
+        own (a, b) frame: nets[(cell * NET_LEVELS + level - 1) * 3 + key] (4, 4 [j along b],
+        4 [i along a], homogeneous differences from the limit), key = pa + 2 qa - 1 for the
+        sub-cell (pa, qa) in {(1, 0), (0, 1), (1, 1)} counted from the irregular corner in
+        units of the level's width 2^-level. A point is then one gather and one Bezier
+        evaluation (``bicubic_nets``), as in a plain Bezier cell. The values at the irregular
+        vertex itself (``_vertex``, (6, 4, cell)) are the same for every point there.
+
+        Per cell: the irregular corner (ca, cb) in (a, b) (``_corner``, (2, cell)), and whether
+        the face frame (s, t) swaps a and b (``_swap``: the sub-patch a point past the deepest
+        level is clamped to is named in the face frame)."""
+        ncell = len(self.d)
+        ncoord = self.d.shape[-1]
+        # B-spline sub-patch stencils -> Bezier nets of the same sub-patches: (3, 16, K)
+        Sb = np.einsum("ab,kbK->kaK", np.kron(BSPLINE_TO_BEZIER, BSPLINE_TO_BEZIER), self.scheme.S)
+        face = np.einsum("kaK,cmKx->cmkxa", Sb, self.d[:, :self.NET_LEVELS])   # (cell, level, k, x, 16)
+        face = face.reshape(ncell, -1, 3, ncoord, 4, 4)                  # [.., t index, s index]
+        nets = np.empty((ncell, face.shape[1], 3, ncoord, 4, 4))
+        frame = np.zeros((ncell, 3), dtype=int)
+        grid = np.stack(np.meshgrid(np.arange(4), np.arange(4), indexing="xy"), axis=-1)  # [j, i] -> (i, j)
+        for c, m in enumerate(self.maps):
+            A, o = SQUARE_MAPS[m]
+            st = np.rint(grid @ A.T + 3 * o).astype(int)       # net index (I, J) in the face frame
+            corner = np.rint(-A.T @ o).astype(int)              # where (s, t) = (0, 0)
+            swap = bool(abs(A[0, 1]) > 0.5)
+            frame[c] = (corner[0], corner[1], swap)
+            for pa, qa in ((1, 0), (0, 1), (1, 1)):
+                ps, qs = (qa, pa) if swap else (pa, qa)
+                k = {(1, 0): 0, (1, 1): 1, (0, 1): 2}[(ps, qs)]   # Stam's sub-patch order
+                nets[c, :, pa + 2 * qa - 1] = face[c, :, k][..., st[..., 1], st[..., 0]]
+        self.nets = np.ascontiguousarray(nets.reshape(-1, ncoord, 4, 4))
+        self._corner = np.ascontiguousarray(frame[:, :2].T, dtype=float)     # (2, cell)
+        self._swap = frame[:, 2].astype(bool)
+        self._vertex = self._evaluate(np.arange(ncell), self._corner[0], self._corner[1])[0]
 
     def _evaluate(self, idx, a, b):
         A, at_vertex, level, k, sh, th = _ring_coordinates(self.maps[idx], a, b, self.EPS_LEVEL,
@@ -257,10 +328,61 @@ class LevelCells:
             H[0][:, at_vertex] = self.limit[idx[at_vertex]].T
         return H, at_vertex, level
 
-    def evaluate(self, idx: np.ndarray, a: np.ndarray, b: np.ndarray):
-        H, at_vertex, _ = self._evaluate(idx, a, b)
-        ep_normal = None
+    def _evaluate_nets(self, idx, a, b):
+        """As ``_evaluate`` from the cached nets (``_cache_nets``); ``deep`` marks the points
+        below level NET_LEVELS, which it leaves unset. Both parameters as one (2, n) array:
+        half the array calls (batches are often a hundred points)."""
+        n = len(a)
+        corner = self._corner[:, idx]                   # (2, n)
+        E = np.empty((2, n))
+        E[0], E[1] = a, b
+        np.maximum(E, 0.0, out=E)                       # in the cell, as _ring_coordinates
+        np.minimum(E, 1.0, out=E)
+        E -= corner
+        np.abs(E, out=E)                                # distances from the irregular corner
+        mx = np.maximum(E[0], E[1])
+        at_vertex = mx <= 0.0
+        _, e = np.frexp(mx)
+        level = np.minimum(np.maximum(1 - e, 1), self.MAX_LEVEL)
+        deep = (level > self.NET_LEVELS) & ~at_vertex
+        scale = np.ldexp(1.0, level)
+        E *= scale
+        pq = E >= 1.0                                   # the sub-cell (pa, qa) of the level
+        # below the deepest level: the sub-patch (1, 0) of the face frame, as _ring_coordinates
+        low = ~(pq[0] | pq[1])
+        if low.any():
+            swap = self._swap[idx]
+            pq[0] |= low & ~swap
+            pq[1] |= low & swap
+        E -= pq
+        np.maximum(E, 0.0, out=E)
+        np.minimum(E, 1.0, out=E)
+        E -= corner                                     # the sub-cell's own (a, b): |corner - E|
+        np.abs(E, out=E)
+        key = (idx * self.NET_LEVELS + np.minimum(level, self.NET_LEVELS) - 1) * 3 + pq[0] + 2 * pq[1] - 1
+        H = scale_derivatives(bicubic_nets(self.nets[key], E[0], E[1]), scale, scale)
+        H[0] += self.limit[idx].T
         if at_vertex.any():
-            ep_normal = np.zeros((len(a), 3))
-            ep_normal[at_vertex] = self.limit_normal[idx[at_vertex]]
-        return H, at_vertex, ep_normal
+            H[:, :, at_vertex] = self._vertex[:, :, idx[at_vertex]]
+        return H, at_vertex, deep
+
+    def evaluate(self, idx: np.ndarray, a: np.ndarray, b: np.ndarray):
+        """From the cached nets; the few points below level NET_LEVELS through the
+        configuration of their level."""
+        H, at_vertex, deep = self._evaluate_nets(idx, a, b)
+        if deep.any():
+            H[:, :, deep] = self._evaluate(idx[deep], a[deep], b[deep])[0]
+        return H, at_vertex, self._ep_normal(idx, at_vertex)
+
+    def evaluate_levels(self, idx: np.ndarray, a: np.ndarray, b: np.ndarray):
+        """As ``evaluate``, every point from the configuration of its level (the reference
+        the cached nets are tested against)."""
+        H, at_vertex, _ = self._evaluate(idx, a, b)
+        return H, at_vertex, self._ep_normal(idx, at_vertex)
+
+    def _ep_normal(self, idx, at_vertex):
+        if not at_vertex.any():
+            return None
+        ep_normal = np.zeros((len(idx), 3))
+        ep_normal[at_vertex] = self.limit_normal[idx[at_vertex]]
+        return ep_normal

@@ -62,11 +62,12 @@ import numpy as np
 
 from ..errors import InputError
 from .basis import bernstein
-from .cells import DERIVS, _chain
+from .cells import DERIVS, _chain, bicubic_nets, scale_derivatives
 from .twalk import Walker, apply, compose, inverse, map_knots, rot
 
 MAX_LEVEL = 56                 # below 2^-56 of a face the point is the limit point
 EPS_LEVEL = 50                 # derivatives at S itself are taken this close to it (as LevelCells)
+NET_LEVEL = 24                 # levels 2 .. NET_LEVEL are kept as Bezier nets (StarLevels)
 RADIUS = 5                     # configuration nodes per sector: 0..5 along x and y
 
 
@@ -730,10 +731,91 @@ class StarLevels:
         for (pp, qq), k in self.face_index.items():
             self.face_lut[pp, qq] = k
         self.Z, self.Zinf = pieces.Z, pieces.Zinf
+        self._cache_nets()
+
+    def _cache_nets(self):
+        """What a point of levels 2 .. NET_LEVEL needs, as arrays: the Bezier net of every
+        face cell at every such level (``nets[cell * levels + level - 2]``, (4 [x, y, z, w],
+        4 [along y], 4 [along x]): the level's differences and the limit's share beyond the
+        cell's first coefficient, as ``evaluate_levels`` forms them), and per (sector, ring
+        face) its cell breaks padded with +inf (``_bx``, ``_by``), first cell and cell count
+        along x and y. A point is then located and evaluated without a loop over faces. The values
+        at the star itself (evaluated next to it, the same for every point there) per sector:
+        ``_vertex`` (6, 4, sector)."""
+        n, nf = self.zone.n, len(self.face_index)
+        levels = NET_LEVEL - 1
+        ncell = len(self.Z)
+        z0 = self.Zinf[:, :1]
+        share = (self.Zinf - z0)[:, :, None] * self.limit[None, None, :]
+        c = np.empty((ncell, levels, 16, self.d.shape[2]))
+        for m in range(levels):
+            # the products evaluate_levels forms per point, so the same rounding
+            d = np.broadcast_to(self.d[m + 2], (ncell,) + self.d.shape[1:])
+            c[:, m] = np.einsum("npc,ncd->npd", self.Z, d) + share
+        self.nets = np.ascontiguousarray(c.reshape(ncell * levels, 4, 4, 4).transpose(0, 3, 1, 2))
+        self._z0 = z0[:, 0]
+        width = max(len(xs) for xs, _ in self.breaks.values()) + 1
+        self._bx = np.full((n * nf, width), np.inf)
+        self._by = np.full((n * nf, width), np.inf)
+        self._first = np.zeros(n * nf, dtype=int)
+        self._ncx = np.zeros(n * nf, dtype=int)
+        self._ncy = np.zeros(n * nf, dtype=int)
+        for (j, k), (xs, ys) in self.breaks.items():
+            r = j * nf + k
+            self._bx[r, :len(xs)] = xs
+            self._by[r, :len(ys)] = ys
+            self._first[r] = self.first_cell[(j, k)]
+            self._ncx[r] = len(xs) - 1
+            self._ncy[r] = len(ys) - 1
+        sectors = np.arange(n)
+        self._vertex = self.evaluate_levels(sectors, np.zeros(n), np.zeros(n))[0]
 
     def evaluate(self, sector: np.ndarray, x: np.ndarray, y: np.ndarray):
         """Homogeneous value and derivatives (6, 4, n) with respect to the sector chart's
-        (x, y), and the points at the star itself."""
+        (x, y), and the points at the star itself: from the cached nets (``_cache_nets``), the
+        few points below level NET_LEVEL through the level's configuration."""
+        zone = self.zone
+        dx = zone.d[sector]
+        dy = zone.d[(sector + 1) % zone.n]
+        u, w = np.maximum(x / dx, 0.0), np.maximum(y / dy, 0.0)
+        mx = np.maximum(u, w)
+        at_vertex = mx < 2.0 ** (2 - MAX_LEVEL)
+        _, ex = np.frexp(mx)                       # mx in [2^(ex-1), 2^ex)
+        level = np.minimum(np.maximum(2 - ex, 2), MAX_LEVEL)
+        deep = (level > NET_LEVEL) & ~at_vertex
+        level = np.minimum(level, NET_LEVEL)
+        scale = np.ldexp(1.0, level)
+        P, Q = u * scale, w * scale
+        p = np.minimum(np.maximum(np.floor(P), 0), 3).astype(int)
+        q = np.minimum(np.maximum(np.floor(Q), 0), 3).astype(int)
+        inner = (p < 2) & (q < 2)
+        p[inner] = 2                               # rounding at the ring's inner edge
+        a = np.minimum(np.maximum(P - p, 0.0), 1.0)
+        b = np.minimum(np.maximum(Q - q, 0.0), 1.0)
+        # the face's cell holding the point: breaks below it, counted
+        row = sector * len(self.face_index) + self.face_lut[p, q]
+        bx, by = self._bx[row], self._by[row]
+        nx = self._ncx[row]
+        ix = np.minimum(np.count_nonzero(bx[:, 1:] <= a[:, None], axis=1), nx - 1)
+        iy = np.minimum(np.count_nonzero(by[:, 1:] <= b[:, None], axis=1), self._ncy[row] - 1)
+        cell = self._first[row] + iy * nx + ix
+        r = np.arange(len(a))
+        x0, x1, y0, y1 = bx[r, ix], bx[r, ix + 1], by[r, iy], by[r, iy + 1]
+        sxw, syw = x1 - x0, y1 - y0
+        a = np.minimum(np.maximum((a - x0) / sxw, 0.0), 1.0)
+        b = np.minimum(np.maximum((b - y0) / syw, 0.0), 1.0)
+        H = bicubic_nets(self.nets[cell * (NET_LEVEL - 1) + level - 2], a, b)
+        H[0] += self._z0[cell][None, :] * self.limit[:, None]
+        scale_derivatives(H, scale / (dx * sxw), scale / (dy * syw))
+        if at_vertex.any():
+            H[:, :, at_vertex] = self._vertex[:, :, sector[at_vertex]]
+        if deep.any():
+            H[:, :, deep] = self.evaluate_levels(sector[deep], x[deep], y[deep])[0]
+        return H, at_vertex
+
+    def evaluate_levels(self, sector: np.ndarray, x: np.ndarray, y: np.ndarray):
+        """``evaluate`` from the configuration of every point's level: the points below
+        NET_LEVEL and at the star itself, and the reference the cached nets are tested against."""
         zone = self.zone
         n = len(x)
         dx = zone.d[sector]
@@ -787,12 +869,7 @@ class StarLevels:
         for k, (da, db) in enumerate(DERIVS):
             H[k] = np.matmul(along_x[da], bt[:, db][:, :, None])[..., 0].T
         H[0] += z0[:, 0][None, :] * self.limit[:, None]
-        sx, sy = scale / (dx * sxw), scale / (dy * syw)
-        H[1] *= sx
-        H[2] *= sy
-        H[3] *= sx * sx
-        H[4] *= sx * sy
-        H[5] *= sy * sy
+        scale_derivatives(H, scale / (dx * sxw), scale / (dy * syw))
         if at_vertex.any():
             H[0][:, at_vertex] = self.limit[:, None]
         return H, at_vertex

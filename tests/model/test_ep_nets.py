@@ -1,0 +1,160 @@
+"""Cells next to extraordinary points evaluated from cached Bezier nets of their regular
+sub-patches (cells.LevelCells, stars.StarLevels) against the configuration of every point's
+level (``evaluate_levels``, the route the nets are built from): positions, first and second
+derivatives, normals, on the keycap sample and on the star models of valence 3 to 8 of
+test_stars.py, at random points of every such cell and at points 2^-1 .. 2^-45 of a cell from
+each corner (beyond the cached levels too) and on the corners themselves."""
+import unittest
+from unittest import mock
+
+import numpy as np
+
+import tsplcam
+from tsplcam.model.cage import cage_model
+from tsplcam.model.cells import LevelCells
+from tsplcam.model.stars import StarLevels, SumCells
+from tsplcam.model.tmesh import quad_tmesh
+from tsplcam.model.tspline import tspline_model
+from conftest import ngon_prism
+from test_stars import random_intervals, refined, star_disc
+
+REL = 1e-12          # positions: of the model size; derivatives: of their own size at the point
+# second derivatives of a star's part: the two routes sum the same terms in another order, and
+# in a sub-cell 3 % of its face wide (next to the valence-7 star) the terms are (1/0.03)^2 times
+# the derivative they sum to: 9e-12 there, below 3e-13 elsewhere
+STAR_SECOND = 3e-11
+CORNERS = np.array([[0.0, 0.0], [1.0, 0.0], [0.0, 1.0], [1.0, 1.0]])
+
+
+def ep_cell_points(patch, rng, count=24):
+    """(u, v) in every cell of ``patch`` next to an extraordinary point: random, near each
+    corner at distances 2^-1, 2^-3 .. 2^-45 of the cell, and on the corners."""
+    kinds = (LevelCells, SumCells)
+    cells = [(i, j) for i in range(patch.shape[0]) for j in range(patch.shape[1])
+             if isinstance(patch.groups[patch.cell_group[i, j]], kinds)]
+    ab = [rng.random((count, 2))]
+    for c in CORNERS:
+        r = np.ldexp(rng.random((23, 2)), -np.arange(1, 46, 2)[:, None])
+        ab.append(np.abs(c - r))
+    ab.append(CORNERS)
+    ab = np.concatenate(ab)
+    u, v = [], []
+    for i, j in cells:
+        wu, wv = patch.ubreaks[i + 1] - patch.ubreaks[i], patch.vbreaks[j + 1] - patch.vbreaks[j]
+        u.append(patch.ubreaks[i] + ab[:, 0] * wu)
+        v.append(patch.vbreaks[j] + ab[:, 1] * wv)
+    return (np.concatenate(u), np.concatenate(v)) if cells else (None, None)
+
+
+def by_levels():
+    """Both evaluators routed through the configuration of every point's level."""
+    return (mock.patch.object(LevelCells, "evaluate", LevelCells.evaluate_levels),
+            mock.patch.object(StarLevels, "evaluate", StarLevels.evaluate_levels))
+
+
+def star_calls(patch, u, v):
+    """The (star, sector, x, y) a patch evaluation hands to its stars' subdivided parts."""
+    calls = []
+    nets = StarLevels.evaluate
+
+    def spy(self, sector, x, y):
+        calls.append((self, sector.copy(), x.copy(), y.copy()))
+        return nets(self, sector, x, y)
+    with mock.patch.object(StarLevels, "evaluate", spy):
+        patch.evaluate(u, v)
+    return calls
+
+
+def relative(H, ref, floor):
+    """Largest difference of homogeneous derivatives (6, 4, n) per derivative order (value,
+    first, second) over the size of the reference's derivatives of that order at the point,
+    or ``floor`` where they are smaller (where the star's part vanishes)."""
+    out = []
+    for rows in ((0,), (1, 2), (3, 4, 5)):
+        size = np.max([np.linalg.norm(ref[k], axis=0) for k in rows], axis=0)
+        err = np.max([np.linalg.norm(H[k] - ref[k], axis=0) for k in rows], axis=0)
+        out.append((err / np.maximum(size, floor)).max())
+    return out
+
+
+class CachedNetsEqualLevels(unittest.TestCase):
+
+    def check(self, model, label, seed=0, patches=None):
+        """Every cell next to an extraordinary point. Cage cells: the patch's derivatives.
+        Star cells add a Bezier part and the star's part whose second derivatives grow like
+        4^level and cancel in the sum (1e8 against 13 at 2^-22 of a cell next to a star of
+        valence 7): there the star's part itself is compared, and the patch's positions.
+        ``patches``: the first so many patches with such cells (time)."""
+        rng = np.random.default_rng(seed)
+        scale = max(np.abs(p.evaluate_grid(np.linspace(0, 1, 5), np.linspace(0, 1, 5)).P).max()
+                    for p in model.patches)
+        checked = done = 0
+        for patch in model.patches:
+            u, v = ep_cell_points(patch, rng)
+            if u is None or done == patches:
+                continue
+            done += 1
+            a = patch.evaluate(u, v)
+            m1, m2 = by_levels()
+            with m1, m2:
+                b = patch.evaluate(u, v)
+            checked += len(u)
+            self.assertLess(np.abs(a.P - b.P).max(), REL * scale, (label, patch.index))
+            calls = star_calls(patch, u, v)
+            if not calls:
+                for ks in (("Pu", "Pv"), ("Puu", "Puv", "Pvv")):
+                    size = np.max([np.linalg.norm(getattr(b, k), axis=1) for k in ks], axis=0)
+                    err = np.max([np.linalg.norm(getattr(a, k) - getattr(b, k), axis=1) for k in ks], axis=0)
+                    self.assertLess((err / np.maximum(size, 1e-300)).max(), REL, (label, patch.index, ks))
+                self.assertLess(np.abs(a.normal - b.normal).max(), 1e-12, (label, patch.index))
+            for star, sector, x, y in calls:
+                H, at = star.evaluate(sector, x, y)
+                H0, at0 = star.evaluate_levels(sector, x, y)
+                np.testing.assert_array_equal(at, at0)
+                for order, err in enumerate(relative(H, H0, np.linalg.norm(star.limit))):
+                    self.assertLess(err, STAR_SECOND if order == 2 else REL, (label, patch.index, order))
+        self.assertGreater(checked, 0, label)
+
+    def test_keycap(self):
+        self.check(tsplcam.load_model("keycap"), "keycap")
+
+    def test_rounded_off_the_cell_at_the_vertex(self):
+        """(a, b) a rounding outside the cell at its irregular corner: the vertex itself, by
+        both routes (the patch clamps u, v, not the cell's a, b)."""
+        model = tsplcam.load_model("keycap")
+        for group in {id(g): g for p in model.patches for g in p.groups if isinstance(g, LevelCells)}.values():
+            idx = np.repeat(np.arange(len(group)), 3)
+            corner = group._corner[:, idx]
+            off = np.tile([0.0, 2e-16, -2e-16], len(group))
+            a, b = corner[0] + np.where(corner[0] > 0, off, -off), corner[1] + np.where(corner[1] > 0, off, -off)
+            H, at, nrm = group.evaluate(idx, a, b)
+            H0, at0, nrm0 = group.evaluate_levels(idx, a, b)
+            np.testing.assert_array_equal(at, at0)
+            self.assertTrue(at[::3].all() and at[1::3].all())
+            np.testing.assert_array_equal(H[:, :, at], H0[:, :, at])
+            np.testing.assert_array_equal(nrm, nrm0)
+
+    def test_catmull_clark_and_uniform_stars(self):
+        """test_stars' prisms of valence 3, 5, 6, 8: the cage (LevelCells) and the T-spline
+        with uniform intervals (StarLevels)."""
+        for n in (3, 5, 6, 8):
+            cage = refined(ngon_prism(n, seed=n), 2)
+            self.check(cage_model(cage), f"cage {n}", n)
+            self.check(tspline_model(quad_tmesh(cage.points, cage.mesh.faces, interval=0.7)), f"uniform {n}", n, patches=8)
+
+    def test_non_uniform_and_rational_stars(self):
+        rng = np.random.default_rng(12)
+        for n in (3, 5, 6, 7, 8):
+            mesh = star_disc(n, random_intervals(n, n))
+            self.check(tspline_model(mesh), f"non-uniform {n}", n)
+            mesh.weights = rng.uniform(0.5, 2.0, mesh.n_vertices)
+            self.check(tspline_model(mesh), f"rational {n}", n)
+
+    def test_head_sample(self):
+        from tsplcam.model import samples
+        cage = samples.head(5)
+        self.check(tspline_model(quad_tmesh(cage.points, cage.mesh.faces)), "head")
+
+
+if __name__ == "__main__":
+    unittest.main()

@@ -81,6 +81,21 @@ class RoundTrip(unittest.TestCase):
             self.assertEqual(len(read_cl(a)), len(self.path) + 2)
 
 
+class Numbers(unittest.TestCase):
+
+    def test_numbers_that_print_as_zero_have_no_sign(self):
+        """A coordinate within half a unit of the last decimal of zero prints as 0.00000, never
+        -0.00000, in every column; the others print as Python's correctly rounded format."""
+        tip = [[-4e-6, -1e-12, -0.0], [-6e-6, 2.0, -3.000004], [1e-7, -5.1e-6, 0.0]]
+        axis = [[-4e-8, -1e-9, 1.0], [0.0, -0.6, -0.8], [-0.6, -0.8, -4.9e-8]]
+        # normal = axis: the tip is the contact point itself
+        text = cl_text(ToolPath(tip, axis, axis, [Move.CUT] * 3, [0] * 3, [[0.5, 0.5]] * 3, [0] * 3, 0.5), approach=0)
+        rows = [s[5:].split(",") for s in text.splitlines() if s.startswith("GOTO/")]
+        self.assertEqual(rows[0], ["0.00000", "0.00000", "0.00000", "0.0000000", "0.0000000", "1.0000000"])
+        self.assertEqual(rows[1], ["-0.00001", "2.00000", "-3.00000", "0.0000000", "-0.6000000", "-0.8000000"])
+        self.assertEqual(rows[2], ["0.00000", "-0.00001", "0.00000", "-0.6000000", "-0.8000000", "0.0000000"])
+
+
 class Reader(unittest.TestCase):
 
     def test_continuation_and_foreign_records(self):

@@ -25,9 +25,26 @@ _KIND_NAMES = {Move.CUT: "CUT", Move.LINK: "LINK", Move.RETRACT: "RETRACT", Move
 _NAME_KINDS = {v: k for k, v in _KIND_NAMES.items()}
 
 
+# a minus sign before a number that prints as zero ("-0.00000"), at a field's start
+_NEGATIVE_ZERO = re.compile(r"(?<=[/,])-(?=0\.0+(?:,|$))")
+
+
 def _num(v: float, decimals: int) -> str:
     s = f"{v:.{decimals}f}"
     return s[1:] if s.startswith("-") and float(s) == 0.0 else s
+
+
+def _gotos(tip: np.ndarray, axis: np.ndarray) -> list[list[str]]:
+    """The GOTO records (wrapped lines) of tips and axes: one format per row, numbers as
+    :func:`_num` writes them (a minus before a number that prints as zero dropped)."""
+    template = "GOTO/" + ",".join([f"%.{XYZ_DECIMALS}f"] * 3 + [f"%.{IJK_DECIMALS}f"] * 3)
+    out = []
+    for row in np.column_stack([tip, axis]).tolist():
+        text = template % tuple(row)
+        if "-0." in text:
+            text = _NEGATIVE_ZERO.sub("", text)
+        out.append(_wrap(text))
+    return out
 
 
 def _wrap(record: str) -> list[str]:
@@ -82,12 +99,10 @@ def cl_text(path: ToolPath, partno: str | None = None, approach: float = 5.0,
     lines += [f"PARTNO/{_partno(name)}", "UNITS/MM", "MULTAX/ON",
               f"CUTTER/{_num(2 * r, XYZ_DECIMALS)},{_num(r, XYZ_DECIMALS)}"]
 
-    def goto(p, a):
-        return _wrap("GOTO/" + ",".join([_num(x, XYZ_DECIMALS) for x in p] + [_num(x, IJK_DECIMALS) for x in a]))
-
+    gotos = _gotos(tip, axis)
     fed = f"FEDRAT/MMPM,{_num(float(path.feed), 4)}"
     if approach and approach > 0:
-        lines += ["$$ MOVE/APPROACH", "RAPID", *goto(tip[0] + approach * axis[0], axis[0])]
+        lines += ["$$ MOVE/APPROACH", "RAPID", *_gotos(tip[:1] + approach * axis[:1], axis[:1])[0]]
     lines.append(fed)
     kind = None
     mark = (None, None)
@@ -105,9 +120,9 @@ def cl_text(path: ToolPath, partno: str | None = None, approach: float = 5.0,
             mark = (None, None)
         if k == Move.RAPID:
             lines.append("RAPID")
-        lines += goto(tip[i], axis[i])
+        lines += gotos[i]
     if approach and approach > 0:
-        lines += ["$$ MOVE/RETREAT", *goto(tip[-1] + approach * axis[-1], axis[-1])]
+        lines += ["$$ MOVE/RETREAT", *_gotos(tip[-1:] + approach * axis[-1:], axis[-1:])[0]]
     lines.append("FINI")
     return "\n".join(lines) + "\n"
 

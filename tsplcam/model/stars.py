@@ -621,8 +621,9 @@ def clear_t_junctions(zone: StarZone, fns: list, e, gx, gy):
     Each is split at the extended lines its knot vectors cross: pieces centred at a star
     neighbour become (part of) that neighbour's refined function, the others are plain
     B-splines. The star's function along spoke k, knots (-b_k, 0, d_k, d_k + e_k), gives
-    beta_k = (e_k - e*_k) / (d_k + e_k + b_k) of itself to s_k and beta_k beta_(k+1) to q_k
-    (the tensor split at valence 4). Returns (rows (W, W): the refined W0 functions'
+    beta_k = (e_k - e*_k) / (d_k + e_k + b_k) of itself to s_k and, split along spoke k + 1
+    as well (knots (-d_(k-1), 0, d_(k+1), d_(k+1) + e_(k+1)) in sector k's chart, as in
+    ``build_zone``), beta_k (e_(k+1) - e*_(k+1)) / (d_(k+1) + e_(k+1) + d_(k-1)) to q_k. Returns (rows (W, W): the refined W0 functions'
     coefficients over the original W0 points, the refined neighbours' functions, the plain
     pieces); at valence 4 the sum is the T-spline's own, exactly."""
     n, d, b = zone.n, zone.d, zone.b
@@ -665,11 +666,14 @@ def clear_t_junctions(zone: StarZone, fns: list, e, gx, gy):
             xk = np.array([-b[k], 0.0, d[k], d[k] + es[k], d[k] + e[k]])
             yk = np.array([-(d[km] + es[km]), -d[km], 0.0, d[k1], d[k1] + es[k1]])
             credited[1 + k].append(Fn(k, d[k], 0.0, xk, yk, beta[k] * eye[0]))
-        if beta[k] > 0.0 and beta[k1] > 0.0:
+        # the corner: the star's function in sector k's chart is the tensor B-spline with
+        # knots (-b_k, 0, d_k, d_k + e_k) along x and (-d_(k-1), 0, d_(k+1), ...) along y
+        corner = beta[k] * (e[k1] - es[k1]) / (d[k1] + e[k1] + d[km])
+        if corner > 0.0:
             q = own[1 + n + k]
             xk = np.array([q.xk[0], 0.0, d[k], d[k] + es[k], d[k] + e[k]])
             yk = np.array([q.yk[0], 0.0, d[k1], d[k1] + es[k1], d[k1] + e[k1]])
-            credited[1 + n + k].append(Fn(k, d[k], d[k1], xk, yk, beta[k] * beta[k1] * eye[0]))
+            credited[1 + n + k].append(Fn(k, d[k], d[k1], xk, yk, corner * eye[0]))
     rows = eye.copy()
     out = []
     for k in range(1, W):

@@ -7,15 +7,20 @@ refinement), against independent references:
   the grid) and the same T-mesh evaluated without the construction;
 * at stars of valence 3, 5 and 6 with non-uniform intervals: the blending functions sum to 1
   on every cell, a plane is reproduced, the faces meet watertight and tangent continuous
-  across every edge, one normal at the star."""
+  across every edge, one normal at the star;
+* a uniform cage with a vertex of a star's second ring taken out (two T-junctions, an
+  interval 2): its refinement is the uniform cage again, so the surface must be the
+  Catmull-Clark limit (the cage path, cage_model) of some points on that cage: found by least
+  squares over every face, the fit must be exact."""
 import unittest
 
 import numpy as np
 
+from tsplcam.model.cage import Cage, cage_model
 from tsplcam.model.tmesh import TMesh
 from tsplcam.model.tspline import tspline_model
-from conftest import angle_between, brute_force, split_face, t_junction_mesh
-from test_stars import FAR_TOL, G1_DEG, meet, near_vertex, random_intervals, star_disc
+from conftest import angle_between, brute_force, ngon_prism, split_face, t_junction_mesh
+from test_stars import FAR_TOL, G1_DEG, meet, near_vertex, random_intervals, refined, star_disc
 
 K = 5                                  # faces per sector side in star_disc
 
@@ -68,6 +73,64 @@ def cell_sums(model, rng, per: int = 6) -> float:
                 H = g.evaluate(idx, rng.random(len(idx)), rng.random(len(idx)))[0]
                 err = max(err, float(np.abs(H[0, 3] - 1.0).max()))
     return err
+
+
+def _from(loop: list, first: int) -> list:
+    k = loop.index(first)
+    return loop[k:] + loop[:k]
+
+
+def without_second_ring_vertex(cage: Cage, star: int):
+    """The cage's T-mesh (every interval 1) with vertex w taken out, w the corner of the
+    second ring beyond the first face's diagonal vertex q along spoke 0 (in that face's
+    chart, S at (0, 0), q at (1, 1), w at (2, 1)): the edges (2, 0)-w-(2, 2) go, q-w-(3, 1)
+    becomes one edge of interval 2, and the four faces at w become two faces with the
+    T-junctions (2, 0) and (2, 2). Returns (T-mesh, w, per T-mesh face: the cage face it is,
+    or its two halves with their corners 0)."""
+    faces = [[int(v) for v in f] for f in cage.mesh.faces]
+    edge = {(f[k], f[(k + 1) % 4]): i for i, f in enumerate(faces) for k in range(4)}
+    _, s0, q, _ = _from(next(f for f in faces if star in f), star)
+    g1 = edge[(q, s0)]
+    _, a, w, _ = _from(faces[g1], s0)
+    g1b = edge[(w, a)]
+    _, c, d, _ = _from(faces[g1b], a)
+    g2 = edge[(q, w)]
+    _, _, e, f2 = _from(faces[g2], q)
+    g2b = edge[(e, w)]
+    _, _, g, _ = _from(faces[g2b], w)
+    gone = {g1, g1b, g2, g2b}
+    origin = [i for i in range(len(faces)) if i not in gone]
+    loops = [faces[i] for i in origin] + [[s0, a, c, d, q], [q, d, g, e, f2]]
+    corners = [(0, 1, 2, 3)] * len(origin) + [(0, 2, 3, 4), (0, 1, 2, 4)]
+    iv = [[1.0] * 4] * len(origin) + [[1.0, 1.0, 1.0, 2.0, 1.0], [2.0, 1.0, 1.0, 1.0, 1.0]]
+    origin += [((g1, s0), (g1b, a)), ((g2, q), (g2b, w))]
+    keep = [v for v in range(len(cage.points)) if v != w]
+    new = {v: k for k, v in enumerate(keep)}
+    mesh = TMesh(cage.points[keep], None, [[new[v] for v in f] for f in loops], corners, iv)
+    return mesh, w, origin
+
+
+def on_cage(cage: Cage, origin, rng, per: int = 6):
+    """Random points of every T-mesh face as (T-mesh face, s, t) and (cage face, s, t)."""
+    fm, sm, tm, fc, sc, tc = [], [], [], [], [], []
+    for k, o in enumerate(origin):
+        for s, t in rng.random((per, 2)):
+            fm.append(k)
+            sm.append(s)
+            tm.append(t)
+            if not isinstance(o, tuple):
+                fc.append(o)
+                sc.append(s)
+                tc.append(t)
+                continue
+            half, first = o[0] if s < 0.5 else o[1]
+            x = 2 * s if s < 0.5 else 2 * s - 1
+            r = (4 - [int(v) for v in cage.mesh.faces[half]].index(first)) % 4
+            fc.append(half)
+            u, v = [(x, t), (t, 1 - x), (1 - x, 1 - t), (1 - t, x)][r]    # the face's own corner 0
+            sc.append(u)
+            tc.append(v)
+    return (fm, sm, tm), (fc, sc, tc)
 
 
 class RegularVertexNextToTJunctions(unittest.TestCase):
@@ -172,6 +235,37 @@ class StarsNextToTJunctions(unittest.TestCase):
             P = flat.evaluate_faces(f, s, t).P
             self.assertLess(np.abs(P[:, 2] - (0.3 * P[:, 0] - 0.7 * P[:, 1] + 0.2)).max(),
                             1e-12 * np.abs(plane).max(), (n, name))
+
+
+class UniformCageWithAT(unittest.TestCase):
+    def test_is_the_catmull_clark_limit_of_the_refined_cage(self):
+        """The refinement inserts w again; the T-spline's surface must be the Catmull-Clark
+        limit of the cage with the refined points (those within four edges of w change, the
+        rest are the T-mesh's): found by least squares on random points of every face (the
+        limit is linear in the points), the fit must be exact."""
+        rng = np.random.default_rng(6)
+        for n in (3, 5, 6):
+            cage = refined(ngon_prism(n, seed=n), 2)
+            mesh, w, origin = without_second_ring_vertex(cage, 0)
+            on_mesh, on_c = on_cage(cage, origin, rng)
+            target = tspline_model(mesh).evaluate_faces(*on_mesh).P
+            near = {w}
+            for _ in range(4):
+                near |= {int(x) for f in cage.mesh.faces if near & set(f.tolist()) for x in f}
+            near = sorted(near)
+            P = cage.points
+            ref = cage_model(cage).evaluate_faces(*on_c).P
+            cols = []
+            for i in range(0, len(near), 3):                  # the limit of a unit move of each point
+                Q = P.copy()
+                for c, v in enumerate(near[i:i + 3]):
+                    Q[v, c] += 1.0
+                moved = cage_model(Cage(cage.mesh, Q)).evaluate_faces(*on_c).P - ref
+                cols += [moved[:, c] for c in range(len(near[i:i + 3]))]
+            B = np.array(cols).T
+            D = np.linalg.lstsq(B, target - ref, rcond=None)[0]
+            self.assertEqual(np.linalg.matrix_rank(B), len(near), n)
+            self.assertLess(np.abs(B @ D + ref - target).max(), 1e-9 * np.abs(P).max(), n)
 
 
 if __name__ == "__main__":

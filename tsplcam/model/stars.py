@@ -37,7 +37,10 @@ spoke j+1; the first face F_j is [0, d_j] x [0, d_(j+1)], d_j the spoke's knot i
   are knot insertion throughout (``tspline_model(subdivide_at=...)`` checks that the
   construction then gives the T-spline's own surface).
 * The knot lines beyond the star's neighbours must run on across its second ring (one knot
-  vector per level-1 function); a T-junction that cuts them is refused by name.
+  vector per level-1 function). Where a T-junction cuts them, local knot insertion extends
+  them first (``clear_t_junctions``, the T-NURCC way): the neighbours' functions split
+  exactly into refined ones and plain B-splines, and the faces the star's function still
+  reaches beyond the second ring join the zone. A zero interval there is refused by name.
 * W_k functions reach only 1.5 level-k intervals from S, so the two rings of faces around
   S (the zone) contain every piece that is not a plain B-spline: the surface there is
   the sum of plain B-splines (the other functions, and the children split off at every
@@ -562,7 +565,20 @@ def build_zone(walker: Walker, v: int, star, knots, Pw: np.ndarray) -> StarZone:
         fns.append(Fn(j, d[j], d[(j + 1) % n], qx, qy, eye[1 + n + j]))
     # T-junctions in the second ring cut the knot lines beyond the star's neighbours: clear
     # them by knot insertion first (the W1 functions need one knot vector each)
-    rows, fns, extra = clear_t_junctions(zone, fns, e, gx, gy)
+    for j in range(n):
+        beyond = (e[j], gx[j], gy[(j - 1) % n])
+        if min(beyond) <= tol < max(beyond):
+            raise mesh.error(f"a T-junction within two rings of faces of extraordinary {mesh.vertex_name(v)} "
+                             f"(beyond {mesh.vertex_name(spokes[j])}: the knot intervals next along spoke "
+                             f"{j} and its two neighbours are {', '.join(f'{x:g}' for x in beyond)}): a zero "
+                             f"interval there cannot be extended across the star's second ring; move the "
+                             f"T-junction one face further out", vertex=spokes[j])
+    try:
+        rows, fns, extra = clear_t_junctions(zone, fns, e, gx, gy)
+    except Uncleared as exc:
+        raise mesh.error(f"T-junctions within two rings of faces of extraordinary {mesh.vertex_name(v)} "
+                         f"that local knot insertion cannot clear ({exc}); move them one face further "
+                         f"out", vertex=v) from None
     # where a T-junction cut a knot line, the star's function and the pieces of its
     # neighbours' that see the interval behind the star reach beyond the second ring (up to
     # the farthest of the three knots beyond each spoke): those faces join the zone, where
@@ -586,6 +602,10 @@ def build_zone(walker: Walker, v: int, star, knots, Pw: np.ndarray) -> StarZone:
     return zone
 
 
+class Uncleared(Exception):
+    """T-junctions next to a star that the local knot insertion cannot clear."""
+
+
 def _insert(knots: np.ndarray, u: float) -> list:
     """The cubic B-spline N[t0..t4] as two B-splines of its knot vector with u inserted
     (Boehm; single-function form): [(coefficient, knots (5,)), (coefficient, knots)]."""
@@ -601,7 +621,8 @@ def _onto(pk: np.ndarray, nk: np.ndarray, tol: float) -> list:
     first knot is the interval behind the star on the row, which the T-mesh gives (the same
     in both at valence 4)."""
     if np.abs(pk[1:4] - nk[1:4]).max() > tol:
-        raise AssertionError(f"knots {pk} and {nk} differ inside")
+        raise Uncleared(f"knots {', '.join(f'{x:g}' for x in pk)} and {', '.join(f'{x:g}' for x in nk)} "
+                        f"at the same neighbour")
     a, c = float(pk[4]), float(nk[4])
     if abs(a - c) <= tol:
         return []
@@ -623,9 +644,12 @@ def clear_t_junctions(zone: StarZone, fns: list, e, gx, gy):
     B-splines. The star's function along spoke k, knots (-b_k, 0, d_k, d_k + e_k), gives
     beta_k = (e_k - e*_k) / (d_k + e_k + b_k) of itself to s_k and, split along spoke k + 1
     as well (knots (-d_(k-1), 0, d_(k+1), d_(k+1) + e_(k+1)) in sector k's chart, as in
-    ``build_zone``), beta_k (e_(k+1) - e*_(k+1)) / (d_(k+1) + e_(k+1) + d_(k-1)) to q_k. Returns (rows (W, W): the refined W0 functions'
-    coefficients over the original W0 points, the refined neighbours' functions, the plain
-    pieces); at valence 4 the sum is the T-spline's own, exactly."""
+    ``build_zone``), beta_k (e_(k+1) - e*_(k+1)) / (d_(k+1) + e_(k+1) + d_(k-1)) to q_k.
+
+    Returns (rows (W, W): the refined W0 functions' coefficients over the original W0
+    points, the refined neighbours' functions, the plain pieces); at valence 4 the sum is
+    the T-spline's own, exactly. Raises ``Uncleared`` where the pieces do not fit the
+    neighbours' functions."""
     n, d, b = zone.n, zone.d, zone.b
     W = 2 * n + 1
     es = np.array([min(e[j], gx[j], gy[(j - 1) % n]) for j in range(n)])
@@ -644,7 +668,7 @@ def clear_t_junctions(zone: StarZone, fns: list, e, gx, gy):
                         xk, yk = (kn, f.yk) if axis == 0 else (f.xk, kn)
                         c = _canon(n, j, xk[2], yk[2], xk, yk)
                         if c is None:
-                            raise AssertionError("a refined piece at the star")
+                            raise Uncleared("a piece of a neighbour's function at the star")
                         g = Fn(c[0], c[1], c[2], np.asarray(c[3], float), np.asarray(c[4], float), f.row * coef)
                         if zone.w_index(g.sector, g.cx, g.cy, 0, tol) is None:
                             plain.append(g)

@@ -11,7 +11,7 @@ refinement), against independent references:
 * a uniform cage with a vertex of a star's second ring taken out (two T-junctions, an
   interval 2): its refinement is the uniform cage again, so the surface must be the
   Catmull-Clark limit (the cage path, cage_model) of some points on that cage: found by least
-  squares over every face, the fit must be exact."""
+  squares over every face, the fit must be exact (13 points fitted to 1900 samples)."""
 import unittest
 
 import numpy as np
@@ -240,9 +240,9 @@ class StarsNextToTJunctions(unittest.TestCase):
 class UniformCageWithAT(unittest.TestCase):
     def test_is_the_catmull_clark_limit_of_the_refined_cage(self):
         """The refinement inserts w again; the T-spline's surface must be the Catmull-Clark
-        limit of the cage with the refined points (those within four edges of w change, the
-        rest are the T-mesh's): found by least squares on random points of every face (the
-        limit is linear in the points), the fit must be exact."""
+        limit of the cage with the refined points (those within two edges of w change, 13
+        points; the rest are the T-mesh's): found by least squares on random points of every
+        face (the limit is linear in the points), the fit must be exact."""
         rng = np.random.default_rng(6)
         for n in (3, 5, 6):
             cage = refined(ngon_prism(n, seed=n), 2)
@@ -250,7 +250,7 @@ class UniformCageWithAT(unittest.TestCase):
             on_mesh, on_c = on_cage(cage, origin, rng)
             target = tspline_model(mesh).evaluate_faces(*on_mesh).P
             near = {w}
-            for _ in range(4):
+            for _ in range(2):
                 near |= {int(x) for f in cage.mesh.faces if near & set(f.tolist()) for x in f}
             near = sorted(near)
             P = cage.points

@@ -273,7 +273,7 @@ class CloseStars(unittest.TestCase):
 class NextToTJunctions(unittest.TestCase):
     def test_t_junction_beyond_the_second_ring(self):
         """A face three rings out split in two: the star still evaluates, watertight, one
-        normal at it; a split that cuts the second ring's knot lines is refused by name."""
+        normal at it; a split that puts a T-junction on the first ring is refused by name."""
         rng = np.random.default_rng(10)
         for n in (3, 5):
             mesh = star_disc(n, random_intervals(n, 20 + n))
@@ -288,9 +288,11 @@ class NextToTJunctions(unittest.TestCase):
             near = model.evaluate_faces(f, s, t)
             at = model.evaluate_faces(*near_vertex(model, split, 0, 0.0, 1, rng))
             self.assertLess(np.degrees(angle_between(near.normal, np.repeat(at.normal[:1], len(f), 0))).max(), G1_DEG)
-            # face (p, q) = (1, 0) of sector 0 (second ring, on spoke 0): split across spoke 0
+            # face (p, q) = (0, 1) of sector 0 (second ring): split, it puts a T-junction on a
+            # side of the first ring's face (test_stars_tjunction.py: T-junctions in the
+            # second ring), which the construction refuses by name
             with self.assertRaises(InputError) as cm:
-                tspline_model(split_face(mesh, 1 * 5 + 0))
+                tspline_model(split_face(mesh, 0 * 5 + 1))
             self.assertIn("extraordinary", str(cm.exception))
 
 

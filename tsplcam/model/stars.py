@@ -37,7 +37,10 @@ spoke j+1; the first face F_j is [0, d_j] x [0, d_(j+1)], d_j the spoke's knot i
   are knot insertion throughout (``tspline_model(subdivide_at=...)`` checks that the
   construction then gives the T-spline's own surface).
 * The knot lines beyond the star's neighbours must run on across its second ring (one knot
-  vector per level-1 function); a T-junction that cuts them is refused by name.
+  vector per level-1 function). Where a T-junction cuts them, local knot insertion extends
+  them first (``clear_t_junctions``, the T-NURCC way): the neighbours' functions split
+  exactly into refined ones and plain B-splines, and the faces the star's function still
+  reaches beyond the second ring join the zone. A zero interval there is refused by name.
 * W_k functions reach only 1.5 level-k intervals from S, so the two rings of faces around
   S (the zone) contain every piece that is not a plain B-spline: the surface there is
   the sum of plain B-splines (the other functions, and the children split off at every
@@ -513,26 +516,32 @@ def build_zone(walker: Walker, v: int, star, knots, Pw: np.ndarray) -> StarZone:
     zone = StarZone(v, n, list(faces), list(spokes), list(diags), d, b, chart, set(faces))
     # the second ring, each face in its sector's chart (reached across edges not at the star)
     members = {g for w in spokes + diags for g, _ in topo.fan[w]}
-    for j, f in enumerate(faces):
-        stack = [f]
-        while stack:
-            g = stack.pop()
-            mg = chart[g][1]
-            loop = mesh.faces[g]
-            for k in range(len(loop)):
-                if v in (int(loop[k]), int(loop[(k + 1) % len(loop)])):
-                    continue
-                hit = walker.cross_map(g, k)
-                if hit is None or hit[0] in chart or hit[0] not in members:
-                    continue
-                h, m_hg = hit
-                m = compose(mg, m_hg)
-                m = (m[0], complex(m[1]).real, complex(m[2]).real)
-                x0, x1, y0, y1 = (complex(c).real for c in walker.face_rect(h, m))
-                tol = 1e-9 * max(d)
-                if x0 >= -tol and y0 >= -tol:             # in sector j
-                    chart[h] = (j, m)
-                    stack.append(h)
+    tol = 1e-9 * max(d)
+
+    def flood(keep):
+        """Faces reached across edges not at the star, within sector j, that ``keep(h, j,
+        rect)`` takes, added to ``chart``."""
+        for j in range(n):
+            stack = [g for g, (jj, _) in chart.items() if jj == j]
+            while stack:
+                g = stack.pop()
+                mg = chart[g][1]
+                loop = mesh.faces[g]
+                for k in range(len(loop)):
+                    if v in (int(loop[k]), int(loop[(k + 1) % len(loop)])):
+                        continue
+                    hit = walker.cross_map(g, k)
+                    if hit is None or hit[0] in chart:
+                        continue
+                    h, m_hg = hit
+                    m = compose(mg, m_hg)
+                    m = (m[0], complex(m[1]).real, complex(m[2]).real)
+                    rect = tuple(complex(c).real for c in walker.face_rect(h, m))
+                    if rect[0] >= -tol and rect[2] >= -tol and keep(h, j, rect):    # in sector j
+                        chart[h] = (j, m)
+                        stack.append(h)
+
+    flood(lambda h, j, rect: h in members)
     missing = members - set(chart)
     if missing:
         g = min(missing)
@@ -555,31 +564,159 @@ def build_zone(walker: Walker, v: int, star, knots, Pw: np.ndarray) -> StarZone:
         gy[j] = qy[3] - qy[2]
         fns.append(Fn(j, d[j], 0.0, sx, sy, eye[1 + j]))
         fns.append(Fn(j, d[j], d[(j + 1) % n], qx, qy, eye[1 + n + j]))
-    # the W1 functions are B-splines with one knot vector each: the knot lines beyond the
-    # star's neighbours must continue across its first ring (no T-junction on the sides of
-    # the second ring's faces that meet the first ring's corners)
-    tol = 1e-9 * float(max(d))
+    # T-junctions in the second ring cut the knot lines beyond the star's neighbours: clear
+    # them by knot insertion first (the W1 functions need one knot vector each)
     for j in range(n):
         beyond = (e[j], gx[j], gy[(j - 1) % n])
-        if max(beyond) - min(beyond) > tol:
+        if min(beyond) <= tol < max(beyond):
             raise mesh.error(f"a T-junction within two rings of faces of extraordinary {mesh.vertex_name(v)} "
                              f"(beyond {mesh.vertex_name(spokes[j])}: the knot intervals next along spoke "
-                             f"{j} and its two neighbours are {', '.join(f'{x:g}' for x in beyond)}): the "
-                             f"T-NURCC construction needs the knot lines across the star's second ring "
-                             f"to continue; move the T-junction one face further out", vertex=spokes[j])
+                             f"{j} and its two neighbours are {', '.join(f'{x:g}' for x in beyond)}): a zero "
+                             f"interval there cannot be extended across the star's second ring; move the "
+                             f"T-junction one face further out", vertex=spokes[j])
+    try:
+        rows, fns, extra = clear_t_junctions(zone, fns, e, gx, gy)
+    except Uncleared as exc:
+        raise mesh.error(f"T-junctions within two rings of faces of extraordinary {mesh.vertex_name(v)} "
+                         f"that local knot insertion cannot clear ({exc}); move them one face further "
+                         f"out", vertex=v) from None
+    # where a T-junction cut a knot line, the star's function and the pieces of its
+    # neighbours' that see the interval behind the star reach beyond the second ring (up to
+    # the farthest of the three knots beyond each spoke): those faces join the zone, where
+    # the refined functions replace them
+    reach = d + np.maximum(np.maximum(e, gx), np.roll(gy, 1))
+    flood(lambda h, j, rect: rect[0] < reach[j] - tol and rect[2] < reach[(j + 1) % n] - tol)
+    e = gx = np.array([min(e[j], gx[j], gy[(j - 1) % n]) for j in range(n)])
+    gy = np.roll(e, -1)
     for j in range(n):
         xk = np.array([-2 * b[j], -b[j], 0.0, d[j], d[j] + e[j]])
         yk = np.array([-(d[(j - 1) % n] + e[(j - 1) % n]), -d[(j - 1) % n], 0.0, d[(j + 1) % n],
                        d[(j + 1) % n] + e[(j + 1) % n]])
-        fns.append(Fn(j, 0.0, 0.0, xk, yk, eye[0]))
-    rows1, plain1 = zone.step(0, eye, fns, e, gx, gy)
+        fns.append(Fn(j, 0.0, 0.0, xk, yk, rows[0]))
+    rows1, plain1 = zone.step(0, rows, fns, e, gx, gy)
     # W1 as functions: their outermost knots in the second ring, where the T-mesh's are
     zone.w1 = zone.level_fns(rows1, 1, beyond=(e, gx, gy))
     rows2, plain2 = zone.step(1, rows1, zone.w1, *zone.self_similar())
-    zone.d1, zone.d2 = _merge(plain1), _merge(plain2)
+    zone.d1, zone.d2 = _merge(plain1 + extra), _merge(plain2)
     zone.points = Pw[zone.w0]
     zone.rows2 = rows2
     return zone
+
+
+class Uncleared(Exception):
+    """T-junctions next to a star that the local knot insertion cannot clear."""
+
+
+def _insert(knots: np.ndarray, u: float) -> list:
+    """The cubic B-spline N[t0..t4] as two B-splines of its knot vector with u inserted
+    (Boehm; single-function form): [(coefficient, knots (5,)), (coefficient, knots)]."""
+    t = np.asarray(knots, float)
+    r = np.sort(np.append(t, u))
+    return [(min(1.0, (u - t[0]) / (t[3] - t[0])), r[:5]), (min(1.0, (t[4] - u) / (t[4] - t[1])), r[1:])]
+
+
+def _onto(pk: np.ndarray, nk: np.ndarray, tol: float) -> list:
+    """A B-spline with knots ``pk`` as the one with knots ``nk`` (same centre, same inner
+    knots) plus B-splines that do not reach behind the centre's row: [(coefficient, knots)].
+    The last knots may differ (knot insertion into the one with the longer interval); the
+    first knot is the interval behind the star on the row, which the T-mesh gives (the same
+    in both at valence 4)."""
+    if np.abs(pk[1:4] - nk[1:4]).max() > tol:
+        raise Uncleared(f"knots {', '.join(f'{x:g}' for x in pk)} and {', '.join(f'{x:g}' for x in nk)} "
+                        f"at the same neighbour")
+    a, c = float(pk[4]), float(nk[4])
+    if abs(a - c) <= tol:
+        return []
+    if a > c:
+        return [((a - c) / (a - pk[1]), np.array([pk[1], pk[2], pk[3], c, a]))]
+    return [(-(c - a) / (c - pk[1]), np.array([pk[1], pk[2], pk[3], a, c]))]
+
+
+def clear_t_junctions(zone: StarZone, fns: list, e, gx, gy):
+    """Local knot insertion around a star (Sederberg et al. 2003, T-NURCCs: T-junctions near
+    an extraordinary point are cleared before the NURCC refinement; the refinement of each
+    blending function is exact knot insertion, Sederberg et al. 2004): the knot line beyond
+    the neighbours along every spoke is extended across the star's two rings at the nearest
+    of the three knots the neighbours see there (``e``, ``gx``, ``gy`` as in ``build_zone``).
+
+    ``fns``: the spoke and diagonal vertices' functions (s_0, q_0, s_1, ...; rows over W0).
+    Each is split at the extended lines its knot vectors cross: pieces centred at a star
+    neighbour become (part of) that neighbour's refined function, the others are plain
+    B-splines. The star's function along spoke k, knots (-b_k, 0, d_k, d_k + e_k), gives
+    beta_k = (e_k - e*_k) / (d_k + e_k + b_k) of itself to s_k and, split along spoke k + 1
+    as well (knots (-d_(k-1), 0, d_(k+1), d_(k+1) + e_(k+1)) in sector k's chart, as in
+    ``build_zone``), beta_k (e_(k+1) - e*_(k+1)) / (d_(k+1) + e_(k+1) + d_(k-1)) to q_k.
+
+    Returns (rows (W, W): the refined W0 functions' coefficients over the original W0
+    points, the refined neighbours' functions, the plain pieces); at valence 4 the sum is
+    the T-spline's own, exactly. Raises ``Uncleared`` where the pieces do not fit the
+    neighbours' functions."""
+    n, d, b = zone.n, zone.d, zone.b
+    W = 2 * n + 1
+    es = np.array([min(e[j], gx[j], gy[(j - 1) % n]) for j in range(n)])
+    tol = 1e-9 * float(d.max())
+    eye = np.eye(W)
+    credited = {k: [] for k in range(1, W)}
+    plain = []
+
+    def refine(f: Fn):
+        j = f.sector
+        lines = ([d[j] + es[j]], [d[(j + 1) % n] + es[(j + 1) % n], -(d[(j - 1) % n] + es[(j - 1) % n])])
+        for axis, ks in ((0, f.xk), (1, f.yk)):
+            for u in lines[axis]:
+                if ks[0] + tol < u < ks[4] - tol and np.abs(ks - u).min() > tol:
+                    for coef, kn in _insert(ks, u):
+                        xk, yk = (kn, f.yk) if axis == 0 else (f.xk, kn)
+                        c = _canon(n, j, xk[2], yk[2], xk, yk)
+                        if c is None:
+                            raise Uncleared("a piece of a neighbour's function at the star")
+                        g = Fn(c[0], c[1], c[2], np.asarray(c[3], float), np.asarray(c[4], float), f.row * coef)
+                        if zone.w_index(g.sector, g.cx, g.cy, 0, tol) is None:
+                            plain.append(g)
+                        else:
+                            refine(g)
+                    return
+        credited[zone.w_index(f.sector, f.cx, f.cy, 0, tol)].append(f)
+
+    own = {}
+    for f in fns:
+        k = zone.w_index(f.sector, f.cx, f.cy, 0, tol)
+        own[k] = f
+        refine(f)
+    # the star's function along each spoke
+    beta = (e - es) / (d + e + b)
+    for k in range(n):
+        k1, km = (k + 1) % n, (k - 1) % n
+        if beta[k] > 0.0:
+            xk = np.array([-b[k], 0.0, d[k], d[k] + es[k], d[k] + e[k]])
+            yk = np.array([-(d[km] + es[km]), -d[km], 0.0, d[k1], d[k1] + es[k1]])
+            credited[1 + k].append(Fn(k, d[k], 0.0, xk, yk, beta[k] * eye[0]))
+        # the corner: the star's function in sector k's chart is the tensor B-spline with
+        # knots (-b_k, 0, d_k, d_k + e_k) along x and (-d_(k-1), 0, d_(k+1), ...) along y
+        corner = beta[k] * (e[k1] - es[k1]) / (d[k1] + e[k1] + d[km])
+        if corner > 0.0:
+            q = own[1 + n + k]
+            xk = np.array([q.xk[0], 0.0, d[k], d[k] + es[k], d[k] + e[k]])
+            yk = np.array([q.yk[0], 0.0, d[k1], d[k1] + es[k1], d[k1] + e[k1]])
+            credited[1 + n + k].append(Fn(k, d[k], d[k1], xk, yk, corner * eye[0]))
+    rows = eye.copy()
+    out = []
+    for k in range(1, W):
+        pieces = credited[k]
+        ref = max(pieces, key=lambda f: abs(f.row[k]))
+        rows[k] = 0.0
+        for f in pieces:
+            rows[k] += f.row
+            if f is ref:
+                continue
+            lx, ly = _onto(f.xk, ref.xk, tol), _onto(f.yk, ref.yk, tol)
+            terms = [(c, kn, ref.yk) for c, kn in lx] + [(c, ref.xk, kn) for c, kn in ly] + \
+                [(cx * cy, kx, ky) for cx, kx in lx for cy, ky in ly]
+            for coef, xk, yk in terms:
+                c = _canon(n, f.sector, xk[2], yk[2], xk, yk)
+                plain.append(Fn(c[0], c[1], c[2], np.asarray(c[3], float), np.asarray(c[4], float), f.row * coef))
+        out.append(Fn(ref.sector, ref.cx, ref.cy, ref.xk, ref.yk, rows[k]))
+    return rows, out, plain
 
 
 def _merge(fns: list) -> list:

@@ -9,7 +9,12 @@ about a tenth of the time.
 
 The banded Cholesky solve of the smoothing's polish (``_Banded.solve_box``, 215 solves on
 the keycap) is latency-bound in LAPACK as here; the kernel takes LAPACK's operations in
-LAPACK's (and OpenBLAS's) order, so x is the same, with less overhead per call.
+LAPACK's reference order, with less overhead per call. Where OpenBLAS's dtbsv keeps that
+order x is the same bit for bit; its AVX-512 kernels sum otherwise, and as the polish's
+systems are ill-conditioned the two x then differ by up to 1e-6 rad on the keycap (both
+backward stable to a few machine epsilons), so the program's angles can move in their last
+printed digit between a run with numba and one without. The kernel's own order does not
+depend on the CPU (numba is not asked for fast-math, so no sums are reordered or fused).
 
 numba is optional: :func:`kernels` returns None when it cannot be imported (a FreeCAD
 without it) or when ``TSPLCAM_COMPILED=0`` is set, and the callers run their numpy version.
@@ -101,8 +106,8 @@ def _build():
         """Solve H x = rhs for a symmetric positive definite band matrix H in LAPACK's upper
         band form ``ab`` (u + 1, N) (``ab[u + i - j, j] = H[i, j]``), by the Cholesky
         factorisation H = U^T U and two triangular solves in the order of LAPACK's dpbtf2
-        and OpenBLAS's dtbsv (scipy's ``solveh_banded`` here): the same x, bit for bit on
-        the keycap job's systems, and to rounding where a BLAS orders its sums otherwise. ``ab`` and ``rhs``
+        and the reference dtbsv (scipy's ``solveh_banded``): the same x, bit for bit where a
+        BLAS keeps that order, within the system's conditioning where it does not. ``ab`` and ``rhs``
         are overwritten (with U and x). Returns 0, or the 1-based leading minor that is not
         positive definite."""
         u, N = ab.shape[0] - 1, ab.shape[1]

@@ -515,7 +515,7 @@ class _Banded:
 
 def _solve_banded(ab: np.ndarray, rhs: np.ndarray) -> np.ndarray:
     """scipy's ``solveh_banded`` (upper form) for the system :meth:`_Banded.solve_box` builds,
-    in the compiled kernel when numba is there (LAPACK's order of operations: the same x);
+    in the compiled kernel when numba is there (LAPACK's reference order of operations);
     ``ab`` and ``rhs`` are overwritten."""
     k = compiled.kernels(work=8.0 * ab.shape[1])     # LAPACK: about 70 ns a row
     if k is None or len(ab) < 3:        # (one off-diagonal: scipy takes LAPACK's LDL^T, ptsv)

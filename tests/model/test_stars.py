@@ -249,6 +249,100 @@ class NonUniformStars(unittest.TestCase):
                     self.assertLess(np.abs(got - ref).max(), 1e-5 * (1.0 + np.abs(got).max()), (n, dist, k))
 
 
+def wide_intervals(n: int, seed: int, ratio: float = 10.0, k: int = 5):
+    """Knot intervals in [1, ratio] on every row of star_disc (the spokes' included)."""
+    rng = np.random.default_rng(seed)
+    return [np.concatenate([rng.uniform(1.0, ratio, k - 1), [0.0]]) for _ in range(n)]
+
+
+def behind_ratio(d: np.ndarray) -> float:
+    """Largest b_j / d_(j+2) over the spokes (b_j the NURCC interval behind the star): above 2,
+    spoke j's level-k function reaches the ring of faces of its level in sector j + 1 (with
+    b_j it did, and the faces there did not meet its refinement: issue 18)."""
+    n = len(d)
+    return max(0.5 * (d[(j + 2) % n] + d[(j - 2) % n]) / d[(j + 2) % n] for j in range(n))
+
+
+def level_jumps(model, mesh, rng, per: int = 12, eps: float = 1e-11):
+    """Pairs of points on either side of max(a, b) = 2^-m, m = 1..30 (a, b: fractions of the
+    face from the star along its two sides), on every face at the star (vertex 0), where
+    the construction changes level: the largest change of position beyond the first-order
+    one over the step (of the model size) and of the normal (degrees)."""
+    fan = [f for f, _ in mesh.topology.fan[0]]
+    F, A0, B0, A1, B1 = [], [], [], [], []
+    for f in fan:
+        s0, t0 = corner_param(model, mesh, f, 0)
+        for m in range(1, 31):
+            r = 2.0 ** -m
+            other = rng.random(per) * r
+            along = rng.random(per) < 0.5
+            F += [f] * per
+            for lo_hi, S, T in ((r * (1 - eps), A0, B0), (r * (1 + eps), A1, B1)):
+                S += list(np.abs(s0 - np.where(along, lo_hi, other)))
+                T += list(np.abs(t0 - np.where(along, other, lo_hi)))
+    a, b = model.evaluate_faces(F, A0, B0), model.evaluate_faces(F, A1, B1)
+    ds, dt = (np.array(A1) - np.array(A0))[:, None], (np.array(B1) - np.array(B0))[:, None]
+    first = 0.5 * (a.Pu + b.Pu) * ds + 0.5 * (a.Pv + b.Pv) * dt
+    gap = np.abs(b.P - a.P - first).max() / np.abs(mesh.points).max()
+    return gap, np.degrees(angle_between(a.normal, b.normal)).max()
+
+
+class WideIntervalStars(unittest.TestCase):
+    """Issue 18: spoke intervals in ratios up to 9.2 at valences 3 to 8 (without the fix in
+    stars.to_chart, a star with b_j > 2 d_(j+2) left gaps up to 1.6e-3 of the model size,
+    normal jumps up to 1.3 degrees and partition-of-unity errors up to 1.5e-2)."""
+
+    SEEDS = {3: (3, 5, 9), 5: (3, 6, 13), 6: (0, 6, 10), 7: (6, 9), 8: (9, 13)}
+
+    def cases(self):
+        for n, seeds in self.SEEDS.items():
+            for seed in seeds:
+                yield n, seed, star_disc(n, wide_intervals(n, seed))
+        # the case of the report: valence 5, random_intervals seed 29 (b_j / d_(j+2) = 2.4)
+        yield 5, -29, star_disc(5, random_intervals(5, 29))
+
+    def test_watertight_partition_of_unity_and_levels(self):
+        rng = np.random.default_rng(18)
+        worst = 0.0
+        for n, seed, mesh in self.cases():
+            d = np.array([mesh.intervals[f][i] for f, i in mesh.topology.fan[0]])
+            worst = max(worst, behind_ratio(d))
+            self.assertGreater(behind_ratio(d), 2.0, (n, seed))     # the case that failed
+            model = tspline_model(mesh)
+            gap, angle = meet(model, mesh, np.linspace(0.02, 0.98, 9))
+            self.assertLess(gap, 1e-12, (n, seed))                    # measured <= 6.2e-16
+            self.assertLess(angle, 1e-6, (n, seed))                   # measured <= 3.2e-11 deg
+            groups = [g for p in model.patches for g in p.groups if isinstance(g, SumCells)]
+            for g in groups:
+                idx = np.repeat(np.arange(len(g)), 10)
+                H, _, _ = g.evaluate(idx, rng.random(len(idx)), rng.random(len(idx)))
+                self.assertLess(np.abs(H[0, 3] - 1.0).max(), 1e-12, (n, seed))   # measured 1.8e-15
+            # across the level boundaries inside the star's faces
+            gap, angle = level_jumps(model, mesh, rng)
+            self.assertLess(gap, 1e-12, (n, seed))                    # measured <= 3.2e-16
+            self.assertLess(angle, 1e-6, (n, seed))                   # measured <= 2e-10 deg
+            # one normal at the star (Catmull-Clark rules from level 2 on)
+            f, s, t = near_vertex(model, mesh, 0, 2.0 ** -30, 10, rng)
+            near = model.evaluate_faces(f, s, t)
+            at = model.evaluate_faces(*near_vertex(model, mesh, 0, 0.0, 1, rng))
+            jump = np.degrees(angle_between(near.normal, np.repeat(at.normal[:1], len(f), 0))).max()
+            self.assertLess(jump, G1_DEG, (n, seed))
+        self.assertGreater(worst, 3.0)
+
+    def test_rational_weights(self):
+        rng = np.random.default_rng(19)
+        for n in (3, 6):
+            mesh = star_disc(n, wide_intervals(n, self.SEEDS[n][0]))
+            mesh.weights = rng.uniform(0.5, 2.0, mesh.n_vertices)
+            model = tspline_model(mesh)
+            gap, angle = meet(model, mesh, np.linspace(0.02, 0.98, 9))
+            self.assertLess(gap, 1e-12, n)
+            self.assertLess(angle, 1e-6, n)
+            gap, angle = level_jumps(model, mesh, rng)
+            self.assertLess(gap, 1e-12, n)
+            self.assertLess(angle, 1e-6, n)
+
+
 class CloseStars(unittest.TestCase):
     def test_two_edges_apart_on_a_cage_is_catmull_clark(self):
         """Stars two edges apart (a cube of 2 x 2 faces a side) are closer than the T-NURCC

@@ -24,7 +24,11 @@ spoke j+1; the first face F_j is [0, d_j] x [0, d_(j+1)], d_j the spoke's knot i
   itself; children on the rows through the neighbouring spokes' vertices cross those
   spokes at regular vertices, where the T-mesh itself gives d_(j+2) and d_(j-2)
   (``children``): so every child is the refined T-mesh's own B-spline and the functions
-  stay a partition of unity for any spoke intervals.
+  stay a partition of unity for any spoke intervals. The W_k spoke functions, where they
+  are evaluated directly (the level-k ring of faces of sector j + 1), are seen with d_(j+2)
+  behind S as well (``to_chart``): with b_j they would reach the ring there once
+  b_j > 2 d_(j+2), where their refinement does not (issue 18: gaps up to 1.6e-3 of the
+  model size at spoke ratios up to 10).
 * The NURCC rules with unequal spoke intervals can have two different subdominant
   eigenvalues (valence 8, intervals in ratio 4: 0.72 and 0.57 with 0.52 next), so that the
   normal at S converges too slowly or not at all (the defect that Li, Finnigan and
@@ -385,12 +389,24 @@ def bezier_of(xk: np.ndarray, yk: np.ndarray, x0, x1, y0, y1) -> np.ndarray:
     return np.outer(cy, cx)
 
 
-def to_chart(n: int, f: Fn, sector: int):
-    """Knots of ``f`` in the chart of ``sector`` (the same or a neighbouring sector), or None."""
+def to_chart(n: int, f: Fn, sector: int, d: np.ndarray | None = None):
+    """Knots of ``f`` in the chart of ``sector`` (the same or a neighbouring sector), or None.
+
+    ``d`` (the spoke intervals): a function on spoke j that reaches behind the star (the
+    W_k spoke points) is seen in sector j + 1 with the interval of that sector's own row
+    behind it, d_(j+2), in place of b_j: there its children (``children``, rows y > 0) take
+    d_(j+2), so that is the function its refinement gives there. With b_j the function would
+    reach b_j / d_(j+2) level intervals into sector j + 1, onto the ring of faces where its
+    level is evaluated once b_j > 2 d_(j+2), where its refinement does not: gaps and a
+    broken partition of unity (measured in tests/model/test_stars.py)."""
     if f.sector == sector:
         return f.xk, f.yk
     if (f.sector + 1) % n == sector:
-        return map_knots(f.xk, f.yk, (3, 0.0, 0.0))
+        xk = f.xk
+        if d is not None and f.cy == 0.0 and f.cx > 0.0 and xk[0] < 0.0:
+            j = f.sector
+            xk = np.where(xk < 0.0, xk * (float(d[(j + 2) % n]) / float(behind(d)[j])), xk)
+        return map_knots(xk, f.yk, (3, 0.0, 0.0))
     if (f.sector - 1) % n == sector:
         return map_knots(f.xk, f.yk, (1, 0.0, 0.0))
     return None
@@ -746,7 +762,7 @@ def direct_functions(zone: StarZone, walker: Walker) -> dict:
         for f in cands:
             if f.cx == 0.0 and f.cy == 0.0 and f.sector != j:
                 continue                    # the star's own function lives in each sector's chart
-            k = to_chart(zone.n, f, j)
+            k = to_chart(zone.n, f, j, zone.d)
             if k is None or not overlaps(k[0], k[1], rect, tol):
                 continue
             xk, yk = map_knots(np.asarray(k[0]), np.asarray(k[1]), back)
@@ -807,7 +823,7 @@ def _pieces(zone: StarZone) -> _Pieces:
             for f in fns:
                 if f.cx == 0.0 and f.cy == 0.0 and f.sector != j:
                     continue                            # the star, in another sector's chart
-                kn = to_chart(n, f, j)
+                kn = to_chart(n, f, j, zone.d)
                 if kn is not None and overlaps(kn[0], kn[1], rect, tol):
                     cols.append(int(np.argmax(f.row)))
                     XK.append(kn[0])

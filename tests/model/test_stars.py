@@ -258,7 +258,7 @@ def wide_intervals(n: int, seed: int, ratio: float = 10.0, k: int = 5):
 def behind_ratio(d: np.ndarray) -> float:
     """Largest b_j / d_(j+2) over the spokes (b_j the NURCC interval behind the star): above 2,
     spoke j's level-k function reaches the ring of faces of its level in sector j + 1 (with
-    b_j it did, and the faces there did not meet its refinement: issue 18)."""
+    b_j it did, and the faces there did not meet its refinement)."""
     n = len(d)
     return max(0.5 * (d[(j + 2) % n] + d[(j - 2) % n]) / d[(j + 2) % n] for j in range(n))
 
@@ -288,7 +288,7 @@ def level_jumps(model, mesh, rng, per: int = 12, eps: float = 1e-11):
 
 
 class WideIntervalStars(unittest.TestCase):
-    """Issue 18: spoke intervals in ratios up to 9.2 at valences 3 to 8 (without the fix in
+    """Spoke intervals in ratios up to 9.2 at valences 3 to 8 (without the fix in
     stars.to_chart, a star with b_j > 2 d_(j+2) left gaps up to 1.6e-3 of the model size,
     normal jumps up to 1.3 degrees and partition-of-unity errors up to 1.5e-2)."""
 

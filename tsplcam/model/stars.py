@@ -27,7 +27,7 @@ spoke j+1; the first face F_j is [0, d_j] x [0, d_(j+1)], d_j the spoke's knot i
   stay a partition of unity for any spoke intervals. The W_k spoke functions, where they
   are evaluated directly (the level-k ring of faces of sector j + 1), are seen with d_(j+2)
   behind S as well (``to_chart``): with b_j they would reach the ring there once
-  b_j > 2 d_(j+2), where their refinement does not (issue 18: gaps up to 1.6e-3 of the
+  b_j > 2 d_(j+2), where their refinement does not (gaps up to 1.6e-3 of the
   model size at spoke ratios up to 10).
 * The NURCC rules with unequal spoke intervals can have two different subdominant
   eigenvalues (valence 8, intervals in ratio 4: 0.72 and 0.57 with 0.52 next), so that the

@@ -345,11 +345,12 @@ class BroadPhase:
         self._gouge = np.zeros(0, np.int8)        # per centre: 1 clear, 0 not proven, -1 not asked yet
         self._cone_a = {}                         # per grow: (slots, CONES, 3) axes
         self._cone_c = {}                         # per grow: (slots, CONES) cos of the cone angle
+        self._cone_fcl = {}                       # per grow: (slots, CONES) the cone came from fcl
         self._wit_cells = CentreTable()
         self._wit = np.zeros((0, WITNESSES), np.int64)
         self._exact_gain = (0.0, 0.0)             # poses decided, spheres asked (_exact_pass)
         self.stats = {"poses": 0, "free": 0, "hit": 0, "unknown": 0, "cone": 0, "witness": 0,
-                      "queries": 0, "exact": 0}
+                      "queries": 0, "exact": 0, "cone_fcl": 0}
 
     # --- distances ------------------------------------------------------------------------
     def lower_bound(self, x: np.ndarray, need=None):
@@ -439,10 +440,12 @@ class BroadPhase:
     def _grow_cones(self, grow: float):
         a = self._cone_a.setdefault(grow, np.zeros((0, CONES, 3)))
         c = self._cone_c.setdefault(grow, np.zeros((0, CONES)))
+        f = self._cone_fcl.setdefault(grow, np.zeros((0, CONES), bool))
         m = self.centres.size - len(a)
         if m > 0:
             self._cone_a[grow] = np.concatenate([a, np.zeros((m, CONES, 3))])
             self._cone_c[grow] = np.concatenate([c, np.full((m, CONES), 2.0)])   # cos > 1: none
+            self._cone_fcl[grow] = np.concatenate([f, np.zeros((m, CONES), bool)])
 
     def ball_free(self, C: np.ndarray) -> np.ndarray:
         """True where the gouge check's ball (radius r0) at C is proven clear of the mesh."""
@@ -553,11 +556,13 @@ class BroadPhase:
             return
         slot = self._slots(C)
         self._grow_cones(grow)
-        self._store_cones(slot, A, np.full(len(A), np.cos(phi)), grow)
+        self._store_cones(slot, A, np.full(len(A), np.cos(phi)), grow, True)
 
-    def _store_cones(self, slot, A, c, grow):
-        """Keep cone (axis A, cos of its angle c) at each slot, replacing the slot's narrowest."""
-        cone_a, cone_c = self._cone_a[grow], self._cone_c[grow]
+    def _store_cones(self, slot, A, c, grow, from_fcl: bool = False):
+        """Keep cone (axis A, cos of its angle c) at each slot, replacing the slot's narrowest;
+        ``from_fcl``: the cones come from fcl's swing check (:meth:`add_cones`), counted apart
+        when they decide a pose (``stats["cone_fcl"]``)."""
+        cone_a, cone_c, cone_f = self._cone_a[grow], self._cone_c[grow], self._cone_fcl[grow]
         for _ in range(2):                        # a slot may come twice in one batch
             worst = np.argmax(cone_c[slot], axis=1)
             better = c < cone_c[slot, worst]
@@ -565,6 +570,7 @@ class BroadPhase:
             sel = np.nonzero(better)[0][first]
             cone_a[slot[sel], worst[sel]] = A[sel]
             cone_c[slot[sel], worst[sel]] = c[sel]
+            cone_f[slot[sel], worst[sel]] = from_fcl
             keep = np.ones(len(slot), bool)
             keep[sel] = False
             slot, A, c = slot[keep], A[keep], c[keep]
@@ -664,9 +670,12 @@ class BroadPhase:
         self._grow_cones(grow)
         cone_a, cone_c = self._cone_a[grow], self._cone_c[grow]
         # free cones of earlier free poses at the same centre
-        inc = (np.einsum("nki,ni->nk", cone_a[slot], A) >= cone_c[slot]).any(axis=1)
+        within = np.einsum("nki,ni->nk", cone_a[slot], A) >= cone_c[slot]
+        inc = within.any(axis=1)
         status[inc] = FREE
         self.stats["cone"] += int(inc.sum())
+        # (those only fcl's swing check's cones decide: what that check is worth later)
+        self.stats["cone_fcl"] += int((inc & ~(within & ~self._cone_fcl[grow][slot]).any(axis=1)).sum())
         # witnesses of earlier hits near the same centre
         cell = self._witness_cells(C)
         todo = np.nonzero(~inc)[0]

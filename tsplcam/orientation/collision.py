@@ -319,6 +319,7 @@ def axis_quaternions(axes: np.ndarray) -> np.ndarray:
 
 
 SWING = np.radians(1.0)        # cone of axes a pose decided by fcl certifies (see tool_mesh)
+SWING_PROBE = 2000             # poses the swing check is tried on before its record counts
 POOL_MIN = 400                 # fcl batches at least twice this long go to worker processes
 _POOL_CHECKER = None           # the checker forked workers inherit
 
@@ -410,6 +411,7 @@ class CollisionChecker:
         self._req = fcl.CollisionRequest()
         self.checks = 0                    # poses checked so far (for reports and benchmarks)
         self.fcl_checks = 0                # of those, asked of fcl
+        self._swing_gain = (0.0, 0.0, 0)   # swing check: poses decided, asked, cone_fcl seen
         self.broad = BroadPhase(self.mesh.vertices, self.mesh.triangles, self.profile,
                                 tool.ball_radius - self.gouge_tolerance, e_cap) if broad_phase else None
 
@@ -460,7 +462,9 @@ class CollisionChecker:
         growth those are first tried with the tool grown for a swing of ``SWING``: the ones it
         passes are free and leave a cone of free axes at their centre; only at centres asked
         about before (a new centre's cone would serve nobody), and reduced to the open parts
-        where the cleared ones keep that swing to spare."""
+        where the cleared ones keep that swing to spare. Against the tool mesh, only while
+        that pays (:meth:`_swing_share`); before ``ask`` (the primitives, several times
+        dearer than the mesh) always."""
         if self.broad is None:
             return ask(C, A) if ask is not None else self._fcl(C, A, "tool", grow)
         st = self.broad.decide(C, A, grow)
@@ -469,15 +473,37 @@ class CollisionChecker:
         bits = 1 << np.arange(self.broad.open_parts.shape[1])
         mask = self.broad.open_parts @ bits
         again = open_[self.broad.revisit[open_]]
+        if len(again) and grow == 0.0 and ask is None:
+            again = self._swing_share(again)
         if len(again) and grow == 0.0:
             sw = np.where(self.broad.open_phi[again] >= SWING, mask[again], -1)
             free = ~self._fcl(C[again], A[again], "swung", 0.0, sw)
             self.broad.add_cones(C[again[free]], A[again[free]], SWING)
             open_ = np.setdiff1d(open_, again[free])
+            if ask is None:
+                d, a, seen = self._swing_gain
+                self._swing_gain = (d + int(free.sum()), a + len(again), seen)
         if len(open_):
             out[open_] = (ask(C[open_], A[open_]) if ask is not None
                           else self._fcl(C[open_], A[open_], "tool", grow, mask[open_]))
         return out
+
+    def _swing_share(self, again: np.ndarray) -> np.ndarray:
+        """The poses of ``again`` to try with the swung tool before the tool mesh. A swung
+        query costs about as much as the mesh query it stands for, so it pays only where the
+        poses it passes and the later poses its cones decide (``stats["cone_fcl"]``) are at
+        least as many as the queries: all poses while its record (decayed sums) says so, the
+        first few up to ``SWING_PROBE`` queries while the record is short, none otherwise (the
+        record then halves each call, so it is tried again later). The answers are the same
+        either way: only which proof decides a pose changes."""
+        decided, asked, seen = self._swing_gain
+        cones = self.broad.stats["cone_fcl"]
+        decided += cones - seen
+        if asked > SWING_PROBE and decided < asked:
+            self._swing_gain = (0.5 * decided, 0.5 * asked, cones)
+            return again[:0]
+        self._swing_gain = (decided, asked, cones)
+        return again if asked > SWING_PROBE else again[:int(np.ceil(SWING_PROBE - asked)) + 1]
 
     def swung(self):
         """The tool mesh grown for a swing of ``SWING`` (tool_mesh), as an fcl object."""

@@ -65,6 +65,9 @@ class AgreesWithFcl(unittest.TestCase):
             prim = checker.collides_primitives(C, A)
             self.assertEqual(int(((st == FREE) & prim).sum()), 0)
             self.assertEqual(int(((st == HIT) & ~prim).sum()), 0)
+            # the mesh contains the primitives: collides_exact asks them only where it hits
+            self.assertEqual(int((prim & ~mesh).sum()), 0, "the primitives collide where the mesh is free")
+            np.testing.assert_array_equal(checker.collides_exact(C, A), prim)
         return st, mesh
 
     def test_mold_poses(self):

@@ -29,7 +29,8 @@ and at most ``EXACT_LEVELS`` times. A pose is given up to fcl at its first spher
 clear; the nearest samples of failing spheres are tried as hits. Where the last calls decided
 less than a pose per ``EXACT_COST`` spheres (deep in a cavity most poses collide, and fcl is
 cheaper there), and in cells where a wall already stopped poses, the pass is left out; after
-a pause it is tried again on a few poses. Nor does it run for a grown tool (the clearance
+a pause it is tried again. Within a call it runs on groups of poses of doubling size, and stops
+at the first group after which the call's poses no longer pay. Nor does it run for a grown tool (the clearance
 measurement's poses lie within a hair of the surface, where it seldom decides).
 
 **Free cones.** Turning the axis by an angle phi about the ball centre moves a point at
@@ -596,19 +597,25 @@ class BroadPhase:
         pose, part = np.nonzero(unresolved & ((status != HIT) & ~near_wall)[:, None])
         # only while it pays: a pose fcl answers costs about as much as EXACT_COST spheres
         # here; the pass stops while the last calls decided fewer poses per sphere (decayed
-        # sums, so it is tried again later; the answers are the same either way), and without
-        # such a measure (the first call, or after a pause) it tries a few poses first
+        # sums, so it is tried again later; the answers are the same either way)
         decided, asked = self._exact_gain
         if len(pose) == 0 or (asked > EXACT_PROBE and decided * EXACT_COST < asked):
             self._exact_gain = (0.5 * decided, 0.5 * asked)
             return
         members = np.unique(pose)
+        # in groups of doubling size (few, 2 few, 4 few ...), stopped at the first group after
+        # which the call's poses decided no longer pay for its spheres: the poses of a batch
+        # come in the order the caller made them, and where the pass stops paying it seldom
+        # pays again further on (keycap_mold: 20.8k spheres instead of 52.1k, for 5% more fcl)
         few = EXACT_PROBE // 10
-        groups = [members[:few], members[few:]] if asked <= EXACT_PROBE and len(members) > few else [members]
+        edges = [0]
+        while edges[-1] < len(members):
+            edges.append(min(len(members), edges[-1] + few * 2 ** (len(edges) - 1)))
         got = spent = 0
-        for k, grp in enumerate(groups):
-            if k and got * EXACT_COST < spent:                 # the first few did not pay
+        for k in range(len(edges) - 1):
+            if k and got * EXACT_COST < spent:                 # the poses so far did not pay
                 break
+            grp = members[edges[k]:edges[k + 1]]
             sel = np.isin(pose, grp)
             g, a = self._exact_run(C, A, cov, status, unresolved, phi, cell, pose[sel], part[sel], grp, parts)
             got, spent = got + g, spent + a

@@ -63,6 +63,8 @@ from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
 
+from . import compiled
+
 FREE, HIT, UNKNOWN = 0, 1, -1
 EPS = 1e-6
 MAX_LEVEL = 7                 # finest sphere cover: 2^7 slabs per part
@@ -79,6 +81,7 @@ EXACT_LEVELS = 3              # the exact pass splits a part's sphere this often
 EXACT_COST = 3                # spheres of the exact pass that cost about as much as one fcl query
 EXACT_PROBE = 2000            # spheres the exact pass is tried on before its gain counts
 GRID_ROWS = 16384             # points a distance grid reads at a time
+READ_WORK = 30.0              # a grid read in numpy costs about as much as this many Viterbi elements
 _CORNERS = np.array([(i, j, k) for i in (0, 1) for j in (0, 1) for k in (0, 1)], np.int64)
 DIRECTIONS = np.array([(i, j, k) for i in (-1, 0, 1) for j in (-1, 0, 1) for k in (-1, 0, 1)
                        if (i, j, k) != (0, 0, 0)], float)
@@ -233,8 +236,16 @@ class DistanceGrid:
     def __call__(self, x: np.ndarray):
         """(lower bound, sample index or -1, inside the grid) at points x: the best over the
         eight nodes around x of the node's bound less the distance to it; the sample is the
-        nearest node's. ``GRID_ROWS`` points at a time (the (rows, 8) temporaries then stay in
-        the processor's cache)."""
+        nearest node's. With the compiled kernel (:mod:`~tsplcam.orientation.compiled`, the
+        same bits) point by point, else ``GRID_ROWS`` points at a time (the (rows, 8)
+        temporaries then stay in the processor's cache)."""
+        k = compiled.kernels(work=READ_WORK * len(x))
+        if k is not None:
+            x = np.ascontiguousarray(x, float)
+            lb, near, ins = np.empty(len(x)), np.empty(len(x), np.int64), np.empty(len(x), bool)
+            k["grid_read"](x, self.origin, self.h, self.shape, self.stride, self._offsets, self.lb,
+                           self.idx, lb, near, ins)
+            return lb, near, ins
         if len(x) > GRID_ROWS:
             parts = [self._read(x[s:s + GRID_ROWS]) for s in range(0, len(x), GRID_ROWS)]
             return tuple(np.concatenate(c) for c in zip(*parts))

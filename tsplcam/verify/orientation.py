@@ -2,8 +2,9 @@
 rotary travel and machining time.
 
 * collisions: poses whose flutes, shank or holder touch the workpiece, asked of fcl with
-  the tool as primitives (``CollisionChecker.collides_exact``: Cylinder / Convex), and
-  ball gouges (the shrunk-ball check); both must be 0.
+  the tool as primitives (``CollisionChecker.collides_exact``: Cylinder / Convex; a pose
+  the broad phase or the circumscribed tool mesh, which contains them, clears is clear for
+  them too), and ball gouges (the shrunk-ball check); both must be 0.
 * smallest clearance: fcl distance between the tool parts that keep the clearance (shank
   and holder; the flutes cut, so next to the contact they come as close as the tilt puts
   them) and the tessellated workpiece, plus the margin the checker grew them by. Computed

@@ -65,6 +65,9 @@ class AgreesWithFcl(unittest.TestCase):
             prim = checker.collides_primitives(C, A)
             self.assertEqual(int(((st == FREE) & prim).sum()), 0)
             self.assertEqual(int(((st == HIT) & ~prim).sum()), 0)
+            # the mesh contains the primitives: collides_exact asks them only where it hits
+            self.assertEqual(int((prim & ~mesh).sum()), 0, "the primitives collide where the mesh is free")
+            np.testing.assert_array_equal(checker.collides_exact(C, A), prim)
         return st, mesh
 
     def test_mold_poses(self):
@@ -158,6 +161,46 @@ class AgreesWithFcl(unittest.TestCase):
             got = self.mold.collides(C[k * 1000:(k + 1) * 1000], A[k * 1000:(k + 1) * 1000])
             np.testing.assert_array_equal(got, self.mold.collides_fcl(C[k * 1000:(k + 1) * 1000],
                                                                        A[k * 1000:(k + 1) * 1000]))
+
+    def test_swing_check_only_while_it_pays(self):
+        """The swung tool is asked before the mesh only while its record says it pays (the poses
+        it passed and those its cones decided later at least as many as it asked): with a
+        record of nothing decided it is not asked (and the record halves), with a good one it
+        is; the answers are fcl's either way."""
+        from tsplcam.orientation.collision import SWING_PROBE
+        ch = self.mold
+        rng = np.random.default_rng(11)
+        C, A = random_poses(self.mold_path, 1200, rng, spread=0.05, tilt=np.radians(50))
+        ch.collides(C, A)                                  # the centres are known from now on
+        kinds = []
+        plain = ch._fcl
+        ch._fcl = lambda C_, A_, tool="tool", *a: (kinds.append((tool, len(C_))), plain(C_, A_, tool, *a))[1]
+        try:
+            for gain, asked in ((0.0, False), (20.0 * SWING_PROBE, True)):
+                ch._swing_gain = (gain, 10.0 * SWING_PROBE, ch.broad.stats["cone_fcl"])
+                kinds.clear()
+                _, B = random_poses(self.mold_path, 1200, rng, spread=0.05, tilt=np.radians(50))
+                got = ch.collides(C, B)
+                self.assertEqual(any(k == "swung" for k, _ in kinds), asked)
+                if not asked:
+                    self.assertAlmostEqual(ch._swing_gain[1], 5.0 * SWING_PROBE)   # halved
+                np.testing.assert_array_equal(got, plain(C, B))
+        finally:
+            del ch._fcl
+            ch._swing_gain = (0.0, 0.0, ch.broad.stats["cone_fcl"])
+
+    def test_fcl_cones_counted(self):
+        """A pose decided by a cone the swing check left counts in ``stats["cone_fcl"]``."""
+        ch = self.keycap
+        A = self.keycap_path.normal[:200]
+        C = self.keycap_path.center[:200] + 0.0137 * A      # centres no other test asks about
+        free = ~ch._fcl(C, A, "swung")
+        self.assertGreater(int(free.sum()), 100)
+        ch.broad.add_cones(C[free], A[free], SWING)
+        before = ch.broad.stats["cone_fcl"]
+        st = ch.broad.decide(C[free], A[free])
+        self.assertTrue(np.all(st == FREE))
+        self.assertEqual(ch.broad.stats["cone_fcl"] - before, int(free.sum()))
 
 
 class Geometry(unittest.TestCase):

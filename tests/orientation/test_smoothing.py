@@ -85,6 +85,27 @@ class TransitionCost(unittest.TestCase):
                 want = cost.length / 0.5 * ((th[1, b] - th[0, a]) ** 2 + cost.w * dphi ** 2)
                 self.assertAlmostEqual(T[a, b], want, places=10)
 
+    def test_kept_blocks_follow_the_tilts(self):
+        """Blocks kept between the programme's rounds: given again while their tilts stand,
+        made again (the same bits as a fresh transition function's) where a tilt changed."""
+        rng = np.random.default_rng(5)
+        rot = Rotary(theta_lo=-30 * DEG, theta_hi=115 * DEG, v_theta=1.0, v_phi=2.0)
+        cost = SmoothingCost(2.0, rot, w=rot.weight, beta=0.5)
+        n, M = 100, 12
+        th = rng.uniform(-0.5, 1.5, (n, M))
+        grid = MeridianGrid(2 * np.pi * np.arange(M) / M, th, th - 1, th + 1, np.zeros((n, M)),
+                            np.ones((n, M), bool))
+        ds = rng.uniform(0.05, 0.5, n - 1)
+        free = rng.random(n) < 0.5
+        kept = joint_transitions(grid, cost, ds, 20 * DEG, free).block
+        first = [kept(i, min(n, i + 32)) for i in range(1, n, 32)]
+        grid.theta[40, 3] += 0.01                          # the programme moves one tilt
+        again = [kept(i, min(n, i + 32)) for i in range(1, n, 32)]
+        fresh = joint_transitions(grid, cost, ds, 20 * DEG, free).block
+        for k, i in enumerate(range(1, n, 32)):
+            np.testing.assert_array_equal(again[k], fresh(i, min(n, i + 32)))
+            self.assertEqual(again[k] is first[k], not (i - 1 <= 40 < i + 32))
+
 
 class BoxSolve(unittest.TestCase):
     def test_matches_lbfgsb(self):

@@ -1,7 +1,8 @@
 """The compiled kernels (orientation.compiled, numba) against their references: the Viterbi
 kernel against the numpy loop and against enumerating every sequence, the banded solve
 against scipy's ``solveh_banded`` (LAPACK), on random problems with ties and forbidden
-states, and on every problem the keycap main job poses them."""
+states, and on every problem the keycap main job poses them; the distance grids' read
+against its numpy version, bit for bit."""
 import importlib.util
 import itertools
 import os
@@ -240,3 +241,32 @@ class KeycapJob(unittest.TestCase):
 
 if __name__ == "__main__":
     unittest.main()
+
+
+@needs_numba
+class CompiledGridRead(unittest.TestCase):
+    def test_same_bits_as_numpy(self):
+        """The broad phase's distance grids of the keycap mold read by the kernel and by numpy:
+        the same bounds (bit for bit), samples and inside flags, at points inside, on node
+        planes and outside the grids."""
+        from tsplcam.model import samples
+        from tsplcam.model.cage import cage_model
+        from tsplcam.orientation import CollisionChecker, load_tool
+        from tsplcam.orientation.broadphase import DistanceGrid
+        mold = cage_model(samples.keycap_mold())
+        V, T = samples.keycap_mold_stock()
+        bp = CollisionChecker(mold, load_tool("ball1_keycap"), meshes=[("stock", V, T)]).broad
+        rng = np.random.default_rng(4)
+        for grid in bp.grids:
+            lo = grid.origin - 3.0
+            hi = grid.origin + grid.h * (grid.shape - 1) + 3.0
+            x = lo + rng.random((60000, 3)) * (hi - lo)
+            x[:2000] = grid.origin + grid.h * rng.integers(0, grid.shape, (2000, 3))   # on nodes
+            got = grid(x)
+            with mock.patch.object(compiled, "kernels", lambda work=None: None):
+                want = grid(x)
+            self.assertTrue(got[2].any() and not got[2].all())
+            for g, w in zip(got, want):
+                self.assertEqual(g.dtype, w.dtype)
+                np.testing.assert_array_equal(g, w)
+        self.assertIsInstance(bp.grids[0], DistanceGrid)

@@ -177,3 +177,41 @@ class Offsets(unittest.TestCase):
 
 if __name__ == "__main__":
     unittest.main()
+
+
+class MoldSmallestClearance(unittest.TestCase):
+    """The smallest clearance over collision-free poses in the keycap mold's cavity (the holder
+    near the block): the search that starts from scouts stands where the descent from every pose does,
+    so both give the same pose and value, those of fcl.distance measured at every pose."""
+
+    def test_scouts_against_every_pose(self):
+        from tsplcam.model import samples
+        from tsplcam.model.cage import cage_model
+        from tsplcam.orientation.testpaths import zigzag
+        from tsplcam.verify.orientation import _scouted
+        mold = cage_model(samples.keycap_mold())
+        V, T = samples.keycap_mold_stock()
+        checker = CollisionChecker(mold, load_tool("ball1_keycap"), meshes=[("stock", V, T)], clearance=0.3)
+        path = zigzag(mold, 0.5, lines=12, points=32)
+        rng = np.random.default_rng(3)
+        up = np.array([0.0, 0.0, 1.0])                          # axes within 25 deg of +z
+        tilt = np.radians(rng.uniform(0.0, 25.0, len(path)))[:, None]
+        side = np.cross(up, rng.normal(size=(len(path), 3)))
+        side /= np.linalg.norm(side, axis=1, keepdims=True)
+        axes = np.cos(tilt) * up + np.sin(tilt) * side
+        centers = path.contact + 0.5 * path.normal
+        free = ~checker.collides(centers, axes)                 # the poses an orientation keeps
+        centers, axes = centers[free], axes[free]
+        only, margin = checker.clearance_parts()
+        levels = sorted((0.05, 0.1, 0.2, 0.5, 1.0, 2.0, 5.0, 10.0, 20.0))
+        self.assertIsNotNone(_scouted(checker, centers, axes, levels, 3, only, 40, 32))   # the scouts' way
+        n0 = checker.fcl_checks
+        got = min_clearance(checker, centers, axes)
+        n1 = checker.fcl_checks
+        plain = min_clearance(checker, centers, axes, scouts=0)
+        n2 = checker.fcl_checks
+        self.assertEqual(got, plain)
+        self.assertLess(n1 - n0, n2 - n1)
+        every = checker.clearance_of(centers, axes, only) + margin
+        self.assertEqual(got[1], int(np.argmin(every)))
+        self.assertAlmostEqual(got[0], float(every.min()), delta=1e-12)

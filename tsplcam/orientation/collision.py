@@ -319,6 +319,7 @@ def axis_quaternions(axes: np.ndarray) -> np.ndarray:
 
 
 SWING = np.radians(1.0)        # cone of axes a pose decided by fcl certifies (see tool_mesh)
+SWING_PROBE = 2000             # poses the swing check is tried on before its record counts
 POOL_MIN = 400                 # fcl batches at least twice this long go to worker processes
 _POOL_CHECKER = None           # the checker forked workers inherit
 
@@ -410,6 +411,7 @@ class CollisionChecker:
         self._req = fcl.CollisionRequest()
         self.checks = 0                    # poses checked so far (for reports and benchmarks)
         self.fcl_checks = 0                # of those, asked of fcl
+        self._swing_gain = (0.0, 0.0, 0)   # swing check: poses decided, asked, cone_fcl seen
         self.broad = BroadPhase(self.mesh.vertices, self.mesh.triangles, self.profile,
                                 tool.ball_radius - self.gouge_tolerance, e_cap) if broad_phase else None
 
@@ -455,12 +457,18 @@ class CollisionChecker:
         return cache[key]
 
     def _decided(self, C, A, grow, ask=None):
-        """Broad-phase decisions, with fcl for the poses it leaves open: ``ask(C, A)``, or by
+        """Broad-phase decisions, with fcl for the poses it leaves open: ``ask(C, A, parts)``
+        (``parts``: per pose the bit mask of the parts the broad phase could not clear), or by
         default the tool mesh reduced to the parts the broad phase could not clear. At zero
         growth those are first tried with the tool grown for a swing of ``SWING``: the ones it
         passes are free and leave a cone of free axes at their centre; only at centres asked
         about before (a new centre's cone would serve nobody), and reduced to the open parts
-        where the cleared ones keep that swing to spare."""
+        where the cleared ones keep that swing to spare, and only while that pays
+        (:meth:`_swing_share`). ``ask`` is asked only about the poses the tool mesh does not
+        clear either: the mesh's circumscribed polygons contain the primitives (the same
+        polygons for a ``Convex``, a polygon around a ``Cylinder``), so what the mesh clears
+        they clear, and a mesh query costs a tenth of a primitive one against a large
+        workpiece (the holder's cylinder)."""
         if self.broad is None:
             return ask(C, A) if ask is not None else self._fcl(C, A, "tool", grow)
         st = self.broad.decide(C, A, grow)
@@ -470,14 +478,37 @@ class CollisionChecker:
         mask = self.broad.open_parts @ bits
         again = open_[self.broad.revisit[open_]]
         if len(again) and grow == 0.0:
+            again = self._swing_share(again)
+        if len(again) and grow == 0.0:
             sw = np.where(self.broad.open_phi[again] >= SWING, mask[again], -1)
             free = ~self._fcl(C[again], A[again], "swung", 0.0, sw)
             self.broad.add_cones(C[again[free]], A[again[free]], SWING)
             open_ = np.setdiff1d(open_, again[free])
+            d, a, seen = self._swing_gain
+            self._swing_gain = (d + int(free.sum()), a + len(again), seen)
         if len(open_):
-            out[open_] = (ask(C[open_], A[open_]) if ask is not None
-                          else self._fcl(C[open_], A[open_], "tool", grow, mask[open_]))
+            out[open_] = self._fcl(C[open_], A[open_], "tool", grow, mask[open_])
+        if ask is not None:
+            sub = open_[out[open_]]
+            out[sub] = ask(C[sub], A[sub], mask[sub])
         return out
+
+    def _swing_share(self, again: np.ndarray) -> np.ndarray:
+        """The poses of ``again`` to try with the swung tool before the tool mesh. A swung
+        query costs about as much as the mesh query it stands for, so it pays only where the
+        poses it passes and the later poses its cones decide (``stats["cone_fcl"]``) are at
+        least as many as the queries: all poses while its record (decayed sums) says so, the
+        first few up to ``SWING_PROBE`` queries while the record is short, none otherwise (the
+        record then halves each call, so it is tried again later). The answers are the same
+        either way: only which proof decides a pose changes."""
+        decided, asked, seen = self._swing_gain
+        cones = self.broad.stats["cone_fcl"]
+        decided += cones - seen
+        if asked > SWING_PROBE and decided < asked:
+            self._swing_gain = (0.5 * decided, 0.5 * asked, cones)
+            return again[:0]
+        self._swing_gain = (decided, asked, cones)
+        return again if asked > SWING_PROBE else again[:int(np.ceil(SWING_PROBE - asked)) + 1]
 
     def swung(self):
         """The tool mesh grown for a swing of ``SWING`` (tool_mesh), as an fcl object."""
@@ -595,21 +626,28 @@ class CollisionChecker:
     def collides_exact(self, centers, axes) -> np.ndarray:
         """The same question asked of fcl primitives (``Cylinder``/``Convex``) part by part,
         the reference the mesh form is tested against; the broad phase's proofs hold for both
-        forms (its spheres cover the polygons, its hits lie inside the circles)."""
+        forms (its spheres cover the polygons, its hits lie inside the circles), and so does a
+        pose the mesh clears (its polygons contain the primitives): only the poses the mesh
+        hits are asked of the primitives, about the parts the broad phase left open."""
         C = np.asarray(centers, float).reshape(-1, 3)
         A = np.asarray(axes, float).reshape(-1, 3)
         C, A = (np.ascontiguousarray(x) for x in np.broadcast_arrays(C, A)) if len(C) != len(A) else (C, A)
         return self._decided(C, A, 0.0, self.collides_primitives)
 
-    def collides_primitives(self, centers, axes) -> np.ndarray:
-        """:meth:`collides_exact` asked of fcl alone."""
+    def collides_primitives(self, centers, axes, parts=None) -> np.ndarray:
+        """:meth:`collides_exact` asked of fcl alone; ``parts``: per pose the bit mask of the
+        parts to ask (default all; the broad phase proves the others clear)."""
         C = np.asarray(centers, float).reshape(-1, 3)
         A = np.asarray(axes, float).reshape(-1, 3)
         C, A = np.broadcast_arrays(C, A) if len(C) != len(A) else (C, A)
         Q = axis_quaternions(A)
         out = np.zeros(len(Q), bool)
+        masks = np.full(len(Q), -1) if parts is None else np.broadcast_to(np.asarray(parts, np.int64), (len(Q),))
         for k in range(len(Q)):
-            for _, obj, z in self._prims:
+            m = int(masks[k])
+            for j, (_, obj, z) in enumerate(self._prims):
+                if not (m >> j) & 1:
+                    continue
                 obj.setQuatRotation(Q[k])
                 obj.setTranslation(C[k] + z * A[k])
                 if fcl.collide(obj, self._wp, self._req, fcl.CollisionResult()):

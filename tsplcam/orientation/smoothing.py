@@ -126,6 +126,7 @@ def meridian_grid(rot: Rotary, pref, normal, constraints, M: int, pole_tilt: flo
 
 
 IN_PLACE = (0.1, 10.0 * DEG)
+TRANSITION_CACHE = 128e6      # bytes of transition blocks kept between the programme's rounds
 
 
 def joint_transitions(grid: MeridianGrid, cost: SmoothingCost, ds: np.ndarray, max_step: float,
@@ -134,7 +135,11 @@ def joint_transitions(grid: MeridianGrid, cost: SmoothingCost, ds: np.ndarray, m
     ``L / ds * (alpha (dtheta^2 + w dphi^2) + beta |dK|^2)``, moves of the tool axis above
     ``max_step`` forbidden except into points where ``free_step``, and rotary steps above
     ``IN_PLACE`` forbidden on blocks shorter than it except into points where ``air``
-    (retracts, rapids). Reads ``grid.theta`` when called (the lazy collision checks update it)."""
+    (retracts, rapids). Reads ``grid.theta`` when called (the lazy collision checks update it).
+    A block is kept (up to ``TRANSITION_CACHE`` bytes) with the tilts it was made from and
+    given again while they are unchanged: the programme's later rounds change the tilts of a
+    few stretches only (keycap_mold: two blocks in three come back unchanged), and the same
+    element-wise arithmetic on the same tilts gives the same bits."""
     phis = grid.phi
     dphi = np.pi - np.mod(np.pi - (phis[None, :] - phis[:, None]), 2 * np.pi)
     D2 = cost.w * dphi ** 2
@@ -146,9 +151,23 @@ def joint_transitions(grid: MeridianGrid, cost: SmoothingCost, ds: np.ndarray, m
     swing = np.abs(dphi) > IN_PLACE[1] + 1e-9
     air = np.zeros(len(TH), bool) if air is None else air
 
+    kept: dict = {}
+    room = [TRANSITION_CACHE]
+
     def block(i0: int, i1: int) -> np.ndarray:
         """The transitions into points i0 .. i1 - 1, (i1 - i0, M, M), element for element
-        the same arithmetic as one point at a time."""
+        the same arithmetic as one point at a time (kept ones while their tilts stand)."""
+        old = kept.get((i0, i1))
+        if old is not None and np.array_equal(old[0], TH[i0 - 1:i1]):
+            return old[1]
+        t = _block(i0, i1)
+        if old is not None or room[0] >= t.nbytes:
+            if old is None:
+                room[0] -= t.nbytes
+            kept[(i0, i1)] = (TH[i0 - 1:i1].copy(), t)
+        return t
+
+    def _block(i0: int, i1: int) -> np.ndarray:
         a, b = TH[i0 - 1:i1 - 1], TH[i0:i1]
         dots = np.cos(a)[:, :, None] * np.cos(b)[:, None, :]
         dots += (np.sin(a)[:, :, None] * np.sin(b)[:, None, :]) * cosD

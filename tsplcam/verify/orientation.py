@@ -2,8 +2,9 @@
 rotary travel and machining time.
 
 * collisions: poses whose flutes, shank or holder touch the workpiece, asked of fcl with
-  the tool as primitives (``CollisionChecker.collides_exact``: Cylinder / Convex), and
-  ball gouges (the shrunk-ball check); both must be 0.
+  the tool as primitives (``CollisionChecker.collides_exact``: Cylinder / Convex; a pose
+  the broad phase or the circumscribed tool mesh, which contains them, clears is clear for
+  them too), and ball gouges (the shrunk-ball check); both must be 0.
 * smallest clearance: fcl distance between the tool parts that keep the clearance (shank
   and holder; the flutes cut, so next to the contact they come as close as the tilt puts
   them) and the tessellated workpiece, plus the margin the checker grew them by. Computed
@@ -71,7 +72,7 @@ class OrientationMetrics:
 
 
 def min_clearance(checker, centers, axes, levels=(0.05, 0.1, 0.2, 0.5, 1.0, 2.0, 5.0, 10.0, 20.0),
-                  exact: int = 40, first: int = 3):
+                  exact: int = 40, first: int = 3, scouts: int = 32):
     """(smallest clearance in mm, index of the pose) over the poses, see the module: of the
     parts that keep the clearance (every part but the flutes, :meth:`clearance_parts`), the
     distance plus the margin they were grown by.
@@ -84,24 +85,36 @@ def min_clearance(checker, centers, axes, levels=(0.05, 0.1, 0.2, 0.5, 1.0, 2.0,
     only at ``levels[first]`` (and above while none touches there), and below a growth where
     poses touched only those poses, about the parts the broad phase could not clear there;
     the bisection's first step is taken before the level below is asked (whatever touches
-    there touches at the step), so that level is asked of fewer poses."""
+    there touches at the step), so that level is asked of fewer poses.
+
+    ``scouts`` poses spread along the path go first (:func:`_scouted`): the lowest level at
+    which one touches is asked of every pose instead of ``levels[first]``, and the levels
+    above of the poses touching there only; where more than ``exact`` of those touch at every
+    level above, the search stands where the descent from ``levels[first]`` would stand, with
+    the same poses (the same answer, from about half the collision queries), else it runs
+    that descent."""
     C = np.asarray(centers, float)
     A = np.asarray(axes, float)
     levels = sorted(levels)
     only, margin = checker.clearance_parts()
     start = min(first, len(levels) - 1)
     pick, lo, hi, steps = None, 0.0, None, 20
-    for i in range(start, len(levels)):
-        hit, parts = checker.collides_parts(C, A, levels[i], only=only)
-        if hit.any():
-            pick, hi, parts, top, j = np.nonzero(hit)[0], levels[i], parts[hit], levels[i], i
-            break
-        lo = levels[i]
+    got = _scouted(checker, C, A, levels, start, only, exact, scouts) if scouts else None
+    if got is not None:
+        pick, parts, j = got
+        hi = top = levels[j]
+    else:
+        for i in range(start, len(levels)):
+            hit, parts = checker.collides_parts(C, A, levels[i], only=only)
+            if hit.any():
+                pick, hi, parts, top, j = np.nonzero(hit)[0], levels[i], parts[hit], levels[i], i
+                break
+            lo = levels[i]
 
     def touching(sel, masks, g):
         return checker.collides_parts(C[sel], A[sel], g, parts=(top, masks), only=only)[0]
 
-    if pick is not None and j == start:
+    if pick is not None and j <= start:
         while j > 0:
             below = levels[j - 1]
             if len(pick) > exact and hi - below >= 1e-4:
@@ -140,6 +153,48 @@ def min_clearance(checker, centers, axes, levels=(0.05, 0.1, 0.2, 0.5, 1.0, 2.0,
     d = checker.clearance_of(C[pick], A[pick], only, smallest=True) + margin
     k = int(np.argmin(d))
     return float(d[k]), int(pick[k])
+
+
+def _descent(levels, start: int, stop: int) -> list:
+    """The growths :func:`min_clearance`'s descent asks from ``levels[start]`` down to
+    ``levels[stop]`` while more than ``exact`` poses touch at each: the start, and per level
+    below the step halfway to it (where the levels are 1e-4 apart or more) and the level."""
+    out = [levels[start]]
+    for j in range(start, stop, -1):
+        if levels[j] - levels[j - 1] >= 1e-4:
+            out.append(0.5 * (levels[j - 1] + levels[j]))
+        out.append(levels[j - 1])
+    return out
+
+
+def _scouted(checker, C, A, levels, start: int, only: int, exact: int, scouts: int):
+    """Where :func:`min_clearance`'s descent from ``levels[start]`` would stand, found from
+    below: (poses touching, their part masks, level index) or None. The ``scouts`` poses
+    spread along the path are asked at ``levels[start]`` and the levels below it while one
+    touches; at the lowest such level below the start every pose is asked, and the poses
+    touching there are asked at every growth the descent asks above it (a pose that stops
+    touching on the way down is not among the descent's). More than ``exact`` left: the
+    descent, which goes on while more than ``exact`` touch (their superset), stands there with
+    exactly these poses; else None (the caller descends from the start)."""
+    s = np.unique(np.linspace(0, len(C) - 1, min(scouts, len(C))).astype(int))
+    low = None
+    for j in range(start, -1, -1):
+        if not checker.collides_parts(C[s], A[s], levels[j], only=only)[0].any():
+            break
+        low = j
+    if low is None or low == start:
+        return None
+    hit, parts = checker.collides_parts(C, A, levels[low], only=only)
+    pick = np.nonzero(hit)[0]
+    parts = parts[hit]
+    for g in _descent(levels, start, low)[:-1]:
+        if len(pick) <= exact:
+            break
+        keep = checker.collides_parts(C[pick], A[pick], g, only=only)[0]
+        pick, parts = pick[keep], parts[keep]
+    if len(pick) <= exact:
+        return None
+    return pick, parts, low
 
 
 def clearance_levels(top: float = 10.0, step: float = 0.01, ratio: float = 1.02) -> np.ndarray:

@@ -4,7 +4,7 @@
 #   2. the tests that need FreeCAD (document objects, OCCT comparisons; marked @needs_freecad
 #      in tests/conftest.py): freecadcmd -t TestTsplcam,
 #   3. GUI tests in the real FreeCAD GUI under Xvfb (screenshots land in build/artifacts).
-# 1 runs beside 2 and 3 (two cores). FreeCAD runs with an isolated user home (build/fchome)
+# 1 runs as two pytest processes beside 2 and 3 (two cores). FreeCAD runs with an isolated user home (build/fchome)
 # and HOME (build/home). Exit status 0 only when all three pass; each runner's summary line is
 # printed at the end.
 set -uo pipefail
@@ -19,9 +19,17 @@ FC_ENV=(env HOME="$REPO/build/home" FREECAD_USER_HOME="$FREECAD_USER_HOME" QTWEB
 cd "$REPO"
 
 SECONDS=0
-# 1 in the background, its output shown when it is done
-/usr/bin/python3 -m pytest -q -p no:cacheprovider --durations=20 tests > "$LOGS/pytest.log" 2>&1 &
-pid_py=$!
+# 1 in the background, its output shown when it is done: two pytest processes, each test in
+# one of them (shard a: the model and the light stages; shard b: everything else, so a new
+# test file lands there), about 130 s and 170 s of tests alone on this kind of machine.
+SHARD_A=(tests/model tests/plan tests/toolpath tests/post tests/workbench tests/test_foundation.py
+         tests/test_architecture.py)
+/usr/bin/python3 -m pytest -q -p no:cacheprovider --durations=10 "${SHARD_A[@]}" \
+    > "$LOGS/pytest-a.log" 2>&1 &
+pid_py_a=$!
+/usr/bin/python3 -m pytest -q -p no:cacheprovider --durations=10 tests "${SHARD_A[@]/#/--ignore=}" \
+    > "$LOGS/pytest-b.log" 2>&1 &
+pid_py_b=$!
 
 echo "== 2/3 FreeCAD tests: freecadcmd -t TestTsplcam"
 ( cd "$REPO/build" && "${FC_ENV[@]}" freecadcmd -t TestTsplcam ) > "$LOGS/freecadcmd.log" 2>&1
@@ -41,14 +49,18 @@ grep -E "\.\.\. (ok|FAIL|ERROR|skipped)" "$LOGS/gui.log" || true
 if [ $rc_gui -ne 0 ]; then sed -n '/^======/,$p' "$LOGS/gui.log" | head -n 200; fi
 [ -f "$LOGS/gui.result" ] && grep -q "^OK" "$LOGS/gui.result" || rc_gui=1
 
-echo "== 1/3 engine tests: /usr/bin/python3 -m pytest"
-wait $pid_py
-rc_py=$?
-cat "$LOGS/pytest.log"
+echo "== 1/3 engine tests: /usr/bin/python3 -m pytest (two shards)"
+wait $pid_py_a
+rc_py_a=$?
+wait $pid_py_b
+rc_py_b=$?
+cat "$LOGS/pytest-a.log" "$LOGS/pytest-b.log"
+rc_py=$(( rc_py_a != 0 || rc_py_b != 0 ))
 
 echo
 echo "== summary ($SECONDS s)"
-echo "pytest (engine):     $(tail -n 1 "$LOGS/pytest.log")"
+echo "pytest (engine):     a: $(tail -n 1 "$LOGS/pytest-a.log")"
+echo "                     b: $(tail -n 1 "$LOGS/pytest-b.log")"
 echo "freecadcmd (FreeCAD): $(grep -E "^Ran [0-9]+ tests?" "$LOGS/freecadcmd.log" | tail -n 1) $(grep -E "^(OK|FAILED)" "$LOGS/freecadcmd.log" | tail -n 1)"
 echo "freecad GUI (xvfb):  $(cat "$LOGS/gui.result" 2>/dev/null || echo 'no result: the GUI run did not finish')"
 echo "screenshots:         $TSPLCAM_ARTIFACTS"

@@ -193,6 +193,80 @@ class CompiledBandedSolve(unittest.TestCase):
             self.assertTrue((grad[x <= lo + 1e-9] >= -1e-8).all() and (grad[x >= hi - 1e-9] <= 1e-8).all())
 
 
+def random_programme(rng, n, M):
+    """A joint programme's transition function on random tilts (some at the pole, some
+    equal along the path), spacings partly below IN_PLACE's, random free steps and air
+    points, a random tool-axis step limit and random weights (beta and travel 0 or not)."""
+    from tsplcam.orientation.rotary import DEG, Rotary
+    from tsplcam.orientation.smoothing import MeridianGrid, SmoothingCost, joint_transitions
+    rot = Rotary(theta_lo=-30 * DEG, theta_hi=115 * DEG, v_theta=1.0, v_phi=2.0)
+    cost = SmoothingCost(float(rng.uniform(0.5, 8.0)), rot, w=float(rng.uniform(0.1, 3.0)),
+                         alpha=float(rng.choice([1.0, 0.3])), beta=float(rng.choice([0.0, 0.7])),
+                         travel=float(rng.choice([0.0, 0.05])))
+    th = rng.uniform(-0.6, 2.0, (n, M))
+    th[rng.random((n, M)) < 0.1] = 0.0                               # on the pole
+    same = rng.random(n) < 0.2
+    th[1:][same[1:]] = th[:-1][same[1:]]                             # dtheta = 0 exactly
+    grid = MeridianGrid(2 * np.pi * np.arange(M) / M, th, th - 1, th + 1, np.zeros((n, M)),
+                        np.ones((n, M), bool))
+    ds = np.where(rng.random(n - 1) < 0.3, rng.uniform(0.001, 0.1, n - 1), rng.uniform(0.1, 2.0, n - 1))
+    free = rng.random(n) < 0.3
+    air = rng.random(n) < 0.2 if rng.random() < 0.7 else None
+    max_step = float(rng.choice([np.pi, 20 * DEG, 3 * DEG]))
+    return grid, joint_transitions(grid, cost, ds, max_step, free, air)
+
+
+@needs_numba
+class CompiledJointTransitions(unittest.TestCase):
+    def test_same_bits_as_numpy(self):
+        """The joint programme's transitions as the kernel computes them (read off one source
+        state at a time: only that state reachable, at cost 0, node costs 0, so the costs
+        after one step are that state's row of transitions, exactly) are numpy's block's bit
+        for bit (the program's bytes hang on them): finite costs, moves forbidden by the
+        tool-axis step limit and rotary swings on short blocks (inf), with and without the
+        beta and travel terms."""
+        k = compiled.kernels()
+        rng = np.random.default_rng(21)
+        seen = {"inf": 0, "finite": 0, "dead row": 0}
+        for trial in range(40):
+            n, M = int(rng.integers(2, 40)), int(rng.choice([5, 12, 36]))
+            grid, tr = random_programme(rng, n, M)
+            blocks = np.concatenate([tr.block(i0, min(n, i0 + 32)) for i0 in range(1, n, 32)])
+            for i in range(1, n):
+                want = tr.block(i, i + 1)[0]
+                got = np.empty((M, M))
+                for a in range(M):
+                    acc = np.full(M, np.inf)
+                    acc[a] = 0.0
+                    tr.steps(k, acc, np.zeros((n, M)), i, i + 1, TIE, np.zeros((n, M), np.int32))
+                    got[a] = acc
+                np.testing.assert_array_equal(got.view(np.int64), want.view(np.int64), f"trial {trial} point {i}")
+                np.testing.assert_array_equal(blocks[i - 1].view(np.int64), want.view(np.int64))
+                seen["inf"] += np.isinf(want).sum()
+                seen["finite"] += np.isfinite(want).sum()
+                seen["dead row"] += np.isinf(want).all(axis=1).any()
+        self.assertTrue(all(v > 0 for v in seen.values()), seen)
+
+    def test_programme_states(self):
+        """The programme with transitions computed in the kernel against the numpy loop over
+        numpy's blocks: the same states and break points, with forbidden states."""
+        rng = np.random.default_rng(22)
+        broken = 0
+        for trial in range(30):
+            n, M = int(rng.integers(2, 300)), int(rng.choice([5, 12, 36]))
+            grid, tr = random_programme(rng, n, M)
+            node = rng.random((n, M)) * rng.choice([0.01, 1.0, 100.0])
+            node[rng.random((n, M)) < 0.2] = np.inf
+            self.assertIsNotNone(tr.steps)
+            broken += same_result(self, node, tr, f"trial {trial}")[0] is None
+        self.assertGreater(broken, 0)
+
+    def test_warm_compiles_it(self):
+        """``warm()`` (the install script's) compiles the kernel for the types the job uses."""
+        compiled.warm()
+        self.assertEqual(len(compiled.kernels()["joint_steps"].signatures), 1)
+
+
 @needs_numba
 class KeycapJob(unittest.TestCase):
     def test_every_call_of_the_main_job(self):

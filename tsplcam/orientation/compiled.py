@@ -5,7 +5,11 @@ numpy spends one sequence of array calls per point, about 11 us for 36 x 36 stat
 cannot go lower. The kernel here does the same arithmetic per point, element for element (one
 addition per move, the same minimum, the same relative tie tolerance, the same first-index
 tie-breaking), so the chosen states and their costs are the numpy version's bit for bit, at
-about a tenth of the time.
+about a tenth of the time. For the smoothing's joint programme a second form of it
+(``joint_steps``) computes each transition where the recurrence uses it instead of reading
+it from an (n, S, S) block that numpy built (keycap_mold: the blocks 0.31 s, the recurrence 0.08 s):
+the operations of the numpy block's, element for element in its order, on numpy's cos and
+sin of the tilts (numba's libm may differ from numpy's by an ulp), so the same bits.
 
 The distance grids' read (:class:`~tsplcam.orientation.broadphase.DistanceGrid`, two million
 points on the keycap_mold job) is a gather of eight nodes per point: numpy's temporaries
@@ -73,6 +77,74 @@ def _build():
                 x = acc[a]
                 for b in range(S):
                     v = x + T[r, a, b]
+                    tot[a, b] = v
+                    if v < m[b]:
+                        m[b] = v
+                    elif v != v:
+                        nan[b] = True
+            live = False
+            for b in range(S):
+                mb = np.nan if nan[b] else m[b]
+                lim = mb + tie * max(1.0, abs(mb))
+                k = 0
+                for a in range(S):
+                    if tot[a, b] <= lim:
+                        k = a
+                        break
+                back[i, b] = k
+                v = tot[k, b] + node[i, b]
+                acc[b] = v
+                if np.isfinite(v):
+                    live = True
+            if not live:
+                return i
+        return -1
+
+    @jit
+    def joint_steps(acc, node, i0, i1, th, cth, sth, D2, D1, cosD, swing, alpha, beta, travel,
+                    lds, hard, short, cmin, tie, back):
+        """:func:`viterbi_steps` for points ``i0 .. i1 - 1`` with the smoothing programme's
+        joint-space transitions computed move by move instead of read from a block: the
+        operations of :func:`~tsplcam.orientation.smoothing.joint_transitions`'s numpy block,
+        element for element in its order (so the same bits; ``cth``, ``sth`` numpy's cos and
+        sin of the tilts ``th``). ``lds`` (n-1,) L / ds; ``hard`` (n,) the tool-axis step
+        limit applies (``dots < cmin`` forbidden); ``short`` (n,) a rotary ``swing`` is
+        forbidden; ``beta``, ``travel`` 0: their terms left out, as numpy does."""
+        S = th.shape[1]
+        tot = np.empty((S, S))
+        t = np.empty(S)
+        m = np.empty(S)
+        nan = np.empty(S, np.bool_)
+        use_beta = beta != 0.0
+        use_travel = travel != 0.0
+        for i in range(i0, i1):
+            f = lds[i - 1]
+            hi = hard[i]
+            sh = short[i]
+            m[:] = np.inf
+            nan[:] = False
+            for a in range(S):
+                x = acc[a]
+                ta = th[i - 1, a]
+                ca = cth[i - 1, a]
+                sa = sth[i - 1, a]
+                for b in range(S):
+                    dots = ca * cth[i, b]
+                    dots += (sa * sth[i, b]) * cosD[a, b]
+                    dt = ta - th[i, b]
+                    dt *= dt
+                    dt += D2[a, b]
+                    c = alpha * dt
+                    if use_beta:
+                        c += beta * (2.0 - 2.0 * dots)
+                    c *= f
+                    if use_travel:
+                        c += D1[a, b]
+                    if (hi and dots < cmin) or (sh and swing[a, b]):
+                        c = np.inf
+                    t[b] = c
+                for b in range(S):          # from here on viterbi_steps's arithmetic
+                    v = x + t[b]
                     tot[a, b] = v
                     if v < m[b]:
                         m[b] = v
@@ -184,8 +256,8 @@ def _build():
             lb[p] = best if inside else 0.0
             near[p] = idx[base + nb] if inside else -1
 
-    return {"viterbi_steps": viterbi_steps, "viterbi_path": viterbi_path, "banded_solve": banded_solve,
-            "grid_read": grid_read}
+    return {"viterbi_steps": viterbi_steps, "joint_steps": joint_steps, "viterbi_path": viterbi_path,
+            "banded_solve": banded_solve, "grid_read": grid_read}
 
 
 def kernels(work: float | None = None):
@@ -215,6 +287,11 @@ def warm() -> float:
         return 0.0
     node = np.zeros((3, 3))
     viterbi(node, np.ones((2, 3, 3)))
+    from .smoothing import MeridianGrid, SmoothingCost, joint_transitions
+    from .rotary import Rotary
+    th = np.zeros((3, 3))
+    grid = MeridianGrid(np.zeros(3), th, th, th, th, np.ones((3, 3), bool))
+    viterbi(node, joint_transitions(grid, SmoothingCost(1.0, Rotary()), np.ones(2), 1.0, np.ones(3, bool)))
     kernels()["banded_solve"](np.array([[0.0, 0.0, 1.0], [0.0, 1.0, 1.0], [2.0, 2.0, 2.0]]), np.ones(3))
     from scipy.spatial import cKDTree
 

@@ -136,10 +136,13 @@ def joint_transitions(grid: MeridianGrid, cost: SmoothingCost, ds: np.ndarray, m
     ``max_step`` forbidden except into points where ``free_step``, and rotary steps above
     ``IN_PLACE`` forbidden on blocks shorter than it except into points where ``air``
     (retracts, rapids). Reads ``grid.theta`` when called (the lazy collision checks update it).
-    A block is kept (up to ``TRANSITION_CACHE`` bytes) with the tilts it was made from and
-    given again while they are unchanged: the programme's later rounds change the tilts of a
-    few stretches only (keycap_mold: two blocks in three come back unchanged), and the same
-    element-wise arithmetic on the same tilts gives the same bits."""
+    With the compiled kernels loaded the Viterbi computes each transition in its kernel
+    (``steps``, the same operations in the same order: the same bits) and no block is made;
+    the numpy blocks are the reference and the path without numba. There a block is kept (up
+    to ``TRANSITION_CACHE`` bytes) with the tilts it was made from and given again while they
+    are unchanged: the programme's later rounds change the tilts of a few stretches only
+    (keycap_mold: two blocks in three come back unchanged), and the same element-wise
+    arithmetic on the same tilts gives the same bits."""
     phis = grid.phi
     dphi = np.pi - np.mod(np.pi - (phis[None, :] - phis[:, None]), 2 * np.pi)
     D2 = cost.w * dphi ** 2
@@ -186,7 +189,24 @@ def joint_transitions(grid: MeridianGrid, cost: SmoothingCost, ds: np.ndarray, m
         if short.any():
             np.copyto(t, np.inf, where=short[:, None, None] & swing[None])
         return t
-    return from_blocks(block)
+
+    n = len(TH)
+    lds = np.ascontiguousarray(L / ds[:n - 1], float)
+    hard = np.ascontiguousarray(~free_step[:n], bool)
+    short_at = np.zeros(n, bool)
+    short_at[1:] = (ds[:n - 1] < IN_PLACE[0]) & ~air[1:n]
+    mats = [np.ascontiguousarray(x, float) for x in (D2, D1, cosD)]
+    swing_c = np.ascontiguousarray(swing, bool)
+
+    def steps(k, acc, node, i0: int, i1: int, tie: float, back) -> int:
+        """The Viterbi steps into points i0 .. i1 - 1 in the compiled kernel, each transition
+        computed where it is used (no block is made): the same operations as :func:`_block`,
+        with numpy's cos and sin of the current tilts (numba's may differ in the last bit)."""
+        th = np.ascontiguousarray(TH, float)
+        return k["joint_steps"](acc, node, i0, i1, th, np.cos(th), np.sin(th), *mats, swing_c,
+                                float(alpha), float(beta), float(cost.travel), lds, hard, short_at,
+                                float(cmax - 1e-12), tie, back)
+    return from_blocks(block, steps)
 
 
 def resolve_meridians(checker, C, rot: Rotary, grid: MeridianGrid, status, pts, ks, step: float,

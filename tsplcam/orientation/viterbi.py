@@ -15,7 +15,8 @@ sums may differ in the last bits with memory alignment from run to run, and no d
 
 The recurrence runs in a compiled kernel (:mod:`tsplcam.orientation.compiled`, numba) when
 numba is installed: the same arithmetic, so the same states and costs bit for bit; this
-module's numpy loop is the reference and the fallback.
+module's numpy loop is the reference and the fallback. A transition function may bring its
+own compiled steps (:func:`from_blocks`), which compute the transitions inside the kernel.
 """
 from __future__ import annotations
 
@@ -71,12 +72,17 @@ def _two_states(node: np.ndarray, trans: np.ndarray):
     return state, None
 
 
-def from_blocks(block):
+def from_blocks(block, steps=None):
     """A transition function ``i -> (S, S)`` from ``block(i0, i1)``, the transitions into
-    points i0 .. i1 - 1 as one (i1 - i0, S, S) array, which :func:`viterbi` then calls."""
+    points i0 .. i1 - 1 as one (i1 - i0, S, S) array, which :func:`viterbi` then calls.
+    ``steps(k, acc, node, i0, i1, tie, back)``, if given: the compiled recurrence over those
+    points with the transitions computed inside the kernel (the same bits as ``block``'s,
+    see ``viterbi_steps`` in :mod:`~tsplcam.orientation.compiled` for its contract), which
+    :func:`viterbi` uses instead of the blocks when the kernels are loaded."""
     def trans(i: int) -> np.ndarray:
         return block(i, i + 1)[0]
     trans.block = block
+    trans.steps = steps
     return trans
 
 
@@ -110,7 +116,7 @@ def viterbi(node: np.ndarray, transition, kernel: bool = True) -> tuple:
     back = np.zeros((n, S), np.int32)
     k = compiled.kernels(work=float(n) * S * S) if kernel else None
     if k is not None:
-        return _compiled(k, node, acc, back, block)
+        return _compiled(k, node, acc, back, block, getattr(transition, "steps", None))
     cols = np.arange(S)
     T, lo = np.zeros((0, S, S)), 1
     for i in range(1, n):
@@ -131,12 +137,17 @@ def viterbi(node: np.ndarray, transition, kernel: bool = True) -> tuple:
     return states, None
 
 
-def _compiled(k, node, acc, back, block) -> tuple:
+def _compiled(k, node, acc, back, block, steps=None) -> tuple:
     """:func:`viterbi`'s forward and backward passes in the compiled kernels (the same
-    arithmetic as its numpy loop), a block of transitions per call."""
+    arithmetic as its numpy loop): a block of transitions per call, or all points in one
+    call of ``steps`` (transitions computed in the kernel, see :func:`from_blocks`)."""
     n = len(node)
     node = np.require(node, np.float64, ("C", "W"))
-    for i0 in range(1, n, BLOCK):
+    if steps is not None:
+        broke = steps(k, acc, node, 1, n, TIE, back)
+        if broke >= 0:
+            return None, int(broke) - 1
+    for i0 in range(1, n if steps is None else 1, BLOCK):
         T = np.require(block(i0, min(n, i0 + BLOCK)), np.float64, ("C", "W"))
         broke = k["viterbi_steps"](acc, node, T, i0, TIE, back)
         if broke >= 0:

@@ -20,10 +20,10 @@ cd "$REPO"
 
 SECONDS=0
 # 1 in the background, its output shown when it is done: two pytest processes, each test in
-# one of them (shard a: the model and the light stages; shard b: everything else, so a new
-# test file lands there), about 130 s and 170 s of tests alone on this kind of machine.
-SHARD_A=(tests/model tests/plan tests/toolpath tests/post tests/workbench tests/test_foundation.py
-         tests/test_architecture.py)
+# one of them (shard a: the model, the light stages and verify; shard b: everything else, so
+# a new test file lands there), about 145 s and 160 s of tests alone on a 2-core AMD EPYC.
+SHARD_A=(tests/model tests/plan tests/toolpath tests/post tests/verify tests/workbench
+         tests/test_foundation.py tests/test_architecture.py)
 /usr/bin/python3 -m pytest -q -p no:cacheprovider --durations=10 "${SHARD_A[@]}" \
     > "$LOGS/pytest-a.log" 2>&1 &
 pid_py_a=$!

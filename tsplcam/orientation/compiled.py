@@ -143,7 +143,10 @@ def _build():
                     if (hi and dots < cmin) or (sh and swing[a, b]):
                         c = np.inf
                     t[b] = c
-                for b in range(S):          # from here on viterbi_steps's arithmetic
+                # from here on viterbi_steps's arithmetic, written out again: a cached kernel
+                # that calls another kernel of this closure is not found in numba's cache by
+                # the next process (measured: compiled again, 2.3 s, in every process)
+                for b in range(S):
                     v = x + t[b]
                     tot[a, b] = v
                     if v < m[b]:

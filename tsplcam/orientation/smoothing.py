@@ -153,6 +153,13 @@ def joint_transitions(grid: MeridianGrid, cost: SmoothingCost, ds: np.ndarray, m
     TH = grid.theta
     swing = np.abs(dphi) > IN_PLACE[1] + 1e-9
     air = np.zeros(len(TH), bool) if air is None else air
+    # per point i (the move into it): L / ds, the tool-axis step limit applies, a rotary
+    # swing is forbidden (a short block that is not in the air); one rule for both forms
+    n = len(TH)
+    lds = np.ascontiguousarray(L / ds[:n - 1], float)
+    hard = np.ascontiguousarray(~free_step[:n], bool)
+    short_at = np.zeros(n, bool)
+    short_at[1:] = (ds[:n - 1] < IN_PLACE[0]) & ~air[1:n]
 
     kept: dict = {}
     room = [TRANSITION_CACHE]
@@ -180,21 +187,15 @@ def joint_transitions(grid: MeridianGrid, cost: SmoothingCost, ds: np.ndarray, m
         t = np.multiply(alpha, dt, out=dt)
         if beta:
             t += beta * (2.0 - 2.0 * dots)
-        t *= (L / ds[i0 - 1:i1 - 1])[:, None, None]
+        t *= lds[i0 - 1:i1 - 1][:, None, None]
         if cost.travel:
             t += D1
-        hard = ~free_step[i0:i1]
-        np.copyto(t, np.inf, where=hard[:, None, None] & (dots < cmax - 1e-12))
-        short = (ds[i0 - 1:i1 - 1] < IN_PLACE[0]) & ~air[i0:i1]
+        np.copyto(t, np.inf, where=hard[i0:i1, None, None] & (dots < cmax - 1e-12))
+        short = short_at[i0:i1]
         if short.any():
             np.copyto(t, np.inf, where=short[:, None, None] & swing[None])
         return t
 
-    n = len(TH)
-    lds = np.ascontiguousarray(L / ds[:n - 1], float)
-    hard = np.ascontiguousarray(~free_step[:n], bool)
-    short_at = np.zeros(n, bool)
-    short_at[1:] = (ds[:n - 1] < IN_PLACE[0]) & ~air[1:n]
     mats = [np.ascontiguousarray(x, float) for x in (D2, D1, cosD)]
     swing_c = np.ascontiguousarray(swing, bool)
 

@@ -545,8 +545,9 @@ class BroadPhase:
             return
         cs, samp = cell[found[:, 0]], found[:, 1]
         ns = len(self.samples)
-        key = np.unique(cs * ns + samp)[-4 * WITNESSES:]         # distinct (cell, sample), in row order
-        for c, s in zip((key // ns).tolist(), (key % ns).tolist()):                       # a handful per call is enough
+        # distinct (cell, sample) pairs, the last few: a handful per call is enough
+        key = np.unique(cs * ns + samp)[-4 * WITNESSES:]
+        for c, s in zip((key // ns).tolist(), (key % ns).tolist()):
             row = self._wit[c]
             if s not in row:
                 self._wit[c] = np.concatenate([[s], row[:-1]])

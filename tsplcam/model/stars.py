@@ -720,10 +720,11 @@ def build_zone(walker: Walker, v: int, star, knots, Pw: np.ndarray) -> StarZone:
                              vertex=v) from None
         rows1 = rows1 + w
         plain1 = plain1 + plain
-    if corrections:
+    if corrections and n != 4:
         # the star's new point: the T-junctions' shares by knot insertion, made affine at the
-        # star itself (at valence 4 they sum exactly; elsewhere the pieces at the star come
-        # from sectors that see different intervals behind it)
+        # star itself (the pieces at the star come from sectors that see different intervals
+        # behind it; at valence 4 the shares are the T-spline's own, which sum to 1 where its
+        # functions do: measured <= 2e-16 where the T-junctions' lines do not cross)
         rows1[0, 0] -= rows1[0].sum() - 1.0
     # W1 as functions: their outermost knots in the second ring, where the T-mesh's are
     zone.w1 = zone.level_fns(rows1, 1, beyond=(e, gx, gy))

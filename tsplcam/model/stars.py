@@ -45,6 +45,21 @@ spoke j+1; the first face F_j is [0, d_j] x [0, d_(j+1)], d_j the spoke's knot i
   them first (``clear_t_junctions``, the T-NURCC way): the neighbours' functions split
   exactly into refined ones and plain B-splines, and the faces the star's function still
   reaches beyond the second ring join the zone. A zero interval there is refused by name.
+* T-junctions in the star's first ring: one in the middle of an outer side of a face F_j
+  (its knot is a knot of the refined star, on the level-1 grid), and spoke or diagonal
+  vertices that are T-junctions themselves. The T-junction's own function wraps around S (it
+  joins W0, ``StarZone.extra``) and it cuts the rays of the neighbours beside it. The
+  construction runs on the star as if those rays were not cut (``_ring1_functions``); the
+  exact difference, actual functions minus those, is refined to level 1 on its own
+  (``_level1_parts``: every piece is a level-1 function of the star or a plain B-spline),
+  its pieces on a spoke's row with b_k behind S whatever their sector (and those at S with
+  b_k behind it along the spoke k of the T-junction that changed them), so that the
+  differences are those of one valence-4 configuration and sum to what the T-junctions
+  change: the level-1 rows stay affine and the functions a partition of unity at any
+  valence. At valence 4 the sum is the T-spline's own. A T-junction elsewhere on F_j's
+  sides, or a diagonal whose rays meet T-junctions on both sides of S, is refused by name.
+  A spoke vertex that is a T-junction leaves a second-ring face across the spoke: it is
+  charted in sector j, whose chart holds both sides.
 * W_k functions reach only 1.5 level-k intervals from S, so the two rings of faces around
   S (the zone) contain every piece that is not a plain B-spline: the surface there is
   the sum of plain B-splines (the other functions, and the children split off at every
@@ -79,35 +94,12 @@ RADIUS = 5                     # configuration nodes per sector: 0..5 along x an
 
 
 # -- one-dimensional midpoint refinement -------------------------------------------------
-@lru_cache(maxsize=None)
 def _split(knots: tuple) -> tuple[np.ndarray, np.ndarray]:
     """The cubic B-spline N[t0..t4] as a combination of the B-splines of its knot vector with
     every positive interval halved (zero intervals stay zero, as in the refined T-mesh):
     (children knots (k + 1, 5), coefficients (k + 1,)) for k positive intervals, by Boehm's
     knot insertion (one midpoint at a time, exact up to rounding)."""
-    t = [float(x) for x in knots]
-    T = [t[0]] * 3 + t + [t[-1]] * 3            # N[t0..t4] is basis function 3 of T
-    c = [0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0]
-    ins = [(t[i] + t[i + 1]) / 2 for i in range(4) if t[i + 1] > t[i]]
-    for u in ins:
-        l = max(i for i in range(len(T) - 1) if T[i] <= u < T[i + 1])
-        new = []
-        for i in range(len(c) + 1):
-            if i <= l - 3:
-                new.append(c[i])
-            elif i > l:
-                new.append(c[i - 1])
-            else:
-                den = T[i + 3] - T[i]
-                alpha = (u - T[i]) / den if den > 0 else 0.0
-                new.append((1 - alpha) * c[i - 1] + alpha * c[i])
-        c = new
-        T = T[:l + 1] + [u] + T[l + 1:]
-    r = np.sort(np.array(t + ins))
-    k = len(ins)
-    kids = np.array([r[j:j + 5] for j in range(k + 1)])
-    # the refined padded vector is [t0 x3, r, t4 x3]: the children are its basis functions 3..3+k
-    return kids, np.array(c[3:4 + k])
+    return _split_keeping(knots, (), 0.0)
 
 
 def split(knots: np.ndarray):
@@ -116,9 +108,10 @@ def split(knots: np.ndarray):
 
 @lru_cache(maxsize=None)
 def _split_keeping(knots: tuple, keep: tuple, tol: float) -> tuple[np.ndarray, np.ndarray]:
-    """``_split`` with the intervals next to the knots ``keep`` left whole: the refined star's
-    knot lines where a first face's T-junction already halves an interval (Boehm's
-    insertion as in ``_split``)."""
+    """``_split`` with the intervals next to the knots ``keep`` (within tol) left whole: there
+    a first face's T-junction already halves an interval, its knot is one of the refined
+    star's. Boehm's insertion, one midpoint at a time; the refined padded vector is [t0 x3,
+    r, t4 x3] and the children are its basis functions 3, 4, ..."""
     t = [float(x) for x in knots]
     half = [t[i + 1] > t[i] and not any(min(abs(t[i] - k), abs(t[i + 1] - k)) <= tol for k in keep)
             for i in range(4)]
@@ -711,21 +704,15 @@ def build_zone(walker: Walker, v: int, star, knots, Pw: np.ndarray) -> StarZone:
                        d[(j + 1) % n] + e[(j + 1) % n]])
         fns.append(Fn(j, 0.0, 0.0, xk, yk, rows[0]))
     rows1, plain1 = zone.step(0, rows, fns, e, gx, gy)
-    for f in corrections:                  # the first faces' T-junctions: exact differences
+    for f, spoke in corrections:           # the first faces' T-junctions: exact differences
         try:
-            w, plain = _level1_parts(zone, f, (e, gx, gy))
+            w, plain = _level1_parts(zone, f, (e, gx, gy), spoke)
         except Uncleared as exc:
             raise mesh.error(f"T-junctions on the first faces around extraordinary {mesh.vertex_name(v)} "
                              f"that the refinement cannot take ({exc}); move them one face further out",
                              vertex=v) from None
         rows1 = rows1 + w
         plain1 = plain1 + plain
-    if corrections and n != 4:
-        # the star's new point: the T-junctions' shares by knot insertion, made affine at the
-        # star itself (the pieces at the star come from sectors that see different intervals
-        # behind it; at valence 4 the shares are the T-spline's own, which sum to 1 where its
-        # functions do: measured <= 2e-16 where the T-junctions' lines do not cross)
-        rows1[0, 0] -= rows1[0].sum() - 1.0
     # W1 as functions: their outermost knots in the second ring, where the T-mesh's are
     zone.w1 = zone.level_fns(rows1, 1, beyond=(e, gx, gy))
     rows2, plain2 = zone.step(1, rows1, zone.w1, *zone.self_similar())
@@ -765,14 +752,26 @@ def _ring1_functions(walker: Walker, zone: StarZone, knots, ring1: list, fns: li
                                 f"meet first-face T-junctions on both sides of the star")
             virtual = Fn(f.sector, f.cx, f.cy, np.asarray(xk, float), np.asarray(yk, float), f.row)
             fns[2 * j + k] = virtual
-            out.append(f)
-            out.append(Fn(f.sector, f.cx, f.cy, virtual.xk, virtual.yk, -f.row))
+            spoke = j if k == 0 else _cut_by(f, j, n, d, tol)
+            out.append((f, spoke))
+            out.append((Fn(f.sector, f.cx, f.cy, virtual.xk, virtual.yk, -f.row), spoke))
     for col, (t, j, x, y) in enumerate(ring1):
         m = zone.chart[zone.faces[j]][1]
         tx, ty = (np.asarray(k).real for k in knots.in_frame(t, inverse(_vertex_to_chart(
             walker, t, zone.faces[j], m))))
-        out.append(Fn(j, x, y, np.array(tx, float), np.array(ty, float), eye[2 * n + 1 + col]))
+        spoke = j if abs(x - d[j]) <= tol else (j + 1) % n          # along spoke j or spoke j + 1
+        out.append((Fn(j, x, y, np.array(tx, float), np.array(ty, float), eye[2 * n + 1 + col]), spoke))
     return out
+
+
+def _cut_by(q: Fn, j: int, n: int, d: np.ndarray, tol: float) -> int:
+    """The spoke along which the first-face T-junction lies that cut diagonal q_j's rays:
+    spoke j (a T-junction on F_j's side along spoke j, or on F_(j-1)'s along spoke j) or
+    spoke j + 1."""
+    near = lambda kn, u: any(abs(x - u) <= tol for x in kn)
+    if near(q.yk, d[(j + 1) % n] / 2) or near(q.yk, -d[(j - 1) % n] / 2):
+        return j
+    return (j + 1) % n
 
 
 def _match_last(pk: np.ndarray, nk: np.ndarray, tol: float) -> list:
@@ -805,7 +804,7 @@ def _scaled_coefficient(fx_k: np.ndarray, fy_k: np.ndarray, axis: int, side: int
     return float(cx[a] * cy[b_])
 
 
-def _level1_parts(zone: StarZone, f: Fn, beyond) -> tuple[np.ndarray, list]:
+def _level1_parts(zone: StarZone, f: Fn, beyond, spoke: int) -> tuple[np.ndarray, list]:
     """One W0 function refined to the star's level 1 (its intervals halved, except those a
     first face's T-junction already halves: ``_split_keeping``): the coefficients of its
     pieces at the level-1 points next to the star (rows (2n + 1, W0) added to the W1 rows,
@@ -813,12 +812,15 @@ def _level1_parts(zone: StarZone, f: Fn, beyond) -> tuple[np.ndarray, list]:
     whose last knot differs from the level-1 function's are split there (``_onto``). Spoke
     functions take the intervals behind the star per row as in ``children``.
 
-    Pieces on a spoke's row that reach behind the star (the spoke's level-1 point and the
-    next, whose coefficients depend on the interval behind it) take that interval as b_k,
-    whatever sector the function is in: the functions of the two sectors beside spoke k see
-    d_(k+2) and d_(k-2) there, the spoke's own b_k. So the differences are those of one
-    valence-4 configuration (b_k behind every spoke's row), where they sum exactly to what
-    the T-junctions change; at valence 4 every interval behind is the same."""
+    Pieces on a spoke's row (the spoke's level-1 point and the next, whose coefficients
+    depend on the interval behind the star) take that interval as b_k, whatever sector the
+    function is in: the functions of the two sectors beside spoke k see d_(k+2) and d_(k-2)
+    there, the spoke's own b_k. The piece at the star takes b_k behind it along ``spoke``,
+    the spoke k along which the T-junction that changed f lies (its functions are in the
+    sectors on both sides of it). So the differences are those of one valence-4
+    configuration, where they sum exactly to what the T-junctions change (the rows' sums
+    stay 1: measured <= 3e-17 at valences 3 to 6); at valence 4 every interval behind is
+    the same."""
     n, d = zone.n, zone.d
     j = f.sector
     bk = zone.b
@@ -854,6 +856,16 @@ def _level1_parts(zone: StarZone, f: Fn, beyond) -> tuple[np.ndarray, list]:
             if abs(xk[2]) <= tol and abs(yk[2]) <= tol:
                 node, s, txk, tyk = 0, j, *zone.s_knots(j, 1)
                 cxk, cyk = xk, yk
+                # the piece at the star: b behind it along the spoke of the T-junction that
+                # changed f (the spoke between the sectors of the functions it changed)
+                if spoke == j:
+                    axis, nat = 0, (bk[j] if spoke_fn else d[(j + 2) % n])
+                else:
+                    axis, nat = 1, d[(j - 1) % n]
+                factor = float(bk[spoke]) / float(nat)
+                if abs(factor - 1.0) > 1e-15:
+                    coef = _scaled_coefficient(base_x, np.asarray(f.yk, float), axis, -1, factor, a, b_,
+                                               keep_x, keep_y, tol)
             else:
                 c = _canon(n, j, xk[2], yk[2], xk, yk)
                 if c is None:

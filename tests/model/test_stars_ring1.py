@@ -92,7 +92,8 @@ def top(mesh: TMesh, j: int) -> TMesh:
 def cases(n: int):
     """(name, T-mesh, analysis-suitable) with T-junctions in the first ring of the star (vertex 0)
     of valence n. The T-spline of the valence-4 disc is a partition of unity in the suitable
-    ones only (where the T-junctions' lines do not cross near the star)."""
+    ones only (measured: 0; the two others, where the T-junctions' lines cross near the star,
+    0.19 and 0.21)."""
     mesh = star_disc(n, random_intervals(n, 40 + n))
     yield "outer side along spoke 0", right(mesh, 0), True
     yield "outer side along spoke 1", top(mesh, 0), True
@@ -104,6 +105,10 @@ def cases(n: int):
     yield "spoke vertex 0 a T-junction", merge(mesh, face_at(0, 1, 0), face_at(n - 1, 0, 1)), True
     yield "spoke vertex 0 a T-junction, a T-junction in sector 1", top(merge(
         mesh, face_at(0, 1, 0), face_at(n - 1, 0, 1)), 1), True
+    # with T-junctions in the second ring too (test_stars_tjunction.py)
+    yield "along spoke 0, the second ring cut off spoke 1", split_face(right(mesh, 0), face_at(1, 1, 1)), True
+    yield "along spoke 1, the second ring cut on spoke 0", split_face(top(mesh, 0), face_at(0, 1, 0)), True
+    yield "along spoke 0, diagonal 1 a T-junction", merge(right(mesh, 0), face_at(1, 0, 1), face_at(1, 1, 1)), True
     if n >= 4:
         yield "along spokes 0 and 1 in sectors 0 and 1", top(right(mesh, 0), 1), True
         yield "along spoke 0 in sectors 0 and 2", right(right(mesh, 0), 2), True
@@ -127,8 +132,8 @@ class RegularVertexWithTJunctionsAround(unittest.TestCase):
             s, t = rng.random(len(f)), rng.random(len(f))
             a, b = plain.evaluate_faces(f, s, t), star.evaluate_faces(f, s, t)
             scale = np.abs(mesh.points).max()
-            self.assertLess(np.abs(a.P - b.P).max(), SCALE_TOL * scale, name)        # measured <= 1.3e-15
-            self.assertLess(np.abs(a.Pu - b.Pu).max(), DERIV_TOL * scale, name)      # measured <= 2e-14
+            self.assertLess(np.abs(a.P - b.P).max(), SCALE_TOL * scale, name)        # measured <= 7.3e-16
+            self.assertLess(np.abs(a.Pu - b.Pu).max(), DERIV_TOL * scale, name)      # measured <= 2.3e-14
             self.assertLess(np.abs(a.Pv - b.Pv).max(), DERIV_TOL * scale, name)
 
 
@@ -143,13 +148,13 @@ class StarsWithTJunctionsAround(unittest.TestCase):
         rng = np.random.default_rng(8)
         for n, name, mesh, suitable, model in self.models:
             if suitable:
-                self.assertLess(cell_sums(model, rng), POU_TOL, (n, name))          # measured <= 1.8e-15
+                self.assertLess(cell_sums(model, rng), POU_TOL, (n, name))          # measured <= 1.5e-15
 
     def test_watertight_and_tangent_continuous_across_edges(self):
         for n, name, mesh, _, model in self.models:
             gap, angle = meet(model, mesh)
             self.assertLess(gap, SCALE_TOL, (n, name))                             # measured <= 5e-16
-            self.assertLess(angle, 1e-6, (n, name))                                # measured <= 1.5e-11 deg
+            self.assertLess(angle, 1e-6, (n, name))                                # measured <= 2.3e-11 deg
 
     def test_one_normal_at_the_star(self):
         rng = np.random.default_rng(7)
@@ -158,7 +163,7 @@ class StarsWithTJunctionsAround(unittest.TestCase):
             near = model.evaluate_faces(f, s, t)
             at = model.evaluate_faces(*near_vertex(model, mesh, 0, 0.0, 1, rng))
             jump = np.degrees(angle_between(near.normal, np.repeat(at.normal[:1], len(f), 0))).max()
-            self.assertLess(jump, G1_DEG, (n, name))                              # measured <= 6e-5 deg
+            self.assertLess(jump, G1_DEG, (n, name))                              # measured <= 5.3e-5 deg
 
     def test_plane_is_reproduced(self):
         """Control points on a plane: so is the surface, near the star and on every face."""

@@ -748,8 +748,9 @@ def _ring1_functions(walker: Walker, zone: StarZone, knots, ring1: list, fns: li
             behind = [any(abs(u + d[s_] / 2) <= tol for u in kn) for kn, s_ in
                       ((f.xk, (j + 2) % n), (f.yk, (j - 1) % n))]
             if all(behind):
-                raise Uncleared(f"the rays of the {'spoke' if k == 0 else 'diagonal'} vertex of sector {j} "
-                                f"meet first-face T-junctions on both sides of the star")
+                w = (zone.spokes if k == 0 else zone.diags)[j]
+                raise Uncleared(f"the rays of {walker.mesh.vertex_name(w)}, the {'spoke' if k == 0 else 'diagonal'} "
+                                f"vertex of sector {j}, meet first-face T-junctions on both sides of the star")
             virtual = Fn(f.sector, f.cx, f.cy, np.asarray(xk, float), np.asarray(yk, float), f.row)
             fns[2 * j + k] = virtual
             spoke = j if k == 0 else _cut_by(f, j, n, d, tol)

@@ -367,7 +367,7 @@ class CloseStars(unittest.TestCase):
 class NextToTJunctions(unittest.TestCase):
     def test_t_junction_beyond_the_second_ring(self):
         """A face three rings out split in two: the star still evaluates, watertight, one
-        normal at it; a split that puts a T-junction on the first ring is refused by name."""
+        normal at it; a split that puts a T-junction on a spoke is refused by name."""
         rng = np.random.default_rng(10)
         for n in (3, 5):
             mesh = star_disc(n, random_intervals(n, 20 + n))
@@ -382,11 +382,12 @@ class NextToTJunctions(unittest.TestCase):
             near = model.evaluate_faces(f, s, t)
             at = model.evaluate_faces(*near_vertex(model, split, 0, 0.0, 1, rng))
             self.assertLess(np.degrees(angle_between(near.normal, np.repeat(at.normal[:1], len(f), 0))).max(), G1_DEG)
-            # face (p, q) = (0, 1) of sector 0 (second ring): split, it puts a T-junction on a
-            # side of the first ring's face (test_stars_tjunction.py: T-junctions in the
-            # second ring), which the construction refuses by name
+            # face (p, q) = (0, 0) of sector 0 (first ring): split, it puts a T-junction on
+            # spoke 0, a side at the star of the last sector's first face, which the
+            # construction refuses by name (T-junctions in the middle of the first faces' outer
+            # sides: test_stars_ring1.py)
             with self.assertRaises(InputError) as cm:
-                tspline_model(split_face(mesh, 0 * 5 + 1))
+                tspline_model(split_face(mesh, 0))
             self.assertIn("extraordinary", str(cm.exception))
 
 

@@ -307,6 +307,37 @@ class Geometry(unittest.TestCase):
             else:                                                  # a cylinder: the same ball
                 np.testing.assert_allclose(R, s, rtol=1e-12)
 
+    def test_brick_grid(self):
+        """The side pass's brick grid: bounds never above the distance to the mesh (brute force
+        over every triangle), within a cell's diagonal of it below the cap, its sample the
+        nearest one of the nearest node; bricks are made only where read."""
+        from tsplcam.orientation.broadphase import BrickGrid, BroadPhase, Profile
+        rng = np.random.default_rng(3)
+        g = np.linspace(0, 4, 9)
+        X, Y = np.meshgrid(g, g, indexing="ij")
+        V = np.column_stack([X.ravel(), Y.ravel(), 0.3 * np.sin(X.ravel()) * np.cos(Y.ravel())])
+        T = np.concatenate([[[i * 9 + j, i * 9 + j + 9, i * 9 + j + 10], [i * 9 + j, i * 9 + j + 10, i * 9 + j + 1]]
+                            for i in range(8) for j in range(8)])
+        one = np.ones(1)
+        bp = BroadPhase(V, T, lambda grow: Profile(0 * one, one, one, one, one, one), 0.1, 0.3)
+        grid = BrickGrid(bp.tree, bp.e2, 0.25, 3.0, 4)
+        x = rng.random((2000, 3)) * [4, 4, 2] + [0, 0, 0.5]
+        lb, near = grid(x)
+        true = np.full(len(x), np.inf)
+        for t in T:
+            w = closest_on_triangles(x, *(np.repeat(V[t[i]][None], len(x), axis=0) for i in range(3)))
+            true = np.minimum(true, np.linalg.norm(x - w, axis=1))
+        self.assertTrue(np.all(lb <= true + 1e-12))
+        low = true < 2.5
+        self.assertTrue(np.all(lb[low] >= true[low] - 0.25 * np.sqrt(3) - 0.1))
+        self.assertTrue(np.all(near[low] >= 0))
+        made = grid.bricks.size
+        grid(x[:10])
+        self.assertEqual(grid.bricks.size, made)                 # read again: nothing new
+        small = BrickGrid(bp.tree, bp.e2, 0.25, 3.0, 4)          # bricks of 1 mm
+        small(rng.random((500, 3)) * 0.9 + [1.05, 2.05, 1.05])   # inside one 1 mm cube
+        self.assertLessEqual(small.bricks.size, 8)
+
     def test_sample_bound(self):
         """Every point of a triangle lies at least sqrt(d^2 - e^2/3) from a point whose
         nearest sample is d away (e the longest sub-triangle edge)."""

@@ -89,6 +89,7 @@ WITNESS_CELL = 1.0            # mm
 CONE_WANT = np.radians(2.0)   # free cones the bounds are refined for
 EXACT_LEVELS = 3              # the exact pass splits a part's sphere this often at most
 SIDE_LEVELS = (3, 5)          # the side pass's balls: 2^3 slabs of a cone part first, split up to 2^5
+SIDE_GRID = (0.4, 8)          # the side pass's own grid: spacing (mm), cells per brick edge
 EXACT_COST = 3                # spheres of the exact pass that cost about as much as one fcl query
 EXACT_PROBE = 2000            # spheres the exact pass is tried on before its gain counts
 GRID_ROWS = 16384             # points a distance grid reads at a time
@@ -279,6 +280,56 @@ class DistanceGrid:
         return np.where(ins, lb, 0.0), np.where(ins, self.idx[near], -1), ins
 
 
+class BrickGrid:
+    """Lower bounds of the distance to the mesh at the nodes of a regular grid of spacing
+    ``h`` (capped at ``cap``) and the nearest sample of each node, as :class:`DistanceGrid`,
+    but unbounded and computed a brick of ``cells``^3 cells at a time where first read: for
+    the side pass's ball centres, a few mm from the mesh in a region no box known beforehand
+    describes well."""
+
+    def __init__(self, tree: cKDTree, e2: float, h: float, cap: float, cells: int):
+        self.tree, self.e2, self.h, self.cap, self.B = tree, float(e2), float(h), float(cap), int(cells)
+        n = self.B + 1
+        self.bricks = CentreTable()
+        self.lb = np.zeros((0, n ** 3))
+        self.idx = np.zeros((0, n ** 3), np.int64)
+        self.stride = np.array([n * n, n, 1])
+        self._offsets = _CORNERS @ self.stride
+        g = np.arange(n)
+        self._local = np.stack(np.meshgrid(g, g, g, indexing="ij"), axis=-1).reshape(-1, 3)
+
+    @property
+    def nodes(self) -> int:
+        return self.bricks.size * len(self._local)
+
+    def _slots(self, brick: np.ndarray) -> np.ndarray:
+        slot, first = self.bricks.slots(brick.astype(float))
+        if len(first):
+            nodes = ((brick[first][:, None, :] * self.B + self._local[None]) * self.h).reshape(-1, 3)
+            d, j = self.tree.query(nodes, distance_upper_bound=self.cap, workers=2)
+            far = ~np.isfinite(d)
+            lb = np.where(far, np.sqrt(max(self.cap * self.cap - self.e2, 0.0)), np.sqrt(np.maximum(d * d - self.e2, 0.0)))
+            self.lb = np.concatenate([self.lb, lb.reshape(len(first), -1)])
+            self.idx = np.concatenate([self.idx, np.where(far, -1, j).reshape(len(first), -1)])
+        return slot
+
+    def __call__(self, x: np.ndarray):
+        """(lower bound, sample index or -1) at points x: as :meth:`DistanceGrid._read`, the best
+        over the eight nodes around x of the node's bound less the distance to it."""
+        f = x / self.h
+        k0 = np.floor(f).astype(np.int64)
+        brick = np.floor_divide(k0, self.B)
+        slot = self._slots(brick)
+        r = f - k0
+        base = (k0 - brick * self.B) @ self.stride
+        sq = np.stack([r * r, (1.0 - r) * (1.0 - r)], axis=2)
+        d2 = sq[:, 0, :, None, None] + sq[:, 1, None, :, None] + sq[:, 2, None, None, :]
+        dist = self.h * np.sqrt(d2.reshape(len(x), 8))
+        lb = (self.lb[slot[:, None], base[:, None] + self._offsets] - dist).max(axis=1)
+        near = base + (r >= 0.5).astype(np.int64) @ self.stride
+        return lb, self.idx[slot, near]
+
+
 class CentreTable:
     """Per ball centre: slots found by the centre's exact bytes (sorted keys, vectorised)."""
 
@@ -364,6 +415,7 @@ class BroadPhase:
         self.grids = [fine, DistanceGrid(self.tree, self.e2, lo, hi, COARSE[0], reach + COARSE[0],
                                          10 * COARSE[0], COARSE[1])]
         self._covers: dict[float, SphereCover] = {}
+        self._side_grid = None                    # BrickGrid, made when the side pass first needs it
         self.centres = CentreTable()
         self._gouge = np.zeros(0, np.int8)        # per centre: 1 clear, 0 not proven, -1 not asked yet
         self._cone_a = {}                         # per grow: (slots, CONES, 3) axes
@@ -696,6 +748,15 @@ class BroadPhase:
         t = 0.5 * (za + zb) + slope * 0.5 * (ra + rb)
         return t, np.maximum(np.sqrt(ra * ra + (t - za) ** 2), np.sqrt(rb * rb + (t - zb) ** 2))
 
+    def _side_bound(self, x: np.ndarray, R: np.ndarray):
+        """(lower bound, a sample near x or -1) from the side grid (:class:`BrickGrid`, made
+        on first use, capped a millimetre beyond the largest ball asked so far)."""
+        g = self._side_grid
+        if g is None or g.cap < R.max() + EPS:
+            cap = float(np.ceil(R.max() + 1.0))
+            g = self._side_grid = BrickGrid(self.tree, self.e2, SIDE_GRID[0], cap, SIDE_GRID[1])
+        return g(x)
+
     def _side_pass(self, C, A, prof: Profile, status, unresolved, phi, cell, parts: int = -1):
         """The cone parts the spheres left unresolved, asked with :meth:`side_balls` (module
         doc): a part is cleared when each of its slabs is, at 2^``SIDE_LEVELS[0]`` slabs or,
@@ -720,21 +781,31 @@ class BroadPhase:
             bound, _, _ = self.lower_bound(x, R + EPS)
             cert = bound >= R + EPS
             rest = np.nonzero(~cert)[0]
+            near = np.full(len(x), -1, np.int64)
             if len(rest):
-                eb, near = self.exact_bound(x[rest], R[rest] + EPS, nearest=True)
+                # the side grid's bound, and its node's sample: where that lies within the
+                # ball (so does the mesh), the exact bound cannot clear it
+                gb, gj = self._side_bound(x[rest], R[rest])
+                bound[rest] = np.maximum(bound[rest], gb)
+                cert[rest] = bound[rest] >= R[rest] + EPS
+                near[rest] = gj
+                rest = rest[~cert[rest]]
+                q = self.samples[np.maximum(near[rest], 0)] - x[rest]
+                inside = (near[rest] >= 0) & (_dot(q, q) - self.e2 < (R[rest] + EPS) ** 2)
+                rest = rest[~inside]
+            if len(rest):
+                eb, near[rest] = self.exact_bound(x[rest], R[rest] + EPS, nearest=True)
                 self.stats["exact"] += len(rest)
                 bound[rest] = np.maximum(bound[rest], eb)
                 cert[rest] = bound[rest] >= R[rest] + EPS
-                bad = rest[~cert[rest]]
-                has = bad[near[np.searchsorted(rest, bad)] >= 0]
-                if len(has):
-                    j = near[np.searchsorted(rest, has)]
-                    found = self._hits(status, self.samples[j], j, pose[has], C, A, prof, parts)
-                    self._remember(cell, found)
+            bad = np.nonzero(~cert)[0]
+            has = bad[near[bad] >= 0]
+            if len(has):
+                found = self._hits(status, self.samples[near[has]], near[has], pose[has], C, A, prof, parts)
+                self._remember(cell, found)
             ok = np.nonzero(cert)[0]
             # (turning the axis by phi moves the ball's centre by at most |t| phi)
             np.minimum.at(phi, pose[ok], (bound[ok] - R[ok] - EPS) / np.maximum(np.abs(t[ok]), 1e-12))
-            bad = np.nonzero(~cert)[0]
             if level >= last:
                 lost[pose[bad], part[bad]] = True
                 break

@@ -45,7 +45,7 @@ their own (:class:`BrickGrid`, 0.4 mm, made brick by brick where first read), el
 exact bound, which is not asked where the grid node's sample lies inside the ball (the ball
 cannot clear; that sample is tried as a hit). 2^3 slabs first, a failing ball split down to
 2^5. On the keycap_mold job fcl is left 11k queries of 78k (about 45k had been the holder
-cone's alone), for about 1 CPU-s here (38k grid nodes, 24k exact bounds).
+cone's alone), for about 0.7 CPU-s here (25k grid nodes, 24k exact bounds).
 
 **Free cones.** Turning the axis by an angle phi about the ball centre moves a point at
 distance l from it by at most l phi. A pose cleared with that much to spare leaves a cone of
@@ -93,7 +93,7 @@ WITNESS_CELL = 1.0            # mm
 CONE_WANT = np.radians(2.0)   # free cones the bounds are refined for
 EXACT_LEVELS = 3              # the exact pass splits a part's sphere this often at most
 SIDE_LEVELS = (3, 5)          # the side pass's balls: 2^3 slabs of a cone part first, split up to 2^5
-SIDE_GRID = (0.4, 8)          # the side pass's own grid: spacing (mm), cells per brick edge
+SIDE_GRID = (0.4, 6)          # the side pass's own grid: spacing (mm), cells per brick edge
 EXACT_COST = 3                # spheres of the exact pass that cost about as much as one fcl query
 EXACT_PROBE = 2000            # spheres the exact pass is tried on before its gain counts
 GRID_ROWS = 16384             # points a distance grid reads at a time

@@ -98,6 +98,42 @@ class AgreesWithFcl(unittest.TestCase):
         self.assertEqual(int(((st == FREE) & prim).sum()), 0)
         self.assertGreater(np.mean(st != UNKNOWN), 0.6)
 
+    def test_holder_cone_beside_walls(self):
+        """Poses fcl had to answer for the holder's cone alone before the side pass (the job's
+        own kind: the axis tilted until the cone sits a hair from the cavity's rim): with the
+        side balls the broad phase clears most of those cones, and every decision is fcl's."""
+        ch = self.mold
+        cone = 1 << 2                                      # 'holder 1', the 5 -> 10 mm taper
+        rng = np.random.default_rng(12)
+        C, A = random_poses(self.mold_path, 6000, rng, spread=0.02, tilt=np.radians(70))
+        plain = ch.broad._side_pass
+        try:
+            ch.broad._side_pass = lambda *a, **k: None
+            ch.broad.decide(C, A, 0.0, cone)
+            before = ch.broad.open_parts[:, 2].copy()      # cone parts the spheres left open
+        finally:
+            del ch.broad._side_pass
+        self.assertIs(ch.broad._side_pass.__func__, plain.__func__)
+        ref = ch._fcl(C, A, "tool", 0.0, np.full(len(C), cone))
+        near = before & ~ref                               # free cones the spheres could not clear
+        self.assertGreater(int(near.sum()), 200)
+        st = ch.broad.decide(C, A, 0.0, cone)
+        after = ch.broad.open_parts[:, 2]
+        self.assertFalse((after & ~before).any())
+        self.assertLess((after & near).sum(), 0.4 * near.sum())    # most: 71 % of 660 here
+        self.assertEqual(int(((st == FREE) & ref).sum()), 0, "a cone the side pass frees collides in fcl")
+        self.assertEqual(int(((st == HIT) & ~ref).sum()), 0, "a cone the side pass hits is free in fcl")
+        free = before & (st == FREE)
+        self.assertGreater(int(free.sum()), 100)
+        prim = ch.collides_primitives(C[free], A[free], np.full(int(free.sum()), cone))
+        self.assertFalse(prim.any())
+        # and the whole tool, grown as the clearance measurement asks
+        for grow in (0.0, 0.2):
+            st = ch.broad.decide(C[:2000], A[:2000], grow)
+            ref = ch.collides_fcl(C[:2000], A[:2000], grow)
+            self.assertEqual(int(((st == FREE) & ref).sum()), 0)
+            self.assertEqual(int(((st == HIT) & ~ref).sum()), 0)
+
     def test_keycap_poses(self):
         st, mesh = self.check(self.keycap, self.keycap_path, 0.0, 5)
         self.assertGreater(np.mean(st != UNKNOWN), 0.6)
@@ -245,6 +281,62 @@ class Geometry(unittest.TestCase):
         self.assertGreater(few.sum(), 20)
         np.testing.assert_allclose(got[few], true[few], atol=1e-12)
         self.assertTrue(np.all((near >= 0) == (d[:, 0] < np.sqrt(R * R + bp.e2))))
+
+    def test_side_balls(self):
+        """A side ball holds its slab (both rings, so their hull) and, on a cone, reaches
+        beyond the cone's side by far less than the slab-middle sphere: at 2^3 slabs of
+        ball1_keycap's holder cone (2.5 -> 5 mm over 6 mm) 0.026 mm against 0.2-0.4 mm."""
+        from tsplcam.orientation.broadphase import BroadPhase, Profile, SphereCover
+        z0, z1, r0, r1 = np.array([5.0, 11.0]), np.array([11.0, 41.0]), np.array([2.8, 8.3]), np.array([5.3, 8.3])
+        prof = Profile(z0, z1, r0, r1, r0 * 1.002, r1 * 1.002)
+        for part in (0, 1):
+            seg = np.arange(8)
+            t, R = BroadPhase.side_balls(prof, np.full(8, part), 3, seg)
+            length = (z1[part] - z0[part]) / 8
+            for za in (z0[part] + seg * length, z0[part] + (seg + 1) * length):
+                ring = np.hypot(prof.rout(part, za), za - t)      # every ring point's distance
+                self.assertTrue(np.all(ring <= R + 1e-12))
+            slope = (prof.rout1[part] - prof.rout0[part]) / (z1[part] - z0[part])
+            # the reach beyond the side: radius less the centre's distance from the side's line
+            side = (prof.rout0[part] + slope * (t - z0[part])) / np.sqrt(1 + slope * slope)
+            zc, s, _ = SphereCover(prof).spheres(np.full(8, part), 3, seg)
+            mid = s - (prof.rout0[part] + slope * (zc - z0[part])) / np.sqrt(1 + slope * slope)
+            if part == 0:
+                self.assertLess((R - side).max(), 0.03)
+                self.assertGreater(mid.min(), 0.2)
+            else:                                                  # a cylinder: the same ball
+                np.testing.assert_allclose(R, s, rtol=1e-12)
+
+    def test_brick_grid(self):
+        """The side pass's brick grid: bounds never above the distance to the mesh (brute force
+        over every triangle), within a cell's diagonal of it below the cap, its sample the
+        nearest one of the nearest node; bricks are made only where read."""
+        from tsplcam.orientation.broadphase import BrickGrid, BroadPhase, Profile
+        rng = np.random.default_rng(3)
+        g = np.linspace(0, 4, 9)
+        X, Y = np.meshgrid(g, g, indexing="ij")
+        V = np.column_stack([X.ravel(), Y.ravel(), 0.3 * np.sin(X.ravel()) * np.cos(Y.ravel())])
+        T = np.concatenate([[[i * 9 + j, i * 9 + j + 9, i * 9 + j + 10], [i * 9 + j, i * 9 + j + 10, i * 9 + j + 1]]
+                            for i in range(8) for j in range(8)])
+        one = np.ones(1)
+        bp = BroadPhase(V, T, lambda grow: Profile(0 * one, one, one, one, one, one), 0.1, 0.3)
+        grid = BrickGrid(bp.tree, bp.e2, 0.25, 3.0, 4)
+        x = rng.random((2000, 3)) * [4, 4, 2] + [0, 0, 0.5]
+        lb, near = grid(x)
+        true = np.full(len(x), np.inf)
+        for t in T:
+            w = closest_on_triangles(x, *(np.repeat(V[t[i]][None], len(x), axis=0) for i in range(3)))
+            true = np.minimum(true, np.linalg.norm(x - w, axis=1))
+        self.assertTrue(np.all(lb <= true + 1e-12))
+        low = true < 2.5
+        self.assertTrue(np.all(lb[low] >= true[low] - 0.25 * np.sqrt(3) - 0.1))
+        self.assertTrue(np.all(near[low] >= 0))
+        made = grid.bricks.size
+        grid(x[:10])
+        self.assertEqual(grid.bricks.size, made)                 # read again: nothing new
+        small = BrickGrid(bp.tree, bp.e2, 0.25, 3.0, 4)          # bricks of 1 mm
+        small(rng.random((500, 3)) * 0.9 + [1.05, 2.05, 1.05])   # inside one 1 mm cube
+        self.assertLessEqual(small.bricks.size, 8)
 
     def test_sample_bound(self):
         """Every point of a triangle lies at least sqrt(d^2 - e^2/3) from a point whose

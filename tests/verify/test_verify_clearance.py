@@ -188,7 +188,7 @@ class MoldSmallestClearance(unittest.TestCase):
         from tsplcam.model import samples
         from tsplcam.model.cage import cage_model
         from tsplcam.orientation.testpaths import zigzag
-        from tsplcam.verify.orientation import _scouted
+        from tsplcam.verify.orientation import _bounded, _scouted
         mold = cage_model(samples.keycap_mold())
         V, T = samples.keycap_mold_stock()
         checker = CollisionChecker(mold, load_tool("ball1_keycap"), meshes=[("stock", V, T)], clearance=0.3)
@@ -205,6 +205,7 @@ class MoldSmallestClearance(unittest.TestCase):
         only, margin = checker.clearance_parts()
         levels = sorted((0.05, 0.1, 0.2, 0.5, 1.0, 2.0, 5.0, 10.0, 20.0))
         self.assertIsNotNone(_scouted(checker, centers, axes, levels, 3, only, 40, 32))   # the scouts' way
+        self.assertIsNotNone(_bounded(checker, centers, axes, levels[3], only, 32))       # and their bound
         n0 = checker.fcl_checks
         got = min_clearance(checker, centers, axes)
         n1 = checker.fcl_checks
@@ -215,3 +216,38 @@ class MoldSmallestClearance(unittest.TestCase):
         every = checker.clearance_of(centers, axes, only) + margin
         self.assertEqual(got[1], int(np.argmin(every)))
         self.assertAlmostEqual(got[0], float(every.min()), delta=1e-12)
+
+    def test_bound_on_the_keycap(self):
+        """The keycap (convex): no scout touches below 0.5 mm, so no level is skipped; the
+        scouts' own smallest clearance bounds it instead, and the search from there gives the
+        pose and value of fcl.distance at every pose, with fewer collision queries than the
+        descent from the levels."""
+        from tsplcam.model import samples
+        from tsplcam.model.cage import cage_model
+        from tsplcam.orientation.testpaths import zigzag
+        from tsplcam.verify.orientation import _bounded
+        keycap = cage_model(samples.keycap())
+        checker = CollisionChecker(keycap, load_tool("ball1_keycap"), clearance=0.3)
+        path = zigzag(keycap, 0.5, lines=16, points=48)
+        rng = np.random.default_rng(5)
+        side = np.cross(path.normal, rng.normal(size=(len(path), 3)))
+        side /= np.linalg.norm(side, axis=1, keepdims=True)
+        tilt = np.radians(rng.uniform(20.0, 60.0, len(path)))[:, None]
+        axes = np.cos(tilt) * path.normal + np.sin(tilt) * side
+        centers = path.contact + 0.5 * path.normal
+        free = ~checker.collides(centers, axes)
+        centers, axes = centers[free], axes[free]
+        only, margin = checker.clearance_parts()
+        got = _bounded(checker, centers, axes, 0.5, only, 32)
+        self.assertIsNotNone(got)
+        self.assertLess(got[2], 0.5)
+        n0 = checker.fcl_checks
+        best = min_clearance(checker, centers, axes)
+        n1 = checker.fcl_checks
+        plain = min_clearance(checker, centers, axes, scouts=0)
+        n2 = checker.fcl_checks
+        self.assertEqual(best, plain)
+        self.assertLess(n1 - n0, n2 - n1)
+        every = checker.clearance_of(centers, axes, only) + margin
+        self.assertEqual(best[1], int(np.argmin(every)))
+        self.assertAlmostEqual(best[0], float(every.min()), delta=1e-12)

@@ -589,8 +589,9 @@ class CollisionChecker:
             bits = self.broad.open_parts @ (1 << np.arange(self.broad.open_parts.shape[1]))
             # (a pose proved hit may have parts the broad phase never looked at)
             masks = np.where(st == FREE, 0, np.where(st == UNKNOWN, bits, every)) & only
-            if only == every:                            # its hit proofs may come from any part
-                known = st == HIT
+            # its hit proofs hold for the parts asked: a sample inside one of them whose piece
+            # of the mesh reaches outside the whole tool, so outside that part too
+            known = st == HIT
         out = known.copy()
         ask = np.nonzero((masks != 0) & ~known)[0]
         if len(ask):

@@ -8,9 +8,10 @@ rotary travel and machining time.
 * smallest clearance: fcl distance between the tool parts that keep the clearance (shank
   and holder; the flutes cut, so next to the contact they come as close as the tilt puts
   them) and the tessellated workpiece, plus the margin the checker grew them by. Computed
-  exactly only on the poses that come closest: the smallest of the growths 0.05, 0.1, 0.2 ...
-  mm at which some pose touches is found, the growth is bisected until a few dozen touch, and
-  fcl.distance runs on those.
+  exactly only on the poses that come closest: the smallest clearance of a few poses spread
+  along the path bounds it, or the smallest of the growths 0.05, 0.1, 0.2 ... mm at which some
+  pose touches is found; the growth is bisected until a few dozen touch, and fcl.distance runs
+  on those.
 * angular change per block ``arccos(K_i . K_i+1)``: largest and mean over cutting blocks;
   total variation; per mm.
 * rotary travel for an A/C table machine: ``sum |dA| + |dC|`` with the machine poses of
@@ -87,7 +88,11 @@ def min_clearance(checker, centers, axes, levels=(0.05, 0.1, 0.2, 0.5, 1.0, 2.0,
     the bisection's first step is taken before the level below is asked (whatever touches
     there touches at the step), so that level is asked of fewer poses.
 
-    ``scouts`` poses spread along the path go first (:func:`_scouted`): the lowest level at
+    ``scouts`` poses spread along the path go first. Where some touch at ``levels[first]``,
+    the smallest clearance among those bounds the answer (:func:`_bounded`): every pose is
+    asked at that growth only, and the growth is bisected below it among the poses touching
+    there (keycap: 14.7k poses asked once at 0.30 mm, 13 touch; the descent asked 14.7k at
+    0.5 and 5.5k, 1.5k, 1.5k, 1.5k below). Else (:func:`_scouted`): the lowest level at
     which one touches is asked of every pose instead of ``levels[first]``, and the levels
     above of the poses touching there only; where more than ``exact`` of those touch at every
     level above, the search stands where the descent from ``levels[first]`` would stand, with
@@ -99,8 +104,12 @@ def min_clearance(checker, centers, axes, levels=(0.05, 0.1, 0.2, 0.5, 1.0, 2.0,
     only, margin = checker.clearance_parts()
     start = min(first, len(levels) - 1)
     pick, lo, hi, steps = None, 0.0, None, 20
-    got = _scouted(checker, C, A, levels, start, only, exact, scouts) if scouts else None
-    if got is not None:
+    bound = _bounded(checker, C, A, levels[start], only, scouts) if scouts else None
+    got = _scouted(checker, C, A, levels, start, only, exact, scouts) if scouts and bound is None else None
+    if bound is not None:
+        pick, parts, hi = bound
+        top, j = hi, -1                           # no level to descend: bisect below the bound
+    elif got is not None:
         pick, parts, j = got
         hi = top = levels[j]
     else:
@@ -153,6 +162,26 @@ def min_clearance(checker, centers, axes, levels=(0.05, 0.1, 0.2, 0.5, 1.0, 2.0,
     d = checker.clearance_of(C[pick], A[pick], only, smallest=True) + margin
     k = int(np.argmin(d))
     return float(d[k]), int(pick[k])
+
+
+def _bounded(checker, C, A, level: float, only: int, scouts: int, slack: float = 1e-4):
+    """(poses touching, their part masks, growth) at the smallest clearance of the ``scouts``
+    poses spread along the path that touch at ``level`` (measured, :meth:`clearance_of`) and
+    ``slack`` more: every pose at most as far touches there (the grown tool mesh contains the
+    grown primitives), the closest among them, so :func:`min_clearance` bisects below that
+    growth instead of descending the levels. None where no scout touches at ``level`` or
+    their clearance is not below it."""
+    s = np.unique(np.linspace(0, len(C) - 1, min(scouts, len(C))).astype(int))
+    hit, _ = checker.collides_parts(C[s], A[s], level, only=only)
+    if not hit.any():
+        return None
+    g = float(checker.clearance_of(C[s[hit]], A[s[hit]], only, smallest=True).min()) + slack
+    if not g < level:
+        return None
+    hit, parts = checker.collides_parts(C, A, g, only=only)
+    if not hit.any():                             # (the scout touches: not expected)
+        return None
+    return np.nonzero(hit)[0], parts[hit], g
 
 
 def _descent(levels, start: int, stop: int) -> list:

@@ -39,6 +39,7 @@ import numpy as np
 from ...inputfile import naming
 from ..components import components
 from ..quadmesh import INFINITE
+from .tsm import PATTERNS
 
 #: relative spread of knot intervals still read as uniform
 UNIFORM_TOL = 1e-9
@@ -192,12 +193,14 @@ def _alpha(r, old, k, w, origin):
     return a / (2 * a + b)
 
 
-def clamped_boundary(r, old, G0, origin):
+def clamped_boundary(r, old, G0, origin, stars=()):
     """Ring-view grips (``tsm._Reader.build``) of a Fusion T-mesh with open boundaries, for
     the T-spline kernel's clamped boundary: every boundary grip stays on the boundary ring
     (zero knot interval outside) and the file vertex takes the second grip of the clamped
     B-spline, per direction that meets the boundary (straight vertices one, convex corners
-    two and their product). Concave corners and boundary stars are refused."""
+    two and their product). Boundary stars in ``stars`` (three faces) are clamped as a
+    concave corner with every grip the star's own (``boundary_stars``: the kernel's surface
+    there is replaced); other concave corners and boundary stars are refused."""
     topo = old.topology
     H = np.column_stack([G0[:, :3] * G0[:, 3:], G0[:, 3]])
     rows, lines, names, pos = [], [], [], {}
@@ -232,12 +235,71 @@ def clamped_boundary(r, old, G0, origin):
                       (0, -1): add(C + ax * (X - C), k, "clamped"),
                       (-1, 0): add(C + ay * (Y - C), k, "clamped"),
                       (0, 0): add(C + ax * (X - C) + ay * (Y - C) + ax * ay * (XY - X - Y + C), k, "clamped")}
+        elif k in stars and T == 3:
+            pos[k] = {p: add(H[k], k, "star") for p in sorted(PATTERNS[3])}
         else:
             what = "a concave corner" if T == 3 else "a T-junction" if T == 2 else "a star point"
             v, line = _file_vertex(r, origin, k)
             raise r.err(f"open boundary or crease at vertex {v}, {what}: not supported by the T-spline "
                         f"kernel's clamped boundary", line)
     return pos, np.array(rows), lines, names
+
+
+def boundary_stars(r, old, origin, creases: bool) -> dict:
+    """Boundary star points of the T-mesh (boundary vertices with three faces) -> their
+    rings of faces (``boundary_stars.check_neighbourhood``); boundary vertices with four or
+    more faces, and boundary stars on a T-mesh with creases, are refused with their line."""
+    from ..boundary_stars import RINGS, check_neighbourhood
+    topo = old.topology
+    out = {}
+    for k in range(old.n_vertices):
+        if not topo.boundary[k] or int(topo.total[k]) < 3:
+            continue
+        v, line = _file_vertex(r, origin, k)
+
+        def refuse(message, v=v, line=line):
+            raise r.err(f"open boundary at vertex {v}, a star point on the boundary: {message}", line)
+        if int(topo.total[k]) > 3:
+            refuse(f"{int(topo.total[k])} faces there; the T-spline kernel takes boundary star points of "
+                   f"three faces only (four or more faces are read on uniform T-meshes without "
+                   f"T-junctions, by the Catmull-Clark path)")
+        if creases:
+            refuse("with creases in the file the T-spline kernel does not take boundary star points")
+        out[k] = check_neighbourhood(old, k, refuse)[0]
+    return out
+
+
+def _boundary_star_zones(old, bstars: dict, G, scale, model) -> None:
+    """The kernel ``model``'s faces within ``boundary_stars.ZONE`` rings of each boundary
+    star replaced by the Catmull-Clark limit (edge-and-corner) of a local cage of two rings
+    more (``boundary_stars.override``)."""
+    from ..boundary_stars import ZONE, override
+    from ..cage import Cage, cage_model
+    from ..model import ExtraordinaryPoint
+    from ..quadmesh import QuadMesh
+    from ..patch import CORNER_UV
+    for k, rs in bstars.items():
+        faces = [f for r_ in rs[:ZONE + 2] for f in r_]
+        verts = sorted({int(w) for f in faces for w in old.faces[f]})
+        new = {w: i for i, w in enumerate(verts)}
+        loops = np.array([[new[int(w)] for w in old.faces[f]] for f in faces])
+        cage = Cage(QuadMesh(loops, len(verts), "edge-and-corner", old.source),
+                    G[verts, :3] * scale, G[verts, 3], {"interpolateboundary": "edge-and-corner"})
+        local = cage_model(cage, "boundary star")
+        zone = {f: i for i, f in enumerate(faces) if i < sum(len(r_) for r_ in rs[:ZONE])}
+        corner = {}
+        for f in zone:
+            loop = [int(w) for w in old.faces[f]]
+            c0 = loop[int(old.corners[f][0])]
+            if c0 != loop[0]:
+                raise AssertionError("face frames")
+            if k in loop:
+                corner[f] = CORNER_UV[loop.index(k)]
+        override(model, zone, local, corner)
+        key = ("v", k)
+        if key in model.node_keys:
+            n = model.node_keys.index(key)
+            model.extraordinary.append(ExtraordinaryPoint(n, 4, model.node_points[n], True))
 
 
 def cut_along_creases(r, old, creases: dict):
@@ -393,10 +455,13 @@ def fusion_model(r, t_spline: bool = False):
         origin = list(range(old.n_vertices))
         if creases:
             old, origin = cut_along_creases(r, old, creases)
-        pos, rows, lines, names = clamped_boundary(r, old, G[origin], origin)
+        bstars = boundary_stars(r, old, origin, bool(creases))
+        pos, rows, lines, names = clamped_boundary(r, old, G[origin], origin, set(bstars))
         mesh = r.build(old, pos, rows, lines, names, origin if creases else None)
         with naming(r.path):
             model = tspline_model(mesh, name=name)
+            if bstars:
+                _boundary_star_zones(old, bstars, G[origin], r.scale, model)
         if creases:
             join_across_creases(model)
         surface = ("T-spline (T-junctions or non-uniform knot intervals; T-NURCC rule at star points; "

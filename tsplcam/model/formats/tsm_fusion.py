@@ -296,10 +296,14 @@ def _boundary_star_zones(old, bstars: dict, G, scale, model) -> None:
             if k in loop:
                 corner[f] = CORNER_UV[loop.index(k)]
         override(model, zone, local, corner)
-        key = ("v", k)
-        if key in model.node_keys:
-            n = model.node_keys.index(key)
-            model.extraordinary.append(ExtraordinaryPoint(n, 4, model.node_points[n], True))
+        # the star's node: the concave corner's patch lines start on its clamped ring (a node
+        # on a ring edge, not the vertex), at the star's limit point
+        f = next(f for f in corner)
+        at = local.evaluate_faces([zone[f]], *corner[f]).P[0]
+        gap = np.linalg.norm(model.node_points - at, axis=1)
+        n = int(np.argmin(gap))
+        if gap[n] <= 1e-9 * max(float(np.ptp(model.node_points, axis=0).max()), 1e-300):
+            model.extraordinary.append(ExtraordinaryPoint(n, 3, model.node_points[n], True))
 
 
 def cut_along_creases(r, old, creases: dict):

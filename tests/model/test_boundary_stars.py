@@ -1,0 +1,186 @@
+"""Star points on an open boundary in the T-spline kernel (Fusion ``.tsm``,
+``boundary_stars.py``): an L-shaped body, whose concave corner is a boundary vertex of
+three faces (Catmull-Clark's extraordinary boundary vertex of valence four). Uniform and
+without T-junctions, the kernel gives the cage path's limit (OpenSubdiv's edge-and-corner
+rule) on every face; with T-junctions and other knot intervals beyond the star's five rings
+it loads, the star's two rings are still that limit, faces meet without gaps and with one
+normal, and the functions are a partition of unity. What it cannot take is refused with
+the file's line."""
+import os
+import shutil
+import tempfile
+import unittest
+
+import numpy as np
+
+from conftest import external, faces_meet
+from tsplcam.errors import InputError
+from tsplcam.model.boundary_stars import rings
+from tsplcam.model.cage import Cage, cage_model
+from tsplcam.model.formats.obj import read_obj
+from tsplcam.model.formats.tsm import tsm_model
+from tsplcam.model.formats.tsm_fusion import write_fusion_tsm
+from tsplcam.model.quadmesh import QuadMesh
+from tsplcam.model.tmesh import from_lines
+
+N = 8                                      # the star at grid node (N, N) of a 2N x 2N grid
+
+
+def height(x, y):
+    return 3.0 * np.sin(x / 3.0) * np.cos(y / 4.0) + 0.02 * x * y
+
+
+def l_cage(n=N):
+    """The L: the 2n x 2n grid of unit squares without its lower right quarter, points on a
+    wavy surface (5 mm per knot unit). Returns the cage and the star's vertex."""
+    vid, pts, faces = {}, [], []
+
+    def V(i, j):
+        if (i, j) not in vid:
+            vid[(i, j)] = len(pts)
+            pts.append((5.0 * i, 5.0 * j, height(i, j)))
+        return vid[(i, j)]
+    for i in range(2 * n):
+        for j in range(2 * n):
+            if not (i >= n and j < n):
+                faces.append([V(i, j), V(i + 1, j), V(i + 1, j + 1), V(i, j + 1)])
+    return Cage(QuadMesh(np.array(faces), len(pts), "edge-and-corner"), np.array(pts)), vid[(n, n)]
+
+
+def l_tmesh(shift=(0.0, 0.0, 0.0), tj=True):
+    """The L as a T-mesh: knot intervals 1 within the star's five rings (grid 3 .. 13), others
+    outside; with ``tj`` a column that starts at row 10 and a row that stops at column 6 (two
+    T-junctions, and the faces beside them five-sided), points shifted by ``shift``."""
+    X = np.array([0, 1.7, 2.4, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14.5, 15.2, 17.0])
+    Y = X.copy()
+    n = 2 * N
+    hsegs = [(j, 0, n) for j in range(N, n + 1)] + [(j, 0, N) for j in range(N)]
+    vsegs = [(i, 0, n) for i in range(N + 1)] + [(i, N, n) for i in range(N + 1, n + 1)]
+    if tj:
+        vsegs[1] = (1, 10, n)
+        hsegs = [h for h in hsegs if h[0] != 15] + [(15, 0, 6)]
+    return from_lines(X, Y, hsegs, vsegs,
+                      lambda i, j: np.add((5.0 * X[i], 5.0 * Y[j], height(X[i], Y[j])), shift),
+                      holes=lambda x, y: x > N and y < N)
+
+
+def size_of(model):
+    P = np.concatenate([p.evaluate(*np.meshgrid(np.linspace(0, 1, 9), np.linspace(0, 1, 9))).P
+                        for p in model.patches])
+    return float(np.linalg.norm(P.max(0) - P.min(0)))
+
+
+def face_grid(faces, k=6):
+    g = np.linspace(0.0, 1.0, k)
+    S, T = np.meshgrid(g, g)
+    return np.repeat(faces, k * k), np.tile(S.ravel(), len(faces)), np.tile(T.ravel(), len(faces))
+
+
+def corner_of(mesh, v):
+    """The T-mesh vertex at (knot) position v of the L's star."""
+    return next(k for k in range(mesh.n_vertices) if tuple(mesh.grid_index[k]) == v)
+
+
+class BoundaryStars(unittest.TestCase):
+    def setUp(self):
+        self.dir = tempfile.mkdtemp(prefix="tsplcam-bstar-")
+        self.addCleanup(shutil.rmtree, self.dir, True)
+
+    def write(self, mesh, name):
+        path = os.path.join(self.dir, name + ".tsm")
+        write_fusion_tsm(mesh, path, grip_map=True)
+        return path
+
+    def test_uniform_l_is_the_cage_limit(self):
+        """The whole uniform L through the kernel equals the cage path on every face, with unit
+        weights and with weights 1 + 0.3 cos k: measured at most 5e-16 of the model size in
+        position and 1.8e-15 in first derivatives (the star's two rings come from a local cage,
+        the third ring on is the kernel's own). Without the local cage the first two rings
+        would be off by 1.1e-2 of the size in position (3.9e1 in derivatives at the star)."""
+        cage, _ = l_cage()
+        for w in (None, 1.0 + 0.3 * np.cos(np.arange(len(cage.points)))):
+            weighted = Cage(cage.mesh, cage.points, w)
+            path = self.write(weighted, "l")
+            a, b = tsm_model(path), tsm_model(path, t_spline=True)
+            self.assertEqual((a.kind, b.kind), ("catmull-clark", "t-spline"))
+            scale = size_of(a)
+            f, s, t = face_grid(np.arange(len(cage.mesh.faces)))
+            pa, pb = a.evaluate_faces(f, s, t), b.evaluate_faces(f, s, t)
+            self.assertLess(np.abs(pa.P - pb.P).max(), 1e-12 * scale)
+            self.assertLess(max(np.abs(pa.Pu - pb.Pu).max(), np.abs(pa.Pv - pb.Pv).max()), 1e-10 * scale)
+            # the star is the model's one extraordinary point, on the boundary, at the limit point
+            self.assertEqual([(e.boundary, e.valence) for e in b.extraordinary], [(True, 3)])
+            self.assertLess(np.linalg.norm(b.extraordinary[0].position - a.extraordinary[0].position),
+                            1e-12 * scale)
+
+    def test_t_junctions_beyond_the_rings(self):
+        """T-junctions and other knot intervals outside the star's five rings: the kernel; on
+        the star's three rings the cage limit of the uniform L (the same points there); every
+        pair of faces meets within 1e-12 of the size with one normal (sine of the angle below
+        1e-9); moving every grip moves the surface by as much (partition of unity). Measured:
+        faces meet within 2.4e-16 of the size, normals within 2.5e-15, the move within 2.4e-16."""
+        mesh = l_tmesh()
+        self.assertGreaterEqual(sum(len(f) > 4 for f in mesh.faces), 2)
+        path = self.write(mesh, "lt")
+        model = tsm_model(path)
+        self.assertEqual(model.kind, "t-spline")
+        scale = size_of(model)
+        # the star's three rings against the uniform L (equal points and knots within five rings)
+        cage, S = l_cage()
+        ref = cage_model(cage)
+        star = corner_of(mesh, (N, N))
+        mine, theirs = rings(mesh, star, 3), rings(_Faces(cage.mesh.faces), S, 3)
+        centre = lambda m, fs: sorted((tuple(np.round(m[np.asarray(list(fl))].mean(0), 9)), f)
+                                      for f, fl in fs)
+        a_faces = centre(mesh.points, [(f, mesh.faces[f]) for r in mine for f in r])
+        b_faces = centre(cage.points, [(f, cage.mesh.faces[f]) for r in theirs for f in r])
+        self.assertEqual([c for c, _ in a_faces], [c for c, _ in b_faces])
+        for (_, fa), (_, fb) in zip(a_faces, b_faces):
+            # the same corner first in both (the L's faces start at their lower left)
+            fa_, sa, ta = face_grid([fa])
+            pa, pb = model.evaluate_faces(fa_, sa, ta), ref.evaluate_faces(np.full(len(sa), fb), sa, ta)
+            self.assertLess(np.abs(pa.P - pb.P).max(), 1e-12 * scale)
+            self.assertLess(max(np.abs(pa.Pu - pb.Pu).max(), np.abs(pa.Pv - pb.Pv).max()), 1e-10 * scale)
+        A, B = faces_meet(model, model.control, np.linspace(0.0, 1.0, 7))
+        self.assertLess(np.abs(A.P - B.P).max(), 1e-12 * scale)
+        sin = np.linalg.norm(np.cross(A.normal, B.normal), axis=1)       # sine of the angle
+        self.assertLess(float(sin.max()), 1e-9)
+        shift = np.array([3.0, -7.0, 11.0])
+        moved = tsm_model(self.write(l_tmesh(shift), "moved"))
+        f, s, t = face_grid(np.arange(len(mesh.faces)), 4)
+        gap = moved.evaluate_faces(f, s, t).P - model.evaluate_faces(f, s, t).P - shift
+        self.assertLess(np.abs(gap).max(), 1e-12 * scale)
+
+    def test_refusals_name_the_line(self):
+        """A T-junction within the star's five rings, and a boundary star of four faces for the
+        kernel, are refused with the vertex's line."""
+        near = from_lines(mesh_X(), mesh_X(), [(j, 0, 2 * N) for j in range(N, 2 * N + 1)]
+                          + [(j, 0, N) for j in range(N)],
+                          [(i, 0, 2 * N) for i in range(N + 1) if i != 5] + [(5, 6, 2 * N)]
+                          + [(i, N, 2 * N) for i in range(N + 1, 2 * N + 1)],
+                          lambda i, j: (5.0 * i, 5.0 * j, height(i, j)), holes=lambda x, y: x > N and y < N)
+        with self.assertRaises(InputError) as cm:
+            tsm_model(self.write(near, "near"))
+        self.assertIn("star point on the boundary", cm.exception.message)
+        self.assertIn("T-junction", cm.exception.message)
+        self.assertIsNotNone(cm.exception.line)
+        # OpenSubdiv's extraordinary boundary shapes through the kernel: three faces (its first
+        # shape) are taken, four are refused
+        cage = read_obj(external("opensubdiv", "catmark_xord_boundary.obj"))
+        with self.assertRaises(InputError) as cm:
+            tsm_model(self.write(cage, "xord"), t_spline=True)
+        self.assertIn("4 faces there", cm.exception.message)
+        self.assertIsNotNone(cm.exception.line)
+
+
+def mesh_X():
+    return np.arange(2 * N + 1, dtype=float)
+
+
+class _Faces:
+    def __init__(self, faces):
+        self.faces = faces
+
+
+if __name__ == "__main__":
+    unittest.main()

@@ -164,13 +164,41 @@ class BoundaryStars(unittest.TestCase):
         self.assertIn("star point on the boundary", cm.exception.message)
         self.assertIn("T-junction", cm.exception.message)
         self.assertIsNotNone(cm.exception.line)
-        # OpenSubdiv's extraordinary boundary shapes through the kernel: three faces (its first
-        # shape) are taken, four are refused
-        cage = read_obj(external("opensubdiv", "catmark_xord_boundary.obj"))
-        with self.assertRaises(InputError) as cm:
-            tsm_model(self.write(cage, "xord"), t_spline=True)
-        self.assertIn("4 faces there", cm.exception.message)
-        self.assertIsNotNone(cm.exception.line)
+        # OpenSubdiv's extraordinary boundary shapes through the kernel, one by one: three
+        # faces are taken (the cage path's surface, every face from the local cage), four
+        # and five are refused for their size (the end faces' corners have no other face),
+        # six for the number of faces
+        for faces, (n, fragment) in zip((3, 4, 5, 6), xord_shapes()):
+            path = self.write(n, f"xord{faces}")
+            if fragment is None:
+                a, b = tsm_model(path), tsm_model(path, t_spline=True)
+                f, s, t = face_grid(np.arange(len(n.mesh.faces)))
+                self.assertLess(np.abs(a.evaluate_faces(f, s, t).P - b.evaluate_faces(f, s, t).P).max(),
+                                1e-12 * size_of(a))
+                continue
+            with self.assertRaises(InputError) as cm:
+                tsm_model(path, t_spline=True)
+            self.assertIn(fragment, cm.exception.message)
+            self.assertIsNotNone(cm.exception.line)
+
+
+def xord_shapes():
+    """OpenSubdiv's catmark_xord_boundary, its four shapes (boundary stars of 3, 4, 5 and 6
+    faces) as cages of their own (in mm), with what the kernel says of each."""
+    cage = read_obj(external("opensubdiv", "catmark_xord_boundary.obj"))
+    F = cage.mesh.faces
+    shape = np.zeros(len(F), int)
+    for f in range(1, len(F)):          # the shapes are runs of faces sharing vertices
+        shape[f] = shape[f - 1] + (not set(map(int, F[f])) & {int(v) for g in range(f) for v in F[g]
+                                                               if shape[g] == shape[f - 1]})
+    out = []
+    for k, fragment in enumerate((None, "has no other face", "has no other face", "6 faces there")):
+        fs = np.nonzero(shape == k)[0]
+        vs = sorted({int(v) for f in fs for v in F[f]})
+        new = {v: i for i, v in enumerate(vs)}
+        out.append((Cage(QuadMesh(np.array([[new[int(v)] for v in F[f]] for f in fs]), len(vs),
+                                  "edge-and-corner"), cage.points[vs] * 100.0), fragment))
+    return out
 
 
 def mesh_X():

@@ -26,14 +26,53 @@ import numpy as np
 
 from .cells import _chain
 
-#: rings of faces around a boundary star evaluated from its local cage
+#: rings of faces around a boundary star of three faces evaluated from its local cage; four
+#: or five faces (valence 5 and 6: the kernel is cut one ring nearer, see ``notch``) one more
 ZONE = 2
-#: rings of faces that must be uniform and free of T-junctions and irregular vertices: the
-#: zone, one ring more for the zone's own limit, and three for the kernel's knot vectors
-#: that reach across the zone's edge
-RINGS = 5
+#: the most faces a boundary star may have
+MOST_FACES = 5
 #: relative spread of knot intervals still read as uniform
 UNIFORM_TOL = 1e-9
+
+
+def zone_rings(faces: int) -> int:
+    """Rings of faces around a boundary star of ``faces`` faces replaced by its local cage:
+    as far as the kernel's surface differs from the limit without it (measured on uniform
+    stars: two rings at three faces, three at four, four at five, where both end faces are
+    left out and the notches' clamping reaches a ring further)."""
+    return {3: ZONE, 4: ZONE + 1, 5: ZONE + 2}[faces]
+
+
+def need_rings(faces: int) -> int:
+    """Rings that must be uniform and free of T-junctions and irregular vertices: the zone,
+    one ring more for the zone's own limit (its local cage has two more), and two for the
+    kernel's knot vectors that reach across the zone's edge."""
+    return zone_rings(faces) + 3
+
+
+def notch(mesh, v: int) -> list[int]:
+    """The faces at boundary star v left out of the kernel's T-mesh so that v keeps three
+    faces (a concave corner the kernel clamps): none for three faces, the first for four,
+    the first and the last for five. Their outer corners become convex and concave corners
+    of the kernel's boundary, so that its patches end on their sides."""
+    fan = [f for f, _ in mesh.topology.fan[v]]
+    return {3: [], 4: [fan[0]], 5: [fan[0], fan[-1]]}[len(fan)]
+
+
+def without_faces(mesh, drop):
+    """The T-mesh ``mesh`` without the faces ``drop`` (same vertices; every vertex must keep
+    a face), and the new index of every face (-1 for the dropped ones)."""
+    from .tmesh import TMesh
+    keep = [f for f in range(len(mesh.faces)) if f not in set(drop)]
+    index = np.full(len(mesh.faces), -1)
+    index[keep] = np.arange(len(keep))
+    pick = lambda xs: None if xs is None else [xs[f] for f in keep]      # noqa: E731
+    out = TMesh(np.zeros((mesh.n_vertices, 3)), None, [list(mesh.faces[f]) for f in keep],
+                [list(mesh.corners[f]) for f in keep], [list(mesh.intervals[f]) for f in keep],
+                source=mesh.source, face_lines=pick(mesh.face_lines), vertex_lines=mesh.vertex_lines,
+                vertex_labels=mesh.vertex_labels, face_labels=pick(mesh.face_labels))
+    out.validate()
+    return out, index
 
 
 def rings(mesh, v: int, n: int) -> list[list[int]]:
@@ -53,15 +92,16 @@ def rings(mesh, v: int, n: int) -> list[list[int]]:
 
 
 def check_neighbourhood(mesh, v: int, refuse) -> tuple[list[list[int]], float]:
-    """The ``RINGS`` rings of faces around boundary star v and their common knot interval;
+    """The ``need_rings`` rings of faces around boundary star v and their common knot interval;
     ``refuse(message)`` raises the reader's error for anything the construction needs
     otherwise (T-junctions, other intervals, other irregular vertices)."""
     topo = mesh.topology
-    rs = rings(mesh, v, RINGS)
+    n = need_rings(len(topo.fan[v]))
+    rs = rings(mesh, v, n)
     faces = [f for r in rs for f in r]
     d = np.concatenate([np.asarray(mesh.intervals[f], float) for f in faces])
-    need = (f"a boundary star point needs its {RINGS} rings of faces free of T-junctions, other star "
-            f"points and concave corners, with one knot interval")
+    need = (f"a boundary star point of {len(topo.fan[v])} faces needs its {n} rings of faces free of "
+            f"T-junctions, other star points and concave corners, with one knot interval")
     for f in faces:
         if len(mesh.faces[f]) != 4:
             refuse(f"{need}: {mesh.face_name(f)} has a T-junction")
@@ -158,3 +198,73 @@ def override(model, zone: dict, local, star_corner: dict) -> None:
         patch.cell_local = local_
     for patch in model.patches:
         model.node_points[patch.corner_nodes] = patch.evaluate(CORNER_UV[:, 0], CORNER_UV[:, 1]).P
+
+
+def attach(model, old, kernel_face, stars: dict, G: np.ndarray, scale: float) -> dict:
+    """Boundary stars into the kernel ``model`` of T-mesh ``old`` (built without the notch
+    faces: ``kernel_face[f]`` is old face f's index in the model, -1 if left out): per star
+    (``stars[v]`` = its rings of faces), a local cage of ``zone_rings + 2`` rings (points
+    ``G`` (x, y, z, w) in file units, times ``scale``), whose limit replaces the kernel on the
+    zone's faces and makes one patch of each notch face (corner nodes of their own: the
+    caller links them, ``tsm_fusion.join_across_creases``). Returns old face -> model face
+    for the notch faces (numbered after the model's T-mesh faces), and per star (faces,
+    limit point) for ``star_points``."""
+    from .cage import Cage, cage_model
+    from .patch import CORNER_UV, Patch
+    from .quadmesh import QuadMesh
+    added, limits = {}, {}
+    for v, rs in stars.items():
+        T = len(old.topology.fan[v])
+        z = zone_rings(T)
+        faces = [f for r_ in rs[:z + 2] for f in r_]
+        verts = sorted({int(w) for f in faces for w in old.faces[f]})
+        new = {w: i for i, w in enumerate(verts)}
+        loops = np.array([[new[int(w)] for w in old.faces[f]] for f in faces])
+        cage = Cage(QuadMesh(loops, len(verts), "edge-and-corner", old.source),
+                    G[verts, :3] * scale, G[verts, 3], {"interpolateboundary": "edge-and-corner"})
+        local = cage_model(cage, "boundary star")
+        inner = sum(len(r_) for r_ in rs[:z])
+        zone, corner = {}, {}
+        for i, f in enumerate(faces[:inner]):
+            loop = [int(w) for w in old.faces[f]]
+            if loop[int(old.corners[f][0])] != loop[0]:
+                raise AssertionError("face frames")
+            at = CORNER_UV[loop.index(v)] if v in loop else None
+            k = int(kernel_face[f])
+            if k >= 0:
+                zone[k] = i
+                if at is not None:
+                    corner[k] = at
+                continue
+            # a notch face: one patch, one cell, the face's own (s, t)
+            d = float(np.asarray(old.intervals[f], float).max())
+            p = len(model.patches)
+            patch = Patch(p, [0.0, 1.0], [0.0, 1.0], np.zeros((1, 1), int), np.zeros((1, 1), int),
+                          [CageCells(local, [i], [np.eye(2)], [np.zeros(2)], [at])], knot_size=(d, d))
+            n0 = len(model.node_points)
+            patch.corner_nodes = np.arange(n0, n0 + 4)
+            model.node_points = np.vstack([model.node_points, patch.evaluate(CORNER_UV[:, 0], CORNER_UV[:, 1]).P])
+            model.node_keys.extend(("notch", f, c) for c in range(4))
+            model.patches.append(patch)
+            added[f] = len(model.face_pieces)
+            model.face_pieces.append([(p, (0.0, d, 0.0, d), (0, 0.0, 0.0), (d, d))])
+            model.face_size.append((d, d))
+        override(model, zone, local, corner)
+        f = next(f for f in faces if v in [int(w) for w in old.faces[f]])
+        at = CORNER_UV[[int(w) for w in old.faces[f]].index(v)]
+        limits[v] = (T, local.evaluate_faces([faces.index(f)], [at[0]], [at[1]]).P[0])
+    return added, limits
+
+
+def star_points(model, limits: dict) -> None:
+    """Each boundary star as the model's extraordinary point (boundary, valence its number of
+    faces), at the node at its limit point (``limits[v]`` = (faces, point); the kernel's
+    patch lines start on the star's clamped ring, not at the vertex)."""
+    from .model import ExtraordinaryPoint
+    pts = model.node_points
+    size = max(float(np.ptp(pts, axis=0).max()), 1e-300)
+    for v, (faces, at) in limits.items():
+        gap = np.linalg.norm(pts - at, axis=1)
+        n = int(np.argmin(gap))
+        if gap[n] <= 1e-9 * size:
+            model.extraordinary.append(ExtraordinaryPoint(n, faces, pts[n], True))

@@ -250,10 +250,10 @@ def clamped_boundary(r, old, G0, origin, stars=()):
 
 
 def boundary_stars(r, old, origin, creases: bool) -> dict:
-    """Boundary star points of the T-mesh (boundary vertices with three faces) -> their
-    rings of faces (``boundary_stars.check_neighbourhood``); boundary vertices with four or
-    more faces, and boundary stars on a T-mesh with creases, are refused with their line."""
-    from ..boundary_stars import RINGS, check_neighbourhood
+    """Boundary star points of the T-mesh (boundary vertices with three to five faces) ->
+    their rings of faces (``boundary_stars.check_neighbourhood``); more faces, and boundary
+    stars on a T-mesh with creases, are refused with their line."""
+    from ..boundary_stars import MOST_FACES, check_neighbourhood
     topo = old.topology
     out = {}
     for k in range(old.n_vertices):
@@ -263,51 +263,14 @@ def boundary_stars(r, old, origin, creases: bool) -> dict:
 
         def refuse(message, v=v, line=line):
             raise r.err(f"open boundary at vertex {v}, a star point on the boundary: {message}", line)
-        if int(topo.total[k]) > 3:
+        if int(topo.total[k]) > MOST_FACES:
             refuse(f"{int(topo.total[k])} faces there; the T-spline kernel takes boundary star points of "
-                   f"three faces only (four or more faces are read on uniform T-meshes without "
-                   f"T-junctions, by the Catmull-Clark path)")
+                   f"three to {MOST_FACES} faces (more are read on uniform T-meshes without T-junctions, by "
+                   f"the Catmull-Clark path)")
         if creases:
             refuse("with creases in the file the T-spline kernel does not take boundary star points")
         out[k] = check_neighbourhood(old, k, refuse)[0]
     return out
-
-
-def _boundary_star_zones(old, bstars: dict, G, scale, model) -> None:
-    """The kernel ``model``'s faces within ``boundary_stars.ZONE`` rings of each boundary
-    star replaced by the Catmull-Clark limit (edge-and-corner) of a local cage of two rings
-    more (``boundary_stars.override``)."""
-    from ..boundary_stars import ZONE, override
-    from ..cage import Cage, cage_model
-    from ..model import ExtraordinaryPoint
-    from ..quadmesh import QuadMesh
-    from ..patch import CORNER_UV
-    for k, rs in bstars.items():
-        faces = [f for r_ in rs[:ZONE + 2] for f in r_]
-        verts = sorted({int(w) for f in faces for w in old.faces[f]})
-        new = {w: i for i, w in enumerate(verts)}
-        loops = np.array([[new[int(w)] for w in old.faces[f]] for f in faces])
-        cage = Cage(QuadMesh(loops, len(verts), "edge-and-corner", old.source),
-                    G[verts, :3] * scale, G[verts, 3], {"interpolateboundary": "edge-and-corner"})
-        local = cage_model(cage, "boundary star")
-        zone = {f: i for i, f in enumerate(faces) if i < sum(len(r_) for r_ in rs[:ZONE])}
-        corner = {}
-        for f in zone:
-            loop = [int(w) for w in old.faces[f]]
-            c0 = loop[int(old.corners[f][0])]
-            if c0 != loop[0]:
-                raise AssertionError("face frames")
-            if k in loop:
-                corner[f] = CORNER_UV[loop.index(k)]
-        override(model, zone, local, corner)
-        # the star's node: the concave corner's patch lines start on its clamped ring (a node
-        # on a ring edge, not the vertex), at the star's limit point
-        f = next(f for f in corner)
-        at = local.evaluate_faces([zone[f]], *corner[f]).P[0]
-        gap = np.linalg.norm(model.node_points - at, axis=1)
-        n = int(np.argmin(gap))
-        if gap[n] <= 1e-9 * max(float(np.ptp(model.node_points, axis=0).max()), 1e-300):
-            model.extraordinary.append(ExtraordinaryPoint(n, 3, model.node_points[n], True))
 
 
 def cut_along_creases(r, old, creases: dict):
@@ -464,14 +427,38 @@ def fusion_model(r, t_spline: bool = False):
         if creases:
             old, origin = cut_along_creases(r, old, creases)
         bstars = boundary_stars(r, old, origin, bool(creases))
-        pos, rows, lines, names = clamped_boundary(r, old, G[origin], origin, set(bstars))
-        mesh = r.build(old, pos, rows, lines, names, origin if creases else None)
+        kernel, kernel_face = old, np.arange(len(old.faces))
+        if bstars:
+            from ..boundary_stars import attach, notch, star_points, without_faces
+            drop = [f for k in bstars for f in notch(old, k)]
+            kept = {int(w) for f in range(len(old.faces)) if f not in drop for w in old.faces[f]}
+            for k in bstars:
+                lone = [int(w) for f in notch(old, k) for w in old.faces[f] if int(w) not in kept]
+                if lone:
+                    v, line = _file_vertex(r, origin, k)
+                    raise r.err(f"open boundary at vertex {v}, a star point on the boundary of "
+                                f"{len(old.topology.fan[k])} faces: the T-spline kernel leaves its end faces "
+                                f"out (evaluated from a local cage), which needs their corners on other "
+                                f"faces too; vertex {_file_vertex(r, origin, lone[0])[0]} has no other face",
+                                line)
+            if drop:
+                kernel, kernel_face = without_faces(old, drop)
+        # the stars and the notches' concave corners: clamped with every grip their own (the
+        # kernel's surface within their reach is replaced)
+        concave = {k for k in range(kernel.n_vertices) if kernel.topology.boundary[k]
+                   and int(kernel.topology.total[k]) == 3} if bstars else set()
+        pos, rows, lines, names = clamped_boundary(r, kernel, G[origin], origin, concave)
+        mesh = r.build(kernel, pos, rows, lines, names, origin if creases else None)
         with naming(r.path):
             model = tspline_model(mesh, name=name)
             if bstars:
-                _boundary_star_zones(old, bstars, G[origin], r.scale, model)
-        if creases:
+                added, limits = attach(model, old, kernel_face, bstars, G[origin], r.scale)
+                if added:
+                    model.notch_faces = added
+        if creases or (bstars and added):
             join_across_creases(model)
+        if bstars:
+            star_points(model, limits)
         surface = ("T-spline (T-junctions or non-uniform knot intervals; T-NURCC rule at star points; "
                    "open boundaries clamped with the second grip row of the edge-and-corner rule)")
     model.tsm = TsmInfo.of(r, surface, len(creases), len(sharp))

@@ -2,23 +2,34 @@
 the Catmull-Clark limit of a local cage (OpenSubdiv's edge-and-corner rule), the rest from
 the kernel.
 
-A boundary vertex with three faces (a concave corner of the T-mesh) is an extraordinary
-boundary vertex of Catmull-Clark under the edge-and-corner rule: the boundary curve runs
+A boundary vertex with three to five faces is an extraordinary boundary vertex of
+Catmull-Clark under the edge-and-corner rule (valence 4 to 6): the boundary curve runs
 smoothly through it and the surface there is the limit of subdivision, which no tensor
-B-spline gives. Where the star's neighbourhood (``RINGS`` rings of faces) has one knot
-interval and no T-junctions, that limit is the reference (``cage.cage_model``). The
-T-spline kernel builds the whole T-mesh with the star clamped as a concave corner
-(``tsm.PATTERNS[3]``, every grip there the star's own): its functions reach only the two
-rings of faces around the star, so on the third ring and beyond the kernel is the same
-uniform B-spline as the cage's limit (the functions of the star's neighbours there use
-only the knots on their own side). The cells of the first ``ZONE`` rings are then replaced
-(``CageCells``) by the limit of a local cage of ``ZONE + 2`` rings, which is exact there
-(a face's limit depends on its one-ring and their vertices' rules only). The two meet
-along a line on which both are the same B-spline: C2 there, G1 at the star itself.
+B-spline gives. Where the star's neighbourhood (``need_rings`` rings of faces) has one
+knot interval, no T-junctions and no other irregular vertex, that limit is the reference
+(``cage.cage_model``):
 
-What is not yet taken is refused by name: boundary stars with four or more faces, and
-boundary stars whose ``RINGS`` rings of faces have T-junctions, other knot intervals,
-other irregular vertices or creases.
+* The kernel builds the T-mesh with the star clamped as a concave corner (``tsm.PATTERNS[3]``,
+  every grip there the star's own). With four or five faces the star's first and (five)
+  last face are left out of the kernel's T-mesh first (``notch``), so that three remain; the
+  left-out faces' corners become convex and concave corners of the kernel's boundary,
+  clamped alike, so that its patches end on their sides.
+* The kernel's functions that see the star or the notches reach only ``zone_rings`` rings
+  of faces (measured on uniform stars: 2 at three faces, 3 at four, 4 at five, where both
+  notches' clamping reaches one ring further); beyond, the kernel is the same uniform
+  B-spline as the limit (the functions there use only the knots on their own side).
+* The cells of the zone's faces are replaced (``CageCells``) by the limit of a local cage
+  of two rings more, which is exact there (a face's limit depends on its one-ring and their
+  vertices' rules only); each left-out face is a patch of its own on the local cage, linked
+  to the kernel's patches along its inner sides (``tsm_fusion.join_across_creases``). Zone
+  and kernel meet along a line on which both are the same B-spline: C2 there, G1 at the
+  star itself.
+
+What is not yet taken is refused by name: boundary stars of six or more faces, boundary
+stars whose rings have T-junctions, other knot intervals, other irregular vertices, or
+creases in the file, and bodies so small that a left-out face has a corner on no other face.
+Model faces: the kernel's T-mesh faces, then the left-out ones (``model.notch_faces``: T-mesh
+face of the file -> model face).
 """
 from __future__ import annotations
 

@@ -28,11 +28,11 @@ rule on uniform knots). A crease there is knot multiplicity three on its line: t
 T-mesh is cut along the crease (``cut_along_creases``), each side clamped like a boundary,
 and the patches on the two sides linked again (``join_across_creases``); on uniform knots
 this is OpenSubdiv's infinitely sharp crease. Creases that end inside the surface and
-sharp vertices are refused there with their line. A boundary vertex of three faces (a
-star point on the boundary for Catmull-Clark) whose five rings of faces are uniform and
-free of T-junctions is clamped as a concave corner, and the faces within two rings of it
-are the Catmull-Clark limit of a local cage (``boundary_stars.py``); other boundary stars
-are refused with their line.
+sharp vertices are refused there with their line. A boundary vertex of three to five faces
+(a star point on the boundary for Catmull-Clark) whose rings of faces are uniform and free
+of T-junctions is clamped as a concave corner (its end faces left out at four and five),
+and the faces within two to four rings of it are the Catmull-Clark limit of a local cage
+(``boundary_stars.py``); other boundary stars are refused with their line.
 """
 from __future__ import annotations
 

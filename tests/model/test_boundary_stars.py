@@ -252,6 +252,14 @@ def model_faces(model, f):
     return np.array([out.get(int(x), int(x) - int(d)) for x, d in zip(f, np.broadcast_to(shift, f.shape))])
 
 
+def star_normals(model):
+    """The normals at the model's (one) extraordinary point from every patch corner there."""
+    from tsplcam.model.patch import CORNER_UV
+    node = model.extraordinary[0].node
+    return [p.evaluate(*CORNER_UV[c][:, None]).normal[0] for p in model.patches for c in range(4)
+            if p.corner_nodes[c] == node]
+
+
 class BookStars(TempFiles):
     def test_four_and_five_faces_are_the_cage_limit(self):
         """Boundary stars of four and five faces on uniform books through the kernel: the
@@ -270,6 +278,10 @@ class BookStars(TempFiles):
             self.assertLess(np.abs(pa.P - pb.P).max(), 1e-12 * scale, T)
             self.assertLess(max(np.abs(pa.Pu - pb.Pu).max(), np.abs(pa.Pv - pb.Pv).max()), 1e-10 * scale, T)
             self.assertEqual([(e.boundary, e.valence) for e in b.extraordinary], [(True, T)])
+            # every patch at the star gives the cage's limit normal there
+            want = star_normals(a)[0]
+            for n in star_normals(b):
+                self.assertLess(float(np.linalg.norm(np.cross(n, want))), 1e-9, T)
             self.assertEqual(len(b.notch_faces), T - 3)
             for p in (b.face_pieces[m][0][0] for m in b.notch_faces.values()):
                 self.assertEqual(sum(x is not None for x in b.patches[p].neighbours), 3, T)

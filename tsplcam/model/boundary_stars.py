@@ -140,6 +140,8 @@ class CageCells:
         self.A = np.asarray(A, float).reshape(-1, 2, 2)
         self.o = np.asarray(o, float).reshape(-1, 2)
         self.star = [None if c is None else np.asarray(c, float) for c in star]
+        # the star's (s, t) per cell, NaN where the star is not a corner of the cell's face
+        self._star = np.array([(np.nan, np.nan) if c is None else c for c in self.star], float).reshape(-1, 2)
 
     def __len__(self) -> int:
         return len(self.face)
@@ -148,16 +150,18 @@ class CageCells:
         A, o = self.A[idx], self.o[idx]
         s = np.clip(A[:, 0, 0] * a + A[:, 0, 1] * b + o[:, 0], 0.0, 1.0)
         t = np.clip(A[:, 1, 0] * a + A[:, 1, 1] * b + o[:, 1], 0.0, 1.0)
+        # at the star itself (to the rounding of the cell-to-face map): exactly there, where
+        # the limit normal is known
+        c = self._star[idx]
+        at = (np.abs(s - c[:, 0]) <= 1e-13) & (np.abs(t - c[:, 1]) <= 1e-13)
+        s = np.where(at, c[:, 0], s)
+        t = np.where(at, c[:, 1], t)
         sp = self.model.evaluate_faces(self.face[idx], s, t)
         Hst = np.zeros((6, 4, len(idx)))
         for k, arr in enumerate((sp.P, sp.Pu, sp.Pv, sp.Puu, sp.Puv, sp.Pvv)):
             Hst[k, :3] = arr.T
         Hst[0, 3] = 1.0
         H = _chain(Hst, A)
-        at = np.zeros(len(idx), bool)
-        for n, i in enumerate(idx):
-            c = self.star[i]
-            at[n] = c is not None and s[n] == c[0] and t[n] == c[1]
         return H, at, (np.asarray(sp.normal) if at.any() else None)
 
 

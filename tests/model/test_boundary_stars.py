@@ -92,6 +92,11 @@ class TempFiles(unittest.TestCase):
         write_fusion_tsm(mesh, path, grip_map=True)
         return path
 
+    def write_creased(self, cage, name, creases):
+        path = os.path.join(self.dir, name + ".tsm")
+        write_fusion_tsm(cage, path, creases=creases)
+        return path
+
     def write_knots(self, cage, name, knot):
         path = os.path.join(self.dir, name + ".tsm")
         write_fusion_tsm(cage, path, interval=lambda a, b: knot[(a, b)])
@@ -121,6 +126,27 @@ class BoundaryStars(TempFiles):
             self.assertEqual([(e.boundary, e.valence) for e in b.extraordinary], [(True, 3)])
             self.assertLess(np.linalg.norm(b.extraordinary[0].position - a.extraordinary[0].position),
                             1e-12 * scale)
+
+    def test_crease_within_the_rings(self):
+        """An infinitely sharp crease two rows above the star, across the L: the kernel (cut
+        along the crease, the star's rings on its side) equals the cage path's creased limit
+        (measured 2.5e-16 of the size, 1.5e-15 in derivatives); a crease that ends at the
+        star is refused with its line."""
+        cage, S = l_cage()
+        at = {tuple(np.rint(cage.points[v, :2] / 5.0).astype(int)): v for v in range(len(cage.points))}
+        row = [at[(i, N + 2)] for i in range(2 * N + 1)]
+        path = self.write_creased(cage, "crease", list(zip(row[:-1], row[1:])))
+        a, b = tsm_model(path), tsm_model(path, t_spline=True)
+        self.assertEqual((a.kind, b.kind), ("catmull-clark", "t-spline"))
+        scale = size_of(a)
+        f, s, t = face_grid(np.arange(len(cage.mesh.faces)))
+        pa, pb = a.evaluate_faces(f, s, t), b.evaluate_faces(f, s, t)
+        self.assertLess(np.abs(pa.P - pb.P).max(), 1e-12 * scale)
+        self.assertLess(max(np.abs(pa.Pu - pb.Pu).max(), np.abs(pa.Pv - pb.Pv).max()), 1e-10 * scale)
+        up = [at[(N, j)] for j in range(N, 2 * N + 1)]
+        with self.assertRaises(InputError) as cm:
+            tsm_model(self.write_creased(cage, "to_star", list(zip(up[:-1], up[1:]))), t_spline=True)
+        self.assertIsNotNone(cm.exception.line)
 
     def test_t_junctions_beyond_the_rings(self):
         """T-junctions and other knot intervals outside the star's five rings: the kernel; on

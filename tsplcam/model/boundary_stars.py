@@ -26,8 +26,10 @@ knot interval, no T-junctions and no other irregular vertex, that limit is the r
   star itself.
 
 What is not yet taken is refused by name: boundary stars of six or more faces, boundary
-stars whose rings have T-junctions, other knot intervals, other irregular vertices, or
-creases in the file, and bodies so small that a left-out face has a corner on no other face.
+stars whose rings have T-junctions, other knot intervals or other irregular vertices, and
+bodies so small that a left-out face has a corner on no other face. Creases are cut first
+(``tsm_fusion.cut_along_creases``): within the rings they are boundaries of the local cage,
+OpenSubdiv's infinitely sharp crease.
 Model faces: the kernel's T-mesh faces, then the left-out ones (``model.notch_faces``: T-mesh
 face of the file -> model face).
 """

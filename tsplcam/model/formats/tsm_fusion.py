@@ -249,10 +249,10 @@ def clamped_boundary(r, old, G0, origin, stars=()):
     return pos, np.array(rows), lines, names
 
 
-def boundary_stars(r, old, origin, creases: bool) -> dict:
-    """Boundary star points of the T-mesh (boundary vertices with three to five faces) ->
-    their rings of faces (``boundary_stars.check_neighbourhood``); more faces, and boundary
-    stars on a T-mesh with creases, are refused with their line."""
+def boundary_stars(r, old, origin) -> dict:
+    """Boundary star points of the T-mesh (boundary vertices with three to five faces; on a
+    T-mesh cut along its creases) -> their rings of faces
+    (``boundary_stars.check_neighbourhood``); more faces are refused with their line."""
     from ..boundary_stars import MOST_FACES, check_neighbourhood
     topo = old.topology
     out = {}
@@ -267,8 +267,6 @@ def boundary_stars(r, old, origin, creases: bool) -> dict:
             refuse(f"{int(topo.total[k])} faces there; the T-spline kernel takes boundary star points of "
                    f"three to {MOST_FACES} faces (more are read on uniform T-meshes without T-junctions, by "
                    f"the Catmull-Clark path)")
-        if creases:
-            refuse("with creases in the file the T-spline kernel does not take boundary star points")
         out[k] = check_neighbourhood(old, k, refuse)[0]
     return out
 
@@ -426,7 +424,7 @@ def fusion_model(r, t_spline: bool = False):
         origin = list(range(old.n_vertices))
         if creases:
             old, origin = cut_along_creases(r, old, creases)
-        bstars = boundary_stars(r, old, origin, bool(creases))
+        bstars = boundary_stars(r, old, origin)
         kernel, kernel_face = old, np.arange(len(old.faces))
         if bstars:
             from ..boundary_stars import attach, notch, star_points, without_faces

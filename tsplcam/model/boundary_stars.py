@@ -15,8 +15,8 @@ knot interval, no T-junctions and no other irregular vertex, that limit is the r
   left-out faces' corners become convex and concave corners of the kernel's boundary,
   clamped alike, so that its patches end on their sides.
 * The kernel's functions that see the star or the notches reach only ``zone_rings`` rings
-  of faces (measured on uniform stars: 2 at three faces, 3 at four, 4 at five, where both
-  notches' clamping reaches one ring further); beyond, the kernel is the same uniform
+  of faces (measured on uniform stars: 2 at three faces, 3 at four, 4 at five, where the
+  two notches' sides overlap in knot space); beyond, the kernel is the same uniform
   B-spline as the limit (the functions there use only the knots on their own side).
 * The cells of the zone's faces are replaced (``CageCells``) by the limit of a local cage
   of two rings more, which is exact there (a face's limit depends on its one-ring and their
@@ -51,8 +51,10 @@ UNIFORM_TOL = 1e-9
 def zone_rings(faces: int) -> int:
     """Rings of faces around a boundary star of ``faces`` faces replaced by its local cage:
     as far as the kernel's surface differs from the limit without it (measured on uniform
-    stars: two rings at three faces, three at four, four at five, where both end faces are
-    left out and the notches' clamping reaches a ring further)."""
+    stars: two rings at three faces, three at four, four at five). At five faces both end
+    faces are left out: in the kernel's knot space the faces beyond them then lie in the
+    same quadrant behind the star (its clamped corner has no size), and functions whose
+    boxes reach across it are found on the other side too, one ring further out."""
     return {3: ZONE, 4: ZONE + 1, 5: ZONE + 2}[faces]
 
 

@@ -288,13 +288,15 @@ def star_normals(model):
 
 class BookStars(TempFiles):
     def test_four_and_five_faces_are_the_cage_limit(self):
-        """Boundary stars of four and five faces on uniform books through the kernel: the
-        cage path's surface on every face (measured at most 1.8e-16 of the size in position,
-        1.6e-13 in first derivatives, at the star), the end faces' own patches linked on
+        """Boundary stars of four and five faces on uniform books through the kernel, unit and
+        rational weights: the cage path's surface on every face (measured at most 2.2e-16 of
+        the size in position, 1.6e-13 in first derivatives, at the star), the end faces' own patches linked on
         their three inner sides, patches meeting within 1e-12 of the size with one normal
         (measured 9e-17, sine of the angle 2.1e-15)."""
-        for T in (4, 5):
+        for T, weighted in ((4, False), (5, False), (4, True), (5, True)):
             cage, S, _ = book(T)
+            if weighted:
+                cage = Cage(cage.mesh, cage.points, 1.0 + 0.3 * np.cos(np.arange(len(cage.points))))
             path = self.write(cage, f"book{T}")
             a, b = tsm_model(path), tsm_model(path, t_spline=True)
             self.assertEqual((a.kind, b.kind), ("catmull-clark", "t-spline"))

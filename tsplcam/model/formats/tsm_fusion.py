@@ -28,7 +28,11 @@ rule on uniform knots). A crease there is knot multiplicity three on its line: t
 T-mesh is cut along the crease (``cut_along_creases``), each side clamped like a boundary,
 and the patches on the two sides linked again (``join_across_creases``); on uniform knots
 this is OpenSubdiv's infinitely sharp crease. Creases that end inside the surface and
-sharp vertices are refused there with their line.
+sharp vertices are refused there with their line. A boundary vertex of three to five faces
+(a star point on the boundary for Catmull-Clark) whose rings of faces are uniform and free
+of T-junctions is clamped as a concave corner (its end faces left out at four and five),
+and the faces within two to four rings of it are the Catmull-Clark limit of a local cage
+(``boundary_stars.py``); other boundary stars are refused with their line.
 """
 from __future__ import annotations
 
@@ -39,6 +43,7 @@ import numpy as np
 from ...inputfile import naming
 from ..components import components
 from ..quadmesh import INFINITE
+from .tsm import PATTERNS
 
 #: relative spread of knot intervals still read as uniform
 UNIFORM_TOL = 1e-9
@@ -192,12 +197,14 @@ def _alpha(r, old, k, w, origin):
     return a / (2 * a + b)
 
 
-def clamped_boundary(r, old, G0, origin):
+def clamped_boundary(r, old, G0, origin, stars=()):
     """Ring-view grips (``tsm._Reader.build``) of a Fusion T-mesh with open boundaries, for
     the T-spline kernel's clamped boundary: every boundary grip stays on the boundary ring
     (zero knot interval outside) and the file vertex takes the second grip of the clamped
     B-spline, per direction that meets the boundary (straight vertices one, convex corners
-    two and their product). Concave corners and boundary stars are refused."""
+    two and their product). Boundary stars in ``stars`` (three faces) are clamped as a
+    concave corner with every grip the star's own (``boundary_stars``: the kernel's surface
+    there is replaced); other concave corners and boundary stars are refused."""
     topo = old.topology
     H = np.column_stack([G0[:, :3] * G0[:, 3:], G0[:, 3]])
     rows, lines, names, pos = [], [], [], {}
@@ -232,12 +239,36 @@ def clamped_boundary(r, old, G0, origin):
                       (0, -1): add(C + ax * (X - C), k, "clamped"),
                       (-1, 0): add(C + ay * (Y - C), k, "clamped"),
                       (0, 0): add(C + ax * (X - C) + ay * (Y - C) + ax * ay * (XY - X - Y + C), k, "clamped")}
+        elif k in stars and T == 3:
+            pos[k] = {p: add(H[k], k, "star") for p in sorted(PATTERNS[3])}
         else:
             what = "a concave corner" if T == 3 else "a T-junction" if T == 2 else "a star point"
             v, line = _file_vertex(r, origin, k)
             raise r.err(f"open boundary or crease at vertex {v}, {what}: not supported by the T-spline "
                         f"kernel's clamped boundary", line)
     return pos, np.array(rows), lines, names
+
+
+def boundary_stars(r, old, origin) -> dict:
+    """Boundary star points of the T-mesh (boundary vertices with three to five faces; on a
+    T-mesh cut along its creases) -> their rings of faces
+    (``boundary_stars.check_neighbourhood``); more faces are refused with their line."""
+    from ..boundary_stars import MOST_FACES, check_neighbourhood
+    topo = old.topology
+    out = {}
+    for k in range(old.n_vertices):
+        if not topo.boundary[k] or int(topo.total[k]) < 3:
+            continue
+        v, line = _file_vertex(r, origin, k)
+
+        def refuse(message, v=v, line=line):
+            raise r.err(f"open boundary at vertex {v}, a star point on the boundary: {message}", line)
+        if int(topo.total[k]) > MOST_FACES:
+            refuse(f"{int(topo.total[k])} faces there; the T-spline kernel takes boundary star points of "
+                   f"three to {MOST_FACES} faces (more are read on uniform T-meshes without T-junctions, by "
+                   f"the Catmull-Clark path)")
+        out[k] = check_neighbourhood(old, k, refuse)[0]
+    return out
 
 
 def cut_along_creases(r, old, creases: dict):
@@ -393,12 +424,39 @@ def fusion_model(r, t_spline: bool = False):
         origin = list(range(old.n_vertices))
         if creases:
             old, origin = cut_along_creases(r, old, creases)
-        pos, rows, lines, names = clamped_boundary(r, old, G[origin], origin)
-        mesh = r.build(old, pos, rows, lines, names, origin if creases else None)
+        bstars = boundary_stars(r, old, origin)
+        kernel, kernel_face = old, np.arange(len(old.faces))
+        if bstars:
+            from ..boundary_stars import attach, notch, star_points, without_faces
+            drop = [f for k in bstars for f in notch(old, k)]
+            kept = {int(w) for f in range(len(old.faces)) if f not in drop for w in old.faces[f]}
+            for k in bstars:
+                lone = [int(w) for f in notch(old, k) for w in old.faces[f] if int(w) not in kept]
+                if lone:
+                    v, line = _file_vertex(r, origin, k)
+                    raise r.err(f"open boundary at vertex {v}, a star point on the boundary of "
+                                f"{len(old.topology.fan[k])} faces: the T-spline kernel leaves its end faces "
+                                f"out (evaluated from a local cage), which needs their corners on other "
+                                f"faces too; vertex {_file_vertex(r, origin, lone[0])[0]} has no other face",
+                                line)
+            if drop:
+                kernel, kernel_face = without_faces(old, drop)
+        # the stars and the notches' concave corners: clamped with every grip their own (the
+        # kernel's surface within their reach is replaced)
+        concave = {k for k in range(kernel.n_vertices) if kernel.topology.boundary[k]
+                   and int(kernel.topology.total[k]) == 3} if bstars else set()
+        pos, rows, lines, names = clamped_boundary(r, kernel, G[origin], origin, concave)
+        mesh = r.build(kernel, pos, rows, lines, names, origin if creases else None)
         with naming(r.path):
             model = tspline_model(mesh, name=name)
-        if creases:
+            if bstars:
+                added, limits = attach(model, old, kernel_face, bstars, G[origin], r.scale)
+                if added:
+                    model.notch_faces = added
+        if creases or (bstars and added):
             join_across_creases(model)
+        if bstars:
+            star_points(model, limits)
         surface = ("T-spline (T-junctions or non-uniform knot intervals; T-NURCC rule at star points; "
                    "open boundaries clamped with the second grip row of the edge-and-corner rule)")
     model.tsm = TsmInfo.of(r, surface, len(creases), len(sharp))

@@ -1,0 +1,289 @@
+"""Star points on an open boundary, for the T-spline kernel: the faces around them from
+the Catmull-Clark limit of a local cage (OpenSubdiv's edge-and-corner rule), the rest from
+the kernel.
+
+A boundary vertex with three to five faces is an extraordinary boundary vertex of
+Catmull-Clark under the edge-and-corner rule (valence 4 to 6): the boundary curve runs
+smoothly through it and the surface there is the limit of subdivision, which no tensor
+B-spline gives. Where the star's neighbourhood (``need_rings`` rings of faces) has one
+knot interval, no T-junctions and no other irregular vertex, that limit is the reference
+(``cage.cage_model``):
+
+* The kernel builds the T-mesh with the star clamped as a concave corner (``tsm.PATTERNS[3]``,
+  every grip there the star's own). With four or five faces the star's first and (five)
+  last face are left out of the kernel's T-mesh first (``notch``), so that three remain; the
+  left-out faces' corners become convex and concave corners of the kernel's boundary,
+  clamped alike, so that its patches end on their sides.
+* The kernel's functions that see the star or the notches reach only ``zone_rings`` rings
+  of faces (measured on uniform stars: 2 at three faces, 3 at four, 4 at five, where the
+  two notches' sides overlap in knot space); beyond, the kernel is the same uniform
+  B-spline as the limit (the functions there use only the knots on their own side).
+* The cells of the zone's faces are replaced (``CageCells``) by the limit of a local cage
+  of two rings more, which is exact there (a face's limit depends on its one-ring and their
+  vertices' rules only); each left-out face is a patch of its own on the local cage, linked
+  to the kernel's patches along its inner sides (``tsm_fusion.join_across_creases``). Zone
+  and kernel meet along a line on which both are the same B-spline: C2 there, G1 at the
+  star itself.
+
+What is not yet taken is refused by name: boundary stars of six or more faces, boundary
+stars whose rings have T-junctions, other knot intervals or other irregular vertices, and
+bodies so small that a left-out face has a corner on no other face. Creases are cut first
+(``tsm_fusion.cut_along_creases``): within the rings they are boundaries of the local cage,
+OpenSubdiv's infinitely sharp crease.
+Model faces: the kernel's T-mesh faces, then the left-out ones (``model.notch_faces``: T-mesh
+face of the file -> model face).
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from .cells import _chain
+
+#: rings of faces around a boundary star of three faces evaluated from its local cage; four
+#: or five faces (valence 5 and 6: the kernel is cut one ring nearer, see ``notch``) one more
+ZONE = 2
+#: the most faces a boundary star may have
+MOST_FACES = 5
+#: relative spread of knot intervals still read as uniform
+UNIFORM_TOL = 1e-9
+
+
+def zone_rings(faces: int) -> int:
+    """Rings of faces around a boundary star of ``faces`` faces replaced by its local cage:
+    as far as the kernel's surface differs from the limit without it (measured on uniform
+    stars: two rings at three faces, three at four, four at five). At five faces both end
+    faces are left out: in the kernel's knot space the faces beyond them then lie in the
+    same quadrant behind the star (its clamped corner has no size), and functions whose
+    boxes reach across it are found on the other side too, one ring further out."""
+    return {3: ZONE, 4: ZONE + 1, 5: ZONE + 2}[faces]
+
+
+def need_rings(faces: int) -> int:
+    """Rings that must be uniform and free of T-junctions and irregular vertices: the zone,
+    one ring more for the zone's own limit (its local cage has two more), and two for the
+    kernel's knot vectors that reach across the zone's edge."""
+    return zone_rings(faces) + 3
+
+
+def notch(mesh, v: int) -> list[int]:
+    """The faces at boundary star v left out of the kernel's T-mesh so that v keeps three
+    faces (a concave corner the kernel clamps): none for three faces, the first for four,
+    the first and the last for five. Their outer corners become convex and concave corners
+    of the kernel's boundary, so that its patches end on their sides."""
+    fan = [f for f, _ in mesh.topology.fan[v]]
+    return {3: [], 4: [fan[0]], 5: [fan[0], fan[-1]]}[len(fan)]
+
+
+def without_faces(mesh, drop):
+    """The T-mesh ``mesh`` without the faces ``drop`` (same vertices; every vertex must keep
+    a face), and the new index of every face (-1 for the dropped ones)."""
+    from .tmesh import TMesh
+    keep = [f for f in range(len(mesh.faces)) if f not in set(drop)]
+    index = np.full(len(mesh.faces), -1)
+    index[keep] = np.arange(len(keep))
+    pick = lambda xs: None if xs is None else [xs[f] for f in keep]      # noqa: E731
+    out = TMesh(np.zeros((mesh.n_vertices, 3)), None, [list(mesh.faces[f]) for f in keep],
+                [list(mesh.corners[f]) for f in keep], [list(mesh.intervals[f]) for f in keep],
+                source=mesh.source, face_lines=pick(mesh.face_lines), vertex_lines=mesh.vertex_lines,
+                vertex_labels=mesh.vertex_labels, face_labels=pick(mesh.face_labels))
+    out.validate()
+    return out, index
+
+
+def rings(mesh, v: int, n: int) -> list[list[int]]:
+    """The faces of T-mesh ``mesh`` within ``n`` rings of vertex v, ring by ring: ring 1 the
+    faces at v, ring k + 1 the faces sharing a vertex with rings 1 .. k."""
+    at = {}
+    for f, loop in enumerate(mesh.faces):
+        for w in loop:
+            at.setdefault(int(w), set()).add(f)
+    seen = set(at.get(v, ()))
+    out = [sorted(seen)]
+    for _ in range(n - 1):
+        new = {g for f in out[-1] for w in mesh.faces[f] for g in at[int(w)]} - seen
+        seen |= new
+        out.append(sorted(new))
+    return out
+
+
+def check_neighbourhood(mesh, v: int, refuse) -> tuple[list[list[int]], float]:
+    """The ``need_rings`` rings of faces around boundary star v and their common knot interval;
+    ``refuse(message)`` raises the reader's error for anything the construction needs
+    otherwise (T-junctions, other intervals, other irregular vertices)."""
+    topo = mesh.topology
+    n = need_rings(len(topo.fan[v]))
+    rs = rings(mesh, v, n)
+    faces = [f for r in rs for f in r]
+    d = np.concatenate([np.asarray(mesh.intervals[f], float) for f in faces])
+    need = (f"a boundary star point of {len(topo.fan[v])} faces needs its {n} rings of faces free of "
+            f"T-junctions, other star points and concave corners, with one knot interval")
+    for f in faces:
+        if len(mesh.faces[f]) != 4:
+            refuse(f"{need}: {mesh.face_name(f)} has a T-junction")
+    top = float(d.max())
+    if not top > 0.0 or float(d.min()) < top * (1.0 - UNIFORM_TOL):
+        refuse(f"{need}: its knot intervals run from {float(d.min()):g} to {top:g}")
+    for w in sorted({int(x) for f in faces for x in mesh.faces[f]} - {v}):
+        T, nf = int(topo.total[w]), len(topo.fan[w])
+        if (T not in (1, 2) if topo.boundary[w] else T != 4) or nf != T:
+            refuse(f"{need}: {mesh.vertex_name(w)} is not a regular vertex ({T} quarter turns)")
+    return rs, top
+
+
+class CageCells:
+    """Cells of a kernel patch evaluated on a local Catmull-Clark cage: per cell, the cage
+    face, and the linear map from the cell's (a, b) to that face's (s, t): (s, t) = A (a, b)
+    + o. At ``star`` (the face's corner at the star, (s, t) in {0, 1}^2, or None) the
+    limit normal is passed on."""
+
+    kind = "cage"
+
+    def __init__(self, model, face: list, A: list, o: list, star: list):
+        self.model = model
+        self.face = np.asarray(face, int)
+        self.A = np.asarray(A, float).reshape(-1, 2, 2)
+        self.o = np.asarray(o, float).reshape(-1, 2)
+        self.star = [None if c is None else np.asarray(c, float) for c in star]
+        # the star's (s, t) per cell, NaN where the star is not a corner of the cell's face
+        self._star = np.array([(np.nan, np.nan) if c is None else c for c in self.star], float).reshape(-1, 2)
+
+    def __len__(self) -> int:
+        return len(self.face)
+
+    def evaluate(self, idx: np.ndarray, a: np.ndarray, b: np.ndarray):
+        A, o = self.A[idx], self.o[idx]
+        s = np.clip(A[:, 0, 0] * a + A[:, 0, 1] * b + o[:, 0], 0.0, 1.0)
+        t = np.clip(A[:, 1, 0] * a + A[:, 1, 1] * b + o[:, 1], 0.0, 1.0)
+        # at the star itself (to the rounding of the cell-to-face map): exactly there, where
+        # the limit normal is known
+        c = self._star[idx]
+        at = (np.abs(s - c[:, 0]) <= 1e-13) & (np.abs(t - c[:, 1]) <= 1e-13)
+        s = np.where(at, c[:, 0], s)
+        t = np.where(at, c[:, 1], t)
+        sp = self.model.evaluate_faces(self.face[idx], s, t)
+        Hst = np.zeros((6, 4, len(idx)))
+        for k, arr in enumerate((sp.P, sp.Pu, sp.Pv, sp.Puu, sp.Puv, sp.Pvv)):
+            Hst[k, :3] = arr.T
+        Hst[0, 3] = 1.0
+        H = _chain(Hst, A)
+        return H, at, (np.asarray(sp.normal) if at.any() else None)
+
+
+def override(model, zone: dict, local, star_corner: dict) -> None:
+    """Replace the cells of the kernel ``model``'s faces in ``zone`` (T-mesh face -> local
+    cage face) by the local cage model ``local`` (faces in the same (s, t) frame);
+    ``star_corner[f]``: the (s, t) of the star in face f, if it is a corner of it. Corner
+    nodes are evaluated again."""
+    from .patch import CORNER_UV
+    from .twalk import rot
+    by_patch = {}
+    for f, lf in zone.items():
+        W, H = model.face_size[f]
+        for p, (x0, x1, y0, y1), (q, tx, ty), (PW, PH) in model.face_pieces[f]:
+            by_patch.setdefault(p, []).append((f, lf, W, H, (x0, x1, y0, y1), (q, tx, ty), (PW, PH)))
+    for p, items in by_patch.items():
+        patch = model.patches[p]
+        ub, vb = patch.ubreaks, patch.vbreaks
+        g = len(patch.groups)
+        face, As, os_, star = [], [], [], []
+        group = patch.cell_group.copy()
+        local_ = patch.cell_local.copy()
+        for f, lf, W, H, (x0, x1, y0, y1), (q, tx, ty), (PW, PH) in items:
+            # the piece's rectangle in the patch's (u, v)
+            cx, cy = rot(q, np.array([x0, x1, x1, x0]), np.array([y0, y0, y1, y1]))
+            u = (np.asarray(cx) + tx) / PW
+            v = (np.asarray(cy) + ty) / PH
+            tol = 1e-9
+            cols = np.nonzero((ub[:-1] >= u.min() - tol) & (ub[1:] <= u.max() + tol))[0]
+            rws = np.nonzero((vb[:-1] >= v.min() - tol) & (vb[1:] <= v.max() + tol))[0]
+            # patch (u, v) -> face (x, y): rotate back by -q
+            for i in cols:
+                for j in rws:
+                    du, dv = ub[i + 1] - ub[i], vb[j + 1] - vb[j]
+                    # (px, py) = (u PW - tx, v PH - ty); (x, y) = rot(-q, px, py); (s, t) = (x / W, y / H)
+                    def st(uu, vv):
+                        x, y = rot(-q % 4, uu * PW - tx, vv * PH - ty)
+                        return np.array([x / W, y / H])
+                    o = st(ub[i], vb[j])
+                    Acol = np.column_stack([st(ub[i + 1], vb[j]) - o, st(ub[i], vb[j + 1]) - o])
+                    local_[i, j] = len(face)
+                    group[i, j] = g
+                    face.append(lf)
+                    As.append(Acol)
+                    os_.append(o)
+                    star.append(star_corner.get(f))
+        patch.groups.append(CageCells(local, face, As, os_, star))
+        patch.cell_group = group
+        patch.cell_local = local_
+    for patch in model.patches:
+        model.node_points[patch.corner_nodes] = patch.evaluate(CORNER_UV[:, 0], CORNER_UV[:, 1]).P
+
+
+def attach(model, old, kernel_face, stars: dict, G: np.ndarray, scale: float) -> dict:
+    """Boundary stars into the kernel ``model`` of T-mesh ``old`` (built without the notch
+    faces: ``kernel_face[f]`` is old face f's index in the model, -1 if left out): per star
+    (``stars[v]`` = its rings of faces), a local cage of ``zone_rings + 2`` rings (points
+    ``G`` (x, y, z, w) in file units, times ``scale``), whose limit replaces the kernel on the
+    zone's faces and makes one patch of each notch face (corner nodes of their own: the
+    caller links them, ``tsm_fusion.join_across_creases``). Returns old face -> model face
+    for the notch faces (numbered after the model's T-mesh faces), and per star (faces,
+    limit point) for ``star_points``."""
+    from .cage import Cage, cage_model
+    from .patch import CORNER_UV, Patch
+    from .quadmesh import QuadMesh
+    added, limits = {}, {}
+    for v, rs in stars.items():
+        T = len(old.topology.fan[v])
+        z = zone_rings(T)
+        faces = [f for r_ in rs[:z + 2] for f in r_]
+        verts = sorted({int(w) for f in faces for w in old.faces[f]})
+        new = {w: i for i, w in enumerate(verts)}
+        loops = np.array([[new[int(w)] for w in old.faces[f]] for f in faces])
+        cage = Cage(QuadMesh(loops, len(verts), "edge-and-corner", old.source),
+                    G[verts, :3] * scale, G[verts, 3], {"interpolateboundary": "edge-and-corner"})
+        local = cage_model(cage, "boundary star")
+        inner = sum(len(r_) for r_ in rs[:z])
+        zone, corner = {}, {}
+        for i, f in enumerate(faces[:inner]):
+            loop = [int(w) for w in old.faces[f]]
+            if loop[int(old.corners[f][0])] != loop[0]:
+                raise AssertionError("face frames")
+            at = CORNER_UV[loop.index(v)] if v in loop else None
+            k = int(kernel_face[f])
+            if k >= 0:
+                zone[k] = i
+                if at is not None:
+                    corner[k] = at
+                continue
+            # a notch face: one patch, one cell, the face's own (s, t)
+            d = float(np.asarray(old.intervals[f], float).max())
+            p = len(model.patches)
+            patch = Patch(p, [0.0, 1.0], [0.0, 1.0], np.zeros((1, 1), int), np.zeros((1, 1), int),
+                          [CageCells(local, [i], [np.eye(2)], [np.zeros(2)], [at])], knot_size=(d, d))
+            n0 = len(model.node_points)
+            patch.corner_nodes = np.arange(n0, n0 + 4)
+            model.node_points = np.vstack([model.node_points, patch.evaluate(CORNER_UV[:, 0], CORNER_UV[:, 1]).P])
+            model.node_keys.extend(("notch", f, c) for c in range(4))
+            model.patches.append(patch)
+            added[f] = len(model.face_pieces)
+            model.face_pieces.append([(p, (0.0, d, 0.0, d), (0, 0.0, 0.0), (d, d))])
+            model.face_size.append((d, d))
+        override(model, zone, local, corner)
+        f = next(f for f in faces if v in [int(w) for w in old.faces[f]])
+        at = CORNER_UV[[int(w) for w in old.faces[f]].index(v)]
+        limits[v] = (T, local.evaluate_faces([faces.index(f)], [at[0]], [at[1]]).P[0])
+    return added, limits
+
+
+def star_points(model, limits: dict) -> None:
+    """Each boundary star as the model's extraordinary point (boundary, valence its number of
+    faces), at the node at its limit point (``limits[v]`` = (faces, point); the kernel's
+    patch lines start on the star's clamped ring, not at the vertex)."""
+    from .model import ExtraordinaryPoint
+    pts = model.node_points
+    size = max(float(np.ptp(pts, axis=0).max()), 1e-300)
+    for v, (faces, at) in limits.items():
+        gap = np.linalg.norm(pts - at, axis=1)
+        n = int(np.argmin(gap))
+        if gap[n] <= 1e-9 * size:
+            model.extraordinary.append(ExtraordinaryPoint(n, faces, pts[n], True))

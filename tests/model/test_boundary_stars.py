@@ -185,6 +185,11 @@ class BoundaryStars(TempFiles):
         f, s, t = face_grid(np.arange(len(mesh.faces)), 4)
         gap = moved.evaluate_faces(f, s, t).P - model.evaluate_faces(f, s, t).P - shift
         self.assertLess(np.abs(gap).max(), 1e-12 * scale)
+        # the T-mesh the model keeps is not the surface next to the star: no native file of it
+        from tsplcam.model.formats.native import dumps
+        with self.assertRaises(InputError) as cm:
+            dumps(model)
+        self.assertIn("boundary star", str(cm.exception))
 
     def test_refusals_name_the_line(self):
         """A T-junction within the star's five rings, OpenSubdiv's boundary shapes of four and

@@ -39,6 +39,8 @@ def dumps(control, name: str | None = None) -> str:
     from ..cage import Cage
     from ..tmesh import TMesh
     if hasattr(control, "patches"):                   # a Model
+        if getattr(control, "no_native", None):
+            raise InputError(f"cannot write a native model of {control.no_native}")
         own = getattr(control, "name", None)
         if own and own != os.path.basename(getattr(control, "source", None) or ""):
             name = name or own                        # not just the file name it was read from

@@ -457,6 +457,10 @@ def fusion_model(r, t_spline: bool = False):
             join_across_creases(model)
         if bstars:
             star_points(model, limits)
+            # the kernel's T-mesh is not this surface near the stars (their faces come from
+            # local cages): it has no native file
+            model.no_native = (f"{name}: its boundary star points are evaluated from local "
+                               f"Catmull-Clark cages, which the T-mesh it keeps does not describe")
         surface = ("T-spline (T-junctions or non-uniform knot intervals; T-NURCC rule at star points; "
                    "open boundaries clamped with the second grip row of the edge-and-corner rule)")
     model.tsm = TsmInfo.of(r, surface, len(creases), len(sharp))

@@ -1,7 +1,8 @@
 """map_pieces' ``while_waiting``: other work for the main process while forked workers make
 the pieces, run once after they are started and only when there are workers; pieces asked
 for meanwhile stay in the main process; the pieces are the same; and the job's collision
-checker built that way (``CheckerAhead``) is the one the orientation stage would build."""
+checker built that way (``CheckerAhead``) is the one the orientation stage would build, its
+error kept for the orientation stage to raise."""
 import os
 import unittest
 from unittest import mock
@@ -107,3 +108,23 @@ class CheckerAheadOfTheOrientation(unittest.TestCase):
 
 if __name__ == "__main__":
     unittest.main()
+
+
+class CheckerAheadError(unittest.TestCase):
+    def test_an_error_is_kept_and_raised_where_the_checker_is_built(self):
+        """A stock the checker refuses: the build while waiting keeps the error (the path's own
+        errors come first), the orientation stage builds again and raises it, naming the mesh."""
+        from tsplcam.errors import InputError
+        from tsplcam.program import CheckerAhead, collision_checker, load_model, load_tool
+        from tsplcam.settings import JobSettings
+        s = JobSettings()
+        model, tool = load_model(s.model), load_tool(s)
+        stock = (np.zeros((3, 3)), np.array([[0, 1, 3]]))          # vertex 3 does not exist
+        ahead = CheckerAhead(model, tool, stock, s.holder_clearance)
+        ahead()
+        self.assertIsNone(ahead.checker)
+        self.assertIsInstance(ahead.error, InputError)
+        with self.assertRaises(InputError) as again:
+            collision_checker(model, tool, stock, s.holder_clearance)
+        self.assertEqual(str(again.exception), str(ahead.error))
+        self.assertIn("stock", str(ahead.error))

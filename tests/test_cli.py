@@ -250,10 +250,13 @@ class Determinism(unittest.TestCase):
             "ball1_keycap", "--orientation", "closest-z", "--machine", "bc_head_table_sinumerik", "--gcode",
             "out/k.mpf", "--cl", "out/k.cl", "--json", "out/k.json"]
 
-    def run_in(self, cwd, argv, seed):
-        """The same command line (the same relative file names) in its own folder."""
+    def run_in(self, cwd, argv, seed, workers=None):
+        """The same command line (the same relative file names) in its own folder
+        (``workers``: TSPLCAM_WORKERS, when given)."""
         env = system_python_env()
         env["PYTHONHASHSEED"] = str(seed)
+        if workers is not None:
+            env["TSPLCAM_WORKERS"] = str(workers)
         os.makedirs(os.path.join(cwd, "out"))
         return subprocess.run([SYSTEM_PYTHON, "-m", "tsplcam", *argv], cwd=cwd, env=env, capture_output=True,
                               text=True, timeout=600)
@@ -298,6 +301,22 @@ class Determinism(unittest.TestCase):
                 shutil.rmtree(keep, ignore_errors=True)
                 shutil.copytree(tmp, keep)
                 raise
+
+    def test_job_bytes_do_not_depend_on_the_workers(self):
+        """Two path workers (the collision checker then built beside them, in the main process)
+        or one process (built by the orientation stage): the same files."""
+        argv = self.JOB + ["--no-html-report"]
+        with tempfile.TemporaryDirectory() as tmp:
+            runs = [(os.path.join(tmp, f"w{workers}"), argv, 0, workers) for workers in (1, 2)]
+            results = [self.run_in(*r) for r in runs]
+            for r in results:
+                self.assertEqual(r.returncode, 0, r.stderr)
+            self.assertNotIn("built meanwhile", results[0].stdout)
+            self.assertIn("collision checker built meanwhile", results[1].stdout)
+            one, two = (os.path.join(cwd, "out") for cwd, _, _, _ in runs)
+            self.assert_same_files(one, two, ["keycap.cl", "keycap.ngc", "processing-list.json", "report.json"],
+                                   "report.json")
+
 
 class FusionSampleJob(unittest.TestCase):
     def test_fusion_tsm_job_end_to_end(self):

@@ -19,8 +19,8 @@ from .errors import InputError
 from .numerics import one_blas_thread
 from .settings import PATH_KEYS, JobSettings
 
-__all__ = ["Program", "load_model", "load_stock", "load_tool", "make_baseline", "make_path", "make_program",
-           "processing_list", "program_file_name", "tool_radius"]
+__all__ = ["CheckerAhead", "Program", "checker_ahead", "load_model", "load_stock", "load_tool", "make_baseline",
+           "make_path", "make_program", "processing_list", "program_file_name", "tool_radius"]
 
 
 @contextlib.contextmanager
@@ -98,15 +98,84 @@ def load_stock(settings: JobSettings):
     return sample_stock(settings.model)
 
 
-def make_path(model, plist, settings: JobSettings, radius: float | None = None, progress=None):
+def make_path(model, plist, settings: JobSettings, radius: float | None = None, progress=None,
+              while_waiting=None):
     """The finishing path (ToolPath) of ``model`` in the order of ``plist``: one zigzag per
     patch, linked at shared corners, tool axes along the surface normals. ``progress``: a
-    tsplcam.progress callback (stage "path")."""
+    tsplcam.progress callback (stage "path"); ``while_waiting``: work for this process
+    while worker processes make the path's points (e.g. a :class:`CheckerAhead`; called only
+    when there are workers, see :func:`tsplcam.toolpath.parallel.map_pieces`)."""
     one_blas_thread()
     from .toolpath import zigzag_path
     radius = tool_radius(settings) if radius is None else radius
     options = _path_options(settings, radius)
-    return zigzag_path(model, plist, radius, progress=progress, **options)
+    return zigzag_path(model, plist, radius, progress=progress, while_waiting=while_waiting, **options)
+
+
+class CheckerAhead:
+    """The orientation stage's collision checker, built ahead: called as ``while_waiting``
+    of :func:`make_path`, it builds the checker (the part's tessellation, the stock, the
+    broad phase's distance grids) and loads numba's machinery while the path's workers make
+    the points, in the main process that would otherwise only wait for them.
+
+    ``checker``: the CollisionChecker once built (None when not called: one process, or
+    failed); its time then counts in the path stage's seconds, not the orientation's
+    (``seconds``: how long the build took). An error of the build is kept, not raised: the
+    orientation stage builds the checker again and raises it there, after the path's own
+    errors, as without this."""
+
+    def __init__(self, model, tool, stock, clearance: float):
+        self.model, self.tool, self.stock, self.clearance = model, tool, stock, float(clearance)
+        self.checker = None
+        self.seconds = 0.0
+        self.error = None
+
+    def __call__(self) -> None:
+        t = time.perf_counter()
+        try:
+            self.checker = collision_checker(self.model, self.tool, self.stock, self.clearance)
+        except Exception as exc:                  # raised again where the checker is built
+            self.error = exc
+        else:
+            with contextlib.suppress(Exception):  # the orientation meets its own error, if any
+                _load_numba()
+        self.seconds = time.perf_counter() - t
+
+
+def checker_ahead(model, settings: JobSettings, tool, stock) -> CheckerAhead | None:
+    """A :class:`CheckerAhead` for the job of ``settings`` (None when the job orients no
+    tool axes or names no tool: nothing to build)."""
+    if settings.orientation == "normal" or tool is None:
+        return None
+    return CheckerAhead(model, tool, stock, settings.holder_clearance)
+
+
+def collision_checker(model, tool, stock, clearance: float):
+    """The orientation's CollisionChecker: ``model``'s patches and ``stock`` ((V, T) or
+    None) against ``tool``, with the holder ``clearance`` (mm)."""
+    from .orientation import CollisionChecker
+    meshes = [] if stock is None else [("stock", stock[0], stock[1])]
+    return CollisionChecker(model, tool, meshes=meshes, clearance=clearance)
+
+
+def _load_numba() -> None:
+    """Import numba and load its compiler's machinery through a throwaway set of the
+    orientation's kernels (their first call of a process costs about 0.1 s more than the
+    next kernel's). The kernels the orientation uses are not touched: whether it runs them
+    or numpy stays its own choice (:func:`tsplcam.orientation.compiled.kernels`), so the
+    program is the same bytes."""
+    if os.environ.get("TSPLCAM_COMPILED", "1") == "0":
+        return
+    try:
+        import numba  # noqa: F401
+    except ImportError:
+        return
+    import numpy as np
+
+    from .orientation import compiled
+    spare = compiled._build()
+    if spare is not None:             # the types warm() and the job use: loaded from the cache
+        spare["banded_solve"](np.array([[0.0, 0.0, 1.0], [0.0, 1.0, 1.0], [2.0, 2.0, 2.0]]), np.ones(3))
 
 
 def make_baseline(model, plist, settings: JobSettings, radius: float):
@@ -187,7 +256,7 @@ def _orient(path, model, settings: JobSettings, tool, machine, stock, progress, 
             checker=None) -> Program:
     """Tool axes by the orientation settings (and a processing list's per-step blocks),
     checked again with the same collision checker."""
-    from .orientation import CollisionChecker, orient
+    from .orientation import orient
     from .orientation.controls import step_settings
     from .progress import for_stage
     from .verify.orientation import orientation_metrics
@@ -197,9 +266,8 @@ def _orient(path, model, settings: JobSettings, tool, machine, stock, progress, 
         from .plan.listfile import orientation_blocks
         blocks = orientation_blocks(plist, settings.processing_list)
         per_patch = step_settings(base, blocks) if blocks else None
-    meshes = [] if stock is None else [("stock", stock[0], stock[1])]
     if checker is None:
-        checker = CollisionChecker(model, tool, meshes=meshes, clearance=settings.holder_clearance)
+        checker = collision_checker(model, tool, stock, settings.holder_clearance)
     from .progress import report as tick
     oriented, report = orient(path, model, tool, settings=base, per_patch=per_patch, checker=checker,
                               machine=machine, progress=for_stage(progress, "tool axes"))

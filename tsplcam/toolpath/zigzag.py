@@ -233,12 +233,15 @@ def _step_piece(model, steps, settings, i):
 
 
 def build_path(model, steps, settings: PathSettings, name: str = "", workers: int | None = None,
-               progress=None) -> ToolPath:
+               progress=None, while_waiting=None) -> ToolPath:
     """The whole path for ``steps``: objects with patch, start, finish (None: free),
     crossfeed and retract_before (a ProcessingList's steps, or the baseline's). The steps'
     points are made in ``workers`` processes (default: one per core, see
     :mod:`tsplcam.toolpath.parallel`), the same points as in one. ``progress``: a
-    tsplcam.progress callback, stage "path", one unit per step made."""
+    tsplcam.progress callback, stage "path", one unit per step made. ``while_waiting``: other
+    work for this process while the workers make the points, called only when there are
+    workers (see :func:`~tsplcam.toolpath.parallel.map_pieces`); its time is part of the
+    path's ``seconds``."""
     settings.check()
     t_start = time.perf_counter()
     r = settings.tool_radius
@@ -248,7 +251,8 @@ def build_path(model, steps, settings: PathSettings, name: str = "", workers: in
     if tick is not None:
         tick(0, len(steps))
     pieces = map_pieces(_step_piece, (model, steps, settings), len(steps),
-                        worker_count(workers, len(steps)), order=np.argsort(size)[::-1], tick=tick)
+                        worker_count(workers, len(steps)), order=np.argsort(size)[::-1], tick=tick,
+                        while_waiting=while_waiting)
     clearance = None
     rows = []                 # per chunk: (P, n, axis, move, patch, uv, line)
     per_patch = []
@@ -306,8 +310,10 @@ def zigzag_path(model, plist=None, tool_radius: float = 0.5, scallop: float = 0.
                 chord_tol: float = 0.001, **options) -> ToolPath:
     """The paper's finishing path: ``model`` (tsplcam Model), ``plist`` (ProcessingList;
     default: planned here), ball radius and scallop limit in mm. ``options``: the other
-    fields of :class:`PathSettings`, and ``progress`` (a tsplcam.progress callback)."""
+    fields of :class:`PathSettings`, ``progress`` (a tsplcam.progress callback) and
+    ``while_waiting`` (see :func:`build_path`)."""
     progress = options.pop("progress", None)
+    while_waiting = options.pop("while_waiting", None)
     settings = PathSettings(tool_radius=tool_radius, scallop=scallop, chord_tol=chord_tol, **options)
     settings.check()
     if plist is None:
@@ -321,6 +327,7 @@ def zigzag_path(model, plist=None, tool_radius: float = 0.5, scallop: float = 0.
             raise InputError("the step is incomplete (start, finish and crossfeed are needed; "
                              "complete the list with `tsplcam plan --complete`)",
                              item=f"step {i + 1} (patch {s.patch})")
-    tp = build_path(model, plist.steps, settings, getattr(model, "name", ""), progress=progress)
+    tp = build_path(model, plist.steps, settings, getattr(model, "name", ""), progress=progress,
+                    while_waiting=while_waiting)
     tp.info["plan"] = {"order": plist.order, "retractions": plist.retractions}
     return tp

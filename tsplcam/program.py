@@ -164,18 +164,8 @@ def _load_numba() -> None:
     next kernel's). The kernels the orientation uses are not touched: whether it runs them
     or numpy stays its own choice (:func:`tsplcam.orientation.compiled.kernels`), so the
     program is the same bytes."""
-    if os.environ.get("TSPLCAM_COMPILED", "1") == "0":
-        return
-    try:
-        import numba  # noqa: F401
-    except ImportError:
-        return
-    import numpy as np
-
     from .orientation import compiled
-    spare = compiled._build()
-    if spare is not None:             # the types warm() and the job use: loaded from the cache
-        spare["banded_solve"](np.array([[0.0, 0.0, 1.0], [0.0, 1.0, 1.0], [2.0, 2.0, 2.0]]), np.ones(3))
+    compiled.prepare()
 
 
 def make_baseline(model, plist, settings: JobSettings, radius: float):

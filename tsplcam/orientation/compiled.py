@@ -277,6 +277,17 @@ def kernels(work: float | None = None):
     return _STATE["k"]
 
 
+def prepare() -> None:
+    """Load numba's machinery (its import and a first kernel call cost a process about
+    0.3-0.45 s) through a throwaway set of the kernels, leaving :func:`kernels`' own choice
+    (numba or numpy, by the work asked) untouched: a job can do this while it would only
+    wait (``program.CheckerAhead``) and still make the same bytes."""
+    import numpy as np
+    spare = _build()
+    if spare is not None:             # the types warm() and the job use: loaded from the cache
+        spare["banded_solve"](np.array([[0.0, 0.0, 1.0], [0.0, 1.0, 1.0], [2.0, 2.0, 2.0]]), np.ones(3))
+
+
 def warm() -> float:
     """Compile (or load from the cache) every kernel on a tiny input; returns the seconds
     taken (0 without numba). ``scripts/install.sh`` calls it, so a job does not carry the

@@ -42,6 +42,16 @@ def random_poses(path, n, rng, spread=0.2, tilt=np.radians(80)):
 
 
 @unittest.skipIf(fcl is None, "python-fcl not installed")
+
+def wavy_sheet():
+    """A 4 x 4 sheet z = 0.3 sin x cos y in 128 triangles: (V, T)."""
+    g = np.linspace(0, 4, 9)
+    X, Y = np.meshgrid(g, g, indexing="ij")
+    V = np.column_stack([X.ravel(), Y.ravel(), 0.3 * np.sin(X.ravel()) * np.cos(Y.ravel())])
+    T = np.concatenate([[[i * 9 + j, i * 9 + j + 9, i * 9 + j + 10], [i * 9 + j, i * 9 + j + 10, i * 9 + j + 1]]
+                        for i in range(8) for j in range(8)])
+    return V, T
+
 class AgreesWithFcl(unittest.TestCase):
     @classmethod
     def setUpClass(cls):
@@ -259,11 +269,7 @@ class Geometry(unittest.TestCase):
         narrow band holds fewer than BAND samples (brute force over every triangle)."""
         from tsplcam.orientation.broadphase import BroadPhase
         rng = np.random.default_rng(2)
-        g = np.linspace(0, 4, 9)
-        X, Y = np.meshgrid(g, g, indexing="ij")
-        V = np.column_stack([X.ravel(), Y.ravel(), 0.3 * np.sin(X.ravel()) * np.cos(Y.ravel())])
-        T = np.concatenate([[[i * 9 + j, i * 9 + j + 9, i * 9 + j + 10], [i * 9 + j, i * 9 + j + 10, i * 9 + j + 1]]
-                            for i in range(8) for j in range(8)])
+        V, T = wavy_sheet()
         from tsplcam.orientation.broadphase import Profile
         one = np.ones(1)
         bp = BroadPhase(V, T, lambda grow: Profile(0 * one, one, one, one, one, one), 0.1, 0.3)
@@ -313,11 +319,7 @@ class Geometry(unittest.TestCase):
         nearest one of the nearest node; bricks are made only where read."""
         from tsplcam.orientation.broadphase import BrickGrid, BroadPhase, Profile
         rng = np.random.default_rng(3)
-        g = np.linspace(0, 4, 9)
-        X, Y = np.meshgrid(g, g, indexing="ij")
-        V = np.column_stack([X.ravel(), Y.ravel(), 0.3 * np.sin(X.ravel()) * np.cos(Y.ravel())])
-        T = np.concatenate([[[i * 9 + j, i * 9 + j + 9, i * 9 + j + 10], [i * 9 + j, i * 9 + j + 10, i * 9 + j + 1]]
-                            for i in range(8) for j in range(8)])
+        V, T = wavy_sheet()
         one = np.ones(1)
         bp = BroadPhase(V, T, lambda grow: Profile(0 * one, one, one, one, one, one), 0.1, 0.3)
         grid = BrickGrid(bp.tree, bp.e2, 0.25, 3.0, 4)

@@ -82,6 +82,20 @@ def corner_of(mesh, v):
     return next(k for k in range(mesh.n_vertices) if tuple(mesh.grid_index[k]) == v)
 
 
+def both_paths(test, path, faces):
+    """The file at ``path`` through the cage path and the kernel: (cage model, kernel model),
+    asserted equal on ``faces`` within 1e-12 of the size (positions) and 1e-10 (first
+    derivatives)."""
+    a, b = tsm_model(path), tsm_model(path, t_spline=True)
+    test.assertEqual((a.kind, b.kind), ("catmull-clark", "t-spline"))
+    scale = size_of(a)
+    f, s, t = face_grid(faces)
+    pa, pb = a.evaluate_faces(f, s, t), b.evaluate_faces(f, s, t)
+    test.assertLess(np.abs(pa.P - pb.P).max(), 1e-12 * scale)
+    test.assertLess(max(np.abs(pa.Pu - pb.Pu).max(), np.abs(pa.Pv - pb.Pv).max()), 1e-10 * scale)
+    return a, b
+
+
 class TempFiles(unittest.TestCase):
     def setUp(self):
         self.dir = tempfile.mkdtemp(prefix="tsplcam-bstar-")
@@ -114,14 +128,8 @@ class BoundaryStars(TempFiles):
         cage, _ = l_cage()
         for w in (None, 1.0 + 0.3 * np.cos(np.arange(len(cage.points)))):
             weighted = Cage(cage.mesh, cage.points, w)
-            path = self.write(weighted, "l")
-            a, b = tsm_model(path), tsm_model(path, t_spline=True)
-            self.assertEqual((a.kind, b.kind), ("catmull-clark", "t-spline"))
+            a, b = both_paths(self, self.write(weighted, "l"), np.arange(len(cage.mesh.faces)))
             scale = size_of(a)
-            f, s, t = face_grid(np.arange(len(cage.mesh.faces)))
-            pa, pb = a.evaluate_faces(f, s, t), b.evaluate_faces(f, s, t)
-            self.assertLess(np.abs(pa.P - pb.P).max(), 1e-12 * scale)
-            self.assertLess(max(np.abs(pa.Pu - pb.Pu).max(), np.abs(pa.Pv - pb.Pv).max()), 1e-10 * scale)
             # the star is the model's one extraordinary point, on the boundary, at the limit point
             self.assertEqual([(e.boundary, e.valence) for e in b.extraordinary], [(True, 3)])
             self.assertLess(np.linalg.norm(b.extraordinary[0].position - a.extraordinary[0].position),
@@ -136,13 +144,7 @@ class BoundaryStars(TempFiles):
         at = {tuple(np.rint(cage.points[v, :2] / 5.0).astype(int)): v for v in range(len(cage.points))}
         row = [at[(i, N + 2)] for i in range(2 * N + 1)]
         path = self.write_creased(cage, "crease", list(zip(row[:-1], row[1:])))
-        a, b = tsm_model(path), tsm_model(path, t_spline=True)
-        self.assertEqual((a.kind, b.kind), ("catmull-clark", "t-spline"))
-        scale = size_of(a)
-        f, s, t = face_grid(np.arange(len(cage.mesh.faces)))
-        pa, pb = a.evaluate_faces(f, s, t), b.evaluate_faces(f, s, t)
-        self.assertLess(np.abs(pa.P - pb.P).max(), 1e-12 * scale)
-        self.assertLess(max(np.abs(pa.Pu - pb.Pu).max(), np.abs(pa.Pv - pb.Pv).max()), 1e-10 * scale)
+        both_paths(self, path, np.arange(len(cage.mesh.faces)))
         up = [at[(N, j)] for j in range(N, 2 * N + 1)]
         with self.assertRaises(InputError) as cm:
             tsm_model(self.write_creased(cage, "to_star", list(zip(up[:-1], up[1:]))), t_spline=True)

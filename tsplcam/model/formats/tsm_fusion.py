@@ -462,7 +462,8 @@ def fusion_model(r, t_spline: bool = False):
             model.no_native = (f"{name}: its boundary star points are evaluated from local "
                                f"Catmull-Clark cages, which the T-mesh it keeps does not describe")
         surface = ("T-spline (T-junctions or non-uniform knot intervals; T-NURCC rule at star points; "
-                   "open boundaries clamped with the second grip row of the edge-and-corner rule)")
+                   "open boundaries clamped with the second grip row of the edge-and-corner rule"
+                   + ("; star points on the boundary from local Catmull-Clark cages)" if bstars else ")"))
     model.tsm = TsmInfo.of(r, surface, len(creases), len(sharp))
     return model
 

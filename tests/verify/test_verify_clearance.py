@@ -184,6 +184,22 @@ class MoldSmallestClearance(unittest.TestCase):
     near the block): the search that starts from scouts stands where the descent from every pose does,
     so both give the same pose and value, those of fcl.distance measured at every pose."""
 
+    def assert_scouts_find_fcl_smallest(self, checker, centers, axes):
+        """min_clearance from its scouts gives the pose and distance of the search without
+        them, with fewer fcl queries, and both those of fcl.distance at every pose."""
+        only, margin = checker.clearance_parts()
+        n0 = checker.fcl_checks
+        got = min_clearance(checker, centers, axes)
+        n1 = checker.fcl_checks
+        plain = min_clearance(checker, centers, axes, scouts=0)
+        n2 = checker.fcl_checks
+        self.assertEqual(got[1], plain[1])                        # the same pose
+        self.assertAlmostEqual(got[0], plain[0], delta=1e-12)      # and its fcl distance
+        self.assertLess(n1 - n0, n2 - n1)
+        every = checker.clearance_of(centers, axes, only) + margin
+        self.assertEqual(got[1], int(np.argmin(every)))
+        self.assertAlmostEqual(got[0], float(every.min()), delta=1e-12)
+
     def test_scouts_against_every_pose(self):
         from tsplcam.model import samples
         from tsplcam.model.cage import cage_model
@@ -202,21 +218,11 @@ class MoldSmallestClearance(unittest.TestCase):
         centers = path.contact + 0.5 * path.normal
         free = ~checker.collides(centers, axes)                 # the poses an orientation keeps
         centers, axes = centers[free], axes[free]
-        only, margin = checker.clearance_parts()
+        only, _ = checker.clearance_parts()
         levels = sorted((0.05, 0.1, 0.2, 0.5, 1.0, 2.0, 5.0, 10.0, 20.0))
         self.assertIsNotNone(_scouted(checker, centers, axes, levels, 3, only, 40, 32))   # the scouts' way
         self.assertIsNotNone(_bounded(checker, centers, axes, levels[3], only, 32))       # and their bound
-        n0 = checker.fcl_checks
-        got = min_clearance(checker, centers, axes)
-        n1 = checker.fcl_checks
-        plain = min_clearance(checker, centers, axes, scouts=0)
-        n2 = checker.fcl_checks
-        self.assertEqual(got[1], plain[1])                        # the same pose
-        self.assertAlmostEqual(got[0], plain[0], delta=1e-12)      # and its fcl distance
-        self.assertLess(n1 - n0, n2 - n1)
-        every = checker.clearance_of(centers, axes, only) + margin
-        self.assertEqual(got[1], int(np.argmin(every)))
-        self.assertAlmostEqual(got[0], float(every.min()), delta=1e-12)
+        self.assert_scouts_find_fcl_smallest(checker, centers, axes)
 
     def test_bound_on_the_keycap(self):
         """The keycap (convex): no scout touches below 0.5 mm, so no level is skipped; the
@@ -238,18 +244,8 @@ class MoldSmallestClearance(unittest.TestCase):
         centers = path.contact + 0.5 * path.normal
         free = ~checker.collides(centers, axes)
         centers, axes = centers[free], axes[free]
-        only, margin = checker.clearance_parts()
+        only, _ = checker.clearance_parts()
         got = _bounded(checker, centers, axes, 0.5, only, 32)
         self.assertIsNotNone(got)
         self.assertLess(got[2], 0.5)
-        n0 = checker.fcl_checks
-        best = min_clearance(checker, centers, axes)
-        n1 = checker.fcl_checks
-        plain = min_clearance(checker, centers, axes, scouts=0)
-        n2 = checker.fcl_checks
-        self.assertEqual(best[1], plain[1])                      # the same pose
-        self.assertAlmostEqual(best[0], plain[0], delta=1e-12)    # and its fcl distance
-        self.assertLess(n1 - n0, n2 - n1)
-        every = checker.clearance_of(centers, axes, only) + margin
-        self.assertEqual(best[1], int(np.argmin(every)))
-        self.assertAlmostEqual(best[0], float(every.min()), delta=1e-12)
+        self.assert_scouts_find_fcl_smallest(checker, centers, axes)

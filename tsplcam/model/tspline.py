@@ -134,7 +134,8 @@ def tspline_model(mesh: TMesh, name: str | None = None, subdivide_at=()) -> TSpl
     except StarsTooClose:
         cage = _as_cage(mesh)
         if cage is None:
-            raise
+            from .close_stars import close_star_model
+            return close_star_model(mesh, walker, name)
         return _cage_tspline(mesh, cage, name)
     knots = local_knots(walker, ep.interval)
     stars = dict(ep.stars)

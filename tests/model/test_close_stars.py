@@ -37,8 +37,8 @@ def rotate_edge(faces: list, f1: int, f2: int):
 
 
 def torus(N: int = 16, M: int = 12, seed: int = 0):
-    """A closed N x M quad torus with an edge rotated (four close star points), perturbed,
-    with random weights: (points, faces, weights, stars)."""
+    """A closed N x M quad torus with two edges rotated (seven close star points: valences 3,
+    3, 3, 3, 5, 5, 6), perturbed, with random weights: (points, faces, weights, stars)."""
     rng = np.random.default_rng(seed)
     i, j = np.meshgrid(np.arange(N), np.arange(M), indexing="ij")
     a, b = 2 * np.pi * i.ravel() / N, 2 * np.pi * j.ravel() / M
@@ -46,27 +46,44 @@ def torus(N: int = 16, M: int = 12, seed: int = 0):
     P += 0.03 * rng.standard_normal(P.shape)
     idx = lambda p, q: (p % N) * M + q % M                                  # noqa: E731
     faces = [[idx(p, q), idx(p + 1, q), idx(p + 1, q + 1), idx(p, q + 1)] for p in range(N) for q in range(M)]
-    faces, stars = rotate_edge(faces, 5 * M + 5, 6 * M + 5)
-    return P, faces, rng.uniform(0.7, 1.4, len(P)), stars
+    faces, first = rotate_edge(faces, 5 * M + 5, 6 * M + 5)
+    faces, second = rotate_edge(faces, 5 * M + 6, 5 * M + 7)          # first[2] gets a sixth face
+    return P, faces, rng.uniform(0.7, 1.4, len(P)), sorted(set(first) | set(second))
 
 
-def open_sheet(n: int = 16, wide_column: int = 1, seed: int = 1):
-    """An open clamped n x n sheet of faces (zero outer intervals), interval 2 along one column
-    of faces (``wide_column``) and 1 elsewhere, an edge rotated in the middle."""
+def disc(n: int = 3, k: int = 14, spoke0=(), m: int | None = None, seed: int = 1):
+    """An open clamped T-mesh around a star point (vertex 0) of valence n: sector j a k x k
+    grid of faces between spokes j and j + 1, interval 1 along the spokes but for the first
+    ones along spoke 0 (``spoke0``: a non-uniform star), 0 at the boundary; the edge between
+    faces (m, m) and (m + 1, m) of sector 0 rotated (four close star points; by default in
+    the middle, five rings from the boundary and from the star)."""
     rng = np.random.default_rng(seed)
-    dx = np.ones(n)
-    dx[[0, -1]] = 0.0
-    dx[wide_column] = 2.0
-    dy = np.ones(n)
-    dy[[0, -1]] = 0.0
-    X, Y = np.meshgrid(np.concatenate([[0], np.cumsum(dx)]), np.concatenate([[0], np.cumsum(dy)]), indexing="ij")
-    P = np.column_stack([X.ravel(), Y.ravel(), 0.4 * np.sin(0.5 * X.ravel()) * np.cos(0.4 * Y.ravel())])
-    P += 0.05 * rng.standard_normal(P.shape)
-    idx = lambda p, q: p * (n + 1) + q                                        # noqa: E731
-    faces = [[idx(p, q), idx(p + 1, q), idx(p + 1, q + 1), idx(p, q + 1)] for p in range(n) for q in range(n)]
-    iv = [[dx[p], dy[q], dx[p], dy[q]] for p in range(n) for q in range(n)]
-    m = n // 2 - 1
-    faces, stars = rotate_edge(faces, m * n + m, (m + 1) * n + m)
+    a = [np.ones(k) for _ in range(n)]
+    a[0][:len(spoke0)] = spoke0
+    for x in a:
+        x[-1] = 0.0
+    ids, pts = {}, []
+
+    def node(j, p, q):
+        key = ("c",) if p == q == 0 else ("s", j % n, p) if q == 0 else ("s", (j + 1) % n, q) if p == 0 \
+            else ("i", j % n, p, q)
+        if key not in ids:
+            ids[key] = len(pts)
+            ang = 2 * np.pi / n
+            xy = (np.sum(a[j % n][:p]) * np.array([np.cos(ang * j), np.sin(ang * j)])
+                  + np.sum(a[(j + 1) % n][:q]) * np.array([np.cos(ang * (j + 1)), np.sin(ang * (j + 1))]))
+            pts.append([xy[0], xy[1], 0.3 * np.sin(0.3 * xy[0]) * np.cos(0.2 * xy[1])])
+        return ids[key]
+
+    faces, iv = [], []
+    for j in range(n):
+        for p in range(k):
+            for q in range(k):
+                faces.append([node(j, p, q), node(j, p + 1, q), node(j, p + 1, q + 1), node(j, p, q + 1)])
+                iv.append([a[j][p], a[(j + 1) % n][q]] * 2)
+    m = k // 2 - 1 if m is None else m
+    faces, stars = rotate_edge(faces, m * k + m, (m + 1) * k + m)
+    P = np.array(pts) + 0.03 * rng.standard_normal((len(pts), 3))
     return TMesh(P, None, faces, [(0, 1, 2, 3)] * len(faces), iv), stars
 
 
@@ -119,8 +136,8 @@ class CloseStarsInATMesh(unittest.TestCase):
         cls.model = tspline_model(cls.split)
 
     def test_found_as_one_cluster(self):
-        self.assertEqual(close_stars.clusters(self.split), [sorted(self.stars)])
-        self.assertEqual(sorted(e.valence for e in self.model.extraordinary), [3, 3, 5, 5])
+        self.assertEqual(close_stars.clusters(self.split), [self.stars])
+        self.assertEqual(sorted(e.valence for e in self.model.extraordinary), [3, 3, 3, 3, 5, 5, 6])
 
     def test_whole_surface_is_catmull_clark_without_the_t_junction(self):
         """On the cage itself (forced past the cage path) the kernel and the local cage give the
@@ -156,28 +173,28 @@ class CloseStarsInATMesh(unittest.TestCase):
         self.assertLess(np.abs(d - c).max() / np.ptp(self.split.points, axis=0).max(), EXACT)
 
 
-class CloseStarsOnAnOpenSheet(unittest.TestCase):
-    def test_open_boundary_and_another_interval(self):
-        """A clamped open sheet with a column of interval 2: the faces near the stars are the
-        limit of the uniform cage around them; watertight, one normal at each star."""
-        mesh, stars = open_sheet()
+class CloseStarsOnAnOpenDisc(unittest.TestCase):
+    def test_next_to_a_non_uniform_star_and_the_boundary(self):
+        """A clamped open disc around a valence-3 star with non-uniform spokes (the T-NURCC
+        construction), four close stars in one of its sectors: the faces near them are the
+        limit of the uniform cage around them; watertight, one normal at every star."""
+        mesh, stars = disc(spoke0=(1.5,))
         model = tspline_model(mesh)
-        rs = close_stars.rings_of(mesh, stars, 6)
+        self.assertEqual(sorted(e.valence for e in model.extraordinary), [3, 3, 3, 5, 5])
+        rs = close_stars.rings_of(mesh, stars, 4)
         around = [f for r in rs for f in r]
         loops = np.array([[int(x) for x in mesh.faces[f]] for f in around])
         verts, inv = np.unique(loops, return_inverse=True)
         ref = cage_model(Cage(QuadMesh(inv.reshape(-1, 4), len(verts)), mesh.points[verts]))
         rng = np.random.default_rng(7)
-        near = [f for r in rs[:3] for f in r]
-        f, s, t = sample(near, rng)
+        f, s, t = sample([f for r in rs[:3] for f in r], rng)
         a = model.evaluate_faces(f, s, t)
         b = ref.evaluate_faces([around.index(g) for g in f], s, t)
-        size = np.ptp(mesh.points, axis=0).max()
-        self.assertLess(np.abs(a.P - b.P).max() / size, EXACT)
+        self.assertLess(np.abs(a.P - b.P).max() / np.ptp(mesh.points, axis=0).max(), EXACT)
         gap, angle = watertight(model, mesh)
         self.assertLess(gap, GAP)
         self.assertLess(angle, 1e-6)
-        self.assertLess(star_normal_jump(model, mesh, stars, rng), G1_DEG)
+        self.assertLess(star_normal_jump(model, mesh, stars + [0], rng), G1_DEG)
 
 
 class Refused(unittest.TestCase):
@@ -194,11 +211,11 @@ class Refused(unittest.TestCase):
         self.assertRefused(split_face(mesh, ring3[0]), "closer than three edges apart", "has a T-junction")
 
     def test_other_interval_between_the_stars(self):
-        mesh, stars = open_sheet(wide_column=5)
+        mesh, stars = disc(spoke0=(1, 1, 1, 2))
         self.assertRefused(mesh, "closer than three edges apart", "knot interval 2 where the star points have 1")
 
     def test_near_the_boundary(self):
-        mesh, stars = open_sheet(n=10)
+        mesh, stars = disc(m=8)
         self.assertRefused(mesh, "closer than three edges apart", "is on the boundary")
 
 

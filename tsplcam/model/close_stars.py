@@ -18,12 +18,12 @@ boundary, T-junctions, other intervals, other stars):
   stars only (up to 0.3 of the model size on the first ring, 0 to rounding from ring
   ``ZONE + 1`` on).
 * The cells of the zone's faces (``ZONE`` rings) are replaced by the limit of a local cage
-  of the zone and two rings more (``boundary_stars.CageCells`` through
+  of the zone and one ring more (``CAGE_MARGIN``) (``boundary_stars.CageCells`` through
   ``boundary_stars.override``), exact there: a face's limit depends on its one-ring and its
   corners' rules only. Zone and kernel meet along a line on which both are the same
   uniform B-spline: C2 there, G1 at the stars (the limit's own normal there).
 * The neighbourhood that must be uniform (``NEED`` rings): the zone and three rings more.
-  The local cage (two rings beyond the zone) lies within it, and so do the knots of every
+  The local cage lies within it, and so do the knots of every
   kernel function whose value or first or second derivatives are non-zero on the zone's
   edge (vertices up to one edge from it, whose rays reach two faces further): the seam is
   C2 whatever lies beyond (measured with a T-junction just outside: gaps 6e-16 of the
@@ -44,8 +44,10 @@ from .stars import StarsTooClose, _too_close
 #: rings of faces around a cluster's stars evaluated from the local cage (measured: the
 #: kernel without the clustered stars' construction differs from the limit on rings 1 and 2)
 ZONE = 2
-#: rings of the local cage beyond the zone (a zone face's limit needs its one-ring interior)
-CAGE_MARGIN = 2
+#: rings of the local cage beyond the zone: a zone face's limit depends on its one-ring and
+#: its corners' rules, so its corners must be interior vertices of the local cage (measured:
+#: without the margin 1.2e-2 of the model size off, with one ring exact to 3e-16)
+CAGE_MARGIN = 1
 #: rings that must be uniform, regular and free of T-junctions around a cluster: the zone,
 #: and the kernel functions non-zero to second order on its edge with their rays
 NEED = ZONE + 3
@@ -215,21 +217,26 @@ def close_star_model(mesh, walker, name=None):
         near[f] = (-1, -1, {})                  # reached around a star: ignored, replaced below
     support = supports(walker, knots, set(stars) | close, near)
     dec = decompose_tmesh(walker)
-    patches, face_pieces = _extract(walker, dec, knots, support, zones, Pw)
-    model = _assemble(walker, dec, patches, face_pieces, interval, name)
-    for c, rs, _ in checked:
-        zone_faces = [f for r in rs[:ZONE] for f in r]
-        cage = [f for r in rs[:ZONE + CAGE_MARGIN] for f in r]
-        local = local_cage(mesh, cage)
-        corners = {}
-        for i, f in enumerate(zone_faces):
-            loop = [int(mesh.faces[f][k]) for k in mesh.corners[f]]
-            corners[i] = [CORNER_UV[k] for k, w in enumerate(loop) if w in c]
-        override(model, {f: i for i, f in enumerate(zone_faces)}, local, {})
-        for patch in model.patches:
-            for g, cells in enumerate(patch.groups):
-                if isinstance(cells, CageCells) and not isinstance(cells, StarsCageCells) and cells.model is local:
-                    patch.groups[g] = StarsCageCells(cells, [corners[int(i)] for i in cells.face])
+    patches, face_pieces = _extract(walker, dec, knots, support, zones, Pw, cage_faces)
+    # the zones' cells are replaced below: until then their corners may have no weight (the
+    # clustered stars' own functions are left out), and ``override`` evaluates every
+    # corner node again once the last zone is replaced
+    with np.errstate(invalid="ignore", divide="ignore"):
+        model = _assemble(walker, dec, patches, face_pieces, interval, name)
+        for c, rs, _ in checked:
+            zone_faces = [f for r in rs[:ZONE] for f in r]
+            local = local_cage(mesh, [f for r in rs[:ZONE + CAGE_MARGIN] for f in r])
+            corners = {}
+            for i, f in enumerate(zone_faces):
+                loop = [int(mesh.faces[f][k]) for k in mesh.corners[f]]
+                corners[i] = [CORNER_UV[k] for k, w in enumerate(loop) if w in c]
+            override(model, {f: i for i, f in enumerate(zone_faces)}, local, {})
+            for patch in model.patches:
+                for g, cells in enumerate(patch.groups):
+                    if type(cells) is CageCells and cells.model is local:
+                        patch.groups[g] = StarsCageCells(cells, [corners[int(i)] for i in cells.face])
+    if not np.isfinite(model.node_points).all():
+        raise AssertionError("a corner node of the close stars' model has no point")
     for e in model.extraordinary:
         e.position = model.node_points[e.node]
     return model

@@ -193,13 +193,14 @@ def _zone_faces(zones: list) -> dict:
 
 
 def _extract(walker: Walker, dec: Decomposition, knots: LocalKnots, support: list, zones: list,
-             Pw: np.ndarray) -> tuple[list[Patch], list]:
+             Pw: np.ndarray, replaced=frozenset()) -> tuple[list[Patch], list]:
     """Bezier extraction: every region of ``dec`` becomes a patch whose cells are cut by the
     knot lines of the blending functions on its faces (``support``; on the two rings of
     faces around a star, the plain B-splines of its construction in place of its W0
     functions), each cell's Bernstein coefficients exact; on a star's first faces every cell
-    adds the star's subdivided part (``stars.StarCells``). Returns the patches (region r is
-    patch r) and every face's pieces in them (``TSplineModel.face_pieces``)."""
+    adds the star's subdivided part (``stars.StarCells``). ``replaced``: faces whose cells
+    the caller replaces (``close_stars.py``: not checked here). Returns the patches (region r
+    is patch r) and every face's pieces in them (``TSplineModel.face_pieces``)."""
     mesh, topo, tol = walker.mesh, walker.topo, walker.tol
     levels = [StarLevels(z) for z in zones]
     direct, excluded, first = {}, {}, {}
@@ -280,7 +281,7 @@ def _extract(walker: Walker, dec: Decomposition, knots: LocalKnots, support: lis
                     local[iu0 + a, iv0 + b] = len(bez)
                     bez.append(cell)
                     if star is None:
-                        if min(cell[0, 0, 3], cell[0, -1, 3], cell[-1, 0, 3], cell[-1, -1, 3]) <= 0.0:
+                        if f not in replaced and min(cell[0, 0, 3], cell[0, -1, 3], cell[-1, 0, 3], cell[-1, -1, 3]) <= 0.0:
                             raise mesh.error(f"the surface has no point at a corner of a cell of "
                                              f"{mesh.face_name(f)} (no blending function reaches it)")
                         continue

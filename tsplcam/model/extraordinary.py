@@ -6,7 +6,9 @@ point are evaluated by subdividing to the regular level (``stars.py``), with uni
 non-uniform knot intervals on its spokes and T-junctions beyond its second ring. What that
 construction cannot take is refused with an error naming the vertex or face: star points on
 the boundary, T-junctions on the faces at a star point or on its neighbours, and star points
-closer than three edges to each other.
+closer than three edges to each other (``stars.StarsTooClose``, which ``tspline.py`` turns
+into the Catmull-Clark limit where the neighbourhood is a uniform cage: ``cage.py``,
+``close_stars.py``).
 """
 from __future__ import annotations
 

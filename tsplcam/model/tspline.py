@@ -6,8 +6,10 @@ The surface of a T-mesh (``tmesh.py``) is S = sum w_i B_i P_i / sum w_i B_i
 
 1. ``knots.check_clamped``: boundaries need zero outer knot intervals;
 2. ``extraordinary.find_extraordinary``: the star points (extraordinary points) and the
-   faces around them (``stars.find_stars``; stars closer than three edges on a T-mesh that is
-   a Catmull-Clark cage go to the subdivision path, ``cage.py``);
+   faces around them (``stars.find_stars``). Stars closer than three edges: on a T-mesh that
+   is a Catmull-Clark cage the whole surface goes to the subdivision path (``cage.py``);
+   otherwise the faces within two rings of them come from a local cage's limit and the
+   rest from these steps (``close_stars.py``, where their five rings are a uniform cage);
 3. ``knots.local_knots``: every blending function's local knot vectors, by ray casting on
    the mesh (``twalk.py`` walks the rays);
 4. ``stars.build_zone``: per star, the T-NURCC construction on its two rings of faces (the
@@ -281,7 +283,9 @@ def _extract(walker: Walker, dec: Decomposition, knots: LocalKnots, support: lis
                     local[iu0 + a, iv0 + b] = len(bez)
                     bez.append(cell)
                     if star is None:
-                        if f not in replaced and min(cell[0, 0, 3], cell[0, -1, 3], cell[-1, 0, 3], cell[-1, -1, 3]) <= 0.0:
+                        if f in replaced:
+                            continue
+                        if min(cell[0, 0, 3], cell[0, -1, 3], cell[-1, 0, 3], cell[-1, -1, 3]) <= 0.0:
                             raise mesh.error(f"the surface has no point at a corner of a cell of "
                                              f"{mesh.face_name(f)} (no blending function reaches it)")
                         continue

@@ -121,6 +121,10 @@ def check_cluster(mesh, cluster: list[int], at: dict) -> tuple[list[list[int]], 
     need = (f"extraordinary points {names} are closer than three edges apart: the T-NURCC construction does not "
             f"take them, and their {NEED} rings of faces must then be a uniform Catmull-Clark cage (no "
             f"T-junctions, no boundary, no other star points, one knot interval), evaluated as its limit")
+    for v in cluster:
+        if int(topo.total[v]) < 3:
+            raise mesh.error(f"{mesh.vertex_name(v)} is an interior vertex with only {int(topo.total[v])} "
+                             f"faces", vertex=v)
     rs = rings_of(mesh, cluster, NEED, at)
     faces = [f for r in rs for f in r]
     for f in faces:

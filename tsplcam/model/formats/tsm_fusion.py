@@ -43,7 +43,7 @@ import numpy as np
 from ...inputfile import naming
 from ..components import components
 from ..quadmesh import INFINITE
-from .tsm import PATTERNS
+from .tsm import PATTERNS, _Reader
 
 #: relative spread of knot intervals still read as uniform
 UNIFORM_TOL = 1e-9
@@ -381,12 +381,92 @@ def join_across_creases(model, samples: int = 5) -> int:
     return made
 
 
+class MeshReader(_Reader):
+    """What ``kernel_model`` asks of a reader, for a T-mesh read from another file (a native
+    ``.tspl`` with the edge-and-corner boundary): errors on its file, its vertices numbered
+    from 1 with their lines, coordinates in mm already, the ring construction
+    (``tsm._Reader.build``) labelling each boundary strip by the line of its face."""
+
+    def __init__(self, mesh):
+        super().__init__(mesh.source or "")
+        self.mesh = mesh
+        # the ring construction names its vertices and faces after these
+        if mesh.vertex_labels is None:
+            mesh.vertex_labels = [mesh.vertex_name(k) for k in range(mesh.n_vertices)]
+        if mesh.face_labels is None:
+            mesh.face_labels = [mesh.face_name(f) for f in range(len(mesh.faces))]
+        self.scale = 1.0
+        self.header, self.crease_edges, self.crease_vertices = {}, [], []
+        self.old_ids = list(range(1, mesh.n_vertices + 1))
+        lines = mesh.vertex_lines or [None] * mesh.n_vertices
+        self.v = {k + 1: (lines[k],) for k in range(mesh.n_vertices)}
+        self.l, self.e, self.g = [], [], []
+
+    def _link_of(self, a, b):
+        """A stand-in link record for the edge a -> b: its edge slot holds the face's line."""
+        f, _ = self.mesh.topology.edge_at[(a, b)]
+        self.e.append((self.mesh.face_lines[f] if self.mesh.face_lines is not None else None,))
+        self.l.append((None,) * 6 + (len(self.e) - 1,))
+        return len(self.l) - 1
+
+
+def kernel_model(r, old, G, name, creases=None):
+    """The T-spline kernel's surface of a T-mesh ``old`` with open boundaries that are not
+    clamped (a Fusion file's, or a native file's with the edge-and-corner boundary): one
+    grip per vertex (``G``, (x, y, z, w) rows in file units), creases (compact vertex pairs)
+    cut first, boundaries clamped by ``clamped_boundary`` and boundary star points from
+    local Catmull-Clark cages (``boundary_stars.py``). ``r`` gives the errors, the ring
+    construction (``tsm._Reader.build``), the scale and the file's vertex ids and lines.
+    Returns the model and its boundary stars."""
+    from ..tspline import tspline_model
+    origin = list(range(old.n_vertices))
+    if creases:
+        old, origin = cut_along_creases(r, old, creases)
+    bstars = boundary_stars(r, old, origin)
+    kernel, kernel_face = old, np.arange(len(old.faces))
+    if bstars:
+        from ..boundary_stars import attach, notch, star_points, without_faces
+        drop = [f for k in bstars for f in notch(old, k)]
+        kept = {int(w) for f in range(len(old.faces)) if f not in drop for w in old.faces[f]}
+        for k in bstars:
+            lone = [int(w) for f in notch(old, k) for w in old.faces[f] if int(w) not in kept]
+            if lone:
+                v, line = _file_vertex(r, origin, k)
+                raise r.err(f"open boundary at vertex {v}, a star point on the boundary of "
+                            f"{len(old.topology.fan[k])} faces: the T-spline kernel leaves its end faces "
+                            f"out (evaluated from a local cage), which needs their corners on other "
+                            f"faces too; vertex {_file_vertex(r, origin, lone[0])[0]} has no other face",
+                            line)
+        if drop:
+            kernel, kernel_face = without_faces(old, drop)
+    # the stars and the notches' concave corners: clamped with every grip their own (the
+    # kernel's surface within their reach is replaced)
+    concave = {k for k in range(kernel.n_vertices) if kernel.topology.boundary[k]
+               and int(kernel.topology.total[k]) == 3} if bstars else set()
+    pos, rows, lines, names = clamped_boundary(r, kernel, G[origin], origin, concave)
+    mesh = r.build(kernel, pos, rows, lines, names, origin if creases else None)
+    with naming(r.path):
+        model = tspline_model(mesh, name=name)
+        if bstars:
+            added, limits = attach(model, old, kernel_face, bstars, G[origin], r.scale)
+            if added:
+                model.notch_faces = added
+    if creases or (bstars and added):
+        join_across_creases(model)
+    if bstars:
+        star_points(model, limits)
+        # the kernel's T-mesh is not this surface near the stars (their faces come from
+        # local cages): it has no native file
+        model.no_native = (f"{name}: its boundary star points are evaluated from local "
+                           f"Catmull-Clark cages, which the T-mesh it keeps does not describe")
+    return model, bstars
+
+
 def fusion_model(r, t_spline: bool = False):
     """The surface of a parsed Fusion-dialect file ``r`` (a ``tsm._Reader``); ``t_spline``
     builds it with the T-spline kernel even where it is a uniform cage (for checks)."""
     from ..cage import Cage, cage_model
     from ..quadmesh import QuadMesh
-    from ..tspline import tspline_model
     from .tsm import TsmInfo
     old = r.topology()
     topo = old.topology
@@ -421,46 +501,7 @@ def fusion_model(r, t_spline: bool = False):
         if sharp:
             raise r.err("sharp vertices (100verts) on a T-mesh with T-junctions or non-uniform knot "
                         "intervals are not supported", r.crease_vertices[0][0])
-        origin = list(range(old.n_vertices))
-        if creases:
-            old, origin = cut_along_creases(r, old, creases)
-        bstars = boundary_stars(r, old, origin)
-        kernel, kernel_face = old, np.arange(len(old.faces))
-        if bstars:
-            from ..boundary_stars import attach, notch, star_points, without_faces
-            drop = [f for k in bstars for f in notch(old, k)]
-            kept = {int(w) for f in range(len(old.faces)) if f not in drop for w in old.faces[f]}
-            for k in bstars:
-                lone = [int(w) for f in notch(old, k) for w in old.faces[f] if int(w) not in kept]
-                if lone:
-                    v, line = _file_vertex(r, origin, k)
-                    raise r.err(f"open boundary at vertex {v}, a star point on the boundary of "
-                                f"{len(old.topology.fan[k])} faces: the T-spline kernel leaves its end faces "
-                                f"out (evaluated from a local cage), which needs their corners on other "
-                                f"faces too; vertex {_file_vertex(r, origin, lone[0])[0]} has no other face",
-                                line)
-            if drop:
-                kernel, kernel_face = without_faces(old, drop)
-        # the stars and the notches' concave corners: clamped with every grip their own (the
-        # kernel's surface within their reach is replaced)
-        concave = {k for k in range(kernel.n_vertices) if kernel.topology.boundary[k]
-                   and int(kernel.topology.total[k]) == 3} if bstars else set()
-        pos, rows, lines, names = clamped_boundary(r, kernel, G[origin], origin, concave)
-        mesh = r.build(kernel, pos, rows, lines, names, origin if creases else None)
-        with naming(r.path):
-            model = tspline_model(mesh, name=name)
-            if bstars:
-                added, limits = attach(model, old, kernel_face, bstars, G[origin], r.scale)
-                if added:
-                    model.notch_faces = added
-        if creases or (bstars and added):
-            join_across_creases(model)
-        if bstars:
-            star_points(model, limits)
-            # the kernel's T-mesh is not this surface near the stars (their faces come from
-            # local cages): it has no native file
-            model.no_native = (f"{name}: its boundary star points are evaluated from local "
-                               f"Catmull-Clark cages, which the T-mesh it keeps does not describe")
+        model, bstars = kernel_model(r, old, G, name, creases)
         surface = ("T-spline (T-junctions or non-uniform knot intervals; T-NURCC rule at star points; "
                    "open boundaries clamped with the second grip row of the edge-and-corner rule"
                    + ("; star points on the boundary from local Catmull-Clark cages)" if bstars else ")"))

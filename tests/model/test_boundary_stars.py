@@ -235,7 +235,7 @@ def xord_shapes():
         shape[f] = shape[f - 1] + (not set(map(int, F[f])) & {int(v) for g in range(f) for v in F[g]
                                                                if shape[g] == shape[f - 1]})
     out = []
-    for k, fragment in enumerate((None, "has no other face", "has no other face", "6 faces there")):
+    for k, fragment in enumerate((None, "has no other face", "has no other face", "has no other face")):
         fs = np.nonzero(shape == k)[0]
         vs = sorted({int(v) for f in fs for v in F[f]})
         new = {v: i for i, v in enumerate(vs)}

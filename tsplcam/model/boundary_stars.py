@@ -40,10 +40,8 @@ import numpy as np
 from .cells import _chain
 
 #: rings of faces around a boundary star of three faces evaluated from its local cage; four
-#: or five faces (valence 5 and 6: the kernel is cut one ring nearer, see ``notch``) one more
+#: faces one more, five or more two more (the kernel is cut nearer, see ``notch``)
 ZONE = 2
-#: the most faces a boundary star may have
-MOST_FACES = 5
 #: relative spread of knot intervals still read as uniform
 UNIFORM_TOL = 1e-9
 
@@ -51,11 +49,13 @@ UNIFORM_TOL = 1e-9
 def zone_rings(faces: int) -> int:
     """Rings of faces around a boundary star of ``faces`` faces replaced by its local cage:
     as far as the kernel's surface differs from the limit without it (measured on uniform
-    stars: two rings at three faces, three at four, four at five). At five faces both end
-    faces are left out: in the kernel's knot space the faces beyond them then lie in the
-    same quadrant behind the star (its clamped corner has no size), and functions whose
-    boxes reach across it are found on the other side too, one ring further out."""
-    return {3: ZONE, 4: ZONE + 1, 5: ZONE + 2}[faces]
+    stars: two rings at three faces, three at four, four at five to ten: with a local cage
+    of three rings it is off by 1e-2 of the size in the third and fourth ring, with four
+    exact to 1e-16). From five faces on, faces at both ends are left out: in the kernel's
+    knot space the faces beyond them then lie in the same quadrant behind the star (its
+    clamped corner has no size), and functions whose boxes reach across it are found on the
+    other side too, one ring further out."""
+    return {3: ZONE, 4: ZONE + 1}.get(faces, ZONE + 2)
 
 
 def need_rings(faces: int) -> int:
@@ -68,10 +68,14 @@ def need_rings(faces: int) -> int:
 def notch(mesh, v: int) -> list[int]:
     """The faces at boundary star v left out of the kernel's T-mesh so that v keeps three
     faces (a concave corner the kernel clamps): none for three faces, the first for four,
-    the first and the last for five. Their outer corners become convex and concave corners
-    of the kernel's boundary, so that its patches end on their sides."""
+    the first and the last for five, and from six on the first (T - 2) // 2 and the last
+    (T - 3) // 2 (the middle three kept). Their outer corners become convex and concave
+    corners of the kernel's boundary, so that its patches end on their sides; a spoke
+    between two left-out faces becomes a straight boundary vertex in the middle of a kernel
+    patch's side, where that patch is split (``hole_sides``, ``split_at``)."""
     fan = [f for f, _ in mesh.topology.fan[v]]
-    return {3: [], 4: [fan[0]], 5: [fan[0], fan[-1]]}[len(fan)]
+    m = len(fan) - 3
+    return fan[:(m + 1) // 2] + fan[len(fan) - m // 2:]
 
 
 def without_faces(mesh, drop):
@@ -287,3 +291,153 @@ def star_points(model, limits: dict) -> None:
         n = int(np.argmin(gap))
         if gap[n] <= 1e-9 * size:
             model.extraordinary.append(ExtraordinaryPoint(n, faces, pts[n], True))
+
+
+def hole_sides(model, kernel, verts) -> list:
+    """The kernel's straight boundary vertices among ``verts`` (the corners of the faces it
+    left out) that leaving them out made
+    (the spokes between two left-out faces of a star of six or more faces): each lies in the
+    middle of a side of a kernel patch, where two left-out faces' patches meet it. Returns
+    per vertex (patch, axis, knot position along that axis in the patch's frame)."""
+    from .patch import CORNER_UV
+    from .twalk import rot
+    topo = kernel.topology
+    out = []
+    for w in sorted(verts):
+        if not topo.boundary[w] or int(topo.total[w]) != 2:
+            continue
+        f, _ = topo.fan[w][0]
+        loop, cs = [int(x) for x in kernel.faces[f]], list(kernel.corners[f])
+        k = next(k for k in range(4) if loop[cs[k]] == w)
+        W, H = model.face_size[f]
+        x, y = CORNER_UV[k] * (W, H)
+        for p, (x0, x1, y0, y1), (q, tx, ty), (PW, PH) in model.face_pieces[f]:
+            if x0 - 1e-9 * W <= x <= x1 + 1e-9 * W and y0 - 1e-9 * H <= y <= y1 + 1e-9 * H:
+                px, py = rot(q, x, y)
+                X, Y = float(px + tx), float(py + ty)
+                on_v = min(abs(Y), abs(Y - PH)) <= 1e-9 * PH       # on the bottom or top side
+                on_u = min(abs(X), abs(X - PW)) <= 1e-9 * PW
+                if on_v and not on_u:
+                    out.append((p, 0, X))
+                elif on_u and not on_v:
+                    out.append((p, 1, Y))
+                break
+    return out
+
+
+def split_patch(model, p: int, axis: int, at: float) -> int:
+    """Split patch p of a T-spline model along its cell break at knot position ``at`` along
+    ``axis`` (0: u, 1: v; the patch's frame): p keeps the part below, a new patch (returned)
+    takes the rest. Cells, face pieces and corner nodes follow; the neighbours of the split
+    sides are unlinked (``tsm_fusion.join_across_creases`` links them again, splitting
+    neighbours is the caller's)."""
+    from .patch import CORNER_UV, Patch
+    from .twalk import rot
+    patch = model.patches[p]
+    K = patch.knot_size[axis]
+    br = patch.ubreaks if axis == 0 else patch.vbreaks
+    k = int(np.argmin(np.abs(br * K - at)))
+    if not 0 < k < len(br) - 1 or abs(br[k] * K - at) > 1e-9 * K:
+        raise ValueError(f"{patch.name} has no cell break there (a T-junction ends the knot line)")
+    c = br[k]
+    lo, hi = (slice(None, k), slice(k, None))
+    sl = (lambda s: (s, slice(None))) if axis == 0 else (lambda s: (slice(None), s))
+    size_a = list(patch.knot_size)
+    size_b = list(patch.knot_size)
+    size_a[axis], size_b[axis] = c * K, (1.0 - c) * K
+    br_a, br_b = br[:k + 1] / c, (br[k:] - c) / (1.0 - c)
+    new = len(model.patches)
+    b = Patch(new, br_b if axis == 0 else patch.ubreaks, patch.vbreaks if axis == 0 else br_b,
+              patch.cell_group[sl(hi)], patch.cell_local[sl(hi)], patch.groups, knot_size=size_b)
+    patch.cell_group, patch.cell_local = patch.cell_group[sl(lo)].copy(), patch.cell_local[sl(lo)].copy()
+    if axis == 0:
+        patch.ubreaks = br_a
+    else:
+        patch.vbreaks = br_a
+    patch.knot_size = tuple(size_a)
+    b.cell_group, b.cell_local = b.cell_group.copy(), b.cell_local.copy()
+    # sides: the split line is p's side 1 (axis u) or 2 (axis v) and b's side 3 or 0; p's
+    # sides along the split axis and the far side go to b or are cut in two
+    far, near = (1, 3) if axis == 0 else (2, 0)
+    along = (0, 2) if axis == 0 else (1, 3)
+    for e in (far, *along):
+        nb = patch.neighbours[e]
+        if nb is not None:
+            model.patches[nb.patch].neighbours[nb.edge] = None
+        patch.neighbours[e] = None
+    model.patches.append(b)
+    # corner nodes: p's corners beyond the split are b's; the two new ones are new nodes
+    cn = patch.corner_nodes.copy()
+    n0 = len(model.node_points)
+    b.corner_nodes = cn.copy()
+    if axis == 0:                      # corners 1, 2 move to b; new nodes at p's 1, 2 = b's 0, 3
+        patch.corner_nodes = np.array([cn[0], n0, n0 + 1, cn[3]])
+        b.corner_nodes = np.array([n0, cn[1], cn[2], n0 + 1])
+    else:                              # corners 2, 3 move to b; new nodes at p's 3, 2 = b's 0, 1
+        patch.corner_nodes = np.array([cn[0], cn[1], n0 + 1, n0])
+        b.corner_nodes = np.array([n0, n0 + 1, cn[2], cn[3]])
+    ends = patch.evaluate(*CORNER_UV[[1, 2]].T).P if axis == 0 else patch.evaluate(*CORNER_UV[[3, 2]].T).P
+    model.node_points = np.vstack([model.node_points, ends])
+    if getattr(model, "node_keys", None) is not None:
+        model.node_keys.extend(("split", p, axis, at, m) for m in range(2))
+    # face pieces: in p's frame below the line, in b's (shifted) beyond it, cut where they cross
+    for f, pieces in enumerate(model.face_pieces):
+        out = []
+        for piece in pieces:
+            if piece[0] != p:
+                out.append(piece)
+                continue
+            _, (x0, x1, y0, y1), (q, tx, ty), _ = piece
+            cx, cy = rot(q, np.array([x0, x1]), np.array([y0, y1]))
+            box = np.array([np.sort(np.asarray(cx, float) + tx), np.sort(np.asarray(cy, float) + ty)])
+            for part, (a0, a1) in ((0, (box[axis, 0], min(box[axis, 1], c * K))),
+                                   (1, (max(box[axis, 0], c * K), box[axis, 1]))):
+                if a1 - a0 <= 1e-9 * K:
+                    continue
+                sub = box.copy()
+                sub[axis] = (a0, a1)
+                # the part back in the face's frame (the inverse quarter turns)
+                fx, fy = rot((4 - q) % 4, sub[0] - tx, sub[1] - ty)
+                rect = (float(np.min(fx)), float(np.max(fx)), float(np.min(fy)), float(np.max(fy)))
+                if part == 0:
+                    out.append((p, rect, (q, tx, ty), tuple(size_a)))
+                else:
+                    shift = (c * K, 0.0) if axis == 0 else (0.0, c * K)
+                    out.append((new, rect, (q, tx - shift[0], ty - shift[1]), tuple(size_b)))
+        model.face_pieces[f] = out
+    return new
+
+
+def split_at(model, sides: list, refuse) -> None:
+    """Split the kernel's patches at ``hole_sides``, each line carried on across the far side
+    of every patch it reaches until a side without a neighbour, so that the patches stay
+    conforming; ``refuse(why)`` raises the reader's error where a patch the line reaches has
+    no cell break on it."""
+    todo = list(sides)
+    budget = 4 * len(model.patches) + 4
+    while todo:
+        budget -= 1
+        if budget < 0:
+            refuse("the patch lines from its spokes do not reach the boundary")
+        p, axis, at = todo.pop()
+        patch = model.patches[p]
+        # the line runs across the patch; both ends: find the neighbours across them
+        uv = np.array([[at / patch.knot_size[0], 0.0], [at / patch.knot_size[0], 1.0]]) if axis == 0 else \
+            np.array([[0.0, at / patch.knot_size[1]], [1.0, at / patch.knot_size[1]]])
+        ends = patch.evaluate(uv[:, 0], uv[:, 1]).P
+        across = [patch.neighbours[e] for e in ((0, 2) if axis == 0 else (3, 1))]
+        try:
+            split_patch(model, p, axis, at)
+        except ValueError as exc:
+            refuse(f"the patch line from a spoke between two left-out faces runs into {exc}")
+        for nb, X in zip(across, ends):
+            if nb is None:
+                continue
+            q = model.patches[nb.patch]
+            ax = 0 if nb.edge in (0, 2) else 1
+            br = q.ubreaks if ax == 0 else q.vbreaks
+            fixed = {0: 0.0, 2: 1.0, 1: 1.0, 3: 0.0}[nb.edge]
+            uu, vv = (br, np.full(len(br), fixed)) if ax == 0 else (np.full(len(br), fixed), br)
+            gap = np.linalg.norm(q.evaluate(uu, vv).P - X, axis=1)
+            k = int(np.argmin(gap))
+            todo.append((nb.patch, ax, float(br[k] * q.knot_size[ax])))

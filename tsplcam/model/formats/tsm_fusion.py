@@ -250,10 +250,11 @@ def clamped_boundary(r, old, G0, origin, stars=()):
 
 
 def boundary_stars(r, old, origin) -> dict:
-    """Boundary star points of the T-mesh (boundary vertices with three to five faces; on a
+    """Boundary star points of the T-mesh (boundary vertices with three faces or more; on a
     T-mesh cut along its creases) -> their rings of faces
-    (``boundary_stars.check_neighbourhood``); more faces are refused with their line."""
-    from ..boundary_stars import MOST_FACES, check_neighbourhood
+    (``boundary_stars.check_neighbourhood``, which refuses what they need otherwise with the
+    vertex's line)."""
+    from ..boundary_stars import check_neighbourhood
     topo = old.topology
     out = {}
     for k in range(old.n_vertices):
@@ -263,10 +264,6 @@ def boundary_stars(r, old, origin) -> dict:
 
         def refuse(message, v=v, line=line):
             raise r.err(f"open boundary at vertex {v}, a star point on the boundary: {message}", line)
-        if int(topo.total[k]) > MOST_FACES:
-            refuse(f"{int(topo.total[k])} faces there; the T-spline kernel takes boundary star points of "
-                   f"three to {MOST_FACES} faces (more are read on uniform T-meshes without T-junctions, by "
-                   f"the Catmull-Clark path)")
         out[k] = check_neighbourhood(old, k, refuse)[0]
     return out
 
@@ -344,6 +341,11 @@ def join_across_creases(model, samples: int = 5) -> int:
                             for p in range(len(model.patches))])
     tol = 1e-9 * max(float(np.linalg.norm(every.max(0) - every.min(0))), 1e-300)
     same = {}                                       # node -> node it becomes
+
+    def root(n):
+        while n in same:
+            n = same[n]
+        return n
     made = 0
     for i, a in enumerate(free):
         for b in free[i + 1:]:
@@ -357,14 +359,12 @@ def join_across_creases(model, samples: int = 5) -> int:
                     ca = [model.patches[a[0]].corner_nodes[(a[1] + k) % 4] for k in (0, 1)]
                     cb = [model.patches[b[0]].corner_nodes[(b[1] + k) % 4] for k in ((1, 0) if rev else (0, 1))]
                     for x, y in zip(ca, cb):
-                        same[int(y)] = int(x)
+                        rx, ry = root(int(x)), root(int(y))
+                        if rx != ry:                # union of the two nodes' sets
+                            same[ry] = rx
                     made += 1
                     break
     if same:
-        def root(n):
-            while n in same and same[n] != n:
-                n = same[n]
-            return n
         used = sorted({root(int(n)) for p in model.patches for n in p.corner_nodes})
         new = {n: k for k, n in enumerate(used)}
         for p in model.patches:
@@ -425,7 +425,7 @@ def kernel_model(r, old, G, name, creases=None):
     bstars = boundary_stars(r, old, origin)
     kernel, kernel_face = old, np.arange(len(old.faces))
     if bstars:
-        from ..boundary_stars import attach, notch, star_points, without_faces
+        from ..boundary_stars import attach, hole_sides, notch, split_at, star_points, without_faces
         drop = [f for k in bstars for f in notch(old, k)]
         kept = {int(w) for f in range(len(old.faces)) if f not in drop for w in old.faces[f]}
         for k in bstars:
@@ -451,6 +451,18 @@ def kernel_model(r, old, G, name, creases=None):
             added, limits = attach(model, old, kernel_face, bstars, G[origin], r.scale)
             if added:
                 model.notch_faces = added
+                # six faces or more: spokes between two left-out faces lie in the middle of a
+                # kernel patch's side; the kernel's patches are split there
+                big = [k for k in bstars if len(old.topology.fan[k]) >= 6]
+
+                def refuse(why, k=big[0] if big else None):
+                    v, line = _file_vertex(r, origin, k)
+                    raise r.err(f"open boundary at vertex {v}, a star point on the boundary of "
+                                f"{len(old.topology.fan[k])} faces: its left-out faces meet the kernel's "
+                                f"patches in the middle of a side, and splitting them fails: {why}", line)
+                if big:
+                    split_at(model, hole_sides(model, kernel, {int(w) for f in drop for w in old.faces[f]}),
+                             refuse)
     if creases or (bstars and added):
         join_across_creases(model)
     if bstars:

@@ -420,6 +420,35 @@ class NativeAndManyFaces(TempFiles):
             native_model(self.write_native(cage, "clamped", "repeat-last-knot"))
         self.assertIn("not clamped", cm.exception.message)
 
+    def test_grapetec_file(self):
+        """A GrapeTec-style ``.tsm`` (grip blocks on the boundary) of a book of four faces, the
+        star without a block and the blocks the edge-and-corner rule's: the cage path's
+        surface on every face (measured 1.8e-16 of the size, 6.1e-14 in first derivatives);
+        a second-row grip moved within the star's rings is refused naming the vertex and
+        the line (moved further out it is kept: measured on a book of eight rings, the
+        surface within five rings of the star unchanged to 1.4e-14 mm)."""
+        cage, S, _ = book(4, k=6)
+        fusion = self.write_creased(cage, "fusion", [])
+        path = os.path.join(self.dir, "grapetec.tsm")
+        with open(path, "w") as fh:
+            fh.write(grapetec_text(fusion, cage))
+        a, b = cage_model(cage), tsm_model(path)
+        self.assertEqual(b.tsm.dialect, "rhino")
+        scale = size_of(a)
+        f, s, t = face_grid(np.arange(len(cage.mesh.faces)))
+        pa, pb = a.evaluate_faces(f, s, t), b.evaluate_faces(model_faces(b, f), s, t)
+        self.assertLess(np.abs(pa.P - pb.P).max(), 1e-12 * scale)
+        self.assertLess(max(np.abs(pa.Pu - pb.Pu).max(), np.abs(pa.Pv - pb.Pv).max()), 1e-10 * scale)
+        self.assertEqual([(e.boundary, e.valence) for e in b.extraordinary], [(True, 4)])
+        boundary_next = next(v for v in range(len(cage.points)) if v != S
+                             and abs(np.linalg.norm(cage.points[v, :2] - cage.points[S, :2]) - 5.0) < 1e-9)
+        with open(path, "w") as fh:
+            fh.write(grapetec_text(fusion, cage, move=(boundary_next, np.array([0.0, 0.0, 0.5]))))
+        with self.assertRaises(InputError) as cm:
+            tsm_model(path)
+        self.assertIn("near the boundary star point", cm.exception.message)
+        self.assertIsNotNone(cm.exception.line)
+
     def test_seven_faces_rational(self):
         """A book of seven faces with rational weights in a Fusion file through the kernel:
         the cage path's surface on every face (measured 2.1e-16 of the size, 1.4e-12 in first
@@ -434,6 +463,74 @@ class NativeAndManyFaces(TempFiles):
         self.assertLess(np.abs(pa.P - pb.P).max(), 1e-12 * scale)
         self.assertLess(max(np.abs(pa.Pu - pb.Pu).max(), np.abs(pa.Pv - pb.Pv).max()), 1e-10 * scale)
         self.assertEqual([(e.boundary, e.valence) for e in b.extraordinary], [(True, 7)])
+
+
+def grapetec_text(fusion_path, cage, move=None) -> str:
+    """The Fusion-dialect file of a cage with open boundaries (unit weights) rewritten as a
+    GrapeTec-style ``.tsm`` (Bezier end conditions, mm): every boundary vertex but the
+    boundary stars (four faces or more) gets a grip block whose grips are the clamped
+    B-spline's of the edge-and-corner rule on uniform knots (boundary grip the cage point,
+    the second row a third of the way inward); ``move`` = (vertex, offset): that vertex's
+    grip at (0, 0) of the ring view (its second-row grip on the boundary) moved."""
+    from tsplcam.model.formats.tsm import SHIFT, block_offsets
+    text = open(fusion_path).read().splitlines()
+    L = [list(map(int, t.split()[1:])) for t in text if t.startswith("l ")]   # prev next opp v face edge flag
+    end = lambda i: L[L[i][1]][3]                                             # noqa: E731
+    turns, out_link, links = {}, {}, {}
+    for i, (prev, nxt, opp, v, f, e, flag) in enumerate(L):
+        if f >= 0:
+            turns[v] = turns.get(v, 0) + (1 if flag == 0 else 2)
+            links.setdefault(v, []).append(i)
+            if L[opp][4] < 0:
+                out_link[v] = i                       # along the boundary, the face on its left
+    P = np.asarray(cage.points, float)
+    shift = lambda v: move[1] if move and move[0] == v else 0.0              # noqa: E731
+    grips, gmap, cg = [], [], []
+
+    def grip(p, v, own):
+        grips.append(p)
+        gmap.append(f"0m {'gvp' if own else 'gv'} {v}")
+        return len(grips) - 1
+    for v in range(len(P)):
+        T = turns[v]
+        if v not in out_link or T >= 4:
+            grip(P[v] + shift(v), v, True)
+            continue
+        C = P[v]
+        if T == 2:
+            w = next(end(i) for i in links[v] if i != out_link[v])
+            at = {(0, -1): C, (0, 0): C + (P[w] - C) / 3.0}
+        else:                                         # a convex corner: its one face v, X, XY, Y
+            i = out_link[v]
+            X, XY, Y = P[end(i)], P[end(L[i][1])], P[end(L[L[i][1]][1])]
+            at = {(-1, -1): C, (0, -1): C + (X - C) / 3.0, (-1, 0): C + (Y - C) / 3.0,
+                  (0, 0): C + (X - C) / 3.0 + (Y - C) / 3.0 + (XY - X - Y + C) / 9.0}
+        at[(0, 0)] = at[(0, 0)] + shift(v)
+        sx, sy = SHIFT[T]                             # the vertex's own grip: on the boundary ring
+        grip(at[(sx, sy)], v, True)
+        # the v record's link points EAST along the boundary: the block needs no turn
+        offs = {(x - sx, y - sy): p for (x, y), p in at.items() if (x, y) != (sx, sy)}
+        dims = (max(dy for _, dy in offs), max(-dx for dx, _ in offs), max(-dy for _, dy in offs),
+                max(dx for dx, _ in offs))
+        dims = tuple(max(0, d) for d in dims)
+        need = sum(dims[k] * (dims[(k + 1) % 4] + 1) for k in range(4))
+        slot = block_offsets(dims, list(range(need)))
+        ids = [-1] * need
+        for o, p in offs.items():
+            ids[slot[o]] = grip(p, v, False)
+        cg.append(f"0m cg {v} 4 {' '.join(map(str, dims))} {' '.join(map(str, ids))}")
+    body, n = [], 0
+    for t in text[1:]:
+        key = t.split()[:1]
+        if key == ["v"]:
+            t = f"v {out_link.get(n, int(t.split()[1]))} EAST"
+            n += 1
+        if key and key[0] in ("f", "e", "v", "l", "ec"):
+            body.append(t)
+    head = ["#TS0200", "degree 3", "cap-type 1", "star-smoothness 0", "units 0.001 millimeters",
+            "force-bezier-end-conditions 1"]
+    return "\n".join(head + body + ["0m odd-grip-map"] + gmap + cg
+                     + ["0g {!r} {!r} {!r} 1.0".format(*map(float, p)) for p in grips]) + "\n"
 
 
 def mesh_X():

@@ -286,7 +286,9 @@ class _Reader:
                 vertex, valence = int(tok[2]), int(tok[3])
                 if valence != 4:
                     raise self.err(f"a grip block of valence {valence} (a star point on the boundary) is "
-                                   f"not supported", ln)
+                                   f"not supported: a boundary star point of four faces or more is read "
+                                   f"without a grip block, its own grip its Catmull-Clark control point "
+                                   f"(docs/formats.md section 2.2)", ln)
                 dims = [int(x) for x in tok[4:8]]
                 grips = [int(x) for x in tok[8:]]
                 if vertex in self.cg:
@@ -450,6 +452,9 @@ class _Reader:
             T = int(topo.total[k])
             boundary = bool(topo.boundary[k])
             if v not in self.cg:
+                if boundary and T >= 4 and not extra.get(v):
+                    out[k] = {(0, 0): prime[v]}     # a boundary star point (tsm_fusion.grapetec_star_model)
+                    continue
                 if boundary:
                     raise self.err(f"boundary vertex {v} has no grip block (0m cg): only Bezier end "
                                    f"conditions are supported", vrec[0])
@@ -464,7 +469,9 @@ class _Reader:
                 out[k] = {(0, 0): prime[v]}
                 continue
             if T not in PATTERNS:
-                raise self.err(f"boundary vertex {v} has faces of {T} quarter turns: not supported", vrec[0])
+                raise self.err(f"boundary vertex {v} has faces of {T} quarter turns and a grip block: a "
+                               f"boundary star point is read without one (its own grip its Catmull-Clark "
+                               f"control point)", vrec[0])
             try:
                 local = block_offsets(dims, gids)
             except ValueError as exc:
@@ -639,7 +646,11 @@ def tsm_model(path, **options):
     if reader.dialect == "fusion":
         from .tsm_fusion import fusion_model
         return fusion_model(reader, **options)
-    mesh = reader.build()
+    old = reader.topology()
+    if any(old.topology.boundary[k] and old.topology.total[k] >= 4 for k in range(old.n_vertices)):
+        from .tsm_fusion import grapetec_star_model
+        return grapetec_star_model(reader, old)
+    mesh = reader.build(old)
     with naming(path):
         model = tspline_model(mesh, name=mesh.name)
     model.tsm = TsmInfo.of(reader, "T-spline with Bezier end conditions (boundary grip blocks)")

@@ -204,7 +204,8 @@ def clamped_boundary(r, old, G0, origin, stars=()):
     B-spline, per direction that meets the boundary (straight vertices one, convex corners
     two and their product). Boundary stars in ``stars`` (three faces) are clamped as a
     concave corner with every grip the star's own (``boundary_stars``: the kernel's surface
-    there is replaced); other concave corners and boundary stars are refused."""
+    there is replaced; with more faces, which only ``keep_file_grips`` asks, just their
+    own); other concave corners and boundary stars are refused."""
     topo = old.topology
     H = np.column_stack([G0[:, :3] * G0[:, 3:], G0[:, 3]])
     rows, lines, names, pos = [], [], [], {}
@@ -239,8 +240,8 @@ def clamped_boundary(r, old, G0, origin, stars=()):
                       (0, -1): add(C + ax * (X - C), k, "clamped"),
                       (-1, 0): add(C + ay * (Y - C), k, "clamped"),
                       (0, 0): add(C + ax * (X - C) + ay * (Y - C) + ax * ay * (XY - X - Y + C), k, "clamped")}
-        elif k in stars and T == 3:
-            pos[k] = {p: add(H[k], k, "star") for p in sorted(PATTERNS[3])}
+        elif k in stars:
+            pos[k] = {p: add(H[k], k, "star") for p in sorted(PATTERNS[3] if T == 3 else {(0, 0)})}
         else:
             what = "a concave corner" if T == 3 else "a T-junction" if T == 2 else "a star point"
             v, line = _file_vertex(r, origin, k)
@@ -410,13 +411,50 @@ class MeshReader(_Reader):
         return len(self.l) - 1
 
 
-def kernel_model(r, old, G, name, creases=None):
+def keep_file_grips(r, old, bstars: dict, pos: dict, rows, file_grips: dict, G) -> None:
+    """The ring grips of a GrapeTec file (``file_grips``: old vertex -> {ring-view position:
+    (x, y, z, w)}) in place of the edge-and-corner rule's (``pos``/``rows`` of the kernel's
+    T-mesh, changed in place), except within the stars' rings, where the file's must be the
+    rule's (to 1e-9 of the model size; ``G`` the Catmull-Clark control points): the faces
+    there come from the local Catmull-Clark cage, which meets the kernel only if the
+    kernel's grips around it are the rule's."""
+    from ..boundary_stars import need_rings, rings
+    near = {}
+    for v in bstars:
+        for f in [f for r_ in rings(old, v, need_rings(len(old.topology.fan[v]))) for f in r_]:
+            for w in old.faces[f]:
+                near.setdefault(int(w), v)
+    origin = list(range(old.n_vertices))
+    rule_pos, rule_rows, _, _ = clamped_boundary(r, old, G, origin, set(bstars))
+    size = max(float(np.ptp(np.asarray(rule_rows)[:, :3], axis=0).max()), 1e-300)
+    for k, grips in file_grips.items():
+        for p, g in grips.items():
+            row = np.asarray(g, float)
+            if k in near:
+                want = rule_rows[rule_pos[k][p]]
+                d = float(np.linalg.norm(row[:3] - want[:3]))
+                if d > 1e-9 * size or abs(row[3] - want[3]) > 1e-9:
+                    v, line = _file_vertex(r, origin, k)
+                    raise r.err(f"boundary vertex {v}, near the boundary star point at vertex "
+                                f"{_file_vertex(r, origin, near[k])[0]}: its grip at {p} is {d:.3g} file units "
+                                f"from the edge-and-corner rule's (the second row a / (2a + b) of the way "
+                                f"inward, from the boundary grip): the faces near a boundary star come from "
+                                f"a local Catmull-Clark cage, which meets the T-spline only if its grips "
+                                f"there are the rule's", line)
+            else:
+                rows[pos[k][p]] = row
+
+
+def kernel_model(r, old, G, name, creases=None, file_grips=None):
     """The T-spline kernel's surface of a T-mesh ``old`` with open boundaries that are not
     clamped (a Fusion file's, or a native file's with the edge-and-corner boundary): one
     grip per vertex (``G``, (x, y, z, w) rows in file units), creases (compact vertex pairs)
     cut first, boundaries clamped by ``clamped_boundary`` and boundary star points from
     local Catmull-Clark cages (``boundary_stars.py``). ``r`` gives the errors, the ring
     construction (``tsm._Reader.build``), the scale and the file's vertex ids and lines.
+    ``file_grips`` (k -> {ring-view position: (x, y, z, w)}, a GrapeTec file's boundary
+    blocks): kept where they are, except within the stars' rings, where they must be the
+    edge-and-corner rule's own (the local cage's limit meets the kernel there).
     Returns the model and its boundary stars."""
     from ..tspline import tspline_model
     origin = list(range(old.n_vertices))
@@ -444,6 +482,8 @@ def kernel_model(r, old, G, name, creases=None):
     concave = {k for k in range(kernel.n_vertices) if kernel.topology.boundary[k]
                and int(kernel.topology.total[k]) == 3} if bstars else set()
     pos, rows, lines, names = clamped_boundary(r, kernel, G[origin], origin, concave)
+    if file_grips:
+        keep_file_grips(r, old, bstars, pos, rows, file_grips, G[origin])
     mesh = r.build(kernel, pos, rows, lines, names, origin if creases else None)
     with naming(r.path):
         model = tspline_model(mesh, name=name)
@@ -472,6 +512,40 @@ def kernel_model(r, old, G, name, creases=None):
         model.no_native = (f"{name}: its boundary star points are evaluated from local "
                            f"Catmull-Clark cages, which the T-mesh it keeps does not describe")
     return model, bstars
+
+
+def grapetec_star_model(r, old):
+    """The surface of a GrapeTec-style ``.tsm`` (Bezier end conditions: grip blocks on the
+    boundary) with boundary star points (boundary vertices of four faces or more, without a
+    grip block): read as the Fusion dialect's T-mesh through ``kernel_model``, each vertex's
+    Catmull-Clark control point its boundary grip (the block's grip on the boundary ring; at
+    a convex corner the corner grip, at a star or a concave corner its own), the file's
+    other grips kept (``keep_file_grips``). A concave corner (three faces) is then a star
+    point too, so its block must repeat its own grip (the kernel's clamping of one)."""
+    from .tsm import TsmInfo
+    topo = old.topology
+    blocks = r.grips(old)
+    cage_at = {1: (-1, -1), 2: (0, -1)}
+    G = np.empty((old.n_vertices, 4))
+    file_grips = {}
+    for k in range(old.n_vertices):
+        T = int(topo.total[k])
+        block = {p: np.asarray(r.g[g][1:5], float) for p, g in blocks[k].items()}
+        if topo.boundary[k] and T == 3:
+            own = block[(0, 0)]
+            if any(np.abs(x - own).max() > 1e-12 * max(1.0, float(np.abs(own).max())) for x in block.values()):
+                v = r.old_ids[k]
+                raise r.err(f"concave corner at vertex {v} in a T-mesh with boundary star points: read as a "
+                            f"star point of three faces (Catmull-Clark), its grip block must repeat its own "
+                            f"grip", r.cg[v][0] if v in r.cg else r.v[v][0])
+        G[k] = block[cage_at.get(T, (0, 0))] if topo.boundary[k] else block[(0, 0)]
+        if topo.boundary[k] and T in cage_at:
+            file_grips[k] = block
+    name = os.path.splitext(os.path.basename(r.path))[0]
+    model, _ = kernel_model(r, old, G, name, None, file_grips)
+    model.tsm = TsmInfo.of(r, "T-spline with Bezier end conditions (boundary grip blocks); star points on "
+                              "the boundary from local Catmull-Clark cages")
+    return model
 
 
 def fusion_model(r, t_spline: bool = False):

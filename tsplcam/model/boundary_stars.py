@@ -58,10 +58,19 @@ def zone_rings(faces: int) -> int:
     return {3: ZONE, 4: ZONE + 1}.get(faces, ZONE + 2)
 
 
+def cage_rings(faces: int) -> int:
+    """Rings that must be uniform and free of T-junctions and irregular vertices: the local
+    cage's, the zone and two more (a face's limit depends on its one-ring and their
+    vertices' rules). Beyond them T-junctions and other intervals are taken where the
+    kernel still meets the zone's limit (``check_seams``: a cubic's piece next to the seam
+    does not see the knots two intervals beyond it)."""
+    return zone_rings(faces) + 2
+
+
 def need_rings(faces: int) -> int:
-    """Rings that must be uniform and free of T-junctions and irregular vertices: the zone,
-    one ring more for the zone's own limit (its local cage has two more), and two for the
-    kernel's knot vectors that reach across the zone's edge."""
+    """Rings within which the kernel's grips must be those of the edge-and-corner rule
+    (``tsm_fusion.keep_file_grips``): the local cage's and one more, whose functions reach
+    across the zone's edge."""
     return zone_rings(faces) + 3
 
 
@@ -111,16 +120,17 @@ def rings(mesh, v: int, n: int) -> list[list[int]]:
 
 
 def check_neighbourhood(mesh, v: int, refuse) -> tuple[list[list[int]], float]:
-    """The ``need_rings`` rings of faces around boundary star v and their common knot interval;
+    """The ``cage_rings`` rings of faces around boundary star v and their common knot interval;
     ``refuse(message)`` raises the reader's error for anything the construction needs
     otherwise (T-junctions, other intervals, other irregular vertices)."""
     topo = mesh.topology
-    n = need_rings(len(topo.fan[v]))
+    n = cage_rings(len(topo.fan[v]))
     rs = rings(mesh, v, n)
     faces = [f for r in rs for f in r]
     d = np.concatenate([np.asarray(mesh.intervals[f], float) for f in faces])
-    need = (f"a boundary star point of {len(topo.fan[v])} faces needs its {n} rings of faces free of "
-            f"T-junctions, other star points and concave corners, with one knot interval")
+    need = (f"a boundary star point of {len(topo.fan[v])} faces needs its {n} rings of faces (its local "
+            f"Catmull-Clark cage) free of T-junctions, other star points and concave corners, with one "
+            f"knot interval")
     for f in faces:
         if len(mesh.faces[f]) != 4:
             refuse(f"{need}: {mesh.face_name(f)} has a T-junction")
@@ -277,6 +287,47 @@ def attach(model, old, kernel_face, stars: dict, G: np.ndarray, scale: float) ->
         at = CORNER_UV[[int(w) for w in old.faces[f]].index(v)]
         limits[v] = (T, local.evaluate_faces([faces.index(f)], [at[0]], [at[1]]).P[0])
     return added, limits
+
+
+def check_seams(model, old, kernel_face, stars: dict, refuse, samples: int = 5) -> None:
+    """Where each star's zone (its faces from the local cage) meets the kernel's faces of the
+    next ring: the same points (to 1e-9 of the model size) and normals (sine of the angle
+    below 1e-9) at ``samples`` points of every shared edge, else ``refuse(v, message)``. On
+    uniform knots they are the same B-spline there; T-junctions or other intervals beyond
+    the local cage reach the seam when they are nearer than the kernel's functions there
+    see."""
+    from .patch import CORNER_UV
+    P = model.node_points
+    size = max(float(np.ptp(P, axis=0).max()), 1e-300)
+    tau = np.linspace(0.0, 1.0, samples)
+    for v, rs in stars.items():
+        z = zone_rings(len(old.topology.fan[v]))
+        inner = {f for r_ in rs[:z] for f in r_}
+        fa, sa, ta, fb, sb, tb = [], [], [], [], [], []
+        for g in rs[z]:
+            loop = [int(w) for w in old.faces[g]]
+            for i in range(4):
+                a, b = loop[i], loop[(i + 1) % 4]
+                f, _ = old.topology.edge_at.get((b, a), (None, None))
+                if f is None or f not in inner or kernel_face[f] < 0:
+                    continue
+                other = [int(w) for w in old.faces[f]]
+                for face, lp, out_f, out_s, out_t in ((g, loop, fb, sb, tb), (f, other, fa, sa, ta)):
+                    c0, c1 = CORNER_UV[lp.index(a)], CORNER_UV[lp.index(b)]
+                    st = c0[None, :] * (1 - tau)[:, None] + c1[None, :] * tau[:, None]
+                    out_f.extend([int(kernel_face[face])] * samples)
+                    out_s.extend(st[:, 0])
+                    out_t.extend(st[:, 1])
+        if not fa:
+            continue
+        A, B = model.evaluate_faces(fa, sa, ta), model.evaluate_faces(fb, sb, tb)
+        gap = float(np.linalg.norm(A.P - B.P, axis=1).max()) / size
+        sine = float(np.linalg.norm(np.cross(A.normal, B.normal), axis=1).max())
+        if gap > 1e-9 or sine > 1e-9:
+            refuse(v, f"the T-spline does not meet its local Catmull-Clark cage ({cage_rings(len(old.topology.fan[v]))} "
+                      f"rings) where the cage's faces end after {z} rings (gap {gap:.2g} of the model size, "
+                      f"normals {np.degrees(np.arcsin(min(sine, 1.0))):.2g} degrees apart): T-junctions or other "
+                      f"knot intervals just beyond the cage reach it; refine the T-mesh there")
 
 
 def star_points(model, limits: dict) -> None:

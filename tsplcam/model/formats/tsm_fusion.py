@@ -463,7 +463,8 @@ def kernel_model(r, old, G, name, creases=None, file_grips=None):
     bstars = boundary_stars(r, old, origin)
     kernel, kernel_face = old, np.arange(len(old.faces))
     if bstars:
-        from ..boundary_stars import attach, hole_sides, notch, split_at, star_points, without_faces
+        from ..boundary_stars import (attach, check_seams, hole_sides, notch, split_at, star_points,
+                                      without_faces)
         drop = [f for k in bstars for f in notch(old, k)]
         kept = {int(w) for f in range(len(old.faces)) if f not in drop for w in old.faces[f]}
         for k in bstars:
@@ -503,6 +504,11 @@ def kernel_model(r, old, G, name, creases=None, file_grips=None):
                 if big:
                     split_at(model, hole_sides(model, kernel, {int(w) for f in drop for w in old.faces[f]}),
                              refuse)
+    if bstars:
+        def refuse_seam(k, why):
+            v, line = _file_vertex(r, origin, k)
+            raise r.err(f"open boundary at vertex {v}, a star point on the boundary: {why}", line)
+        check_seams(model, old, kernel_face, bstars, refuse_seam)
     if creases or (bstars and added):
         join_across_creases(model)
     if bstars:

@@ -1,32 +1,39 @@
 """Star points on an open boundary, for the T-spline kernel: the faces around them from
 the Catmull-Clark limit of a local cage (OpenSubdiv's edge-and-corner rule), the rest from
-the kernel.
+the kernel. Used by the Fusion ``.tsm`` reader, native ``.tspl`` t-splines with the
+``edge-and-corner`` boundary and GrapeTec-style ``.tsm`` files (``tsm_fusion.kernel_model``).
 
-A boundary vertex with three to five faces is an extraordinary boundary vertex of
-Catmull-Clark under the edge-and-corner rule (valence 4 to 6): the boundary curve runs
+A boundary vertex with three faces or more is an extraordinary boundary vertex of
+Catmull-Clark under the edge-and-corner rule (valence 4 and more): the boundary curve runs
 smoothly through it and the surface there is the limit of subdivision, which no tensor
-B-spline gives. Where the star's neighbourhood (``need_rings`` rings of faces) has one
-knot interval, no T-junctions and no other irregular vertex, that limit is the reference
+B-spline gives. Where the star's local cage (``cage_rings`` rings of faces) has one knot
+interval, no T-junctions and no other irregular vertex, that limit is the reference
 (``cage.cage_model``):
 
 * The kernel builds the T-mesh with the star clamped as a concave corner (``tsm.PATTERNS[3]``,
-  every grip there the star's own). With four or five faces the star's first and (five)
-  last face are left out of the kernel's T-mesh first (``notch``), so that three remain; the
-  left-out faces' corners become convex and concave corners of the kernel's boundary,
-  clamped alike, so that its patches end on their sides.
+  every grip there the star's own). With four faces or more faces at both ends of its fan
+  are left out of the kernel's T-mesh first (``notch``), so that the middle three remain;
+  the left-out faces' corners become convex and concave corners of the kernel's boundary,
+  clamped alike, so that its patches end on their sides. From six faces on, a spoke between
+  two left-out faces is a straight boundary vertex of the kernel in the middle of a patch's
+  side: that patch is split there, the line carried on across its neighbours to the
+  boundary (``hole_sides``, ``split_at``), so that the patches stay conforming.
 * The kernel's functions that see the star or the notches reach only ``zone_rings`` rings
-  of faces (measured on uniform stars: 2 at three faces, 3 at four, 4 at five, where the
-  two notches' sides overlap in knot space); beyond, the kernel is the same uniform
+  of faces (measured on uniform stars: 2 at three faces, 3 at four, 4 at five to ten, where
+  the notches' sides overlap in knot space); beyond, the kernel is the same uniform
   B-spline as the limit (the functions there use only the knots on their own side).
 * The cells of the zone's faces are replaced (``CageCells``) by the limit of a local cage
   of two rings more, which is exact there (a face's limit depends on its one-ring and their
   vertices' rules only); each left-out face is a patch of its own on the local cage, linked
   to the kernel's patches along its inner sides (``tsm_fusion.join_across_creases``). Zone
   and kernel meet along a line on which both are the same B-spline: C2 there, G1 at the
-  star itself.
+  star itself. T-junctions and other intervals beyond the local cage are taken where this
+  still holds, which ``check_seams`` measures on every shared edge (a cubic's piece next
+  to the seam does not see knots two intervals beyond it).
 
-What is not yet taken is refused by name: boundary stars of six or more faces, boundary
-stars whose rings have T-junctions, other knot intervals or other irregular vertices, and
+What is not taken is refused by name: boundary stars whose local cage has T-junctions,
+other knot intervals or other irregular vertices, a kernel that does not meet the cage
+(``check_seams``), a split line that runs into a patch without a cell break there, and
 bodies so small that a left-out face has a corner on no other face. Creases are cut first
 (``tsm_fusion.cut_along_creases``): within the rings they are boundaries of the local cage,
 OpenSubdiv's infinitely sharp crease.

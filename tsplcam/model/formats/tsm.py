@@ -31,9 +31,15 @@ get two vertices each at zero distance from the corner for the block's side grip
 ring-view position of every grip (its place in that construction) is checked against the
 block's layout, so a file whose blocks do not fit is refused rather than read wrongly.
 
+A boundary vertex of four faces or more (a star point on the boundary) has no grip block:
+its own grip is its Catmull-Clark control point, and the file is read through the Fusion
+dialect's kernel route (``tsm_fusion.grapetec_star_model``: every vertex's control point
+its grip on the boundary ring, the blocks kept away from the stars and checked against the
+edge-and-corner rule within their rings).
+
 Units: ``units <metres per unit> <name>``; coordinates are scaled to mm. Records the
-importer does not support (other end conditions, degrees, edge conditions, star points
-on the boundary, unknown records) are refused with their line. Display and editing
+importer does not support (other end conditions, degrees, edge conditions, grip blocks of
+boundary stars, unknown records) are refused with their line. Display and editing
 metadata (``100001uv``, ``100001uvr``, ``50000grip``, ``105sym``, ``105plane``, ``105a``,
 ``tol``, ``ver``) is skipped.
 """

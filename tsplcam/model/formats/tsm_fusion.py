@@ -28,11 +28,15 @@ rule on uniform knots). A crease there is knot multiplicity three on its line: t
 T-mesh is cut along the crease (``cut_along_creases``), each side clamped like a boundary,
 and the patches on the two sides linked again (``join_across_creases``); on uniform knots
 this is OpenSubdiv's infinitely sharp crease. Creases that end inside the surface and
-sharp vertices are refused there with their line. A boundary vertex of three to five faces
-(a star point on the boundary for Catmull-Clark) whose rings of faces are uniform and free
-of T-junctions is clamped as a concave corner (its end faces left out at four and five),
-and the faces within two to four rings of it are the Catmull-Clark limit of a local cage
-(``boundary_stars.py``); other boundary stars are refused with their line.
+sharp vertices are refused there with their line. A boundary vertex of three faces or more
+(a star point on the boundary for Catmull-Clark) whose local cage (four to six rings of
+faces) is uniform and free of T-junctions is clamped as a concave corner (faces at both
+ends of its fan left out from four faces on), and the faces within two to four rings of it
+are the Catmull-Clark limit of that cage (``boundary_stars.py``); other boundary stars are
+refused with their line. ``kernel_model`` is that route for any T-mesh with open boundaries
+that are not clamped: native ``.tspl`` t-splines with the ``edge-and-corner`` boundary
+(``MeshReader``) and GrapeTec-style files with boundary stars (``grapetec_star_model``) take
+it too.
 """
 from __future__ import annotations
 

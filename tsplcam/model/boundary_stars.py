@@ -56,7 +56,7 @@ UNIFORM_TOL = 1e-9
 def zone_rings(faces: int) -> int:
     """Rings of faces around a boundary star of ``faces`` faces replaced by its local cage:
     as far as the kernel's surface differs from the limit without it (measured on uniform
-    stars: two rings at three faces, three at four, four at five to ten: with a local cage
+    stars: two rings at three faces, three at four, four at five to twelve: with a local cage
     of three rings it is off by 1e-2 of the size in the third and fourth ring, with four
     exact to 1e-16). From five faces on, faces at both ends are left out: in the kernel's
     knot space the faces beyond them then lie in the same quadrant behind the star (its
@@ -467,10 +467,13 @@ def split_patch(model, p: int, axis: int, at: float) -> int:
 
 
 def split_at(model, sides: list, refuse) -> None:
-    """Split the kernel's patches at ``hole_sides``, each line carried on across the far side
-    of every patch it reaches until a side without a neighbour, so that the patches stay
-    conforming; ``refuse(why)`` raises the reader's error where a patch the line reaches has
-    no cell break on it."""
+    """Split the kernel's patches at ``hole_sides``, each line carried on across every patch
+    side its far end lands inside of (at a cell break there) until it ends on a corner or
+    the boundary, so that the patches stay conforming; ``refuse(why)`` raises the reader's
+    error where a patch the line reaches has no cell break on it. The split sides are
+    linked again by ``tsm_fusion.join_across_creases``."""
+    P = model.node_points
+    tol = 1e-9 * max(float(np.ptp(P, axis=0).max()), 1e-300)
     todo = list(sides)
     budget = 4 * len(model.patches) + 4
     while todo:
@@ -479,23 +482,31 @@ def split_at(model, sides: list, refuse) -> None:
             refuse("the patch lines from its spokes do not reach the boundary")
         p, axis, at = todo.pop()
         patch = model.patches[p]
-        # the line runs across the patch; both ends: find the neighbours across them
-        uv = np.array([[at / patch.knot_size[0], 0.0], [at / patch.knot_size[0], 1.0]]) if axis == 0 else \
-            np.array([[0.0, at / patch.knot_size[1]], [1.0, at / patch.knot_size[1]]])
+        x = at / patch.knot_size[axis]
+        uv = np.array([[x, 0.0], [x, 1.0]]) if axis == 0 else np.array([[0.0, x], [1.0, x]])
         ends = patch.evaluate(uv[:, 0], uv[:, 1]).P
-        across = [patch.neighbours[e] for e in ((0, 2) if axis == 0 else (3, 1))]
         try:
             split_patch(model, p, axis, at)
         except ValueError as exc:
             refuse(f"the patch line from a spoke between two left-out faces runs into {exc}")
-        for nb, X in zip(across, ends):
-            if nb is None:
+        for X in ends:
+            hit = _side_through(model, X, tol)
+            if hit is not None:
+                todo.append(hit)
+
+
+def _side_through(model, X, tol):
+    """(patch, axis, knot position) of a patch side that has the point X inside it, at one
+    of its cell breaks (where a split line ended: that patch is split there too), or None."""
+    for q in model.patches:
+        for axis, br in ((0, q.ubreaks), (1, q.vbreaks)):
+            inner = br[1:-1]
+            if not len(inner):
                 continue
-            q = model.patches[nb.patch]
-            ax = 0 if nb.edge in (0, 2) else 1
-            br = q.ubreaks if ax == 0 else q.vbreaks
-            fixed = {0: 0.0, 2: 1.0, 1: 1.0, 3: 0.0}[nb.edge]
-            uu, vv = (br, np.full(len(br), fixed)) if ax == 0 else (np.full(len(br), fixed), br)
-            gap = np.linalg.norm(q.evaluate(uu, vv).P - X, axis=1)
-            k = int(np.argmin(gap))
-            todo.append((nb.patch, ax, float(br[k] * q.knot_size[ax])))
+            for c in (0.0, 1.0):
+                uu, vv = (inner, np.full(len(inner), c)) if axis == 0 else (np.full(len(inner), c), inner)
+                gap = np.linalg.norm(q.evaluate(uu, vv).P - X, axis=1)
+                k = int(np.argmin(gap))
+                if gap[k] <= tol:
+                    return q.index, axis, float(inner[k] * q.knot_size[axis])
+    return None

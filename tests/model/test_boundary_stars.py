@@ -463,8 +463,9 @@ class NativeAndManyFaces(TempFiles):
     def test_grapetec_file(self):
         """A GrapeTec-style ``.tsm`` (grip blocks on the boundary) of a book of four faces, the
         star without a block and the blocks the edge-and-corner rule's: the cage path's
-        surface on every face (measured 1.8e-16 of the size, 6.1e-14 in first derivatives);
-        a second-row grip moved within the star's rings is refused naming the vertex and
+        surface on every face (measured 1.8e-16 of the size, 6.1e-14 in first derivatives)
+        (``read_tsm``, the T-mesh with explicit boundary grips, refuses it by name); a
+        second-row grip moved within the star's rings is refused naming the vertex and
         the line (moved further out it is kept: measured on a book of eight rings, the
         surface within five rings of the star unchanged to 1.4e-14 mm)."""
         cage, S, _ = book(4, k=6)
@@ -480,6 +481,11 @@ class NativeAndManyFaces(TempFiles):
         self.assertLess(np.abs(pa.P - pb.P).max(), 1e-12 * scale)
         self.assertLess(max(np.abs(pa.Pu - pb.Pu).max(), np.abs(pa.Pv - pb.Pv).max()), 1e-10 * scale)
         self.assertEqual([(e.boundary, e.valence) for e in b.extraordinary], [(True, 4)])
+        # its T-mesh with explicit boundary grips does not exist there: read_tsm says so
+        from tsplcam.model.formats.tsm import read_tsm
+        with self.assertRaises(InputError) as cm:
+            read_tsm(path)
+        self.assertIn("star point on the boundary", cm.exception.message)
         boundary_next = next(v for v in range(len(cage.points)) if v != S
                              and abs(np.linalg.norm(cage.points[v, :2] - cage.points[S, :2]) - 5.0) < 1e-9)
         with open(path, "w") as fh:

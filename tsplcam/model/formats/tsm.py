@@ -642,7 +642,14 @@ def read_tsm(path):
     if reader.dialect == "fusion":
         raise reader.err("a Fusion-dialect file (end-conditions) has no T-mesh with explicit boundary "
                          "grips: read it with tsm_model", reader.header["end-conditions"][1])
-    return reader.build()
+    old = reader.topology()
+    star = next((k for k in range(old.n_vertices) if old.topology.boundary[k] and old.topology.total[k] >= 4),
+                None)
+    if star is not None:
+        raise reader.err(f"vertex {reader.old_ids[star]} is a star point on the boundary: the file has no T-mesh "
+                         f"with explicit boundary grips there (local Catmull-Clark cages): read it with "
+                         f"tsm_model", old.vertex_lines[star])
+    return reader.build(old)
 
 
 def tsm_model(path, **options):

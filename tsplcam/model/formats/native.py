@@ -21,6 +21,11 @@ VERSION = 2                    # 2 adds "creases" and "corners" to catmull-clark
 CREASE_VERSION = 2
 KINDS = ("t-spline", "catmull-clark")
 T_SPLINE_BOUNDARY = "repeat-last-knot"
+#: a t-spline's open boundaries not clamped, read as the Fusion reader reads them: the
+#: boundary clamped with the second grip row of OpenSubdiv's edge-and-corner rule, boundary
+#: star points from local Catmull-Clark cages (docs/formats.md section 2.5)
+T_SPLINE_OPEN = "edge-and-corner"
+T_SPLINE_BOUNDARIES = (T_SPLINE_BOUNDARY, T_SPLINE_OPEN)
 CAGE_BOUNDARIES = ("edge-only", "edge-and-corner")
 UNITS = {"mm": 1.0, "cm": 10.0, "m": 1000.0, "in": 25.4}
 
@@ -180,7 +185,7 @@ def read_native(path):
     if name is not None and not isinstance(name, str):
         raise InputError('"name" must be a string', path=path, item="name")
     boundary = data.get("boundary", T_SPLINE_BOUNDARY if kind == "t-spline" else "edge-only")
-    allowed = (T_SPLINE_BOUNDARY,) if kind == "t-spline" else CAGE_BOUNDARIES
+    allowed = T_SPLINE_BOUNDARIES if kind == "t-spline" else CAGE_BOUNDARIES
     if boundary not in allowed:
         raise InputError(f'"boundary" of a {kind} model must be {" or ".join(allowed)} (got {boundary!r})',
                          path=path, item="boundary")
@@ -253,6 +258,9 @@ def read_native(path):
     mesh = TMesh(P, W, loops, corners, intervals, source=path, face_lines=flines, vertex_lines=vlines,
                  name=name)
     mesh.validate()
+    # how its open boundaries are read (native_model): clamped as they are, or by the
+    # edge-and-corner rule
+    mesh.boundary_rule = boundary
     return kind, mesh, name
 
 
@@ -293,5 +301,11 @@ def native_model(path, **options):
         if kind == "catmull-clark":
             from ..cage import cage_model
             return cage_model(control, name=name)
+        if getattr(control, "boundary_rule", T_SPLINE_BOUNDARY) == T_SPLINE_OPEN:
+            from .tsm_fusion import MeshReader, kernel_model
+            G = np.column_stack([control.points, control.weights])
+            model, _ = kernel_model(MeshReader(control), control, G,
+                                    name or os.path.splitext(os.path.basename(os.fspath(path)))[0])
+            return model
         from ..tspline import tspline_model
         return tspline_model(control, name=name)

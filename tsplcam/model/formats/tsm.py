@@ -31,9 +31,15 @@ get two vertices each at zero distance from the corner for the block's side grip
 ring-view position of every grip (its place in that construction) is checked against the
 block's layout, so a file whose blocks do not fit is refused rather than read wrongly.
 
+A boundary vertex of four faces or more (a star point on the boundary) has no grip block:
+its own grip is its Catmull-Clark control point, and the file is read through the Fusion
+dialect's kernel route (``tsm_fusion.grapetec_star_model``: every vertex's control point
+its grip on the boundary ring, the blocks kept away from the stars and checked against the
+edge-and-corner rule within their rings).
+
 Units: ``units <metres per unit> <name>``; coordinates are scaled to mm. Records the
-importer does not support (other end conditions, degrees, edge conditions, star points
-on the boundary, unknown records) are refused with their line. Display and editing
+importer does not support (other end conditions, degrees, edge conditions, grip blocks of
+boundary stars, unknown records) are refused with their line. Display and editing
 metadata (``100001uv``, ``100001uvr``, ``50000grip``, ``105sym``, ``105plane``, ``105a``,
 ``tol``, ``ver``) is skipped.
 """
@@ -286,7 +292,9 @@ class _Reader:
                 vertex, valence = int(tok[2]), int(tok[3])
                 if valence != 4:
                     raise self.err(f"a grip block of valence {valence} (a star point on the boundary) is "
-                                   f"not supported", ln)
+                                   f"not supported: a boundary star point of four faces or more is read "
+                                   f"without a grip block, its own grip its Catmull-Clark control point "
+                                   f"(docs/formats.md section 2.2)", ln)
                 dims = [int(x) for x in tok[4:8]]
                 grips = [int(x) for x in tok[8:]]
                 if vertex in self.cg:
@@ -450,6 +458,9 @@ class _Reader:
             T = int(topo.total[k])
             boundary = bool(topo.boundary[k])
             if v not in self.cg:
+                if boundary and T >= 4 and not extra.get(v):
+                    out[k] = {(0, 0): prime[v]}     # a boundary star point (tsm_fusion.grapetec_star_model)
+                    continue
                 if boundary:
                     raise self.err(f"boundary vertex {v} has no grip block (0m cg): only Bezier end "
                                    f"conditions are supported", vrec[0])
@@ -464,7 +475,9 @@ class _Reader:
                 out[k] = {(0, 0): prime[v]}
                 continue
             if T not in PATTERNS:
-                raise self.err(f"boundary vertex {v} has faces of {T} quarter turns: not supported", vrec[0])
+                raise self.err(f"boundary vertex {v} has faces of {T} quarter turns and a grip block: a "
+                               f"boundary star point is read without one (its own grip its Catmull-Clark "
+                               f"control point)", vrec[0])
             try:
                 local = block_offsets(dims, gids)
             except ValueError as exc:
@@ -629,7 +642,14 @@ def read_tsm(path):
     if reader.dialect == "fusion":
         raise reader.err("a Fusion-dialect file (end-conditions) has no T-mesh with explicit boundary "
                          "grips: read it with tsm_model", reader.header["end-conditions"][1])
-    return reader.build()
+    old = reader.topology()
+    star = next((k for k in range(old.n_vertices) if old.topology.boundary[k] and old.topology.total[k] >= 4),
+                None)
+    if star is not None:
+        raise reader.err(f"vertex {reader.old_ids[star]} is a star point on the boundary: the file has no T-mesh "
+                         f"with explicit boundary grips there (local Catmull-Clark cages): read it with "
+                         f"tsm_model", old.vertex_lines[star])
+    return reader.build(old)
 
 
 def tsm_model(path, **options):
@@ -639,7 +659,11 @@ def tsm_model(path, **options):
     if reader.dialect == "fusion":
         from .tsm_fusion import fusion_model
         return fusion_model(reader, **options)
-    mesh = reader.build()
+    old = reader.topology()
+    if any(old.topology.boundary[k] and old.topology.total[k] >= 4 for k in range(old.n_vertices)):
+        from .tsm_fusion import grapetec_star_model
+        return grapetec_star_model(reader, old)
+    mesh = reader.build(old)
     with naming(path):
         model = tspline_model(mesh, name=mesh.name)
     model.tsm = TsmInfo.of(reader, "T-spline with Bezier end conditions (boundary grip blocks)")

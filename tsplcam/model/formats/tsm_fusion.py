@@ -28,11 +28,15 @@ rule on uniform knots). A crease there is knot multiplicity three on its line: t
 T-mesh is cut along the crease (``cut_along_creases``), each side clamped like a boundary,
 and the patches on the two sides linked again (``join_across_creases``); on uniform knots
 this is OpenSubdiv's infinitely sharp crease. Creases that end inside the surface and
-sharp vertices are refused there with their line. A boundary vertex of three to five faces
-(a star point on the boundary for Catmull-Clark) whose rings of faces are uniform and free
-of T-junctions is clamped as a concave corner (its end faces left out at four and five),
-and the faces within two to four rings of it are the Catmull-Clark limit of a local cage
-(``boundary_stars.py``); other boundary stars are refused with their line.
+sharp vertices are refused there with their line. A boundary vertex of three faces or more
+(a star point on the boundary for Catmull-Clark) whose local cage (four to six rings of
+faces) is uniform and free of T-junctions is clamped as a concave corner (faces at both
+ends of its fan left out from four faces on), and the faces within two to four rings of it
+are the Catmull-Clark limit of that cage (``boundary_stars.py``); other boundary stars are
+refused with their line. ``kernel_model`` is that route for any T-mesh with open boundaries
+that are not clamped: native ``.tspl`` t-splines with the ``edge-and-corner`` boundary
+(``MeshReader``) and GrapeTec-style files with boundary stars (``grapetec_star_model``) take
+it too.
 """
 from __future__ import annotations
 
@@ -43,7 +47,7 @@ import numpy as np
 from ...inputfile import naming
 from ..components import components
 from ..quadmesh import INFINITE
-from .tsm import PATTERNS
+from .tsm import PATTERNS, _Reader
 
 #: relative spread of knot intervals still read as uniform
 UNIFORM_TOL = 1e-9
@@ -204,7 +208,8 @@ def clamped_boundary(r, old, G0, origin, stars=()):
     B-spline, per direction that meets the boundary (straight vertices one, convex corners
     two and their product). Boundary stars in ``stars`` (three faces) are clamped as a
     concave corner with every grip the star's own (``boundary_stars``: the kernel's surface
-    there is replaced); other concave corners and boundary stars are refused."""
+    there is replaced; with more faces, which only ``keep_file_grips`` asks, just their
+    own); other concave corners and boundary stars are refused."""
     topo = old.topology
     H = np.column_stack([G0[:, :3] * G0[:, 3:], G0[:, 3]])
     rows, lines, names, pos = [], [], [], {}
@@ -239,8 +244,8 @@ def clamped_boundary(r, old, G0, origin, stars=()):
                       (0, -1): add(C + ax * (X - C), k, "clamped"),
                       (-1, 0): add(C + ay * (Y - C), k, "clamped"),
                       (0, 0): add(C + ax * (X - C) + ay * (Y - C) + ax * ay * (XY - X - Y + C), k, "clamped")}
-        elif k in stars and T == 3:
-            pos[k] = {p: add(H[k], k, "star") for p in sorted(PATTERNS[3])}
+        elif k in stars:
+            pos[k] = {p: add(H[k], k, "star") for p in sorted(PATTERNS[3] if T == 3 else {(0, 0)})}
         else:
             what = "a concave corner" if T == 3 else "a T-junction" if T == 2 else "a star point"
             v, line = _file_vertex(r, origin, k)
@@ -250,10 +255,11 @@ def clamped_boundary(r, old, G0, origin, stars=()):
 
 
 def boundary_stars(r, old, origin) -> dict:
-    """Boundary star points of the T-mesh (boundary vertices with three to five faces; on a
+    """Boundary star points of the T-mesh (boundary vertices with three faces or more; on a
     T-mesh cut along its creases) -> their rings of faces
-    (``boundary_stars.check_neighbourhood``); more faces are refused with their line."""
-    from ..boundary_stars import MOST_FACES, check_neighbourhood
+    (``boundary_stars.check_neighbourhood``, which refuses what they need otherwise with the
+    vertex's line)."""
+    from ..boundary_stars import check_neighbourhood
     topo = old.topology
     out = {}
     for k in range(old.n_vertices):
@@ -263,10 +269,6 @@ def boundary_stars(r, old, origin) -> dict:
 
         def refuse(message, v=v, line=line):
             raise r.err(f"open boundary at vertex {v}, a star point on the boundary: {message}", line)
-        if int(topo.total[k]) > MOST_FACES:
-            refuse(f"{int(topo.total[k])} faces there; the T-spline kernel takes boundary star points of "
-                   f"three to {MOST_FACES} faces (more are read on uniform T-meshes without T-junctions, by "
-                   f"the Catmull-Clark path)")
         out[k] = check_neighbourhood(old, k, refuse)[0]
     return out
 
@@ -344,6 +346,11 @@ def join_across_creases(model, samples: int = 5) -> int:
                             for p in range(len(model.patches))])
     tol = 1e-9 * max(float(np.linalg.norm(every.max(0) - every.min(0))), 1e-300)
     same = {}                                       # node -> node it becomes
+
+    def root(n):
+        while n in same:
+            n = same[n]
+        return n
     made = 0
     for i, a in enumerate(free):
         for b in free[i + 1:]:
@@ -357,14 +364,12 @@ def join_across_creases(model, samples: int = 5) -> int:
                     ca = [model.patches[a[0]].corner_nodes[(a[1] + k) % 4] for k in (0, 1)]
                     cb = [model.patches[b[0]].corner_nodes[(b[1] + k) % 4] for k in ((1, 0) if rev else (0, 1))]
                     for x, y in zip(ca, cb):
-                        same[int(y)] = int(x)
+                        rx, ry = root(int(x)), root(int(y))
+                        if rx != ry:                # union of the two nodes' sets
+                            same[ry] = rx
                     made += 1
                     break
     if same:
-        def root(n):
-            while n in same and same[n] != n:
-                n = same[n]
-            return n
         used = sorted({root(int(n)) for p in model.patches for n in p.corner_nodes})
         new = {n: k for k, n in enumerate(used)}
         for p in model.patches:
@@ -381,12 +386,183 @@ def join_across_creases(model, samples: int = 5) -> int:
     return made
 
 
+class MeshReader(_Reader):
+    """What ``kernel_model`` asks of a reader, for a T-mesh read from another file (a native
+    ``.tspl`` with the edge-and-corner boundary): errors on its file, its vertices numbered
+    from 1 with their lines, coordinates in mm already, the ring construction
+    (``tsm._Reader.build``) labelling each boundary strip by the line of its face."""
+
+    def __init__(self, mesh):
+        super().__init__(mesh.source or "")
+        self.mesh = mesh
+        # the ring construction names its vertices and faces after these
+        if mesh.vertex_labels is None:
+            mesh.vertex_labels = [mesh.vertex_name(k) for k in range(mesh.n_vertices)]
+        if mesh.face_labels is None:
+            mesh.face_labels = [mesh.face_name(f) for f in range(len(mesh.faces))]
+        self.scale = 1.0
+        self.header, self.crease_edges, self.crease_vertices = {}, [], []
+        self.old_ids = list(range(1, mesh.n_vertices + 1))
+        lines = mesh.vertex_lines or [None] * mesh.n_vertices
+        self.v = {k + 1: (lines[k],) for k in range(mesh.n_vertices)}
+        self.l, self.e, self.g = [], [], []
+
+    def _link_of(self, a, b):
+        """A stand-in link record for the edge a -> b: its edge slot holds the face's line."""
+        f, _ = self.mesh.topology.edge_at[(a, b)]
+        self.e.append((self.mesh.face_lines[f] if self.mesh.face_lines is not None else None,))
+        self.l.append((None,) * 6 + (len(self.e) - 1,))
+        return len(self.l) - 1
+
+
+def keep_file_grips(r, old, bstars: dict, pos: dict, rows, file_grips: dict, G) -> None:
+    """The ring grips of a GrapeTec file (``file_grips``: old vertex -> {ring-view position:
+    (x, y, z, w)}) in place of the edge-and-corner rule's (``pos``/``rows`` of the kernel's
+    T-mesh, changed in place), except within the stars' rings, where the file's must be the
+    rule's (to 1e-9 of the model size; ``G`` the Catmull-Clark control points): the faces
+    there come from the local Catmull-Clark cage, which meets the kernel only if the
+    kernel's grips around it are the rule's."""
+    from ..boundary_stars import need_rings, rings
+    near = {}
+    for v in bstars:
+        for f in [f for r_ in rings(old, v, need_rings(len(old.topology.fan[v]))) for f in r_]:
+            for w in old.faces[f]:
+                near.setdefault(int(w), v)
+    origin = list(range(old.n_vertices))
+    rule_pos, rule_rows, _, _ = clamped_boundary(r, old, G, origin, set(bstars))
+    size = max(float(np.ptp(np.asarray(rule_rows)[:, :3], axis=0).max()), 1e-300)
+    for k, grips in file_grips.items():
+        for p, g in grips.items():
+            row = np.asarray(g, float)
+            if k in near:
+                want = rule_rows[rule_pos[k][p]]
+                d = float(np.linalg.norm(row[:3] - want[:3]))
+                if d > 1e-9 * size or abs(row[3] - want[3]) > 1e-9:
+                    v, line = _file_vertex(r, origin, k)
+                    raise r.err(f"boundary vertex {v}, near the boundary star point at vertex "
+                                f"{_file_vertex(r, origin, near[k])[0]}: its grip at {p} is {d:.3g} file units "
+                                f"from the edge-and-corner rule's (the second row a / (2a + b) of the way "
+                                f"inward, from the boundary grip): the faces near a boundary star come from "
+                                f"a local Catmull-Clark cage, which meets the T-spline only if its grips "
+                                f"there are the rule's", line)
+            else:
+                rows[pos[k][p]] = row
+
+
+def kernel_model(r, old, G, name, creases=None, file_grips=None):
+    """The T-spline kernel's surface of a T-mesh ``old`` with open boundaries that are not
+    clamped (a Fusion file's, or a native file's with the edge-and-corner boundary): one
+    grip per vertex (``G``, (x, y, z, w) rows in file units), creases (compact vertex pairs)
+    cut first, boundaries clamped by ``clamped_boundary`` and boundary star points from
+    local Catmull-Clark cages (``boundary_stars.py``). ``r`` gives the errors, the ring
+    construction (``tsm._Reader.build``), the scale and the file's vertex ids and lines.
+    ``file_grips`` (k -> {ring-view position: (x, y, z, w)}, a GrapeTec file's boundary
+    blocks): kept where they are, except within the stars' rings, where they must be the
+    edge-and-corner rule's own (the local cage's limit meets the kernel there).
+    Returns the model and its boundary stars."""
+    from ..tspline import tspline_model
+    origin = list(range(old.n_vertices))
+    if creases:
+        old, origin = cut_along_creases(r, old, creases)
+    bstars = boundary_stars(r, old, origin)
+    kernel, kernel_face = old, np.arange(len(old.faces))
+    if bstars:
+        from ..boundary_stars import (attach, check_seams, hole_sides, notch, split_at, star_points,
+                                      without_faces)
+        drop = [f for k in bstars for f in notch(old, k)]
+        kept = {int(w) for f in range(len(old.faces)) if f not in drop for w in old.faces[f]}
+        for k in bstars:
+            lone = [int(w) for f in notch(old, k) for w in old.faces[f] if int(w) not in kept]
+            if lone:
+                v, line = _file_vertex(r, origin, k)
+                raise r.err(f"open boundary at vertex {v}, a star point on the boundary of "
+                            f"{len(old.topology.fan[k])} faces: the T-spline kernel leaves its end faces "
+                            f"out (evaluated from a local cage), which needs their corners on other "
+                            f"faces too; vertex {_file_vertex(r, origin, lone[0])[0]} has no other face",
+                            line)
+        if drop:
+            kernel, kernel_face = without_faces(old, drop)
+    # the stars and the notches' concave corners: clamped with every grip their own (the
+    # kernel's surface within their reach is replaced)
+    concave = {k for k in range(kernel.n_vertices) if kernel.topology.boundary[k]
+               and int(kernel.topology.total[k]) == 3} if bstars else set()
+    pos, rows, lines, names = clamped_boundary(r, kernel, G[origin], origin, concave)
+    if file_grips:
+        keep_file_grips(r, old, bstars, pos, rows, file_grips, G[origin])
+    mesh = r.build(kernel, pos, rows, lines, names, origin if creases else None)
+    with naming(r.path):
+        model = tspline_model(mesh, name=name)
+        if bstars:
+            added, limits = attach(model, old, kernel_face, bstars, G[origin], r.scale)
+            if added:
+                model.notch_faces = added
+                # six faces or more: spokes between two left-out faces lie in the middle of a
+                # kernel patch's side; the kernel's patches are split there
+                big = [k for k in bstars if len(old.topology.fan[k]) >= 6]
+
+                def refuse(why, k=big[0] if big else None):
+                    v, line = _file_vertex(r, origin, k)
+                    raise r.err(f"open boundary at vertex {v}, a star point on the boundary of "
+                                f"{len(old.topology.fan[k])} faces: its left-out faces meet the kernel's "
+                                f"patches in the middle of a side, and splitting them fails: {why}", line)
+                if big:
+                    split_at(model, hole_sides(model, kernel, {int(w) for f in drop for w in old.faces[f]}),
+                             refuse)
+    if bstars:
+        def refuse_seam(k, why):
+            v, line = _file_vertex(r, origin, k)
+            raise r.err(f"open boundary at vertex {v}, a star point on the boundary: {why}", line)
+        check_seams(model, old, kernel_face, bstars, refuse_seam)
+    if creases or (bstars and added):
+        join_across_creases(model)
+    if bstars:
+        star_points(model, limits)
+        # the kernel's T-mesh is not this surface near the stars (their faces come from
+        # local cages): it has no native file
+        model.no_native = (f"{name}: its boundary star points are evaluated from local "
+                           f"Catmull-Clark cages, which the T-mesh it keeps does not describe")
+    return model, bstars
+
+
+def grapetec_star_model(r, old):
+    """The surface of a GrapeTec-style ``.tsm`` (Bezier end conditions: grip blocks on the
+    boundary) with boundary star points (boundary vertices of four faces or more, without a
+    grip block): read as the Fusion dialect's T-mesh through ``kernel_model``, each vertex's
+    Catmull-Clark control point its boundary grip (the block's grip on the boundary ring; at
+    a convex corner the corner grip, at a star or a concave corner its own), the file's
+    other grips kept (``keep_file_grips``). A concave corner (three faces) is then a star
+    point too, so its block must repeat its own grip (the kernel's clamping of one)."""
+    from .tsm import TsmInfo
+    topo = old.topology
+    blocks = r.grips(old)
+    cage_at = {1: (-1, -1), 2: (0, -1)}
+    G = np.empty((old.n_vertices, 4))
+    file_grips = {}
+    for k in range(old.n_vertices):
+        T = int(topo.total[k])
+        block = {p: np.asarray(r.g[g][1:5], float) for p, g in blocks[k].items()}
+        if topo.boundary[k] and T == 3:
+            own = block[(0, 0)]
+            if any(np.abs(x - own).max() > 1e-12 * max(1.0, float(np.abs(own).max())) for x in block.values()):
+                v = r.old_ids[k]
+                raise r.err(f"concave corner at vertex {v} in a T-mesh with boundary star points: read as a "
+                            f"star point of three faces (Catmull-Clark), its grip block must repeat its own "
+                            f"grip", r.cg[v][0] if v in r.cg else r.v[v][0])
+        G[k] = block[cage_at.get(T, (0, 0))] if topo.boundary[k] else block[(0, 0)]
+        if topo.boundary[k] and T in cage_at:
+            file_grips[k] = block
+    name = os.path.splitext(os.path.basename(r.path))[0]
+    model, _ = kernel_model(r, old, G, name, None, file_grips)
+    model.tsm = TsmInfo.of(r, "T-spline with Bezier end conditions (boundary grip blocks); star points on "
+                              "the boundary from local Catmull-Clark cages")
+    return model
+
+
 def fusion_model(r, t_spline: bool = False):
     """The surface of a parsed Fusion-dialect file ``r`` (a ``tsm._Reader``); ``t_spline``
     builds it with the T-spline kernel even where it is a uniform cage (for checks)."""
     from ..cage import Cage, cage_model
     from ..quadmesh import QuadMesh
-    from ..tspline import tspline_model
     from .tsm import TsmInfo
     old = r.topology()
     topo = old.topology
@@ -421,46 +597,7 @@ def fusion_model(r, t_spline: bool = False):
         if sharp:
             raise r.err("sharp vertices (100verts) on a T-mesh with T-junctions or non-uniform knot "
                         "intervals are not supported", r.crease_vertices[0][0])
-        origin = list(range(old.n_vertices))
-        if creases:
-            old, origin = cut_along_creases(r, old, creases)
-        bstars = boundary_stars(r, old, origin)
-        kernel, kernel_face = old, np.arange(len(old.faces))
-        if bstars:
-            from ..boundary_stars import attach, notch, star_points, without_faces
-            drop = [f for k in bstars for f in notch(old, k)]
-            kept = {int(w) for f in range(len(old.faces)) if f not in drop for w in old.faces[f]}
-            for k in bstars:
-                lone = [int(w) for f in notch(old, k) for w in old.faces[f] if int(w) not in kept]
-                if lone:
-                    v, line = _file_vertex(r, origin, k)
-                    raise r.err(f"open boundary at vertex {v}, a star point on the boundary of "
-                                f"{len(old.topology.fan[k])} faces: the T-spline kernel leaves its end faces "
-                                f"out (evaluated from a local cage), which needs their corners on other "
-                                f"faces too; vertex {_file_vertex(r, origin, lone[0])[0]} has no other face",
-                                line)
-            if drop:
-                kernel, kernel_face = without_faces(old, drop)
-        # the stars and the notches' concave corners: clamped with every grip their own (the
-        # kernel's surface within their reach is replaced)
-        concave = {k for k in range(kernel.n_vertices) if kernel.topology.boundary[k]
-                   and int(kernel.topology.total[k]) == 3} if bstars else set()
-        pos, rows, lines, names = clamped_boundary(r, kernel, G[origin], origin, concave)
-        mesh = r.build(kernel, pos, rows, lines, names, origin if creases else None)
-        with naming(r.path):
-            model = tspline_model(mesh, name=name)
-            if bstars:
-                added, limits = attach(model, old, kernel_face, bstars, G[origin], r.scale)
-                if added:
-                    model.notch_faces = added
-        if creases or (bstars and added):
-            join_across_creases(model)
-        if bstars:
-            star_points(model, limits)
-            # the kernel's T-mesh is not this surface near the stars (their faces come from
-            # local cages): it has no native file
-            model.no_native = (f"{name}: its boundary star points are evaluated from local "
-                               f"Catmull-Clark cages, which the T-mesh it keeps does not describe")
+        model, bstars = kernel_model(r, old, G, name, creases)
         surface = ("T-spline (T-junctions or non-uniform knot intervals; T-NURCC rule at star points; "
                    "open boundaries clamped with the second grip row of the edge-and-corner rule"
                    + ("; star points on the boundary from local Catmull-Clark cages)" if bstars else ")"))

@@ -26,6 +26,7 @@ CORNER_NAMES = ("lower-left", "lower-right", "upper-right", "upper-left")
 EDGE_NAMES = ("bottom", "right", "top", "left")
 
 CHUNK = 1 << 17
+_clip = np.core.umath.clip             # np.clip's ufunc, without its Python wrapper
 
 
 def rotation_map(rotation: int) -> int:
@@ -83,26 +84,41 @@ class Patch:
         if u.shape != v.shape:
             u, v = np.broadcast_arrays(u, v)
             u, v = u.copy(), v.copy()
-        bad = ~(np.isfinite(u) & np.isfinite(v)) | (u < -1e-9) | (u > 1 + 1e-9) | (v < -1e-9) | (v > 1 + 1e-9)
-        if bad.any():
+        # four reductions decide the common case (NaN fails both comparisons)
+        if not (u.min(initial=0.0) >= -1e-9 and v.min(initial=0.0) >= -1e-9
+                and u.max(initial=1.0) <= 1 + 1e-9 and v.max(initial=1.0) <= 1 + 1e-9):
+            bad = ~(np.isfinite(u) & np.isfinite(v)) | (u < -1e-9) | (u > 1 + 1e-9) | (v < -1e-9) | (v > 1 + 1e-9)
             i = int(np.nonzero(bad)[0][0])
             raise InputError(f"parameter (u, v) = ({u[i]:g}, {v[i]:g}) is outside the unit square "
                              f"({int(bad.sum())} such points)", item=self.name)
-        u = np.clip(u, 0.0, 1.0)
-        v = np.clip(v, 0.0, 1.0)
+        u = _clip(u, 0.0, 1.0)
+        v = _clip(v, 0.0, 1.0)
         n = len(u)
-        out = np.empty((6, 3, n))                          # coordinate-major
         ep_rows, ep_normals = [], []
-        for start in range(0, n, CHUNK):
-            stop = min(n, start + CHUNK)
-            order, H, ep = self._evaluate_h(u[start:stop], v[start:stop])
-            E = rational_from_homogeneous(H)                 # six (3, m), in cell order
-            rows = start + order
-            for k in range(6):
-                out[k][:, rows] = E[k]
+        if n <= CHUNK:
+            order, H, ep = self._evaluate_h(u, v)
+            E = rational_from_homogeneous(H)                 # six (3, n), in cell order
+            if order is None:                                # already in cell order: no copy
+                out = E
+            else:
+                out = np.empty((6, 3, n))                    # coordinate-major
+                for k in range(6):
+                    out[k][:, order] = E[k]
             if ep is not None:
-                ep_rows.append(start + order[ep[0]])
+                ep_rows.append(ep[0] if order is None else order[ep[0]])
                 ep_normals.append(ep[1])
+        else:
+            out = np.empty((6, 3, n))                        # coordinate-major
+            for start in range(0, n, CHUNK):
+                stop = min(n, start + CHUNK)
+                order, H, ep = self._evaluate_h(u[start:stop], v[start:stop])
+                E = rational_from_homogeneous(H)             # six (3, m), in cell order
+                rows = start + (np.arange(stop - start) if order is None else order)
+                for k in range(6):
+                    out[k][:, rows] = E[k]
+                if ep is not None:
+                    ep_rows.append(rows[ep[0]])
+                    ep_normals.append(ep[1])
         # (n, 3) views of the coordinate-major rows: no copy
         P, Pu, Pv, Puu, Puv, Pvv = (x.T for x in out)
         normal_override = None
@@ -173,20 +189,24 @@ class Patch:
                              self.index, normal)
 
     def _evaluate_h(self, u, v):
-        """Homogeneous derivatives (6, 4, m) of the points sorted by cell, the sorting order,
-        and (rows in sorted order, exact normals) of points at irregular vertices."""
+        """Homogeneous derivatives (6, 4, m) of the points sorted by cell, the sorting order
+        (None when they come sorted), and (rows in sorted order, exact normals) of points at
+        irregular vertices."""
         nu, nv = self.shape
         # a point on a cell break (or rounded off it) goes to either cell: the surface is
         # continuous there, both give the same point up to rounding
-        iu = np.clip(np.searchsorted(self.ubreaks, u, side="right") - 1, 0, nu - 1)
-        iv = np.clip(np.searchsorted(self.vbreaks, v, side="right") - 1, 0, nv - 1)
-        order = np.argsort(iu * nv + iv, kind="stable")
-        iu, iv, u, v = iu[order], iv[order], u[order], v[order]
+        iu = _clip(np.searchsorted(self.ubreaks, u, side="right") - 1, 0, nu - 1)
+        iv = _clip(np.searchsorted(self.vbreaks, v, side="right") - 1, 0, nv - 1)
+        key = iu * nv + iv
+        if len(key) < 2 or bool(np.all(key[1:] >= key[:-1])):
+            order = None                                   # sorted already: the stable order
+        else:
+            order = np.argsort(key, kind="stable")
+            iu, iv, u, v = iu[order], iv[order], u[order], v[order]
         wu = self.ubreaks[iu + 1] - self.ubreaks[iu]
         wv = self.vbreaks[iv + 1] - self.vbreaks[iv]
         a = (u - self.ubreaks[iu]) / wu
         b = (v - self.vbreaks[iv]) / wv
-        group = self.cell_group[iu, iv]
         local = self.cell_local[iu, iv]
         H = np.empty((6, 4, len(u)))
         ep = None
@@ -195,10 +215,17 @@ class Patch:
             if at_vertex is not None and at_vertex.any():
                 ep = (np.nonzero(at_vertex)[0], ep_normal[at_vertex])
         else:
-            for g in np.unique(group):
-                sel = np.nonzero(group == g)[0]
-                Hg, at_vertex, ep_normal = self.groups[g].evaluate(local[sel], a[sel], b[sel])
-                H[:, :, sel] = Hg
+            group = self.cell_group[iu, iv]
+            present = np.flatnonzero(np.bincount(group, minlength=len(self.groups)))
+            for g in present.tolist():
+                if len(present) == 1:                      # every point in one group
+                    sel = np.arange(len(u))
+                    Hg, at_vertex, ep_normal = self.groups[g].evaluate(local, a, b)
+                    H[:] = Hg
+                else:
+                    sel = np.nonzero(group == g)[0]
+                    Hg, at_vertex, ep_normal = self.groups[g].evaluate(local[sel], a[sel], b[sel])
+                    H[:, :, sel] = Hg
                 if at_vertex is not None and at_vertex.any():
                     rows = sel[at_vertex]
                     ep = (rows, ep_normal[at_vertex]) if ep is None else (

@@ -79,11 +79,18 @@ class FrameGeom:
     s: np.ndarray
     t: np.ndarray
 
-    def __post_init__(self):
+    # E, F, G, L, M, N and det = E G - F^2: the fundamental forms, computed on first use
+    # (the chord placement and the cusps' second evaluation never read them)
+    FORMS = ("E", "F", "G", "L", "M", "N", "det")
+
+    def __getattr__(self, name):
+        if name not in FrameGeom.FORMS:
+            raise AttributeError(name)
         d = lambda a, b: np.einsum("ij,ij->i", a, b)   # noqa: E731
         self.E, self.F, self.G = d(self.Ss, self.Ss), d(self.Ss, self.St), d(self.St, self.St)
         self.L, self.M, self.N = d(self.n, self.Sss), d(self.n, self.Sst), d(self.n, self.Stt)
         self.det = self.E * self.G - self.F ** 2
+        return getattr(self, name)
 
     def rows(self, index) -> "FrameGeom":
         """The rows ``index`` (a slice or index array) as a FrameGeom (the fundamental forms
@@ -415,6 +422,10 @@ class Placer:
         self.r = target.r
         self.evaluations = 0
         self._lines: dict[float, FrameGeom] = {}
+        # per (line s, target): the target per sample and the first-order step, which the
+        # batches, the secant and the next batch's start all ask for
+        self._targets: dict[tuple, np.ndarray] = {}
+        self._first: dict[tuple, float] = {}
 
     def line(self, s: float) -> FrameGeom:
         g = self._lines.get(s)
@@ -457,12 +468,28 @@ class Placer:
         ds = parameter_step(g, g1.E, g1.F, g1.G)
         return float(np.min(ds))
 
+    def target_at(self, s: float, target: Target) -> np.ndarray:
+        """``target.at`` the samples of line s (computed once per line and target)."""
+        key = (float(s), target.h, target.undercut, target.max_step)
+        th = self._targets.get(key)
+        if th is None:
+            th = self._targets[key] = target.at(self.line(s))
+        return th
+
+    def first_order_at(self, s: float, target: Target) -> float:
+        """:meth:`first_order` of line s (computed once per line and target)."""
+        key = (float(s), target.h, target.undercut, target.max_step)
+        d0 = self._first.get(key)
+        if d0 is None:
+            d0 = self._first[key] = self.first_order(self.line(s), self.target_at(s, target))
+        return d0
+
     def step(self, s: float, guess_factor: float, target: Target, first=None):
         """(ds, ratio, estimate of the uncapped step, correction factor) from line s;
         ``first``: a trial (ds, ratio) already measured, where the secant starts."""
         g1 = self.line(s)
-        th = target.at(g1)
-        d0 = self.first_order(g1, th)
+        th = self.target_at(s, target)
+        d0 = self.first_order_at(s, target)
         if not np.isfinite(d0) or d0 <= 0:
             raise GeometryError(f"{self.frame.patch.name}: no side step from the line at s = {s:.6f}")
         cap = 1.0 - s
@@ -528,7 +555,8 @@ class Placer:
             S.append(cur)
         geoms = self.lines(S)
         g1 = FrameGeom.concat(geoms[:len(D)]) if len(D) > 1 else geoms[0]
-        th = target.at(g1)
+        # the same values as target.at(g1): per sample, whatever the lines around it
+        th = np.concatenate([self.target_at(x, target) for x in S[:len(D)]])
         R = self.ratios(g1, np.array(D), th)
         return S, D, R, geoms, th.reshape(len(D), -1)
 
@@ -545,8 +573,7 @@ class Placer:
         ks, kd = [], []                            # exact first-order steps at placed lines
         count = LOOKAHEAD[0]
         while True:
-            g = self.line(s)
-            d0 = self.first_order(g, target.at(g))
+            d0 = self.first_order_at(s, target)
             if not np.isfinite(d0) or d0 <= 0:
                 raise GeometryError(f"{self.frame.patch.name}: no side step from the line at s = {s:.6f}")
             if not ks or s > ks[-1]:
@@ -569,9 +596,7 @@ class Placer:
                 ratios.append(float(r_))
                 pos.append(S[j + 1])
                 if S[j + 1] > ks[-1]:
-                    gj = geoms[j + 1]
-                    ks.append(S[j + 1]), kd.append(self.first_order(gj, th[j + 1] if j + 1 < len(th)
-                                                                    else target.at(gj)))
+                    ks.append(S[j + 1]), kd.append(self.first_order_at(S[j + 1], target))
             if done:
                 break
             if missed is None:

@@ -136,6 +136,23 @@ class FrameGeom:
         return H + np.sqrt(np.maximum(H * H - K, 0.0))
 
 
+def _unit_normal(Pu: np.ndarray, Pv: np.ndarray) -> np.ndarray:
+    """Pu x Pv / |Pu x Pv|, the same values as SurfacePoints.normal (the same products and
+    sums) without np.cross's axis handling, which costs more than the products at the few
+    hundred points a call here has."""
+    c = np.empty((len(Pu), 3))
+    a0, a1, a2 = Pu[:, 0], Pu[:, 1], Pu[:, 2]
+    b0, b1, b2 = Pv[:, 0], Pv[:, 1], Pv[:, 2]
+    np.multiply(a1, b2, out=c[:, 0])
+    c[:, 0] -= a2 * b1
+    np.multiply(a2, b0, out=c[:, 1])
+    c[:, 1] -= a0 * b2
+    np.multiply(a0, b1, out=c[:, 2])
+    c[:, 2] -= a1 * b0
+    length = np.sqrt(np.add.reduce(c * c, axis=1, keepdims=True))
+    return c / np.where(length > 0.0, length, 1.0)
+
+
 class LineFrame:
     """A patch seen in the (s, t) frame of one processing step."""
 
@@ -162,12 +179,13 @@ class LineFrame:
         t = np.minimum(np.maximum(t, 0.0), 1.0)
         u, v = self.uv(s, t)
         sp = self.patch.evaluate(u, v)
-        sg = -1.0 if self.s_flip else 1.0
+        flip = (lambda x: -1.0 * x) if self.s_flip else (lambda x: x)   # noqa: E731
         if self.crossfeed == "u":
-            Ss, St, Sss, Sst, Stt = sg * sp.Pu, sp.Pv, sp.Puu, sg * sp.Puv, sp.Pvv
+            Ss, St, Sss, Sst, Stt = flip(sp.Pu), sp.Pv, sp.Puu, flip(sp.Puv), sp.Pvv
         else:
-            Ss, St, Sss, Sst, Stt = sg * sp.Pv, sp.Pu, sp.Pvv, sg * sp.Puv, sp.Puu
-        return FrameGeom(sp.P, sp.normal, Ss, St, Sss, Sst, Stt, sp.u, sp.v, s.copy(), t.copy())
+            Ss, St, Sss, Sst, Stt = flip(sp.Pv), sp.Pu, sp.Pvv, flip(sp.Puv), sp.Puu
+        normal = sp.normal_override if sp.normal_override is not None else _unit_normal(sp.Pu, sp.Pv)
+        return FrameGeom(sp.P, normal, Ss, St, Sss, Sst, Stt, sp.u, sp.v, s.copy(), t.copy())
 
     @property
     def cells_along(self) -> int:

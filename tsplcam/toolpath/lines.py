@@ -573,10 +573,11 @@ class Placer:
             S.append(cur)
         geoms = self.lines(S)
         g1 = FrameGeom.concat(geoms[:len(D)]) if len(D) > 1 else geoms[0]
-        # the same values as target.at(g1): per sample, whatever the lines around it
-        th = np.concatenate([self.target_at(x, target) for x in S[:len(D)]])
-        R = self.ratios(g1, np.array(D), th)
-        return S, D, R, geoms, th.reshape(len(D), -1)
+        th = target.at(g1).reshape(len(D), -1)
+        for x, row in zip(S, th):      # per sample, the same values as line by line
+            self._targets.setdefault((float(x), target.h, target.undercut, target.max_step), row)
+        R = self.ratios(g1, np.array(D), th.ravel())
+        return S, D, R, geoms, th
 
     def place(self, target: Target) -> tuple[np.ndarray, np.ndarray, float]:
         """Line positions for ``target``, their gap ratios, and the estimated uncapped last step.

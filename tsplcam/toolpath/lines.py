@@ -124,7 +124,7 @@ class FrameGeom:
         sp2 = np.einsum("ij,ij->i", d1, d1)
         with np.errstate(divide="ignore", invalid="ignore"):
             kf = np.where(sp2 > 0, np.einsum("ij,ij->i", self.n, d2) / sp2, 0.0)
-            ktot = np.where(sp2 > 0, np.linalg.norm(np.cross(d1, d2), axis=1) / sp2 ** 1.5, 0.0)
+            ktot = np.where(sp2 > 0, _norm3(_cross(d1, d2))[:, 0] / sp2 ** 1.5, 0.0)
         return kf, np.sqrt(np.maximum(ktot * ktot - kf * kf, 0.0))
 
     def principal_max(self) -> np.ndarray:
@@ -136,19 +136,25 @@ class FrameGeom:
         return H + np.sqrt(np.maximum(H * H - K, 0.0))
 
 
-def _unit_normal(Pu: np.ndarray, Pv: np.ndarray) -> np.ndarray:
-    """Pu x Pv / |Pu x Pv|, the same values as SurfacePoints.normal (the same products and
-    sums) without np.cross's axis handling, which costs more than the products at the few
-    hundred points a call here has."""
-    c = np.empty((len(Pu), 3))
-    a0, a1, a2 = Pu[:, 0], Pu[:, 1], Pu[:, 2]
-    b0, b1, b2 = Pv[:, 0], Pv[:, 1], Pv[:, 2]
+def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """np.cross of (n, 3) rows: the same products and differences, without its axis
+    handling, which costs more than the products at the few hundred points a call here has."""
+    c = np.empty((len(a), 3))
+    a0, a1, a2 = a[:, 0], a[:, 1], a[:, 2]
+    b0, b1, b2 = b[:, 0], b[:, 1], b[:, 2]
     np.multiply(a1, b2, out=c[:, 0])
     c[:, 0] -= a2 * b1
     np.multiply(a2, b0, out=c[:, 1])
     c[:, 1] -= a0 * b2
     np.multiply(a0, b1, out=c[:, 2])
     c[:, 2] -= a1 * b0
+    return c
+
+
+def _unit_normal(Pu: np.ndarray, Pv: np.ndarray) -> np.ndarray:
+    """Pu x Pv / |Pu x Pv|: the same values as SurfacePoints.normal (the same products and
+    sums)."""
+    c = _cross(Pu, Pv)
     length = np.sqrt(np.add.reduce(c * c, axis=1, keepdims=True))
     return c / np.where(length > 0.0, length, 1.0)
 
@@ -255,28 +261,39 @@ class Target:
         return Target(self.r, self.h * factor, self.undercut, self.max_step)
 
 
+def _sum3(x: np.ndarray) -> np.ndarray:
+    """np.sum(x, axis=-1) without its Python wrapper (the same reduction)."""
+    return np.add.reduce(x, axis=-1)
+
+
+def _norm3(x: np.ndarray) -> np.ndarray:
+    """np.linalg.norm(x, axis=-1, keepdims=True) for real x, without its Python wrapper (the
+    same squares and reduction)."""
+    return np.sqrt(np.add.reduce(x * x, axis=-1, keepdims=True))
+
+
 def _capsule_entry(p, n, a, b, r):
     """Distance along the unit normals n from points p to where they enter the capsule of
     radius r around segment a-b (inf if they miss); arrays broadcast over leading axes."""
     e = b - a
-    L = np.sqrt(np.sum(e * e, axis=-1))
+    L = np.sqrt(_sum3(e * e))
     eh = e / np.maximum(L, 1e-300)[..., None]
     w = p - a
-    dn = np.sum(n * eh, axis=-1)
-    wn = np.sum(w * eh, axis=-1)
+    dn = _sum3(n * eh)
+    wn = _sum3(w * eh)
     dp = n - dn[..., None] * eh
     wp = w - wn[..., None] * eh
-    A = np.sum(dp * dp, axis=-1)
-    B = np.sum(wp * dp, axis=-1)
-    C = np.sum(wp * wp, axis=-1) - r * r
+    A = _sum3(dp * dp)
+    B = _sum3(wp * dp)
+    C = _sum3(wp * wp) - r * r
     disc = B * B - A * C
     lam = (-B - np.sqrt(np.where(disc >= 0, disc, np.nan))) / A
     ax = wn + lam * dn
     out = np.where((disc >= 0) & (A > 1e-14) & (ax >= 0) & (ax <= L), lam, np.inf)
     for c in (a, b):
         wc = p - c
-        bb = np.sum(n * wc, axis=-1)
-        cc = np.sum(wc * wc, axis=-1) - r * r
+        bb = _sum3(n * wc)
+        cc = _sum3(wc * wc) - r * r
         d = bb * bb - cc
         out = np.minimum(out, np.where(d >= 0, -bb - np.sqrt(np.where(d >= 0, d, 0.0)), np.inf))
     return out
@@ -361,7 +378,7 @@ def _cusp_heights(frame, g1, ds, r):
     meet = d2 < 4 * r * r
     down = -(n1 + gn[:, :m])
     down -= (np.einsum("gij,gij->gi", down, w) / np.where(d2 > 0, d2, 1.0))[..., None] * w
-    down /= np.maximum(np.linalg.norm(down, axis=-1, keepdims=True), 1e-300)
+    down /= np.maximum(_norm3(down), 1e-300)
     q = 0.5 * (c1 + c2) + np.sqrt(np.maximum(r * r - 0.25 * d2, 0.0))[..., None] * down
     rel = q - mP
     # Gauss-Newton foot offset (ds, dt): (J^T J) x = J^T rel
@@ -374,7 +391,7 @@ def _cusp_heights(frame, g1, ds, r):
     height = np.where(beyond, np.nan, height)
     # the ends: material along the edge between the two end balls, each line's tube taken
     # as a straight capsule from its end ball along the line (into the patch)
-    unit = lambda v: v / np.maximum(np.linalg.norm(v, axis=-1, keepdims=True), 1e-300)   # noqa: E731
+    unit = lambda v: v / np.maximum(_norm3(v), 1e-300)   # noqa: E731
     St1 = rs(g1.St)
     tin1 = unit(np.stack([St1[:, 0], -St1[:, -1]], axis=1))
     tin2 = unit(np.stack([St[:, m + 2], -St[:, m + 3]], axis=1))
@@ -385,7 +402,8 @@ def _cusp_heights(frame, g1, ds, r):
     lo = np.zeros((G, 2))
     width = np.ones((G, 2))
     eP, en = P[:, 2 * m + 6:], n[:, 2 * m + 6:]
-    take = lambda a, i: np.take_along_axis(a, i[..., None], axis=2)[..., 0]   # noqa: E731
+    gi, li = np.arange(G)[:, None], np.arange(2)[None, :]
+    take = lambda a, i: a[gi, li, i]          # noqa: E731  a[g, l, i[g, l]]
     for rnd in range(2):        # a coarse pass, then one inside the bracket of the crossing
         if rnd == 1:
             ff = lo[..., None] + width[..., None] * f                  # (G, 2, k)

@@ -78,6 +78,26 @@ class SameBytes(unittest.TestCase):
         for name in ("P", "Pu", "Pv", "Puu", "Puv", "Pvv", "normal"):
             self.assertTrue(same(getattr(other, name)[np.argsort(swap)], getattr(sorted_, name)), name)
 
+    def test_extraordinary_groups_in_one_call(self):
+        """The patch's LevelCells groups evaluated together give what each group gives alone,
+        near the irregular corners too (points below the nets' deepest level included)."""
+        p = self.model.patches[4]
+        levels = p._level_set()
+        self.assertIsNotNone(levels)
+        n = 300
+        corner = self.rng.integers(0, 2, (n, 2)).astype(float)
+        d = self.rng.random((n, 2)) * 10.0 ** self.rng.integers(-12, -1, (n, 1))
+        uv = np.abs(corner - d)
+        uv[:10] = corner[:10]                                     # at the vertices themselves
+        together = p.evaluate(uv[:, 0], uv[:, 1])
+        p._levels = (tuple(id(g) for g in p.groups), None)        # each group on its own
+        try:
+            alone = p.evaluate(uv[:, 0], uv[:, 1])
+        finally:
+            p._levels = None
+        for name in ("P", "Pu", "Pv", "Puu", "Puv", "Pvv", "normal"):
+            self.assertTrue(same(getattr(together, name), getattr(alone, name)), name)
+
     def test_frame_normal_and_cross(self):
         p = self.model.patches[0]
         sp = p.evaluate(self.rng.random(300), self.rng.random(300))

@@ -17,7 +17,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import InputError
-from .cells import SQUARE_MAPS, BezierCells
+from .cells import SQUARE_MAPS, BezierCells, LevelCells
 from .diffgeom import SurfacePoints, rational_from_homogeneous
 
 CORNER_UV = np.array([[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]])
@@ -217,11 +217,20 @@ class Patch:
         else:
             group = self.cell_group[iu, iv]
             present = np.flatnonzero(np.bincount(group, minlength=len(self.groups)))
-            for g in present.tolist():
-                if len(present) == 1:                      # every point in one group
+            levels = self._level_set()
+            calls = present.tolist()
+            if levels is not None and np.count_nonzero(levels.member[present]) >= 2:
+                # the extraordinary cells' groups in one call (the same values point by point)
+                calls = [g for g in calls if not levels.member[g]] + [levels]
+            for g in calls:
+                if len(calls) == 1 and g is not levels:    # every point in one group
                     sel = np.arange(len(u))
                     Hg, at_vertex, ep_normal = self.groups[g].evaluate(local, a, b)
                     H[:] = Hg
+                elif g is levels:
+                    sel = np.nonzero(levels.member[group])[0]
+                    Hg, at_vertex, ep_normal = levels.evaluate(group[sel], local[sel], a[sel], b[sel])
+                    H[:, :, sel] = Hg
                 else:
                     sel = np.nonzero(group == g)[0]
                     Hg, at_vertex, ep_normal = self.groups[g].evaluate(local[sel], a[sel], b[sel])
@@ -238,6 +247,19 @@ class Patch:
         H[5] /= wv * wv
         return order, H, ep
 
+    def _level_set(self):
+        """The patch's LevelCells groups as one :class:`_LevelSet` (None when it has fewer than
+        two), made again when the groups change (readers may add groups after construction)."""
+        key = tuple(id(g) for g in self.groups)
+        cached = getattr(self, "_levels", None)
+        if cached is None or cached[0] != key:
+            members = [g for g, grp in enumerate(self.groups) if type(grp) is LevelCells]
+            ok = len(members) >= 2 and len({(self.groups[g].NET_LEVELS, self.groups[g].MAX_LEVEL,
+                                             self.groups[g].nets.shape[1:]) for g in members}) == 1
+            cached = (key, _LevelSet(self.groups, members) if ok else None)
+            self._levels = cached
+        return cached[1]
+
     def corner_point(self, k: int) -> np.ndarray:
         return self.evaluate(*CORNER_UV[k]).P[0]
 
@@ -247,6 +269,44 @@ class Patch:
         tau = np.asarray(tau, float)
         uv = CORNER_UV[c0][None, :] * (1 - tau)[:, None] + CORNER_UV[c1][None, :] * tau[:, None]
         return uv[:, 0], uv[:, 1]
+
+
+class _LevelSet:
+    """Several LevelCells groups of one patch (one per configuration of an extraordinary
+    corner, often one cell each) evaluated from their cached Bezier nets in one call: their
+    per-cell tables one after the other, the same per-point arithmetic
+    (``LevelCells._evaluate_nets``; no product spans points). Points below the nets' deepest
+    level go to their own group's configuration route, the same points in the same order as
+    the group's own call would give it."""
+
+    def __init__(self, groups: list, members: list[int]):
+        gs = [groups[g] for g in members]
+        self.groups = groups
+        self.member = np.zeros(len(groups), bool)
+        self.member[members] = True
+        self.offset = np.zeros(len(groups), int)          # first cell of each member
+        self.offset[members] = np.cumsum([0] + [len(g) for g in gs])[:-1]
+        self.NET_LEVELS, self.MAX_LEVEL = gs[0].NET_LEVELS, gs[0].MAX_LEVEL
+        self.nets = np.concatenate([g.nets for g in gs])
+        self._corner = np.concatenate([g._corner for g in gs], axis=1)
+        self._swap = np.concatenate([g._swap for g in gs])
+        self.limit = np.concatenate([g.limit for g in gs])
+        self.limit_normal = np.concatenate([g.limit_normal for g in gs])
+        self._vertex = np.concatenate([g._vertex for g in gs], axis=2)
+
+    def evaluate(self, gid: np.ndarray, local: np.ndarray, a: np.ndarray, b: np.ndarray):
+        """As the members' ``evaluate`` for points of groups ``gid`` and their cells ``local``."""
+        idx = self.offset[gid] + local
+        H, at_vertex, deep = LevelCells._evaluate_nets(self, idx, a, b)
+        if deep.any():
+            for g in np.unique(gid[deep]).tolist():
+                rows = np.nonzero(deep & (gid == g))[0]
+                H[:, :, rows] = self.groups[g]._evaluate(local[rows], a[rows], b[rows])[0]
+        ep_normal = None
+        if at_vertex.any():
+            ep_normal = np.zeros((len(idx), 3))
+            ep_normal[at_vertex] = self.limit_normal[idx[at_vertex]]
+        return H, at_vertex, ep_normal
 
 
 def _index_or_slice(idx: np.ndarray):

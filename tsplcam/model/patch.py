@@ -97,13 +97,11 @@ class Patch:
         ep_rows, ep_normals = [], []
         if n <= CHUNK:
             order, H, ep = self._evaluate_h(u, v)
-            E = rational_from_homogeneous(H)                 # six (3, n), in cell order
-            if order is None:                                # already in cell order: no copy
-                out = E
-            else:
-                out = np.empty((6, 3, n))                    # coordinate-major
-                for k in range(6):
-                    out[k][:, order] = E[k]
+            if order is not None:                            # back from cell order: one gather
+                inverse = np.empty_like(order)
+                inverse[order] = np.arange(n)
+                H = H.take(inverse, axis=2)
+            out = rational_from_homogeneous(H)               # six (3, n), point by point
             if ep is not None:
                 ep_rows.append(ep[0] if order is None else order[ep[0]])
                 ep_normals.append(ep[1])

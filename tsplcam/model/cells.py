@@ -107,8 +107,12 @@ class BezierCells:
         the same values, with a few array calls per run instead of some fifty)."""
         n = len(a)
         q1, nc = self.q + 1, self.nc
-        bs = bernstein_rows(self.p, a)                  # (3, p+1, n)
-        bt = bernstein_rows(self.q, b)                  # (3, q+1, n)
+        if self.p == self.q:                            # one call for both (values point by point)
+            B = bernstein_rows(self.p, np.concatenate([a, b]))
+            bs, bt = B[:, :, :n], B[:, :, n:]           # (3, p+1, n), (3, q+1, n)
+        else:
+            bs = bernstein_rows(self.p, a)
+            bt = bernstein_rows(self.q, b)
         cuts = np.flatnonzero(idx[1:] != idx[:-1]) + 1
         starts = np.concatenate([[0], cuts]).tolist()
         ends = np.concatenate([cuts, [n]]).tolist()

@@ -3,7 +3,11 @@
 The domain is cut by ``ubreaks`` x ``vbreaks`` into a grid of cells; every cell belongs to
 one cell evaluator group (Bezier or extraordinary, see ``cells.py``). Evaluation of any
 number of points is a handful of array calls: locate cells with ``searchsorted``, evaluate
-each group's points at once, convert homogeneous to Euclidean derivatives.
+each group's points at once (a patch's extraordinary groups, one per corner configuration,
+together), convert homogeneous to Euclidean derivatives. Every shortcut gives each point the
+same arithmetic as the others would (the path's programs stay the same bytes when it gets
+faster): the only value that depends on the other points of a call is a Bezier cell's BLAS
+product, which is made run by run of the cell's points as before.
 
 Corners and edges of the unit square (shang2020 section 3.2), used by every later stage:
 corner k sits at ``CORNER_UV[k]``: 0 = (0,0) lower left, 1 = (1,0) lower right, 2 = (1,1)
@@ -17,7 +21,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import InputError
-from .cells import SQUARE_MAPS, BezierCells
+from .cells import SQUARE_MAPS, BezierCells, LevelCells
 from .diffgeom import SurfacePoints, rational_from_homogeneous
 
 CORNER_UV = np.array([[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]])
@@ -26,6 +30,7 @@ CORNER_NAMES = ("lower-left", "lower-right", "upper-right", "upper-left")
 EDGE_NAMES = ("bottom", "right", "top", "left")
 
 CHUNK = 1 << 17
+_clip = np.core.umath.clip             # np.clip's ufunc, without its Python wrapper
 
 
 def rotation_map(rotation: int) -> int:
@@ -83,26 +88,39 @@ class Patch:
         if u.shape != v.shape:
             u, v = np.broadcast_arrays(u, v)
             u, v = u.copy(), v.copy()
-        bad = ~(np.isfinite(u) & np.isfinite(v)) | (u < -1e-9) | (u > 1 + 1e-9) | (v < -1e-9) | (v > 1 + 1e-9)
-        if bad.any():
+        # four reductions decide the common case (NaN fails both comparisons)
+        if not (u.min(initial=0.0) >= -1e-9 and v.min(initial=0.0) >= -1e-9
+                and u.max(initial=1.0) <= 1 + 1e-9 and v.max(initial=1.0) <= 1 + 1e-9):
+            bad = ~(np.isfinite(u) & np.isfinite(v)) | (u < -1e-9) | (u > 1 + 1e-9) | (v < -1e-9) | (v > 1 + 1e-9)
             i = int(np.nonzero(bad)[0][0])
             raise InputError(f"parameter (u, v) = ({u[i]:g}, {v[i]:g}) is outside the unit square "
                              f"({int(bad.sum())} such points)", item=self.name)
-        u = np.clip(u, 0.0, 1.0)
-        v = np.clip(v, 0.0, 1.0)
+        u = _clip(u, 0.0, 1.0)
+        v = _clip(v, 0.0, 1.0)
         n = len(u)
-        out = np.empty((6, 3, n))                          # coordinate-major
         ep_rows, ep_normals = [], []
-        for start in range(0, n, CHUNK):
-            stop = min(n, start + CHUNK)
-            order, H, ep = self._evaluate_h(u[start:stop], v[start:stop])
-            E = rational_from_homogeneous(H)                 # six (3, m), in cell order
-            rows = start + order
-            for k in range(6):
-                out[k][:, rows] = E[k]
+        if n <= CHUNK:
+            order, H, ep = self._evaluate_h(u, v)
+            if order is not None:                            # back from cell order: one gather
+                inverse = np.empty_like(order)
+                inverse[order] = np.arange(n)
+                H = H.take(inverse, axis=2)
+            out = rational_from_homogeneous(H)               # six (3, n), point by point
             if ep is not None:
-                ep_rows.append(start + order[ep[0]])
+                ep_rows.append(ep[0] if order is None else order[ep[0]])
                 ep_normals.append(ep[1])
+        else:
+            out = np.empty((6, 3, n))                        # coordinate-major
+            for start in range(0, n, CHUNK):
+                stop = min(n, start + CHUNK)
+                order, H, ep = self._evaluate_h(u[start:stop], v[start:stop])
+                E = rational_from_homogeneous(H)             # six (3, m), in cell order
+                rows = start + (np.arange(stop - start) if order is None else order)
+                for k in range(6):
+                    out[k][:, rows] = E[k]
+                if ep is not None:
+                    ep_rows.append(rows[ep[0]])
+                    ep_normals.append(ep[1])
         # (n, 3) views of the coordinate-major rows: no copy
         P, Pu, Pv, Puu, Puv, Pvv = (x.T for x in out)
         normal_override = None
@@ -173,20 +191,24 @@ class Patch:
                              self.index, normal)
 
     def _evaluate_h(self, u, v):
-        """Homogeneous derivatives (6, 4, m) of the points sorted by cell, the sorting order,
-        and (rows in sorted order, exact normals) of points at irregular vertices."""
+        """Homogeneous derivatives (6, 4, m) of the points sorted by cell, the sorting order
+        (None when they come sorted), and (rows in sorted order, exact normals) of points at
+        irregular vertices."""
         nu, nv = self.shape
         # a point on a cell break (or rounded off it) goes to either cell: the surface is
         # continuous there, both give the same point up to rounding
-        iu = np.clip(np.searchsorted(self.ubreaks, u, side="right") - 1, 0, nu - 1)
-        iv = np.clip(np.searchsorted(self.vbreaks, v, side="right") - 1, 0, nv - 1)
-        order = np.argsort(iu * nv + iv, kind="stable")
-        iu, iv, u, v = iu[order], iv[order], u[order], v[order]
+        iu = _clip(np.searchsorted(self.ubreaks, u, side="right") - 1, 0, nu - 1)
+        iv = _clip(np.searchsorted(self.vbreaks, v, side="right") - 1, 0, nv - 1)
+        key = iu * nv + iv
+        if len(key) < 2 or bool(np.all(key[1:] >= key[:-1])):
+            order = None                                   # sorted already: the stable order
+        else:
+            order = np.argsort(key, kind="stable")
+            iu, iv, u, v = iu[order], iv[order], u[order], v[order]
         wu = self.ubreaks[iu + 1] - self.ubreaks[iu]
         wv = self.vbreaks[iv + 1] - self.vbreaks[iv]
         a = (u - self.ubreaks[iu]) / wu
         b = (v - self.vbreaks[iv]) / wv
-        group = self.cell_group[iu, iv]
         local = self.cell_local[iu, iv]
         H = np.empty((6, 4, len(u)))
         ep = None
@@ -195,10 +217,26 @@ class Patch:
             if at_vertex is not None and at_vertex.any():
                 ep = (np.nonzero(at_vertex)[0], ep_normal[at_vertex])
         else:
-            for g in np.unique(group):
-                sel = np.nonzero(group == g)[0]
-                Hg, at_vertex, ep_normal = self.groups[g].evaluate(local[sel], a[sel], b[sel])
-                H[:, :, sel] = Hg
+            group = self.cell_group[iu, iv]
+            present = np.flatnonzero(np.bincount(group, minlength=len(self.groups)))
+            levels = self._level_set()
+            calls = present.tolist()
+            if levels is not None and np.count_nonzero(levels.member[present]) >= 2:
+                # the extraordinary cells' groups in one call (the same values point by point)
+                calls = [g for g in calls if not levels.member[g]] + [levels]
+            for g in calls:
+                if len(calls) == 1 and g is not levels:    # every point in one group
+                    sel = np.arange(len(u))
+                    Hg, at_vertex, ep_normal = self.groups[g].evaluate(local, a, b)
+                    H[:] = Hg
+                elif g is levels:
+                    sel = np.nonzero(levels.member[group])[0]
+                    Hg, at_vertex, ep_normal = levels.evaluate(group[sel], local[sel], a[sel], b[sel])
+                    H[:, :, sel] = Hg
+                else:
+                    sel = np.nonzero(group == g)[0]
+                    Hg, at_vertex, ep_normal = self.groups[g].evaluate(local[sel], a[sel], b[sel])
+                    H[:, :, sel] = Hg
                 if at_vertex is not None and at_vertex.any():
                     rows = sel[at_vertex]
                     ep = (rows, ep_normal[at_vertex]) if ep is None else (
@@ -211,6 +249,19 @@ class Patch:
         H[5] /= wv * wv
         return order, H, ep
 
+    def _level_set(self):
+        """The patch's LevelCells groups as one :class:`_LevelSet` (None when it has fewer than
+        two), made again when the groups change (readers may add groups after construction)."""
+        key = tuple(id(g) for g in self.groups)
+        cached = getattr(self, "_levels", None)
+        if cached is None or cached[0] != key:
+            members = [g for g, grp in enumerate(self.groups) if type(grp) is LevelCells]
+            ok = len(members) >= 2 and len({(self.groups[g].NET_LEVELS, self.groups[g].MAX_LEVEL,
+                                             self.groups[g].nets.shape[1:]) for g in members}) == 1
+            cached = (key, _LevelSet(self.groups, members) if ok else None)
+            self._levels = cached
+        return cached[1]
+
     def corner_point(self, k: int) -> np.ndarray:
         return self.evaluate(*CORNER_UV[k]).P[0]
 
@@ -220,6 +271,44 @@ class Patch:
         tau = np.asarray(tau, float)
         uv = CORNER_UV[c0][None, :] * (1 - tau)[:, None] + CORNER_UV[c1][None, :] * tau[:, None]
         return uv[:, 0], uv[:, 1]
+
+
+class _LevelSet:
+    """Several LevelCells groups of one patch (one per configuration of an extraordinary
+    corner, often one cell each) evaluated from their cached Bezier nets in one call: their
+    per-cell tables one after the other, the same per-point arithmetic
+    (``LevelCells._evaluate_nets``; no product spans points). Points below the nets' deepest
+    level go to their own group's configuration route, the same points in the same order as
+    the group's own call would give it."""
+
+    def __init__(self, groups: list, members: list[int]):
+        gs = [groups[g] for g in members]
+        self.groups = groups
+        self.member = np.zeros(len(groups), bool)
+        self.member[members] = True
+        self.offset = np.zeros(len(groups), int)          # first cell of each member
+        self.offset[members] = np.cumsum([0] + [len(g) for g in gs])[:-1]
+        self.NET_LEVELS, self.MAX_LEVEL = gs[0].NET_LEVELS, gs[0].MAX_LEVEL
+        self.nets = np.concatenate([g.nets for g in gs])
+        self._corner = np.concatenate([g._corner for g in gs], axis=1)
+        self._swap = np.concatenate([g._swap for g in gs])
+        self.limit = np.concatenate([g.limit for g in gs])
+        self.limit_normal = np.concatenate([g.limit_normal for g in gs])
+        self._vertex = np.concatenate([g._vertex for g in gs], axis=2)
+
+    def evaluate(self, gid: np.ndarray, local: np.ndarray, a: np.ndarray, b: np.ndarray):
+        """As the members' ``evaluate`` for points of groups ``gid`` and their cells ``local``."""
+        idx = self.offset[gid] + local
+        H, at_vertex, deep = LevelCells._evaluate_nets(self, idx, a, b)
+        if deep.any():
+            for g in np.unique(gid[deep]).tolist():
+                rows = np.nonzero(deep & (gid == g))[0]
+                H[:, :, rows] = self.groups[g]._evaluate(local[rows], a[rows], b[rows])[0]
+        ep_normal = None
+        if at_vertex.any():
+            ep_normal = np.zeros((len(idx), 3))
+            ep_normal[at_vertex] = self.limit_normal[idx[at_vertex]]
+        return H, at_vertex, ep_normal
 
 
 def _index_or_slice(idx: np.ndarray):

@@ -79,11 +79,18 @@ class FrameGeom:
     s: np.ndarray
     t: np.ndarray
 
-    def __post_init__(self):
+    # E, F, G, L, M, N and det = E G - F^2: the fundamental forms, computed on first use
+    # (the chord placement and the cusps' second evaluation never read them)
+    FORMS = ("E", "F", "G", "L", "M", "N", "det")
+
+    def __getattr__(self, name):
+        if name not in FrameGeom.FORMS:
+            raise AttributeError(name)
         d = lambda a, b: np.einsum("ij,ij->i", a, b)   # noqa: E731
         self.E, self.F, self.G = d(self.Ss, self.Ss), d(self.Ss, self.St), d(self.St, self.St)
         self.L, self.M, self.N = d(self.n, self.Sss), d(self.n, self.Sst), d(self.n, self.Stt)
         self.det = self.E * self.G - self.F ** 2
+        return getattr(self, name)
 
     def rows(self, index) -> "FrameGeom":
         """The rows ``index`` (a slice or index array) as a FrameGeom (the fundamental forms
@@ -117,7 +124,7 @@ class FrameGeom:
         sp2 = np.einsum("ij,ij->i", d1, d1)
         with np.errstate(divide="ignore", invalid="ignore"):
             kf = np.where(sp2 > 0, np.einsum("ij,ij->i", self.n, d2) / sp2, 0.0)
-            ktot = np.where(sp2 > 0, np.linalg.norm(np.cross(d1, d2), axis=1) / sp2 ** 1.5, 0.0)
+            ktot = np.where(sp2 > 0, _norm3(_cross(d1, d2))[:, 0] / sp2 ** 1.5, 0.0)
         return kf, np.sqrt(np.maximum(ktot * ktot - kf * kf, 0.0))
 
     def principal_max(self) -> np.ndarray:
@@ -127,6 +134,29 @@ class FrameGeom:
             K = (self.L * self.N - self.M ** 2) / det
             H = (self.E * self.N - 2 * self.F * self.M + self.G * self.L) / (2 * det)
         return H + np.sqrt(np.maximum(H * H - K, 0.0))
+
+
+def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """np.cross of (n, 3) rows: the same products and differences, without its axis
+    handling, which costs more than the products at the few hundred points a call here has."""
+    c = np.empty((len(a), 3))
+    a0, a1, a2 = a[:, 0], a[:, 1], a[:, 2]
+    b0, b1, b2 = b[:, 0], b[:, 1], b[:, 2]
+    np.multiply(a1, b2, out=c[:, 0])
+    c[:, 0] -= a2 * b1
+    np.multiply(a2, b0, out=c[:, 1])
+    c[:, 1] -= a0 * b2
+    np.multiply(a0, b1, out=c[:, 2])
+    c[:, 2] -= a1 * b0
+    return c
+
+
+def _unit_normal(Pu: np.ndarray, Pv: np.ndarray) -> np.ndarray:
+    """Pu x Pv / |Pu x Pv|: the same values as SurfacePoints.normal (the same products and
+    sums)."""
+    c = _cross(Pu, Pv)
+    length = np.sqrt(np.add.reduce(c * c, axis=1, keepdims=True))
+    return c / np.where(length > 0.0, length, 1.0)
 
 
 class LineFrame:
@@ -155,12 +185,13 @@ class LineFrame:
         t = np.minimum(np.maximum(t, 0.0), 1.0)
         u, v = self.uv(s, t)
         sp = self.patch.evaluate(u, v)
-        sg = -1.0 if self.s_flip else 1.0
+        flip = (lambda x: -1.0 * x) if self.s_flip else (lambda x: x)   # noqa: E731
         if self.crossfeed == "u":
-            Ss, St, Sss, Sst, Stt = sg * sp.Pu, sp.Pv, sp.Puu, sg * sp.Puv, sp.Pvv
+            Ss, St, Sss, Sst, Stt = flip(sp.Pu), sp.Pv, sp.Puu, flip(sp.Puv), sp.Pvv
         else:
-            Ss, St, Sss, Sst, Stt = sg * sp.Pv, sp.Pu, sp.Pvv, sg * sp.Puv, sp.Puu
-        return FrameGeom(sp.P, sp.normal, Ss, St, Sss, Sst, Stt, sp.u, sp.v, s.copy(), t.copy())
+            Ss, St, Sss, Sst, Stt = flip(sp.Pv), sp.Pu, sp.Pvv, flip(sp.Puv), sp.Puu
+        normal = sp.normal_override if sp.normal_override is not None else _unit_normal(sp.Pu, sp.Pv)
+        return FrameGeom(sp.P, normal, Ss, St, Sss, Sst, Stt, sp.u, sp.v, s.copy(), t.copy())
 
     @property
     def cells_along(self) -> int:
@@ -230,28 +261,39 @@ class Target:
         return Target(self.r, self.h * factor, self.undercut, self.max_step)
 
 
+def _sum3(x: np.ndarray) -> np.ndarray:
+    """np.sum(x, axis=-1) without its Python wrapper (the same reduction)."""
+    return np.add.reduce(x, axis=-1)
+
+
+def _norm3(x: np.ndarray) -> np.ndarray:
+    """np.linalg.norm(x, axis=-1, keepdims=True) for real x, without its Python wrapper (the
+    same squares and reduction)."""
+    return np.sqrt(np.add.reduce(x * x, axis=-1, keepdims=True))
+
+
 def _capsule_entry(p, n, a, b, r):
     """Distance along the unit normals n from points p to where they enter the capsule of
     radius r around segment a-b (inf if they miss); arrays broadcast over leading axes."""
     e = b - a
-    L = np.sqrt(np.sum(e * e, axis=-1))
+    L = np.sqrt(_sum3(e * e))
     eh = e / np.maximum(L, 1e-300)[..., None]
     w = p - a
-    dn = np.sum(n * eh, axis=-1)
-    wn = np.sum(w * eh, axis=-1)
+    dn = _sum3(n * eh)
+    wn = _sum3(w * eh)
     dp = n - dn[..., None] * eh
     wp = w - wn[..., None] * eh
-    A = np.sum(dp * dp, axis=-1)
-    B = np.sum(wp * dp, axis=-1)
-    C = np.sum(wp * wp, axis=-1) - r * r
+    A = _sum3(dp * dp)
+    B = _sum3(wp * dp)
+    C = _sum3(wp * wp) - r * r
     disc = B * B - A * C
     lam = (-B - np.sqrt(np.where(disc >= 0, disc, np.nan))) / A
     ax = wn + lam * dn
     out = np.where((disc >= 0) & (A > 1e-14) & (ax >= 0) & (ax <= L), lam, np.inf)
     for c in (a, b):
         wc = p - c
-        bb = np.sum(n * wc, axis=-1)
-        cc = np.sum(wc * wc, axis=-1) - r * r
+        bb = _sum3(n * wc)
+        cc = _sum3(wc * wc) - r * r
         d = bb * bb - cc
         out = np.minimum(out, np.where(d >= 0, -bb - np.sqrt(np.where(d >= 0, d, 0.0)), np.inf))
     return out
@@ -336,7 +378,7 @@ def _cusp_heights(frame, g1, ds, r):
     meet = d2 < 4 * r * r
     down = -(n1 + gn[:, :m])
     down -= (np.einsum("gij,gij->gi", down, w) / np.where(d2 > 0, d2, 1.0))[..., None] * w
-    down /= np.maximum(np.linalg.norm(down, axis=-1, keepdims=True), 1e-300)
+    down /= np.maximum(_norm3(down), 1e-300)
     q = 0.5 * (c1 + c2) + np.sqrt(np.maximum(r * r - 0.25 * d2, 0.0))[..., None] * down
     rel = q - mP
     # Gauss-Newton foot offset (ds, dt): (J^T J) x = J^T rel
@@ -349,7 +391,7 @@ def _cusp_heights(frame, g1, ds, r):
     height = np.where(beyond, np.nan, height)
     # the ends: material along the edge between the two end balls, each line's tube taken
     # as a straight capsule from its end ball along the line (into the patch)
-    unit = lambda v: v / np.maximum(np.linalg.norm(v, axis=-1, keepdims=True), 1e-300)   # noqa: E731
+    unit = lambda v: v / np.maximum(_norm3(v), 1e-300)   # noqa: E731
     St1 = rs(g1.St)
     tin1 = unit(np.stack([St1[:, 0], -St1[:, -1]], axis=1))
     tin2 = unit(np.stack([St[:, m + 2], -St[:, m + 3]], axis=1))
@@ -360,7 +402,8 @@ def _cusp_heights(frame, g1, ds, r):
     lo = np.zeros((G, 2))
     width = np.ones((G, 2))
     eP, en = P[:, 2 * m + 6:], n[:, 2 * m + 6:]
-    take = lambda a, i: np.take_along_axis(a, i[..., None], axis=2)[..., 0]   # noqa: E731
+    gi, li = np.arange(G)[:, None], np.arange(2)[None, :]
+    take = lambda a, i: a[gi, li, i]          # noqa: E731  a[g, l, i[g, l]]
     for rnd in range(2):        # a coarse pass, then one inside the bracket of the crossing
         if rnd == 1:
             ff = lo[..., None] + width[..., None] * f                  # (G, 2, k)
@@ -415,6 +458,10 @@ class Placer:
         self.r = target.r
         self.evaluations = 0
         self._lines: dict[float, FrameGeom] = {}
+        # per (line s, target): the target per sample and the first-order step, which the
+        # batches, the secant and the next batch's start all ask for
+        self._targets: dict[tuple, np.ndarray] = {}
+        self._first: dict[tuple, float] = {}
 
     def line(self, s: float) -> FrameGeom:
         g = self._lines.get(s)
@@ -457,12 +504,28 @@ class Placer:
         ds = parameter_step(g, g1.E, g1.F, g1.G)
         return float(np.min(ds))
 
+    def target_at(self, s: float, target: Target) -> np.ndarray:
+        """``target.at`` the samples of line s (computed once per line and target)."""
+        key = (float(s), target.h, target.undercut, target.max_step)
+        th = self._targets.get(key)
+        if th is None:
+            th = self._targets[key] = target.at(self.line(s))
+        return th
+
+    def first_order_at(self, s: float, target: Target) -> float:
+        """:meth:`first_order` of line s (computed once per line and target)."""
+        key = (float(s), target.h, target.undercut, target.max_step)
+        d0 = self._first.get(key)
+        if d0 is None:
+            d0 = self._first[key] = self.first_order(self.line(s), self.target_at(s, target))
+        return d0
+
     def step(self, s: float, guess_factor: float, target: Target, first=None):
         """(ds, ratio, estimate of the uncapped step, correction factor) from line s;
         ``first``: a trial (ds, ratio) already measured, where the secant starts."""
         g1 = self.line(s)
-        th = target.at(g1)
-        d0 = self.first_order(g1, th)
+        th = self.target_at(s, target)
+        d0 = self.first_order_at(s, target)
         if not np.isfinite(d0) or d0 <= 0:
             raise GeometryError(f"{self.frame.patch.name}: no side step from the line at s = {s:.6f}")
         cap = 1.0 - s
@@ -528,9 +591,11 @@ class Placer:
             S.append(cur)
         geoms = self.lines(S)
         g1 = FrameGeom.concat(geoms[:len(D)]) if len(D) > 1 else geoms[0]
-        th = target.at(g1)
-        R = self.ratios(g1, np.array(D), th)
-        return S, D, R, geoms, th.reshape(len(D), -1)
+        th = target.at(g1).reshape(len(D), -1)
+        for x, row in zip(S, th):      # per sample, the same values as line by line
+            self._targets.setdefault((float(x), target.h, target.undercut, target.max_step), row)
+        R = self.ratios(g1, np.array(D), th.ravel())
+        return S, D, R, geoms, th
 
     def place(self, target: Target) -> tuple[np.ndarray, np.ndarray, float]:
         """Line positions for ``target``, their gap ratios, and the estimated uncapped last step.
@@ -545,8 +610,7 @@ class Placer:
         ks, kd = [], []                            # exact first-order steps at placed lines
         count = LOOKAHEAD[0]
         while True:
-            g = self.line(s)
-            d0 = self.first_order(g, target.at(g))
+            d0 = self.first_order_at(s, target)
             if not np.isfinite(d0) or d0 <= 0:
                 raise GeometryError(f"{self.frame.patch.name}: no side step from the line at s = {s:.6f}")
             if not ks or s > ks[-1]:
@@ -569,9 +633,7 @@ class Placer:
                 ratios.append(float(r_))
                 pos.append(S[j + 1])
                 if S[j + 1] > ks[-1]:
-                    gj = geoms[j + 1]
-                    ks.append(S[j + 1]), kd.append(self.first_order(gj, th[j + 1] if j + 1 < len(th)
-                                                                    else target.at(gj)))
+                    ks.append(S[j + 1]), kd.append(self.first_order_at(S[j + 1], target))
             if done:
                 break
             if missed is None:

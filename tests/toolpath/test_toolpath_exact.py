@@ -1,0 +1,128 @@
+"""The path's shortcuts are the same arithmetic as the code they replace, so the path's points
+stay the same bytes (issue 16: the keycap and keycap_mold programs must not change when the
+path gets faster). Here, and only here, values are compared byte for byte: the claim under
+test is identity, not closeness."""
+import unittest
+
+import numpy as np
+
+from tsplcam import load_model
+from tsplcam.model.basis import bernstein_rows
+from tsplcam.model.cells import DERIVS, BezierCells
+from tsplcam.toolpath.lines import LineFrame, Placer, Target, _cross, _norm3, _unit_normal
+
+
+def same(a, b) -> bool:
+    a, b = np.asarray(a), np.asarray(b)
+    return a.shape == b.shape and np.ascontiguousarray(a).tobytes() == np.ascontiguousarray(b).tobytes()
+
+
+def bezier_run_by_run(cells: BezierCells, idx, a, b):
+    """BezierCells.evaluate as it was written before issue 16: the sum along b run by run."""
+    n = len(a)
+    q1, nc = cells.q + 1, cells.nc
+    bs, bt = bernstein_rows(cells.p, a), bernstein_rows(cells.q, b)
+    cuts = np.flatnonzero(idx[1:] != idx[:-1]) + 1
+    out = np.empty((6, 4, n))
+    if nc == 3:
+        out[0, 3] = 1.0
+        out[1:, 3] = 0.0
+    tmp = np.empty((nc, n))
+    for s0, e0 in zip(np.concatenate([[0], cuts]).tolist(), np.concatenate([cuts, [n]]).tolist()):
+        m = e0 - s0
+        cj = cells._cj[idx[s0]]
+        T = [(cj @ bs[d, :, s0:e0]).reshape(q1, nc, m) for d in range(3)]
+        t = tmp[:, :m]
+        for k, (ds, dt) in enumerate(DERIVS):
+            o = out[k, :nc, s0:e0]
+            w = bt[dt, :, s0:e0]
+            np.multiply(w[0], T[ds][0], out=o)
+            for j in range(1, q1):
+                np.multiply(w[j], T[ds][j], out=t)
+                o += t
+        out[0, :nc, s0:e0] += cells._origin[idx[s0]][:, None]
+    return out
+
+
+class SameBytes(unittest.TestCase):
+    @classmethod
+    def setUpClass(cls):
+        cls.model = load_model("keycap")
+        cls.rng = np.random.default_rng(16)
+
+    def test_bezier_cells_all_runs_at_once(self):
+        """Runs of one point (a matrix-vector product in BLAS) and long runs alike."""
+        g = self.model.patches[4].groups[0]
+        self.assertIsInstance(g, BezierCells)
+        for n in (1, 2, 5, 170, 1400):
+            idx = np.sort(self.rng.integers(0, len(g), n))
+            idx[: n // 3] = 0                                    # one long run, many short ones
+            a, b = self.rng.random(n), self.rng.random(n)
+            a[: n // 7] = 0.0
+            self.assertTrue(same(g.evaluate(np.sort(idx), a, b)[0], bezier_run_by_run(g, np.sort(idx), a, b)),
+                            f"{n} points")
+
+    def test_patch_points_sorted_or_not(self):
+        """Points given in cell order skip the sort and the scatter back: the same values as
+        the general route (the points of each cell in the same order, one run per cell)."""
+        p = self.model.patches[4]
+        u = np.repeat([0.02, 0.4], 170)                          # two lines, in cell order
+        v = np.tile(np.linspace(0.0, 1.0, 170), 2)
+        sorted_ = p.evaluate(u, v)
+        key = np.clip(np.searchsorted(p.ubreaks, u, side="right") - 1, 0, p.shape[0] - 1) * p.shape[1] \
+            + np.clip(np.searchsorted(p.vbreaks, v, side="right") - 1, 0, p.shape[1] - 1)
+        self.assertTrue(np.all(np.diff(key) >= 0))
+        # the same points with the second line first: sorted back into the same runs
+        swap = np.r_[170:340, 0:170]
+        other = p.evaluate(u[swap], v[swap])
+        for name in ("P", "Pu", "Pv", "Puu", "Puv", "Pvv", "normal"):
+            self.assertTrue(same(getattr(other, name)[np.argsort(swap)], getattr(sorted_, name)), name)
+
+    def test_extraordinary_groups_in_one_call(self):
+        """The patch's LevelCells groups evaluated together give what each group gives alone,
+        near the irregular corners too (points below the nets' deepest level included)."""
+        p = self.model.patches[4]
+        levels = p._level_set()
+        self.assertIsNotNone(levels)
+        n = 300
+        corner = self.rng.integers(0, 2, (n, 2)).astype(float)
+        d = self.rng.random((n, 2)) * 10.0 ** self.rng.integers(-12, -1, (n, 1))
+        uv = np.abs(corner - d)
+        uv[:10] = corner[:10]                                     # at the vertices themselves
+        together = p.evaluate(uv[:, 0], uv[:, 1])
+        p._levels = (tuple(id(g) for g in p.groups), None)        # each group on its own
+        try:
+            alone = p.evaluate(uv[:, 0], uv[:, 1])
+        finally:
+            p._levels = None
+        for name in ("P", "Pu", "Pv", "Puu", "Puv", "Pvv", "normal"):
+            self.assertTrue(same(getattr(together, name), getattr(alone, name)), name)
+
+    def test_frame_normal_and_cross(self):
+        p = self.model.patches[0]
+        sp = p.evaluate(self.rng.random(300), self.rng.random(300))
+        self.assertTrue(same(_unit_normal(sp.Pu, sp.Pv), sp.normal))
+        self.assertTrue(same(_cross(sp.Pu, sp.Puu), np.cross(sp.Pu, sp.Puu)))
+        self.assertTrue(same(_norm3(sp.Puv), np.linalg.norm(sp.Puv, axis=-1, keepdims=True)))
+        # the frame's normal where the patch has exact normals (its extraordinary corners)
+        fr = LineFrame(p, "u", 0)
+        g = fr.evaluate([0.0, 0.5, 1.0, 0.0], [0.0, 0.5, 1.0, 1.0])
+        self.assertTrue(same(g.n, p.evaluate([0.0, 0.5, 1.0, 0.0], [0.0, 0.5, 1.0, 1.0]).normal))
+
+    def test_placer_caches(self):
+        """A line's target and first-order step, cached, are what they are computed afresh."""
+        fr = LineFrame(self.model.patches[2], "v", 3)
+        target = Target(0.5, 0.005, 0.0005, 1.0)
+        pl = Placer(fr, target)
+        geoms = pl.lines([0.1, 0.2, 0.3])
+        th = pl.target_at(0.2, target)
+        self.assertTrue(same(th, target.at(geoms[1])))
+        self.assertTrue(same(pl.first_order_at(0.2, target), pl.first_order(geoms[1], target.at(geoms[1]))))
+        # the forms computed on first use from the frame's own derivatives
+        g = geoms[0]
+        self.assertTrue(same(g.E, np.einsum("ij,ij->i", g.Ss, g.Ss)))
+        self.assertTrue(same(g.M, np.einsum("ij,ij->i", g.n, g.Sst)))
+
+
+if __name__ == "__main__":
+    unittest.main()

@@ -434,6 +434,9 @@ def cone_halfspaces(normal, feed, lead_max: float, tilt_max: float):
     return [tl * normal - feed, tl * normal + feed, tt * normal - side, tt * normal + side]
 
 
+_HALF_PI = float(np.arccos(np.clip(np.zeros(1), -1.0, 1.0))[0])    # arccos(+0), as theta_interval takes it
+
+
 def theta_interval(rot: Rotary, phi, constraints, ref):
     """Interval [lo, hi] of signed tilt on the meridian at rotary ``phi`` ((n,) or (n, M))
     where every constraint ``(h (n,3), b (n,))``, ``h . a >= b``, holds; arcs are taken on
@@ -448,12 +451,22 @@ def theta_interval(rot: Rotary, phi, constraints, ref):
         hz = h[:, 2][:, None] if grid else h[:, 2]
         hm = np.einsum("nj,nkj->nk", h, m) if grid else np.einsum("ij,ij->i", h, m)
         bb = np.asarray(b, float)[:, None] if grid else np.asarray(b, float)
-        R = np.hypot(hz, hm)
         al = np.arctan2(hm, hz)
         al = ref + (np.pi - np.mod(np.pi - (al - ref), 2 * np.pi))          # nearest ref
-        with np.errstate(divide="ignore", invalid="ignore"):
-            c = np.where(R > 1e-15, bb / np.where(R > 1e-15, R, 1.0), np.where(bb <= 0, -1.0, 2.0))
-        half = np.where(c <= -1.0, np.pi, np.where(c >= 1.0, -1.0, np.arccos(np.clip(c, -1.0, 1.0))))
+        if not np.any(bb):
+            # b = 0 (the lead/tilt cones): c is +0 where R > 1e-15, else -1; the same half
+            # arcs as below without their passes over the grid, and R > 1e-15 without libm's
+            # hypot (15 ms a grid) where |hz| or |hm| is above 1e-15 (hypot >= both)
+            big = (np.abs(hz) > 1e-15) | (np.abs(hm) > 1e-15)
+            small = np.nonzero(~big)
+            if len(small[0]):
+                big[small] = np.hypot(np.broadcast_to(hz, big.shape)[small], hm[small]) > 1e-15
+            half = np.where(big, _HALF_PI, np.pi)
+        else:
+            R = np.hypot(hz, hm)
+            with np.errstate(divide="ignore", invalid="ignore"):
+                c = np.where(R > 1e-15, bb / np.where(R > 1e-15, R, 1.0), np.where(bb <= 0, -1.0, 2.0))
+            half = np.where(c <= -1.0, np.pi, np.where(c >= 1.0, -1.0, np.arccos(np.clip(c, -1.0, 1.0))))
         lo = np.maximum(lo, al - half)
         hi = np.minimum(hi, al + half)
     return lo, hi

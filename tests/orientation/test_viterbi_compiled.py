@@ -94,6 +94,25 @@ class CompiledViterbi(unittest.TestCase):
                 self.assertLessEqual(abs(got - best), TIE * max(1.0, abs(best)) * n, f"trial {trial}")
         self.assertGreater(broken, 5)               # the break points were exercised
 
+    def test_two_states(self):
+        """Two states (the post's branch choice): the kernel's states and break points are
+        the plain-float loop's (_two_states), with exact ties, near-ties within TIE, large
+        costs (the relative tie), ``inf`` states and moves, broken chains."""
+        rng = np.random.default_rng(12)
+        broken = 0
+        for trial in range(300):
+            n = int(rng.integers(1, 40))
+            node = rng.integers(0, 3, (n, 2)) * 10.0 ** rng.integers(0, 12)
+            trans = rng.integers(0, 3, (max(n - 1, 0), 2, 2)).astype(float)
+            if trial % 2:
+                node = node * (1.0 + 1e-15 * rng.integers(-4, 5, node.shape))
+                trans = trans * (1.0 + 1e-12 * rng.integers(-4, 5, trans.shape))
+            node[rng.random(node.shape) < 0.1] = np.inf
+            trans[rng.random(trans.shape) < 0.1] = np.inf
+            states, broke = same_result(self, node, trans, f"trial {trial}")
+            broken += states is None
+        self.assertGreater(broken, 5)
+
     def test_large_random(self):
         """The joint programme's size (36 states, 3000 points, blocks fetched from a function
         as there), continuous costs with forbidden moves."""

@@ -11,6 +11,10 @@ it from an (n, S, S) block that numpy built (keycap_mold: the blocks 0.31 s, the
 the operations of the numpy block's, element for element in its order, on numpy's cos and
 sin of the tilts (numba's libm may differ from numpy's by an ulp), so the same bits.
 
+Two-state chains (the post's branch choice, :func:`~tsplcam.orientation.viterbi._two_states`:
+plain Python floats, about 1.5 us a point) run in ``two_states``, the same float operations in
+the same order, where the kernels are loaded already (they are not loaded for it).
+
 The distance grids' read (:class:`~tsplcam.orientation.broadphase.DistanceGrid`, two million
 points on the keycap_mold job) is a gather of eight nodes per point: numpy's temporaries
 cost about 250 ns a point, the kernel a tenth of that, with the same operations in the same
@@ -182,6 +186,49 @@ def _build():
             states[i - 1] = s
 
     @jit
+    def le_tie(x, y, tie):
+        """``viterbi._le``: x <= y up to the relative tie (Python's max: a NaN is passed over)."""
+        if x == np.inf or y == np.inf:
+            return x <= y
+        m = 1.0
+        if abs(x) > m:
+            m = abs(x)
+        if abs(y) > m:
+            m = abs(y)
+        return x <= y + tie * m
+
+    @jit
+    def two_states(node, t, tie, states):
+        """``viterbi._two_states`` (S = 2), the same float operations in the same order:
+        fills ``states``; returns -2, or the point before which the chain breaks as that
+        function's second value (-1: none at the last point)."""
+        n = node.shape[0]
+        back = np.zeros((n, 2), np.int8)
+        a0 = node[0, 0]
+        a1 = node[0, 1]
+        for i in range(1, n):
+            x0 = a0 + t[i - 1, 0, 0]
+            x1 = a1 + t[i - 1, 1, 0]
+            y0 = a0 + t[i - 1, 0, 1]
+            y1 = a1 + t[i - 1, 1, 1]
+            b0 = 0 if le_tie(x0, x1, tie) else 1
+            b1 = 0 if le_tie(y0, y1, tie) else 1
+            a0 = (x0 if b0 == 0 else x1) + node[i, 0]
+            a1 = (y0 if b1 == 0 else y1) + node[i, 1]
+            if a0 == np.inf and a1 == np.inf:
+                return i - 1
+            back[i, 0] = b0
+            back[i, 1] = b1
+        if a0 == np.inf and a1 == np.inf:
+            return -1
+        s = 0 if le_tie(a0, a1, tie) else 1
+        for i in range(n - 1, 0, -1):
+            states[i] = s
+            s = back[i, s]
+        states[0] = s
+        return -2
+
+    @jit
     def banded_solve(ab, rhs):
         """Solve H x = rhs for a symmetric positive definite band matrix H in LAPACK's upper
         band form ``ab`` (u + 1, N) (``ab[u + i - j, j] = H[i, j]``), by the Cholesky
@@ -260,7 +307,7 @@ def _build():
             near[p] = idx[base + nb] if inside else -1
 
     return {"viterbi_steps": viterbi_steps, "joint_steps": joint_steps, "viterbi_path": viterbi_path,
-            "banded_solve": banded_solve, "grid_read": grid_read}
+            "banded_solve": banded_solve, "grid_read": grid_read, "two_states": two_states}
 
 
 def kernels(work: float | None = None):
@@ -275,6 +322,12 @@ def kernels(work: float | None = None):
                 return None
         _STATE["k"] = _build()
     return _STATE["k"]
+
+
+def loaded():
+    """The kernels if this process has loaded them already, else None (asks for no work:
+    for callers whose numpy form costs too little to load numba for, e.g. two-state chains)."""
+    return _STATE.get("k")
 
 
 def prepare() -> None:
@@ -307,6 +360,7 @@ def warm() -> float:
     grid = MeridianGrid(np.zeros(3), th, th, th, th, np.ones((3, 3), bool))
     viterbi(node, joint_transitions(grid, SmoothingCost(1.0, Rotary()), np.ones(2), 1.0, np.ones(3, bool)))
     kernels()["banded_solve"](np.array([[0.0, 0.0, 1.0], [0.0, 1.0, 1.0], [2.0, 2.0, 2.0]]), np.ones(3))
+    viterbi(np.zeros((3, 2)), np.ones((2, 2, 2)))
     from scipy.spatial import cKDTree
 
     from .broadphase import DistanceGrid

@@ -186,22 +186,12 @@ def _build():
             states[i - 1] = s
 
     @jit
-    def le_tie(x, y, tie):
-        """``viterbi._le``: x <= y up to the relative tie (Python's max: a NaN is passed over)."""
-        if x == np.inf or y == np.inf:
-            return x <= y
-        m = 1.0
-        if abs(x) > m:
-            m = abs(x)
-        if abs(y) > m:
-            m = abs(y)
-        return x <= y + tie * m
-
-    @jit
     def two_states(node, t, tie, states):
-        """``viterbi._two_states`` (S = 2), the same float operations in the same order:
-        fills ``states``; returns -2, or the point before which the chain breaks as that
-        function's second value (-1: none at the last point)."""
+        """``viterbi._two_states`` (S = 2), the same float operations in the same order: fills
+        ``states``; returns -2, or the point before which the chain breaks as that function's
+        second value (-1: none at the last point). Its ``_le`` (x <= y up to the relative tie;
+        Python's max passes a NaN over) is written out at each use: a kernel that calls
+        another is compiled again in every process, not loaded from the cache."""
         n = node.shape[0]
         back = np.zeros((n, 2), np.int8)
         a0 = node[0, 0]
@@ -211,8 +201,26 @@ def _build():
             x1 = a1 + t[i - 1, 1, 0]
             y0 = a0 + t[i - 1, 0, 1]
             y1 = a1 + t[i - 1, 1, 1]
-            b0 = 0 if le_tie(x0, x1, tie) else 1
-            b1 = 0 if le_tie(y0, y1, tie) else 1
+            if x0 == np.inf or x1 == np.inf:
+                le = x0 <= x1
+            else:
+                m = 1.0
+                if abs(x0) > m:
+                    m = abs(x0)
+                if abs(x1) > m:
+                    m = abs(x1)
+                le = x0 <= x1 + tie * m
+            b0 = 0 if le else 1
+            if y0 == np.inf or y1 == np.inf:
+                le = y0 <= y1
+            else:
+                m = 1.0
+                if abs(y0) > m:
+                    m = abs(y0)
+                if abs(y1) > m:
+                    m = abs(y1)
+                le = y0 <= y1 + tie * m
+            b1 = 0 if le else 1
             a0 = (x0 if b0 == 0 else x1) + node[i, 0]
             a1 = (y0 if b1 == 0 else y1) + node[i, 1]
             if a0 == np.inf and a1 == np.inf:
@@ -221,7 +229,16 @@ def _build():
             back[i, 1] = b1
         if a0 == np.inf and a1 == np.inf:
             return -1
-        s = 0 if le_tie(a0, a1, tie) else 1
+        if a0 == np.inf or a1 == np.inf:
+            le = a0 <= a1
+        else:
+            m = 1.0
+            if abs(a0) > m:
+                m = abs(a0)
+            if abs(a1) > m:
+                m = abs(a1)
+            le = a0 <= a1 + tie * m
+        s = 0 if le else 1
         for i in range(n - 1, 0, -1):
             states[i] = s
             s = back[i, s]

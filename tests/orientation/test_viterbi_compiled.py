@@ -191,7 +191,8 @@ class CompiledBandedSolve(unittest.TestCase):
 
     def test_solve_box_unchanged(self):
         """solve_box's active set gives the same x with the kernel and with scipy (both
-        within 1e-12), and x is the box-constrained minimum: inside the box, and the
+        within 1e-12; the whole loop in the solve_box kernel and the loop calling
+        banded_solve: the same bits), and x is the box-constrained minimum: inside the box, and the
         gradient points out of the box where a bound is active and is 0 elsewhere."""
         rng = np.random.default_rng(4)
         N = 400
@@ -202,6 +203,8 @@ class CompiledBandedSolve(unittest.TestCase):
             lo = rng.uniform(-2.0, 0.0, N)
             hi = lo + rng.uniform(0.0, 2.0, N)
             x = B.solve_box(lo, hi)
+            with mock.patch.object(compiled, "loaded", lambda: None):     # the loop, banded_solve per step
+                np.testing.assert_array_equal(B.solve_box(lo, hi), x)        # the solve_box kernel: same bits
             with mock.patch.dict(compiled._STATE, {"k": None}):
                 x0 = B.solve_box(lo, hi)
             np.testing.assert_allclose(x, x0, rtol=0, atol=1e-12)
@@ -291,7 +294,9 @@ class KeycapJob(unittest.TestCase):
     def test_every_call_of_the_main_job(self):
         """The keycap main job (model to G-code): every Viterbi programme it runs (the joint
         programme's, the forced-travel figure's, the post's pose choice) is solved both ways,
-        compiled and numpy, with the same states; every banded system the polish solves is
+        compiled and numpy, with the same states; every box-constrained problem of the polish
+        both in the solve_box kernel and in the loop calling banded_solve, with the same bits;
+        every banded system the polish solves is
         solved as exactly by the kernel as by LAPACK: componentwise backward error within
         1e-14 (45 machine epsilons; both measure 2.2e-16 to 2.5e-16 on these). The solutions
         themselves need not agree to the bit: the polish's systems are ill-conditioned (on an
@@ -321,9 +326,18 @@ class KeycapJob(unittest.TestCase):
             seen["banded"] += 1
             return got
 
+        real_box = smoothing._Banded.solve_box
+
+        def both_box(box, lo, hi, iterations=40):
+            got = real_box(box, lo, hi, iterations)              # the solve_box kernel
+            with mock.patch.object(compiled, "loaded", lambda: None):
+                np.testing.assert_array_equal(real_box(box, lo, hi, iterations), got)   # the loop
+            return got
+
         with tempfile.TemporaryDirectory() as tmp, \
                 mock.patch.object(smoothing, "viterbi", both_viterbi), \
                 mock.patch.object(rotary, "viterbi", both_viterbi), \
+                mock.patch.object(smoothing._Banded, "solve_box", both_box), \
                 mock.patch.object(smoothing, "_solve_banded", both_solve):
             figures = run_job(JobSettings(out=os.path.join(tmp, "job"), verify=False, html_report=False),
                               log=None, progress=lambda stage, done, total: None)

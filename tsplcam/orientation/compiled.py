@@ -284,6 +284,102 @@ def _build():
         return 0
 
     @jit
+    def solve_box(ab0, g, lo, hi, iterations, x):
+        """``smoothing._Banded.solve_box`` whole (u >= 2): its active-set loop with each step's
+        numpy operations element for element in their order (the matvec's bands one after
+        the other) and ``banded_solve``'s arithmetic written out (a kernel calling another
+        misses numba's cache), so the same x bit for bit. ``x`` (N,) receives the result
+        before the final clip. Returns 0, or the leading minor ``banded_solve`` reports."""
+        u, N = ab0.shape[0] - 1, ab0.shape[1]
+        at = np.zeros(N, np.int8)
+        xf = np.empty(N)
+        rhs = np.empty(N)
+        grad = np.empty(N)
+        ab = np.empty_like(ab0)
+        x[:] = 0.0
+        for _ in range(iterations):
+            for i in range(N):
+                xf[i] = lo[i] if at[i] < 0 else (hi[i] if at[i] > 0 else 0.0)
+            # rhs = -g - H xf, H xf as _Banded.matvec sums it: the diagonal, then per band
+            # k = 1 .. u the term above the diagonal and the one below
+            for i in range(N):
+                grad[i] = ab0[u, i] * xf[i]
+            for k in range(1, u + 1):
+                for i in range(N - k):
+                    grad[i] += ab0[u - k, i + k] * xf[i + k]
+                for i in range(k, N):
+                    grad[i] += ab0[u - k, i] * xf[i - k]
+            for i in range(N):
+                rhs[i] = -g[i] - grad[i]
+            ab[:, :] = ab0
+            for j in range(N):
+                if at[j] != 0:
+                    for k in range(1, u + 1):
+                        if j + k < N:
+                            ab[u - k, j + k] = 0.0
+                        if j - k >= 0:
+                            ab[u - k, j] = 0.0
+            for j in range(N):
+                if at[j] != 0:
+                    ab[u, j] = 1.0
+                    rhs[j] = 0.0
+            # banded_solve(ab, rhs)
+            for j in range(N):
+                d = ab[u, j]
+                if not d > 0.0:
+                    return j + 1
+                d = np.sqrt(d)
+                ab[u, j] = d
+                t = 0.0
+                for i in range(max(0, j - u), j):
+                    t += ab[u + i - j, j] * rhs[i]
+                rhs[j] = (rhs[j] - t) / d
+                kn = min(u, N - 1 - j)
+                r = 1.0 / d
+                for c in range(1, kn + 1):
+                    ab[u - c, j + c] *= r
+                for c in range(1, kn + 1):
+                    t = -ab[u - c, j + c]
+                    for a in range(1, c + 1):
+                        ab[u + a - c, j + c] += ab[u - a, j + a] * t
+            for j in range(N - 1, -1, -1):
+                if rhs[j] != 0.0:
+                    rhs[j] /= ab[u, j]
+                    t = rhs[j]
+                    for i in range(j - 1, max(0, j - u) - 1, -1):
+                        rhs[i] -= t * ab[u + i - j, j]
+            for i in range(N):
+                x[i] = rhs[i] + xf[i]
+            change = False
+            for i in range(N):
+                if at[i] == 0:
+                    low = x[i] < lo[i] - 1e-12
+                    high = x[i] > hi[i] + 1e-12
+                    if low:
+                        at[i] = -1
+                    if high:
+                        at[i] = 1
+                    if low or high:
+                        change = True
+            if not change:
+                # grad = H x + g; a bound whose gradient pulls inward is released
+                for i in range(N):
+                    grad[i] = ab0[u, i] * x[i]
+                for k in range(1, u + 1):
+                    for i in range(N - k):
+                        grad[i] += ab0[u - k, i + k] * x[i + k]
+                    for i in range(k, N):
+                        grad[i] += ab0[u - k, i] * x[i - k]
+                for i in range(N):
+                    gi = grad[i] + g[i]
+                    if (at[i] < 0 and gi < -1e-12) or (at[i] > 0 and gi > 1e-12):
+                        at[i] = 0
+                        change = True
+            if not change:
+                break
+        return 0
+
+    @jit
     def grid_read(x, origin, h, shape, stride, offsets, lbn, idx, lb, near, ins):
         """:meth:`~tsplcam.orientation.broadphase.DistanceGrid._read` point by point, the same
         operations in the same order (so the same bits): per point the cell (clamped into the
@@ -324,7 +420,8 @@ def _build():
             near[p] = idx[base + nb] if inside else -1
 
     return {"viterbi_steps": viterbi_steps, "joint_steps": joint_steps, "viterbi_path": viterbi_path,
-            "banded_solve": banded_solve, "grid_read": grid_read, "two_states": two_states}
+            "banded_solve": banded_solve, "grid_read": grid_read, "two_states": two_states,
+            "solve_box": solve_box}
 
 
 def kernels(work: float | None = None):

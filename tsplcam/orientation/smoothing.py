@@ -532,8 +532,21 @@ class _Banded:
         return y
 
     def solve_box(self, lo, hi, iterations: int = 40):
-        """argmin over lo <= x <= hi (lo <= hi everywhere)."""
+        """argmin over lo <= x <= hi (lo <= hi everywhere). With the compiled kernels loaded
+        already (then every solve below would run in ``banded_solve``) the whole loop runs in
+        the ``solve_box`` kernel: the same operations in the same order, so the same x,
+        without the numpy calls' overhead per iteration (215 iterations of 14.7k rows on the
+        keycap)."""
         N, u = self.N, self.u
+        k = compiled.loaded()
+        if k is not None and u >= 2:
+            x = np.empty(N)
+            info = k["solve_box"](np.require(self.ab, np.float64, "C"), np.require(self.g, np.float64, "C"),
+                                  np.require(lo, np.float64, "C"), np.require(hi, np.float64, "C"),
+                                  int(iterations), x)
+            if info > 0:
+                raise np.linalg.LinAlgError(f"{info}th leading minor not positive definite")
+            return np.clip(x, lo, hi)
         at = np.zeros(N, np.int8)                # -1 at lo, +1 at hi
         x = np.zeros(N)
         for _ in range(iterations):

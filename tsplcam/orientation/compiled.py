@@ -28,6 +28,9 @@ systems are ill-conditioned the two x then differ by up to 1e-6 rad on the keyca
 backward stable to a few machine epsilons), so the program's angles can move in their last
 printed digit between a run with numba and one without. The kernel's own order does not
 depend on the CPU (numba is not asked for fast-math, so no sums are reordered or fused).
+Where the kernels are loaded already, ``solve_box`` runs the polish's whole active-set loop
+(its numpy steps element for element, the solve as ``banded_solve``): the same x as the loop
+calling ``banded_solve``, without numpy's overhead per iteration.
 
 numba is optional: :func:`kernels` returns None when it cannot be imported (a FreeCAD
 without it) or when ``TSPLCAM_COMPILED=0`` is set, and the callers run their numpy version.

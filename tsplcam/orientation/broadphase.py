@@ -326,15 +326,28 @@ class DistanceGrid:
         nearest node's. With the compiled kernel (:mod:`~tsplcam.orientation.compiled`, the
         same bits) point by point, else ``GRID_ROWS`` points at a time (the (rows, 8)
         temporaries then stay in the processor's cache)."""
-        if self._todo is not None and self._todo.any():
-            self._fill(x)
+        lazy = self._todo is not None and self._todo.any()
         k = compiled.kernels(work=READ_WORK * len(x))
         if k is not None:
+            # the kernel flags the points whose cell is not computed yet: those bricks are
+            # computed and those points read again (a pass in numpy over every point read
+            # to find them would cost half the read)
             x = np.ascontiguousarray(x, float)
             lb, near, ins = np.empty(len(x)), np.empty(len(x), np.int64), np.empty(len(x), bool)
+            miss = np.empty(len(x), bool)
             k["grid_read"](x, self.origin, self.h, self.shape, self.stride, self._offsets, self.lb,
-                           self.idx, lb, near, ins)
+                           self.idx, self._has, lb, near, ins, miss)
+            if lazy and miss.any():
+                m = np.nonzero(miss)[0]
+                xm = np.ascontiguousarray(x[m])
+                self._fill(xm)
+                lbm, nearm, insm = np.empty(len(m)), np.empty(len(m), np.int64), np.empty(len(m), bool)
+                k["grid_read"](xm, self.origin, self.h, self.shape, self.stride, self._offsets, self.lb,
+                               self.idx, self._has, lbm, nearm, insm, miss[m])
+                lb[m], near[m], ins[m] = lbm, nearm, insm
             return lb, near, ins
+        if lazy:
+            self._fill(x)
         if len(x) > GRID_ROWS:
             parts = [self._read(x[s:s + GRID_ROWS]) for s in range(0, len(x), GRID_ROWS)]
             return tuple(np.concatenate(c) for c in zip(*parts))

@@ -283,6 +283,19 @@ class CompiledJointTransitions(unittest.TestCase):
             broken += same_result(self, node, tr, f"trial {trial}")[0] is None
         self.assertGreater(broken, 0)
 
+    def test_prepare_loads_aside(self):
+        """``prepare()`` (the job's, while the path's workers run) loads every kernel into a set
+        kept aside: numba or numpy is still chosen by the work asked, and the set given once
+        the kernels load is that one, every kernel already loaded for the job's types."""
+        with mock.patch.dict(compiled._STATE, {"work": 0.0}, clear=True):
+            compiled.prepare()
+            self.assertIsNone(compiled.kernels(work=1.0))
+            self.assertIsNone(compiled.loaded())
+            k = compiled.kernels()
+            for name in ("viterbi_steps", "joint_steps", "solve_box", "two_states", "grid_read"):
+                self.assertEqual(len(k[name].signatures), 1, name)
+            self.assertIs(compiled.loaded(), k)
+
     def test_warm_compiles_it(self):
         """``warm()`` (the install script's) compiles the kernel for the types the job uses."""
         compiled.warm()

@@ -437,13 +437,14 @@ def kernels(work: float | None = None):
     """The compiled kernels (a dict of numba functions), or None without numba. ``work``: the
     size of the computation the caller would otherwise do in numpy; with it, the kernels are
     only loaded once the work asked of this process reaches :data:`LOAD_WORK` (None till
-    then); without it, now."""
+    then); without it, now. A set :func:`prepare` loaded ahead is the one given."""
     if "k" not in _STATE:
         if work is not None:
             _STATE["work"] += work
             if _STATE["work"] < LOAD_WORK:
                 return None
-        _STATE["k"] = _build()
+        spare = _STATE.pop("spare", None)
+        _STATE["k"] = spare if spare is not None else _build()
     return _STATE["k"]
 
 
@@ -454,39 +455,56 @@ def loaded():
 
 
 def prepare() -> None:
-    """Load numba's machinery (its import and a first kernel call cost a process about
-    0.3-0.45 s) through a throwaway set of the kernels, leaving :func:`kernels`' own choice
-    (numba or numpy, by the work asked) untouched: a job can do this while it would only
-    wait (``program.CheckerAhead``) and still make the same bytes."""
-    import numpy as np
+    """Load numba's machinery and every kernel's machine code (numba's import, and each
+    kernel's first call: about 0.3-0.45 s and 7-20 ms a kernel) into a set of the kernels
+    kept aside, leaving :func:`kernels`' own choice (numba or numpy, by the work asked)
+    untouched: :func:`kernels` gives that set once it loads. A job does this while it would
+    only wait (``program.CheckerAhead``) and still makes the same bytes (the same kernels)."""
+    if "k" in _STATE or "spare" in _STATE:
+        return
     spare = _build()
-    if spare is not None:             # the types warm() and the job use: loaded from the cache
-        spare["banded_solve"](np.array([[0.0, 0.0, 1.0], [0.0, 1.0, 1.0], [2.0, 2.0, 2.0]]), np.ones(3))
+    if spare is None:
+        return
+    _STATE["k"] = spare               # (kernels() gives this set while the calls below run)
+    try:
+        _exercise()
+    finally:
+        del _STATE["k"]
+    _STATE["spare"] = spare
 
 
-def warm() -> float:
-    """Compile (or load from the cache) every kernel on a tiny input; returns the seconds
-    taken (0 without numba). ``scripts/install.sh`` calls it, so a job does not carry the
-    compilation."""
+def _exercise() -> None:
+    """Call every kernel of the loaded set on a tiny input, with the types the job uses."""
     import numpy as np
 
     from .viterbi import viterbi
-
-    t0 = time.perf_counter()
-    if kernels() is None:
-        return 0.0
     node = np.zeros((3, 3))
     viterbi(node, np.ones((2, 3, 3)))
-    from .smoothing import MeridianGrid, SmoothingCost, joint_transitions
+    from .smoothing import MeridianGrid, SmoothingCost, _Banded, joint_transitions
     from .rotary import Rotary
     th = np.zeros((3, 3))
     grid = MeridianGrid(np.zeros(3), th, th, th, th, np.ones((3, 3), bool))
     viterbi(node, joint_transitions(grid, SmoothingCost(1.0, Rotary()), np.ones(2), 1.0, np.ones(3, bool)))
-    kernels()["banded_solve"](np.array([[0.0, 0.0, 1.0], [0.0, 1.0, 1.0], [2.0, 2.0, 2.0]]), np.ones(3))
+    ab = np.array([[0.0, 0.0, 1.0], [0.0, 1.0, 1.0], [2.0, 2.0, 2.0]])
+    kernels()["banded_solve"](ab.copy(), np.ones(3))
+    box = _Banded(3, 2)
+    box.ab[:] = ab
+    box.g[:] = 1.0
+    box.solve_box(-np.ones(3), np.ones(3))
     viterbi(np.zeros((3, 2)), np.ones((2, 2, 2)))
     from scipy.spatial import cKDTree
 
     from .broadphase import DistanceGrid
     P = np.zeros((1, 3))
     DistanceGrid(cKDTree(P), 0.0, P[0], P[0] + 1.0, 0.5, 0.5, 1.0, 64)(np.full((2, 3), 0.25))
+
+
+def warm() -> float:
+    """Compile (or load from the cache) every kernel on a tiny input; returns the seconds
+    taken (0 without numba). ``scripts/install.sh`` calls it, so a job does not carry the
+    compilation."""
+    t0 = time.perf_counter()
+    if kernels() is None:
+        return 0.0
+    _exercise()
     return time.perf_counter() - t0

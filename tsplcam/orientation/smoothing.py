@@ -457,7 +457,12 @@ def theta_interval(rot: Rotary, phi, constraints, ref):
             # b = 0 (the lead/tilt cones): c is +0 where R > 1e-15, else -1; the same half
             # arcs as below without their passes over the grid, and R > 1e-15 without libm's
             # hypot (15 ms a grid) where |hz| or |hm| is above 1e-15 (hypot >= both)
-            big = (np.abs(hz) > 1e-15) | (np.abs(hm) > 1e-15)
+            row = np.abs(hz) > 1e-15
+            if np.all(row):                          # (as a rule: every half arc is pi/2)
+                lo = np.maximum(lo, al - _HALF_PI)
+                hi = np.minimum(hi, al + _HALF_PI)
+                continue
+            big = row | (np.abs(hm) > 1e-15)
             small = np.nonzero(~big)
             if len(small[0]):
                 big[small] = np.hypot(np.broadcast_to(hz, big.shape)[small], hm[small]) > 1e-15

@@ -340,36 +340,6 @@ class Geometry(unittest.TestCase):
         small(rng.random((500, 3)) * 0.9 + [1.05, 2.05, 1.05])   # inside one 1 mm cube
         self.assertLessEqual(small.bricks.size, 8)
 
-    def test_lazy_distance_grid(self):
-        """A distance grid computed brick by brick where read gives the bits the grid computed
-        at once gives (bounds, samples, inside flags; kernel or numpy), and computes only the
-        bricks around the points read."""
-        from unittest import mock
-
-        from tsplcam.orientation import compiled
-        from tsplcam.orientation.broadphase import BroadPhase, DistanceGrid, Profile
-        rng = np.random.default_rng(5)
-        V, T = wavy_sheet()
-        one = np.ones(1)
-        bp = BroadPhase(V, T, lambda grow: Profile(0 * one, one, one, one, one, one), 0.1, 0.3)
-        lo, hi = bp.box
-        whole = DistanceGrid(bp.tree, bp.e2, lo, hi, 0.1, 1.0, 2.0, 10**6, brick=0)
-        x = rng.random((3000, 3)) * (hi - lo + 3.0) + lo - 1.5
-        x[:300] = whole.origin + whole.h * rng.integers(0, whole.shape, (300, 3))     # on nodes
-        few = x[np.all(np.abs(x - [2.0, 2.0, 0.0]) < 0.3, axis=1)]
-        kernels = compiled.kernels()
-        for form in (None, kernels) if kernels is not None else (None,):      # numpy, the kernel
-            with mock.patch.object(compiled, "kernels", lambda work=None: form):
-                lazy = DistanceGrid(bp.tree, bp.e2, lo, hi, 0.1, 1.0, 2.0, 10**6, brick=4)
-                for g, w in zip(lazy(few), whole(few)):
-                    np.testing.assert_array_equal(g, w)
-                self.assertLess(lazy.computed, 0.1 * lazy._todo.size)     # a few bricks around (2, 2, 0)
-                for g, w in zip(lazy(x), whole(x)):
-                    np.testing.assert_array_equal(g, w)
-            lazy.complete()
-            np.testing.assert_array_equal(lazy.lb, whole.lb)
-            np.testing.assert_array_equal(lazy.idx, whole.idx)
-
     def test_sample_bound(self):
         """Every point of a triangle lies at least sqrt(d^2 - e^2/3) from a point whose
         nearest sample is d away (e the longest sub-triangle edge)."""

@@ -97,7 +97,6 @@ SIDE_GRID = (0.4, 6)          # the side pass's own grid: spacing (mm), cells pe
 EXACT_COST = 3                # spheres of the exact pass that cost about as much as one fcl query
 EXACT_PROBE = 2000            # spheres the exact pass is tried on before its gain counts
 PLANE_SLACK = 1e-9            # mm: a triangle's plane distance counts only this much beyond R (rounding)
-GRID_BRICK = 8                # distance grids: cells per brick edge, computed where first read
 GRID_ROWS = 16384             # points a distance grid reads at a time
 READ_WORK = 30.0              # a grid read in numpy costs about as much as this many Viterbi elements
 _CORNERS = np.array([(i, j, k) for i in (0, 1) for j in (0, 1) for k in (0, 1)], np.int64)
@@ -248,77 +247,23 @@ class SphereCover:
 
 class DistanceGrid:
     """Lower bounds of the distance to the mesh at the nodes of a regular grid (capped), and
-    the nearest sample of each node (-1 beyond the cap).
-
-    The nodes' bounds are computed a brick of ``brick``^3 cells at a time where a read first
-    needs them (0: all at once; :meth:`complete` computes the rest): the poses of a job read
-    a fraction of the grid (the keycap job about 70 % of the fine grid's bricks and 10 % of
-    the coarse one's, whose nodes cost the most: their queries reach 20 mm). A node's bound is
-    its own KD-tree query at the same coordinates (``origin + h * index``), so the values are
-    the same bits whenever and with whichever nodes they are computed."""
+    the nearest sample of each node (-1 beyond the cap)."""
 
     def __init__(self, tree: cKDTree, e2: float, lo: np.ndarray, hi: np.ndarray, spacing: float,
-                 pad: float, cap: float, nodes: int, brick: int = GRID_BRICK):
+                 pad: float, cap: float, nodes: int):
         ext = hi - lo + 2 * pad
         self.h = max(float(spacing), float(np.prod(ext) / nodes) ** (1 / 3))
         self.origin = lo - pad
         self.shape = np.ceil((hi - lo + 2 * pad) / self.h).astype(np.int64) + 1
+        axes = [self.origin[i] + self.h * np.arange(self.shape[i]) for i in range(3)]
+        nodes = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, 3)
         self.cap = float(cap)
-        self.tree, self.e2 = tree, float(e2)
+        d, j = tree.query(nodes, distance_upper_bound=cap, workers=2)
+        far = ~np.isfinite(d)
+        self.lb = np.where(far, np.sqrt(max(cap * cap - e2, 0.0)), np.sqrt(np.maximum(d * d - e2, 0.0)))
+        self.idx = np.where(far, -1, j)
         self.stride = np.array([self.shape[1] * self.shape[2], self.shape[2], 1])
         self._offsets = _CORNERS @ self.stride
-        size = int(np.prod(self.shape))
-        self.lb = np.zeros(size)
-        self.idx = np.full(size, -1, np.int64)
-        self.B = int(brick)
-        self._has = np.zeros(size, bool)                        # nodes computed
-        if self.B <= 0:
-            self._compute(np.arange(size))
-            self._todo = None
-            return
-        self._bshape = (self.shape - 2) // self.B + 1          # bricks along each axis (of cells)
-        self._bstride = np.array([self._bshape[1] * self._bshape[2], self._bshape[2], 1])
-        self._todo = np.ones(int(np.prod(self._bshape)), bool)  # bricks whose nodes are not computed
-        g = np.arange(self.B + 1)
-        self._local = np.stack(np.meshgrid(g, g, g, indexing="ij"), axis=-1).reshape(-1, 3)
-
-    def complete(self) -> None:
-        """Compute every node not computed yet."""
-        if self._todo is not None and self._todo.any():
-            self._compute(np.nonzero(~self._has)[0])
-            self._todo[:] = False
-
-    @property
-    def computed(self) -> int:
-        """Bricks computed so far (all of them for a grid made at once)."""
-        return 1 if self._todo is None else int((~self._todo).sum())
-
-    def _compute(self, flat: np.ndarray) -> None:
-        """The bounds and samples of the nodes ``flat`` (flat indices)."""
-        ijk = np.stack(np.unravel_index(flat, tuple(self.shape)), axis=-1)
-        nodes = self.origin + self.h * ijk.astype(float)
-        d, j = self.tree.query(nodes, distance_upper_bound=self.cap, workers=2)
-        far = ~np.isfinite(d)
-        self.lb[flat] = np.where(far, np.sqrt(max(self.cap * self.cap - self.e2, 0.0)),
-                                 np.sqrt(np.maximum(d * d - self.e2, 0.0)))
-        self.idx[flat] = np.where(far, -1, j)
-        self._has[flat] = True
-
-    def _fill(self, x: np.ndarray) -> None:
-        """Compute the bricks holding the cells of the points x inside the grid (a cell's
-        eight nodes lie in the brick of its lowest node: bricks share their faces)."""
-        f = (x - self.origin) / self.h
-        k0 = np.floor(f).astype(np.int64)
-        ins = np.all((k0 >= 0) & (k0 < self.shape - 1), axis=1)
-        b = (k0[ins] // self.B) @ self._bstride
-        new = np.unique(b[self._todo[b]])
-        if len(new) == 0:
-            return
-        self._todo[new] = False
-        bijk = np.stack(np.unravel_index(new, tuple(self._bshape)), axis=-1)
-        node = (bijk[:, None, :] * self.B + self._local[None]).reshape(-1, 3)
-        flat = np.unique(node[np.all(node < self.shape, axis=1)] @ self.stride)
-        self._compute(flat[~self._has[flat]])
 
     def __call__(self, x: np.ndarray):
         """(lower bound, sample index or -1, inside the grid) at points x: the best over the
@@ -326,28 +271,13 @@ class DistanceGrid:
         nearest node's. With the compiled kernel (:mod:`~tsplcam.orientation.compiled`, the
         same bits) point by point, else ``GRID_ROWS`` points at a time (the (rows, 8)
         temporaries then stay in the processor's cache)."""
-        lazy = self._todo is not None and self._todo.any()
         k = compiled.kernels(work=READ_WORK * len(x))
         if k is not None:
-            # the kernel flags the points whose cell is not computed yet: those bricks are
-            # computed and those points read again (a pass in numpy over every point read
-            # to find them would cost half the read)
             x = np.ascontiguousarray(x, float)
             lb, near, ins = np.empty(len(x)), np.empty(len(x), np.int64), np.empty(len(x), bool)
-            miss = np.empty(len(x), bool)
             k["grid_read"](x, self.origin, self.h, self.shape, self.stride, self._offsets, self.lb,
-                           self.idx, self._has, lb, near, ins, miss)
-            if lazy and miss.any():
-                m = np.nonzero(miss)[0]
-                xm = np.ascontiguousarray(x[m])
-                self._fill(xm)
-                lbm, nearm, insm = np.empty(len(m)), np.empty(len(m), np.int64), np.empty(len(m), bool)
-                k["grid_read"](xm, self.origin, self.h, self.shape, self.stride, self._offsets, self.lb,
-                               self.idx, self._has, lbm, nearm, insm, miss[m])
-                lb[m], near[m], ins[m] = lbm, nearm, insm
+                           self.idx, lb, near, ins)
             return lb, near, ins
-        if lazy:
-            self._fill(x)
         if len(x) > GRID_ROWS:
             parts = [self._read(x[s:s + GRID_ROWS]) for s in range(0, len(x), GRID_ROWS)]
             return tuple(np.concatenate(c) for c in zip(*parts))
@@ -506,9 +436,6 @@ class BroadPhase:
         fine = DistanceGrid(self.tree, self.e2, lo, hi, FINE[0], 3.0, 1.5, FINE[1])
         if fine.h > FINE[0]:                       # a large part: pad and cap with the spacing
             fine = DistanceGrid(self.tree, self.e2, lo, hi, fine.h, 8 * fine.h, 4 * fine.h, FINE[1])
-        # the fine grid made now (most of it is read, and a checker is built while the path's
-        # workers run), the coarse one where read (a tenth of it is)
-        fine.complete()
         self.grids = [fine, DistanceGrid(self.tree, self.e2, lo, hi, COARSE[0], reach + COARSE[0],
                                          10 * COARSE[0], COARSE[1])]
         self._covers: dict[float, SphereCover] = {}

@@ -383,13 +383,11 @@ def _build():
         return 0
 
     @jit
-    def grid_read(x, origin, h, shape, stride, offsets, lbn, idx, has, lb, near, ins, miss):
+    def grid_read(x, origin, h, shape, stride, offsets, lbn, idx, lb, near, ins):
         """:meth:`~tsplcam.orientation.broadphase.DistanceGrid._read` point by point, the same
         operations in the same order (so the same bits): per point the cell (clamped into the
         grid), the eight nodes' bounds less their distances, the best of them, the nearest
-        node's sample; 0 and -1 outside the grid. Fills ``lb``, ``near``, ``ins``, and
-        ``miss``: inside the grid, some node of the cell not computed yet (``has`` False;
-        the caller computes it and reads the point again)."""
+        node's sample; 0 and -1 outside the grid. Fills ``lb``, ``near``, ``ins``."""
         f = np.empty(3)
         r = np.empty(3)
         k = np.empty(3, np.int64)
@@ -412,7 +410,6 @@ def _build():
                 sq[i, 1] = (1.0 - r[i]) * (1.0 - r[i])
             best = -np.inf
             c = 0
-            gap = False
             for a in range(2):
                 for b in range(2):
                     for e in range(2):
@@ -420,10 +417,7 @@ def _build():
                         v = lbn[base + offsets[c]] - d
                         if v > best:
                             best = v
-                        if not has[base + offsets[c]]:
-                            gap = True
                         c += 1
-            miss[p] = inside and gap
             ins[p] = inside
             lb[p] = best if inside else 0.0
             near[p] = idx[base + nb] if inside else -1

@@ -109,10 +109,13 @@ def meridian_grid(rot: Rotary, pref, normal, constraints, M: int, pole_tilt: flo
     n = len(pref)
     phis = 2 * np.pi * np.arange(M) / M
     PH = np.broadcast_to(phis, (n, M))
-    lo, hi = theta_interval(rot, PH, constraints, rot.best_theta(normal[:, None, :], PH))
+    # the meridians of the M rotary values, once (rot.meridian of PH computes the same
+    # elements n times over)
+    m = np.broadcast_to(rot.meridian(phis), (n, M, 3))
+    lo, hi = theta_interval(rot, PH, constraints, rot.best_theta(normal[:, None, :], PH, m), m)
     lo = np.maximum(lo, rot.theta_lo)
     hi = np.minimum(hi, rot.theta_hi)
-    tp = rot.best_theta(pref[:, None, :], PH)
+    tp = rot.best_theta(pref[:, None, :], PH, m)
     th = np.clip(tp, lo, hi)
     if pole_tilt > 0:
         near = np.abs(th) < pole_tilt
@@ -437,13 +440,14 @@ def cone_halfspaces(normal, feed, lead_max: float, tilt_max: float):
 _HALF_PI = float(np.arccos(np.clip(np.zeros(1), -1.0, 1.0))[0])    # arccos(+0), as theta_interval takes it
 
 
-def theta_interval(rot: Rotary, phi, constraints, ref):
+def theta_interval(rot: Rotary, phi, constraints, ref, m=None):
     """Interval [lo, hi] of signed tilt on the meridian at rotary ``phi`` ((n,) or (n, M))
     where every constraint ``(h (n,3), b (n,))``, ``h . a >= b``, holds; arcs are taken on
     the branch nearest ``ref`` (shaped like phi; a point known or expected inside, e.g. the
-    normal's tilt on that meridian). Empty where lo > hi."""
+    normal's tilt on that meridian). Empty where lo > hi. ``m``: ``rot.meridian(phi)`` when
+    the caller has it."""
     phi = np.asarray(phi, float)
-    m = rot.meridian(phi)
+    m = rot.meridian(phi) if m is None else m
     grid = phi.ndim == 2
     lo = np.full(phi.shape, -np.inf)
     hi = np.full(phi.shape, np.inf)

@@ -304,10 +304,19 @@ def joint_programme(checker, C, grid: MeridianGrid, cost: SmoothingCost, pref, d
         status[pj[keep], pk[keep]] = -1
         return resolve_meridians(checker, C, rot, grid, status, pj[keep], pk[keep], step, tick=tick)
 
+    dev = seen = None
     while True:
         rounds += 1
         tick()
-        dev = angle_between(rot.axis(grid.theta, grid.phi[None, :]), pref[:, None, :])
+        if dev is None:
+            dev = angle_between(rot.axis(grid.theta, grid.phi[None, :]), pref[:, None, :])
+        else:
+            # each pose's deviation from the preferred axis again where its tilt changed (the
+            # same element-wise operations on those elements: the same bits)
+            i, k = np.nonzero(grid.theta != seen)
+            if len(i):
+                dev[i, k] = angle_between(rot.axis(grid.theta[i, k], grid.phi[k]), pref[i])
+        seen = grid.theta.copy()
         node = np.where((status == -1) | (status == 0), dev ** 2 * half[:, None], np.inf)
         states, broke = viterbi(node, trans)
         if states is None:

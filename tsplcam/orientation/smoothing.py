@@ -559,9 +559,10 @@ class _Banded:
         k = compiled.loaded()
         if k is not None and u >= 2:
             x = np.empty(N)
+            lo_c = np.require(np.broadcast_to(lo, (N,)), np.float64, "C")
+            hi_c = np.require(np.broadcast_to(hi, (N,)), np.float64, "C")
             info = k["solve_box"](np.require(self.ab, np.float64, "C"), np.require(self.g, np.float64, "C"),
-                                  np.require(lo, np.float64, "C"), np.require(hi, np.float64, "C"),
-                                  int(iterations), x)
+                                  lo_c, hi_c, int(iterations), x)
             if info > 0:
                 raise np.linalg.LinAlgError(f"{info}th leading minor not positive definite")
             return np.clip(x, lo, hi)

@@ -111,7 +111,7 @@ def viterbi(node: np.ndarray, transition, kernel: bool = True) -> tuple:
         trans = np.asarray(transition, float)
         if S == 2:
             k = compiled.loaded() if kernel else None
-            if k is None:
+            if k is None or trans.shape != (n - 1, 2, 2):
                 return _two_states(node, trans)
             states = np.zeros(n, np.int64)
             broke = k["two_states"](np.require(node, np.float64, "C"), np.require(trans, np.float64, "C"), TIE, states)

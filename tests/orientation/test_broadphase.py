@@ -41,8 +41,6 @@ def random_poses(path, n, rng, spread=0.2, tilt=np.radians(80)):
     return C, A / np.linalg.norm(A, axis=1, keepdims=True)
 
 
-@unittest.skipIf(fcl is None, "python-fcl not installed")
-
 def wavy_sheet():
     """A 4 x 4 sheet z = 0.3 sin x cos y in 128 triangles: (V, T)."""
     g = np.linspace(0, 4, 9)
@@ -52,6 +50,8 @@ def wavy_sheet():
                         for i in range(8) for j in range(8)])
     return V, T
 
+
+@unittest.skipIf(fcl is None, "python-fcl not installed")
 class AgreesWithFcl(unittest.TestCase):
     @classmethod
     def setUpClass(cls):

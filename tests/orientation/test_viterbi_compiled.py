@@ -94,6 +94,25 @@ class CompiledViterbi(unittest.TestCase):
                 self.assertLessEqual(abs(got - best), TIE * max(1.0, abs(best)) * n, f"trial {trial}")
         self.assertGreater(broken, 5)               # the break points were exercised
 
+    def test_two_states(self):
+        """Two states (the post's branch choice): the kernel's states and break points are
+        the plain-float loop's (_two_states), with exact ties, near-ties within TIE, large
+        costs (the relative tie), ``inf`` states and moves, broken chains."""
+        rng = np.random.default_rng(12)
+        broken = 0
+        for trial in range(300):
+            n = int(rng.integers(1, 40))
+            node = rng.integers(0, 3, (n, 2)) * 10.0 ** rng.integers(0, 12)
+            trans = rng.integers(0, 3, (max(n - 1, 0), 2, 2)).astype(float)
+            if trial % 2:
+                node = node * (1.0 + 1e-15 * rng.integers(-4, 5, node.shape))
+                trans = trans * (1.0 + 1e-12 * rng.integers(-4, 5, trans.shape))
+            node[rng.random(node.shape) < 0.1] = np.inf
+            trans[rng.random(trans.shape) < 0.1] = np.inf
+            states, broke = same_result(self, node, trans, f"trial {trial}")
+            broken += states is None
+        self.assertGreater(broken, 5)
+
     def test_large_random(self):
         """The joint programme's size (36 states, 3000 points, blocks fetched from a function
         as there), continuous costs with forbidden moves."""
@@ -172,7 +191,8 @@ class CompiledBandedSolve(unittest.TestCase):
 
     def test_solve_box_unchanged(self):
         """solve_box's active set gives the same x with the kernel and with scipy (both
-        within 1e-12), and x is the box-constrained minimum: inside the box, and the
+        within 1e-12; the whole loop in the solve_box kernel and the loop calling
+        banded_solve: the same bits), and x is the box-constrained minimum: inside the box, and the
         gradient points out of the box where a bound is active and is 0 elsewhere."""
         rng = np.random.default_rng(4)
         N = 400
@@ -183,6 +203,8 @@ class CompiledBandedSolve(unittest.TestCase):
             lo = rng.uniform(-2.0, 0.0, N)
             hi = lo + rng.uniform(0.0, 2.0, N)
             x = B.solve_box(lo, hi)
+            with mock.patch.object(compiled, "loaded", lambda: None):     # the loop, banded_solve per step
+                np.testing.assert_array_equal(B.solve_box(lo, hi), x)        # the solve_box kernel: same bits
             with mock.patch.dict(compiled._STATE, {"k": None}):
                 x0 = B.solve_box(lo, hi)
             np.testing.assert_allclose(x, x0, rtol=0, atol=1e-12)
@@ -261,6 +283,19 @@ class CompiledJointTransitions(unittest.TestCase):
             broken += same_result(self, node, tr, f"trial {trial}")[0] is None
         self.assertGreater(broken, 0)
 
+    def test_prepare_loads_aside(self):
+        """``prepare()`` (the job's, while the path's workers run) loads every kernel into a set
+        kept aside: numba or numpy is still chosen by the work asked, and the set given once
+        the kernels load is that one, every kernel already loaded for the job's types."""
+        with mock.patch.dict(compiled._STATE, {"work": 0.0}, clear=True):
+            compiled.prepare()
+            self.assertIsNone(compiled.kernels(work=1.0))
+            self.assertIsNone(compiled.loaded())
+            k = compiled.kernels()
+            for name in ("viterbi_steps", "joint_steps", "solve_box", "two_states", "grid_read"):
+                self.assertEqual(len(k[name].signatures), 1, name)
+            self.assertIs(compiled.loaded(), k)
+
     def test_warm_compiles_it(self):
         """``warm()`` (the install script's) compiles the kernel for the types the job uses."""
         compiled.warm()
@@ -272,7 +307,9 @@ class KeycapJob(unittest.TestCase):
     def test_every_call_of_the_main_job(self):
         """The keycap main job (model to G-code): every Viterbi programme it runs (the joint
         programme's, the forced-travel figure's, the post's pose choice) is solved both ways,
-        compiled and numpy, with the same states; every banded system the polish solves is
+        compiled and numpy, with the same states; every box-constrained problem of the polish
+        both in the solve_box kernel and in the loop calling banded_solve, with the same bits;
+        every banded system the polish solves is
         solved as exactly by the kernel as by LAPACK: componentwise backward error within
         1e-14 (45 machine epsilons; both measure 2.2e-16 to 2.5e-16 on these). The solutions
         themselves need not agree to the bit: the polish's systems are ill-conditioned (on an
@@ -302,9 +339,18 @@ class KeycapJob(unittest.TestCase):
             seen["banded"] += 1
             return got
 
+        real_box = smoothing._Banded.solve_box
+
+        def both_box(box, lo, hi, iterations=40):
+            got = real_box(box, lo, hi, iterations)              # the solve_box kernel
+            with mock.patch.object(compiled, "loaded", lambda: None):
+                np.testing.assert_array_equal(real_box(box, lo, hi, iterations), got)   # the loop
+            return got
+
         with tempfile.TemporaryDirectory() as tmp, \
                 mock.patch.object(smoothing, "viterbi", both_viterbi), \
                 mock.patch.object(rotary, "viterbi", both_viterbi), \
+                mock.patch.object(smoothing._Banded, "solve_box", both_box), \
                 mock.patch.object(smoothing, "_solve_banded", both_solve):
             figures = run_job(JobSettings(out=os.path.join(tmp, "job"), verify=False, html_report=False),
                               log=None, progress=lambda stage, done, total: None)

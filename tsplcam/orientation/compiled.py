@@ -11,6 +11,10 @@ it from an (n, S, S) block that numpy built (keycap_mold: the blocks 0.31 s, the
 the operations of the numpy block's, element for element in its order, on numpy's cos and
 sin of the tilts (numba's libm may differ from numpy's by an ulp), so the same bits.
 
+Two-state chains (the post's branch choice, :func:`~tsplcam.orientation.viterbi._two_states`:
+plain Python floats, about 1.5 us a point) run in ``two_states``, the same float operations in
+the same order, where the kernels are loaded already (they are not loaded for it).
+
 The distance grids' read (:class:`~tsplcam.orientation.broadphase.DistanceGrid`, two million
 points on the keycap_mold job) is a gather of eight nodes per point: numpy's temporaries
 cost about 250 ns a point, the kernel a tenth of that, with the same operations in the same
@@ -24,6 +28,9 @@ systems are ill-conditioned the two x then differ by up to 1e-6 rad on the keyca
 backward stable to a few machine epsilons), so the program's angles can move in their last
 printed digit between a run with numba and one without. The kernel's own order does not
 depend on the CPU (numba is not asked for fast-math, so no sums are reordered or fused).
+Where the kernels are loaded already, ``solve_box`` runs the polish's whole active-set loop
+(its numpy steps element for element, the solve as ``banded_solve``): the same x as the loop
+calling ``banded_solve``, without numpy's overhead per iteration.
 
 numba is optional: :func:`kernels` returns None when it cannot be imported (a FreeCAD
 without it) or when ``TSPLCAM_COMPILED=0`` is set, and the callers run their numpy version.
@@ -182,6 +189,66 @@ def _build():
             states[i - 1] = s
 
     @jit
+    def two_states(node, t, tie, states):
+        """``viterbi._two_states`` (S = 2), the same float operations in the same order: fills
+        ``states``; returns -2, or the point before which the chain breaks as that function's
+        second value (-1: none at the last point). Its ``_le`` (x <= y up to the relative tie;
+        Python's max passes a NaN over) is written out at each use: a kernel that calls
+        another is compiled again in every process, not loaded from the cache."""
+        n = node.shape[0]
+        back = np.zeros((n, 2), np.int8)
+        a0 = node[0, 0]
+        a1 = node[0, 1]
+        for i in range(1, n):
+            x0 = a0 + t[i - 1, 0, 0]
+            x1 = a1 + t[i - 1, 1, 0]
+            y0 = a0 + t[i - 1, 0, 1]
+            y1 = a1 + t[i - 1, 1, 1]
+            if x0 == np.inf or x1 == np.inf:
+                le = x0 <= x1
+            else:
+                m = 1.0
+                if abs(x0) > m:
+                    m = abs(x0)
+                if abs(x1) > m:
+                    m = abs(x1)
+                le = x0 <= x1 + tie * m
+            b0 = 0 if le else 1
+            if y0 == np.inf or y1 == np.inf:
+                le = y0 <= y1
+            else:
+                m = 1.0
+                if abs(y0) > m:
+                    m = abs(y0)
+                if abs(y1) > m:
+                    m = abs(y1)
+                le = y0 <= y1 + tie * m
+            b1 = 0 if le else 1
+            a0 = (x0 if b0 == 0 else x1) + node[i, 0]
+            a1 = (y0 if b1 == 0 else y1) + node[i, 1]
+            if a0 == np.inf and a1 == np.inf:
+                return i - 1
+            back[i, 0] = b0
+            back[i, 1] = b1
+        if a0 == np.inf and a1 == np.inf:
+            return -1
+        if a0 == np.inf or a1 == np.inf:
+            le = a0 <= a1
+        else:
+            m = 1.0
+            if abs(a0) > m:
+                m = abs(a0)
+            if abs(a1) > m:
+                m = abs(a1)
+            le = a0 <= a1 + tie * m
+        s = 0 if le else 1
+        for i in range(n - 1, 0, -1):
+            states[i] = s
+            s = back[i, s]
+        states[0] = s
+        return -2
+
+    @jit
     def banded_solve(ab, rhs):
         """Solve H x = rhs for a symmetric positive definite band matrix H in LAPACK's upper
         band form ``ab`` (u + 1, N) (``ab[u + i - j, j] = H[i, j]``), by the Cholesky
@@ -217,6 +284,102 @@ def _build():
                 t = rhs[j]
                 for i in range(j - 1, max(0, j - u) - 1, -1):
                     rhs[i] -= t * ab[u + i - j, j]
+        return 0
+
+    @jit
+    def solve_box(ab0, g, lo, hi, iterations, x):
+        """``smoothing._Banded.solve_box`` whole (u >= 2): its active-set loop with each step's
+        numpy operations element for element in their order (the matvec's bands one after
+        the other) and ``banded_solve``'s arithmetic written out (a kernel calling another
+        misses numba's cache), so the same x bit for bit. ``x`` (N,) receives the result
+        before the final clip. Returns 0, or the leading minor ``banded_solve`` reports."""
+        u, N = ab0.shape[0] - 1, ab0.shape[1]
+        at = np.zeros(N, np.int8)
+        xf = np.empty(N)
+        rhs = np.empty(N)
+        grad = np.empty(N)
+        ab = np.empty_like(ab0)
+        x[:] = 0.0
+        for _ in range(iterations):
+            for i in range(N):
+                xf[i] = lo[i] if at[i] < 0 else (hi[i] if at[i] > 0 else 0.0)
+            # rhs = -g - H xf, H xf as _Banded.matvec sums it: the diagonal, then per band
+            # k = 1 .. u the term above the diagonal and the one below
+            for i in range(N):
+                grad[i] = ab0[u, i] * xf[i]
+            for k in range(1, u + 1):
+                for i in range(N - k):
+                    grad[i] += ab0[u - k, i + k] * xf[i + k]
+                for i in range(k, N):
+                    grad[i] += ab0[u - k, i] * xf[i - k]
+            for i in range(N):
+                rhs[i] = -g[i] - grad[i]
+            ab[:, :] = ab0
+            for j in range(N):
+                if at[j] != 0:
+                    for k in range(1, u + 1):
+                        if j + k < N:
+                            ab[u - k, j + k] = 0.0
+                        if j - k >= 0:
+                            ab[u - k, j] = 0.0
+            for j in range(N):
+                if at[j] != 0:
+                    ab[u, j] = 1.0
+                    rhs[j] = 0.0
+            # banded_solve(ab, rhs)
+            for j in range(N):
+                d = ab[u, j]
+                if not d > 0.0:
+                    return j + 1
+                d = np.sqrt(d)
+                ab[u, j] = d
+                t = 0.0
+                for i in range(max(0, j - u), j):
+                    t += ab[u + i - j, j] * rhs[i]
+                rhs[j] = (rhs[j] - t) / d
+                kn = min(u, N - 1 - j)
+                r = 1.0 / d
+                for c in range(1, kn + 1):
+                    ab[u - c, j + c] *= r
+                for c in range(1, kn + 1):
+                    t = -ab[u - c, j + c]
+                    for a in range(1, c + 1):
+                        ab[u + a - c, j + c] += ab[u - a, j + a] * t
+            for j in range(N - 1, -1, -1):
+                if rhs[j] != 0.0:
+                    rhs[j] /= ab[u, j]
+                    t = rhs[j]
+                    for i in range(j - 1, max(0, j - u) - 1, -1):
+                        rhs[i] -= t * ab[u + i - j, j]
+            for i in range(N):
+                x[i] = rhs[i] + xf[i]
+            change = False
+            for i in range(N):
+                if at[i] == 0:
+                    low = x[i] < lo[i] - 1e-12
+                    high = x[i] > hi[i] + 1e-12
+                    if low:
+                        at[i] = -1
+                    if high:
+                        at[i] = 1
+                    if low or high:
+                        change = True
+            if not change:
+                # grad = H x + g; a bound whose gradient pulls inward is released
+                for i in range(N):
+                    grad[i] = ab0[u, i] * x[i]
+                for k in range(1, u + 1):
+                    for i in range(N - k):
+                        grad[i] += ab0[u - k, i + k] * x[i + k]
+                    for i in range(k, N):
+                        grad[i] += ab0[u - k, i] * x[i - k]
+                for i in range(N):
+                    gi = grad[i] + g[i]
+                    if (at[i] < 0 and gi < -1e-12) or (at[i] > 0 and gi > 1e-12):
+                        at[i] = 0
+                        change = True
+            if not change:
+                break
         return 0
 
     @jit
@@ -260,56 +423,82 @@ def _build():
             near[p] = idx[base + nb] if inside else -1
 
     return {"viterbi_steps": viterbi_steps, "joint_steps": joint_steps, "viterbi_path": viterbi_path,
-            "banded_solve": banded_solve, "grid_read": grid_read}
+            "banded_solve": banded_solve, "grid_read": grid_read, "two_states": two_states,
+            "solve_box": solve_box}
 
 
 def kernels(work: float | None = None):
     """The compiled kernels (a dict of numba functions), or None without numba. ``work``: the
     size of the computation the caller would otherwise do in numpy; with it, the kernels are
     only loaded once the work asked of this process reaches :data:`LOAD_WORK` (None till
-    then); without it, now."""
+    then); without it, now. A set :func:`prepare` loaded ahead is the one given."""
     if "k" not in _STATE:
         if work is not None:
             _STATE["work"] += work
             if _STATE["work"] < LOAD_WORK:
                 return None
-        _STATE["k"] = _build()
+        spare = _STATE.pop("spare", None)
+        _STATE["k"] = spare if spare is not None else _build()
     return _STATE["k"]
 
 
+def loaded():
+    """The kernels if this process has loaded them already, else None (asks for no work:
+    for callers whose numpy form costs too little to load numba for, e.g. two-state chains)."""
+    return _STATE.get("k")
+
+
 def prepare() -> None:
-    """Load numba's machinery (its import and a first kernel call cost a process about
-    0.3-0.45 s) through a throwaway set of the kernels, leaving :func:`kernels`' own choice
-    (numba or numpy, by the work asked) untouched: a job can do this while it would only
-    wait (``program.CheckerAhead``) and still make the same bytes."""
-    import numpy as np
+    """Load numba's machinery and every kernel's machine code (numba's import, and each
+    kernel's first call: about 0.3-0.45 s and 7-20 ms a kernel) into a set of the kernels
+    kept aside, leaving :func:`kernels`' own choice (numba or numpy, by the work asked)
+    untouched: :func:`kernels` gives that set once it loads. A job does this while it would
+    only wait (``program.CheckerAhead``) and still makes the same bytes (the same kernels)."""
+    if "k" in _STATE or "spare" in _STATE:
+        return
     spare = _build()
-    if spare is not None:             # the types warm() and the job use: loaded from the cache
-        spare["banded_solve"](np.array([[0.0, 0.0, 1.0], [0.0, 1.0, 1.0], [2.0, 2.0, 2.0]]), np.ones(3))
+    if spare is None:
+        return
+    _STATE["k"] = spare               # (kernels() gives this set while the calls below run)
+    try:
+        _exercise()
+    finally:
+        del _STATE["k"]
+    _STATE["spare"] = spare
+
+
+def _exercise() -> None:
+    """Call every kernel of the loaded set on a tiny input, with the types the job uses."""
+    import numpy as np
+
+    from .viterbi import viterbi
+    node = np.zeros((3, 3))
+    viterbi(node, np.ones((2, 3, 3)))
+    from .smoothing import MeridianGrid, SmoothingCost, _Banded, joint_transitions
+    from .rotary import Rotary
+    th = np.zeros((3, 3))
+    grid = MeridianGrid(np.zeros(3), th, th, th, th, np.ones((3, 3), bool))
+    viterbi(node, joint_transitions(grid, SmoothingCost(1.0, Rotary()), np.ones(2), 1.0, np.ones(3, bool)))
+    ab = np.array([[0.0, 0.0, 1.0], [0.0, 1.0, 1.0], [2.0, 2.0, 2.0]])
+    kernels()["banded_solve"](ab.copy(), np.ones(3))
+    box = _Banded(3, 2)
+    box.ab[:] = ab
+    box.g[:] = 1.0
+    box.solve_box(-np.ones(3), np.ones(3))
+    viterbi(np.zeros((3, 2)), np.ones((2, 2, 2)))
+    from scipy.spatial import cKDTree
+
+    from .broadphase import DistanceGrid
+    P = np.zeros((1, 3))
+    DistanceGrid(cKDTree(P), 0.0, P[0], P[0] + 1.0, 0.5, 0.5, 1.0, 64)(np.full((2, 3), 0.25))
 
 
 def warm() -> float:
     """Compile (or load from the cache) every kernel on a tiny input; returns the seconds
     taken (0 without numba). ``scripts/install.sh`` calls it, so a job does not carry the
     compilation."""
-    import numpy as np
-
-    from .viterbi import viterbi
-
     t0 = time.perf_counter()
     if kernels() is None:
         return 0.0
-    node = np.zeros((3, 3))
-    viterbi(node, np.ones((2, 3, 3)))
-    from .smoothing import MeridianGrid, SmoothingCost, joint_transitions
-    from .rotary import Rotary
-    th = np.zeros((3, 3))
-    grid = MeridianGrid(np.zeros(3), th, th, th, th, np.ones((3, 3), bool))
-    viterbi(node, joint_transitions(grid, SmoothingCost(1.0, Rotary()), np.ones(2), 1.0, np.ones(3, bool)))
-    kernels()["banded_solve"](np.array([[0.0, 0.0, 1.0], [0.0, 1.0, 1.0], [2.0, 2.0, 2.0]]), np.ones(3))
-    from scipy.spatial import cKDTree
-
-    from .broadphase import DistanceGrid
-    P = np.zeros((1, 3))
-    DistanceGrid(cKDTree(P), 0.0, P[0], P[0] + 1.0, 0.5, 0.5, 1.0, 64)(np.full((2, 3), 0.25))
+    _exercise()
     return time.perf_counter() - t0

@@ -122,10 +122,11 @@ class Rotary:
             phi = np.arctan2(K[..., 1], K[..., 0])
         return theta, phi
 
-    def best_theta(self, K, phi) -> np.ndarray:
-        """Signed tilt that brings the tool closest to ``K`` with the rotary held at ``phi``."""
+    def best_theta(self, K, phi, m=None) -> np.ndarray:
+        """Signed tilt that brings the tool closest to ``K`` with the rotary held at ``phi``
+        (``m``: ``meridian(phi)`` when the caller has it)."""
         K = np.asarray(K, float)
-        m = self.meridian(phi)
+        m = self.meridian(phi) if m is None else m
         return np.arctan2(np.einsum("...i,...i->...", K, m), K[..., 2])
 
     def theta_ok(self, theta) -> np.ndarray:

@@ -110,7 +110,12 @@ def viterbi(node: np.ndarray, transition, kernel: bool = True) -> tuple:
     else:
         trans = np.asarray(transition, float)
         if S == 2:
-            return _two_states(node, trans)
+            k = compiled.loaded() if kernel else None
+            if k is None or trans.shape != (n - 1, 2, 2):
+                return _two_states(node, trans)
+            states = np.zeros(n, np.int64)
+            broke = k["two_states"](np.require(node, np.float64, "C"), np.require(trans, np.float64, "C"), TIE, states)
+            return (states, None) if broke == -2 else (None, int(broke))
         block = lambda i0, i1: trans[i0 - 1:i1 - 1]      # noqa: E731
     acc = node[0].copy()
     back = np.zeros((n, S), np.int32)

@@ -486,6 +486,19 @@ def decrement(s):
     return np.where(s >= INF, INF, np.where(s > 1, s - np.float32(1), np.float32(0))).astype(np.float32)
 
 
+def _add_at(out: np.ndarray, index, values) -> None:
+    """np.add.at(out, index, values) by bincount per column (numpy 1.24's ufunc.at is some
+    ten times slower); the sums' order may differ, within rounding."""
+    index = np.asarray(index).reshape(-1)
+    values = np.asarray(values, float)
+    if out.ndim == 1:
+        out += np.bincount(index, weights=np.broadcast_to(values, index.shape), minlength=len(out))
+        return
+    values = np.broadcast_to(values, (len(index),) + out.shape[1:])
+    for c in range(out.shape[1]):
+        out[:, c] += np.bincount(index, weights=values[:, c], minlength=len(out))
+
+
 class RefMesh:
     """A cage with per-edge sharpness (float32), refined by the rules written out here."""
 
@@ -501,9 +514,9 @@ class RefMesh:
         self.E = np.column_stack([self.ukey // nv, self.ukey % nv])
         self.nfaces_e = np.bincount(self.einv, minlength=len(self.E))
         s = np.zeros(len(self.E), np.float32)
-        pos = {tuple(e): i for i, e in enumerate(self.E)}
-        for e, v in sharp.items():
-            s[pos[tuple(sorted(e))]] = v
+        if sharp:
+            ab = np.array(list(sharp), int).reshape(-1, 2)
+            s[np.searchsorted(self.ukey, ab.min(axis=1) * nv + ab.max(axis=1))] = list(sharp.values())
         self.s = s
         self.cs = np.zeros(nv, np.float32)
         for v, x in corner.items():
@@ -528,8 +541,8 @@ class RefMesh:
         sharp = es > 0
         count = np.bincount(self.E[sharp].reshape(-1), minlength=nv)
         ends = np.zeros((nv, 4))
-        np.add.at(ends, self.E[sharp, 0], self.P[self.E[sharp, 1]])
-        np.add.at(ends, self.E[sharp, 1], self.P[self.E[sharp, 0]])
+        _add_at(ends, self.E[sharp, 0], self.P[self.E[sharp, 1]])
+        _add_at(ends, self.E[sharp, 1], self.P[self.E[sharp, 0]])
         corner = (vs > 0) | (count > 2)
         crease = ~corner & (count == 2)
         return corner, crease, ends
@@ -539,7 +552,7 @@ class RefMesh:
         nv, ne, nf = len(P), len(E), len(F)
         FP = P[F].mean(axis=1)
         fsum = np.zeros((ne, 4))
-        np.add.at(fsum, self.einv, np.repeat(FP, 4, axis=0))
+        _add_at(fsum, self.einv, np.repeat(FP, 4, axis=0))
         es = self.edge_s()
         mid = 0.5 * (P[E[:, 0]] + P[E[:, 1]])
         smooth_e = 0.25 * (P[E[:, 0]] + P[E[:, 1]]) + 0.25 * fsum
@@ -548,10 +561,10 @@ class RefMesh:
         # vertex points
         n = self.val.astype(float)
         nsum = np.zeros((nv, 4))
-        np.add.at(nsum, E[:, 0], P[E[:, 1]])
-        np.add.at(nsum, E[:, 1], P[E[:, 0]])
+        _add_at(nsum, E[:, 0], P[E[:, 1]])
+        _add_at(nsum, E[:, 1], P[E[:, 0]])
         fpsum = np.zeros((nv, 4))
-        np.add.at(fpsum, F.reshape(-1), np.repeat(FP, 4, axis=0))
+        _add_at(fpsum, F.reshape(-1), np.repeat(FP, 4, axis=0))
         with np.errstate(divide="ignore", invalid="ignore"):
             smooth_v = ((n - 2) / n)[:, None] * P + (nsum + fpsum) / (n * n)[:, None]
         vs = self.vertex_s()
@@ -569,8 +582,8 @@ class RefMesh:
         tr = (es > 0) & (es <= 1)
         tcount = np.bincount(E[tr].reshape(-1), minlength=nv).astype(float)
         tsum = np.zeros(nv)
-        np.add.at(tsum, E[tr, 0], es[tr])
-        np.add.at(tsum, E[tr, 1], es[tr])
+        _add_at(tsum, E[tr, 0], es[tr])
+        _add_at(tsum, E[tr, 1], es[tr])
         vt = (vs > 0) & (cvs <= 0)
         tcount += vt
         tsum += np.where(vt, vs, 0)
@@ -657,18 +670,18 @@ class RefMesh:
         out[corner] = self.P[corner, :3] / self.P[corner, 3:]
         crease = ok & ~corner & (count == 2)
         ends = np.zeros((nv, 4))
-        np.add.at(ends, self.E[inf_e, 0], self.P[self.E[inf_e, 1]])
-        np.add.at(ends, self.E[inf_e, 1], self.P[self.E[inf_e, 0]])
+        _add_at(ends, self.E[inf_e, 0], self.P[self.E[inf_e, 1]])
+        _add_at(ends, self.E[inf_e, 1], self.P[self.E[inf_e, 0]])
         Lc = (4 * self.P + ends) / 6
         out[crease] = Lc[crease, :3] / Lc[crease, 3:]
         smooth = ok & ~corner & (count == 0) & ~self.bnd_v
         n = self.val.astype(float)
         nsum = np.zeros((nv, 4))
-        np.add.at(nsum, self.E[:, 0], self.P[self.E[:, 1]])
-        np.add.at(nsum, self.E[:, 1], self.P[self.E[:, 0]])
+        _add_at(nsum, self.E[:, 0], self.P[self.E[:, 1]])
+        _add_at(nsum, self.E[:, 1], self.P[self.E[:, 0]])
         diag = np.zeros((nv, 4))
         for k in range(4):
-            np.add.at(diag, self.F[:, k], self.P[self.F[:, (k + 2) % 4]])
+            _add_at(diag, self.F[:, k], self.P[self.F[:, (k + 2) % 4]])
         with np.errstate(divide="ignore", invalid="ignore"):
             L = ((n * n)[:, None] * self.P + 4 * nsum + diag) / (n * (n + 5))[:, None]
         out[smooth] = L[smooth, :3] / L[smooth, 3:]

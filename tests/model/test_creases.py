@@ -4,6 +4,7 @@ whole cage with OpenSubdiv's crease rules, level by level, and the exact limit o
 vertices whose neighbourhood no longer changes (closed-form smooth mask, the cubic B-spline
 of an infinitely sharp crease, fixed corners), with first and second derivatives from the
 3 x 3 B-spline masks at regular vertices. Nothing here uses the kernel's refinement."""
+import functools
 import os
 import tempfile
 import unittest
@@ -15,6 +16,14 @@ from tsplcam.errors import InputError
 from tsplcam.layout.layout import Layout
 from tsplcam.model.formats.obj import read_obj
 from conftest import RefMesh, edge_pair, external
+
+
+@functools.lru_cache(maxsize=None)
+def loaded(name: str):
+    """OpenSubdiv's shape ``name``: its cage as read and its model (loaded once for the
+    module's tests: the single crease's sharpness-10 line takes some seconds)."""
+    path = external("opensubdiv", name + ".obj")
+    return read_obj(path), tsplcam.load(path)
 
 def reference(cage, levels):
     mesh = cage.mesh
@@ -59,8 +68,7 @@ def compare(test, model, ref, derivatives=True, tol=1e-9, name=""):
 
 class OpenSubdivShapes(unittest.TestCase):
     def check(self, name, levels, derivatives=True):
-        cage = read_obj(external("opensubdiv", name + ".obj"))
-        model = tsplcam.load(external("opensubdiv", name + ".obj"))
+        cage, model = loaded(name)
         ref = reference(cage, levels)
         return compare(self, model, ref, derivatives, name=name)
 
@@ -80,8 +88,7 @@ class OpenSubdivShapes(unittest.TestCase):
         """Along the sharpness-10 line of catmark_single_crease the limit is the uniform cubic
         B-spline of the crease vertices (with its own end rule): at the middle vertices it is
         (a + 4 v + b) / 6."""
-        cage = read_obj(external("opensubdiv", "catmark_single_crease.obj"))
-        model = tsplcam.load(external("opensubdiv", "catmark_single_crease.obj"))
+        cage, model = loaded("catmark_single_crease")
         line = [1, 22, 43, 64, 85]                     # 0-based, the tag's pairs
         P = cage.points
         mesh = cage.mesh
@@ -98,8 +105,7 @@ class PatchLayout(unittest.TestCase):
         """The infinitely sharp line of catmark_single_crease is a patch boundary: patches on
         both sides share it as whole edges (boundary-linked, so a path can change patch there)
         and no patch contains a crease edge inside; semi-sharp lines do not split."""
-        path = external("opensubdiv", "catmark_single_crease.obj")
-        model = tsplcam.load(path)
+        _, model = loaded("catmark_single_crease")
         layout = Layout.from_model(model)
         self.assertEqual(len(model.patches), 2)
         self.assertEqual(len(layout.edge_links), 1)
@@ -112,8 +118,7 @@ class PatchLayout(unittest.TestCase):
         self.assertGreater(ang[5:16].min(), 1.0)
 
     def test_no_crease_edge_inside_a_patch(self):
-        cage = read_obj(external("opensubdiv", "catmark_single_crease.obj"))
-        model = tsplcam.load(external("opensubdiv", "catmark_single_crease.obj"))
+        cage, model = loaded("catmark_single_crease")
         fm = model.face_map
         for (a, b) in cage.mesh.crease_edges():
             fa, _ = cage.mesh.edges.get((a, b))
@@ -162,8 +167,7 @@ class NativeFile(unittest.TestCase):
         """A creased cage written as .tspl (version 2: creases and corners) reads back to the
         same surface; write -> read -> write gives the same bytes."""
         from tsplcam.model.formats.native import dumps, read_native
-        path = external("opensubdiv", "catmark_single_crease.obj")
-        model = tsplcam.load(path)
+        _, model = loaded("catmark_single_crease")
         text = dumps(model)
         self.assertIn('"version": 2', text)
         with tempfile.NamedTemporaryFile("w", suffix=".tspl", delete=False) as fh:

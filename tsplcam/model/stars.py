@@ -91,7 +91,7 @@ MAX_LEVEL = 56                 # below 2^-56 of a face the point is the limit po
 EPS_LEVEL = 50                 # derivatives at S itself are taken this close to it (as LevelCells)
 NET_LEVEL = 24                 # levels 2 .. NET_LEVEL are kept as Bezier nets (StarLevels)
 RADIUS = 5                     # configuration nodes per sector: 0..5 along x and y
-MAX_TJ_LEVEL = 4               # first-face T-junctions at k/2^m of their side, m <= this
+MAX_TJ_LEVEL = 10              # first-face T-junctions at 3/2^m of their side or further (tj_level)
 
 
 # -- one-dimensional midpoint refinement -------------------------------------------------
@@ -551,22 +551,28 @@ def _ring1_corners(walker: Walker, v: int, f: int, i: int) -> tuple[int, int]:
                              f"{mesh.face_name(f)} next to extraordinary {name}: the first faces around a "
                              f"star point take one T-junction per outer side; split the faces there or move "
                              f"one T-junction one face further out", vertex=loop[p])
-        if dyadic_level(along / length if length > 0 else 0.5) is None:
+        # the fraction of the side from its corner on a spoke (the star's row)
+        r = along / length if length > 0 else 0.5
+        r = r if k == (k0 + 1) % 4 else 1.0 - r
+        if tj_level(r) is None:
             raise mesh.error(f"{mesh.vertex_name(loop[p])} is a T-junction on {mesh.face_name(f)} next to "
-                             f"extraordinary {name} at {along:g} of its side's {length:g} in knot space: "
+                             f"extraordinary {name} at {r:.6g} of its side from the spoke (in knot space): "
                              f"the first faces around a star point take a T-junction on an outer side only "
-                             f"at a dyadic fraction k/2^m of it (m <= {MAX_TJ_LEVEL}: the knot lines of the "
-                             f"refined star, level m); split the faces there or move the T-junction one "
-                             f"face further out", vertex=loop[p])
+                             f"at 3/{2 ** MAX_TJ_LEVEL} of it or further from the spoke, or at k/"
+                             f"{2 ** MAX_TJ_LEVEL} (knots of the star refined {MAX_TJ_LEVEL} times); split "
+                             f"the faces there or move the T-junction one face further out", vertex=loop[p])
     return loop[cs[(k0 + 1) % 4]], loop[cs[(k0 + 2) % 4]]
 
 
-def dyadic_level(r: float) -> int | None:
-    """The level m (1 .. MAX_TJ_LEVEL) at which the fraction r in (0, 1) of a side is a knot of
-    the refined star (r = k / 2^m, k odd), or None."""
+def tj_level(r: float) -> int | None:
+    """The level m (1 .. MAX_TJ_LEVEL) of the refined star that takes a first face's T-junction
+    at the fraction r in (0, 1) of its side from the spoke (``_levelm_parts``): the first at
+    which r is a knot of the star's grid (r = k / 2^m) or lies at least three level-m intervals
+    from the spoke (3 / 2^m <= r: the pieces of the level-m refinement around the star then
+    have none of its knots), or None."""
     for m in range(1, MAX_TJ_LEVEL + 1):
         k = r * 2 ** m
-        if abs(k - round(k)) <= 1e-9 * 2 ** m and 0 < round(k) < 2 ** m:
+        if (abs(k - round(k)) <= 1e-9 * 2 ** m and 0 < round(k) < 2 ** m) or k >= 3.0 - 1e-9:
             return m
     return None
 
@@ -721,22 +727,26 @@ def build_zone(walker: Walker, v: int, star, knots, Pw: np.ndarray) -> StarZone:
         fns.append(Fn(j, 0.0, 0.0, xk, yk, rows[0]))
     rows1, plain1 = zone.step(0, rows, fns, e, gx, gy)
     # the level of the refined star on whose grid every T-junction along spoke k lies
-    level = {}
+    # (the spokes whose T-junctions are all at their sides' middles keep level 1; the others
+    # take the level of the T-junctions' faces, at least 2)
+    on_spoke, in_face = {}, {}
     for _, j, x, y in ring1:
         k = j if abs(x - d[j]) <= tol else (j + 1) % n
-        r = y / d[(j + 1) % n] if k == j else x / d[j]
-        level[k] = max(level.get(k, 1), dyadic_level(r))
-    m = max(level.values(), default=1)
+        m = tj_level(y / d[(j + 1) % n] if k == j else x / d[j])
+        on_spoke[k] = max(on_spoke.get(k, 1), m)
+        in_face[j] = max(in_face.get(j, 2), m)
     late = {}                              # level m >= 2 -> rows added to W_m
     for f, spoke, where in corrections:    # the first faces' T-junctions: exact differences
+        m = 1 if on_spoke[spoke] == 1 else max(in_face[s_] for s_ in where)
         try:
             if m == 1:
                 w, plain = _level1_parts(zone, f, (e, gx, gy), spoke)
             else:
                 if len(where) > 1:
-                    raise Uncleared(f"a function cut by T-junctions of two first faces, "
+                    raise Uncleared(f"{mesh.vertex_name(zone.w0[int(np.argmax(np.abs(f.row)))])}'s rays meet "
+                                    f"T-junctions of two first faces, "
                                     f"{' and '.join(mesh.face_name(zone.faces[s_]) for s_ in sorted(where))}, "
-                                    f"with one of them off the middle of its side")
+                                    f"one of them not at the middle of its side")
                 w, plain = _levelm_parts(zone, f, spoke, m, next(iter(where)))
         except Uncleared as exc:
             raise mesh.error(f"T-junctions on the first faces around extraordinary {mesh.vertex_name(v)} "
@@ -948,22 +958,24 @@ def _level1_parts(zone: StarZone, f: Fn, beyond, spoke: int) -> tuple[np.ndarray
 @lru_cache(maxsize=None)
 def _refine_grid(knots: tuple, neg: float, pos: float, m: int, tol: float) -> tuple[np.ndarray, np.ndarray]:
     """The cubic B-spline N[t0..t4] refined onto the level-m grid of a star's sector chart
-    along one axis: the knots i pos / 2^m in [0, pos] (the first face), -i neg / 2^m in
-    [-neg, 0] (behind the star), each interval beyond them halved. (children knots (k, 5),
-    coefficients (k,)), by Boehm's insertion; the first faces' T-junctions at k / 2^m are
-    knots of the grid already."""
+    along one axis, graded: the knots i pos / 2^l (i = 1, 2, 3, l = 1 .. m) in [0, pos] (the
+    first face) and -i neg / 2^l in [-neg, 0] (behind the star), so that every piece whose
+    support holds the star's row has the level-m grid's knots (h, 2h, 3h and -h, -2h, -3h)
+    and the pieces further out grow with their distance; each interval beyond halved.
+    (children knots (k, 5), coefficients (k,)), by Boehm's insertion (exact). A piece's
+    coefficient depends only on its own knots, whatever else is inserted."""
     t = [float(x) for x in knots]
     ins = []
     for a, b in zip(t[:-1], t[1:]):
         if b - a <= tol:
             continue
         if a >= -tol and b <= pos + tol:
-            grid = [i * pos / 2 ** m for i in range(1, 2 ** m)]
+            grid = [i * pos / 2 ** l for l in range(1, m + 1) for i in (1, 2, 3)]
         elif a >= -neg - tol and b <= tol:
-            grid = [-i * neg / 2 ** m for i in range(1, 2 ** m)]
+            grid = [-i * neg / 2 ** l for l in range(1, m + 1) for i in (1, 2, 3)]
         else:
             grid = [(a + b) / 2]
-        ins.extend(u for u in grid if a + tol < u < b - tol)
+        ins.extend(u for u in sorted(set(grid)) if a + tol < u < b - tol)
     T = [t[0]] * 3 + t + [t[-1]] * 3
     c = [0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0]
     for u in sorted(ins):

@@ -56,8 +56,24 @@ spoke j+1; the first face F_j is [0, d_j] x [0, d_(j+1)], d_j the spoke's knot i
   b_k behind it along the spoke k of the T-junction that changed them), so that the
   differences are those of one valence-4 configuration and sum to what the T-junctions
   change: the level-1 rows stay affine and the functions a partition of unity at any
-  valence. At valence 4 the sum is the T-spline's own. A T-junction elsewhere on F_j's
-  sides, or a diagonal whose rays meet T-junctions on both sides of S, is refused by name.
+  valence. At valence 4 the sum is the T-spline's own.
+* A first-ring T-junction off its side's middle, at the fraction r of the side from the
+  spoke (``_levelm_parts``): the differences are refined (exactly, by knot insertion) onto
+  a graded grid that is the star's level-m grid next to S, m the first level at which r is
+  a grid knot (k/2^m) or lies three level-m intervals or more from the spoke (so no piece
+  around S holds the T-junction's knot; m <= ``MAX_TJ_LEVEL``, nearer ones are refused).
+  Each T-junction's differences are taken in its own face's sector chart, and each piece
+  with its coefficient from the knot intervals its row and column see there (``_frame``:
+  b_s along spoke s on the spoke's row, the sectors' intervals elsewhere, b_k at S along
+  the T-junction's spoke k), so that the pieces at one place are one function and their
+  coefficients those of one valence-4 configuration. Pieces at the level-m points next to
+  S join W_m (level 2: the rows; deeper: ``StarLevels`` adds them to the configuration of
+  their level), the others are plain B-splines; pieces behind S (the quadrant opposite the
+  face, the sector j + 2 at valence 4) have no place at other valences and are left out:
+  their coefficients sum to zero, so the functions stay a partition of unity. Spokes whose
+  T-junctions all sit at their sides' middles keep the level-1 path above. Refused by name:
+  two T-junctions on one side, a diagonal whose rays meet T-junctions on both sides of S,
+  and (with a T-junction off the middle) a vertex whose rays meet T-junctions of two faces.
   A spoke vertex that is a T-junction leaves a second-ring face across the spoke: it is
   charted in sector j, whose chart holds both sides.
 * W_k functions reach only 1.5 level-k intervals from S, so the two rings of faces around
@@ -727,27 +743,55 @@ def build_zone(walker: Walker, v: int, star, knots, Pw: np.ndarray) -> StarZone:
         fns.append(Fn(j, 0.0, 0.0, xk, yk, rows[0]))
     rows1, plain1 = zone.step(0, rows, fns, e, gx, gy)
     # the level of the refined star on whose grid every T-junction along spoke k lies
-    # (the spokes whose T-junctions are all at their sides' middles keep level 1; the others
-    # take the level of the T-junctions' faces, at least 2)
-    on_spoke, in_face = {}, {}
+    # the level of the refined star for each first face's T-junctions: level 1 (``_level1_parts``)
+    # where they all sit at their sides' middles; else, per face, the first level that takes
+    # them (``tj_level``, at least 2: ``_levelm_parts``)
+    on_spoke, in_face, faces_on = {}, {}, {}
     for _, j, x, y in ring1:
         k = j if abs(x - d[j]) <= tol else (j + 1) % n
         m = tj_level(y / d[(j + 1) % n] if k == j else x / d[j])
         on_spoke[k] = max(on_spoke.get(k, 1), m)
         in_face[j] = max(in_face.get(j, 2), m)
+        faces_on.setdefault(k, set()).add(j)
+    level1 = all(m == 1 for m in on_spoke.values())
+    if not level1:
+        for k, fs in faces_on.items():
+            if len(fs) > 1:
+                raise mesh.error(f"T-junctions on the first faces around extraordinary {mesh.vertex_name(v)} that "
+                                 f"the refinement cannot take (on both faces at spoke {k}, "
+                                 f"{' and '.join(mesh.face_name(zone.faces[s_]) for s_ in sorted(fs))}, with a "
+                                 f"T-junction not at the middle of its side in the star's first faces: the "
+                                 f"diagonal vertices' rays see one or the other); move one of them one face "
+                                 f"further out", vertex=v)
+    steps = []                             # (function, spoke, level, face)
+    for f, spoke, virtual, sides in corrections:
+        if level1:
+            steps.append((f, spoke, 1, None))
+            continue
+        if sides is None:
+            continue                       # a virtual function: in its actual one's steps
+        if virtual is None:                # a T-junction's own function
+            face = sides[0][3]
+            steps.append((f, spoke, 1 if on_spoke[spoke] == 1 else in_face[face], face))
+            continue
+        # the difference, actual minus virtual, one T-junction at a time (middle ones first):
+        # each step is the change that one T-junction makes, in its own face's chart
+        xk, yk = virtual.xk.copy(), virtual.yk.copy()
+        order = sorted(sides, key=lambda t: (t[3] is not None and on_spoke[t[4]] != 1, t[3] or 0, t[0]))
+        for axis, lo, hi, face, sp in order:
+            nxk, nyk = xk.copy(), yk.copy()
+            (nxk if axis == 0 else nyk)[lo:hi] = (f.xk if axis == 0 else f.yk)[lo:hi]
+            m = 1 if face is None or on_spoke[sp] == 1 else in_face[face]
+            steps.append((Fn(f.sector, f.cx, f.cy, nxk, nyk, f.row), sp, m, face))
+            steps.append((Fn(f.sector, f.cx, f.cy, xk, yk, -f.row), sp, m, face))
+            xk, yk = nxk, nyk
     late = {}                              # level m >= 2 -> rows added to W_m
-    for f, spoke, where in corrections:    # the first faces' T-junctions: exact differences
-        m = 1 if on_spoke[spoke] == 1 else max(in_face[s_] for s_ in where)
+    for f, spoke, m, face in steps:        # the first faces' T-junctions: exact differences
         try:
             if m == 1:
                 w, plain = _level1_parts(zone, f, (e, gx, gy), spoke)
             else:
-                if len(where) > 1:
-                    raise Uncleared(f"{mesh.vertex_name(zone.w0[int(np.argmax(np.abs(f.row)))])}'s rays meet "
-                                    f"T-junctions of two first faces, "
-                                    f"{' and '.join(mesh.face_name(zone.faces[s_]) for s_ in sorted(where))}, "
-                                    f"one of them not at the middle of its side")
-                w, plain = _levelm_parts(zone, f, spoke, m, next(iter(where)))
+                w, plain = _levelm_parts(zone, f, spoke, m, face)
         except Uncleared as exc:
             raise mesh.error(f"T-junctions on the first faces around extraordinary {mesh.vertex_name(v)} "
                              f"that the refinement cannot take ({exc}); move them one face further out",
@@ -803,19 +847,31 @@ def _ring1_functions(walker: Walker, zone: StarZone, knots, ring1: list, fns: li
             virtual = Fn(f.sector, f.cx, f.cy, np.asarray(xk, float), np.asarray(yk, float), f.row)
             fns[2 * j + k] = virtual
             spoke = j if k == 0 else _cut_by(f, j, n, d, tol)
-            # the faces of the T-junctions that cut f: its rays' knots inside a first face
-            inside = lambda kn, lo, hi: any(lo + tol < u < hi - tol for u in kn)
-            faces = {s_ for s_, hit in ((j, inside(f.yk, 0.0, d[(j + 1) % n]) or (k == 1 and inside(f.xk, 0.0, d[j]))),
-                                        ((j - 1) % n, inside(f.yk, -d[(j - 1) % n], 0.0)),
-                                        ((j + 1) % n, k == 1 and inside(f.xk, -d[(j + 2) % n], 0.0))) if hit}
-            out.append((f, spoke, faces))
-            out.append((Fn(f.sector, f.cx, f.cy, virtual.xk, virtual.yk, -f.row), spoke, faces))
+            # the rays' knot pairs that differ, each with the face (and spoke) of the T-junction
+            # that cut it: (axis, first, last, face, spoke); a pair with no first-face
+            # T-junction's knot (a second-ring knot) goes with the level-1 path (face None)
+            sides = []
+            for axis, act, vir in ((0, f.xk, virtual.xk), (1, f.yk, virtual.yk)):
+                ranges = ((0.0, d[j], j, (j + 1) % n), (-d[(j + 2) % n], 0.0, (j + 1) % n, (j + 1) % n)) if axis == 0 \
+                    else ((0.0, d[(j + 1) % n], j, j), (-d[(j - 1) % n], 0.0, (j - 1) % n, j))
+                for lo, hi in ((0, 2), (3, 5)):
+                    if np.abs(act[lo:hi] - vir[lo:hi]).max() <= tol:
+                        continue
+                    hits = {(face, sp) for a, b, face, sp in ranges if any(a + tol < u < b - tol for u in act[lo:hi])}
+                    if len(hits) > 1:
+                        raise Uncleared(f"a ray of {walker.mesh.vertex_name((zone.spokes if k == 0 else zone.diags)[j])} "
+                                        f"meets T-junctions of two first faces")
+                    face, sp = hits.pop() if hits else (None, (j + 1) % n if axis == 0 else j)
+                    sides.append((axis, lo, hi, face, sp))
+            out.append((f, spoke, virtual, sides))
+            out.append((Fn(f.sector, f.cx, f.cy, virtual.xk, virtual.yk, -f.row), spoke, None, None))
     for col, (t, j, x, y) in enumerate(ring1):
         m = zone.chart[zone.faces[j]][1]
         tx, ty = (np.asarray(k).real for k in knots.in_frame(t, inverse(_vertex_to_chart(
             walker, t, zone.faces[j], m))))
         spoke = j if abs(x - d[j]) <= tol else (j + 1) % n          # along spoke j or spoke j + 1
-        out.append((Fn(j, x, y, np.array(tx, float), np.array(ty, float), eye[2 * n + 1 + col]), spoke, {j}))
+        out.append((Fn(j, x, y, np.array(tx, float), np.array(ty, float), eye[2 * n + 1 + col]), spoke, None,
+                    [(None, 0, 0, j, spoke)]))
     return out
 
 

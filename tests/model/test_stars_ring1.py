@@ -14,8 +14,8 @@ T-junction. Against independent references:
   1/3 and 0.1 of the sides;
 * what the construction cannot take is refused by name: a T-junction too close to the spoke,
   two on one side, one on a spoke, at valence 3 a diagonal whose rays meet T-junctions on
-  both sides of the star, and a spoke vertex whose rays meet T-junctions of two faces with
-  one of them off the middle."""
+  both sides of the star, and T-junctions on both faces at a spoke with one of them off the
+  middle."""
 import unittest
 
 import numpy as np
@@ -30,6 +30,7 @@ from test_stars_tjunction import cell_sums, face_at, turned
 SCALE_TOL = 1e-12          # positions, of the model size
 DERIV_TOL = 1e-10          # first derivatives, of the model size
 POU_TOL = 1e-13            # sum of the blending functions - 1
+OFF = "off the middle"     # analysis-suitable layouts with T-junctions off their sides' middles
 
 
 def split_at(mesh: TMesh, f: int, ratio: float) -> TMesh:
@@ -153,7 +154,8 @@ class RegularVertexWithTJunctionsAround(unittest.TestCase):
 
     def test_equals_the_t_spline(self):
         rng = np.random.default_rng(11)
-        for name, mesh, _ in list(cases(4)) + [(name, mesh, True) for name, mesh in off_cases(4)]:
+        off = [c for i, c in enumerate(off_cases(4)) if i != 1]          # (3/8: at valence 5; time budget)
+        for name, mesh, _ in list(cases(4)) + [(name, mesh, True) for name, mesh in off]:
             plain, star = tspline_model(mesh), tspline_model(mesh, subdivide_at=[0])
             faces = [f for f in range(len(mesh.faces)) if min(plain.face_size[f]) > 0]
             f = np.concatenate([rng.choice(faces, 3000), near_vertex(plain, mesh, 0, 1e-3, 50, rng)[0]])
@@ -161,8 +163,8 @@ class RegularVertexWithTJunctionsAround(unittest.TestCase):
             a, b = plain.evaluate_faces(f, s, t), star.evaluate_faces(f, s, t)
             scale = np.abs(mesh.points).max()
             self.assertLess(np.abs(a.P - b.P).max(), SCALE_TOL * scale, name)        # measured <= 7.3e-16
-            self.assertLess(np.abs(a.Pu - b.Pu).max(), DERIV_TOL * scale, name)      # measured <= 4.4e-14
-            self.assertLess(np.abs(a.Pv - b.Pv).max(), DERIV_TOL * scale, name)
+            self.assertLess(np.abs(a.Pu - b.Pu).max(), DERIV_TOL * scale, name)      # measured <= 1.1e-13
+            self.assertLess(np.abs(a.Pv - b.Pv).max(), DERIV_TOL * scale, name)      # measured <= 6e-13
 
 
 class StarsWithTJunctionsAround(unittest.TestCase):
@@ -171,7 +173,8 @@ class StarsWithTJunctionsAround(unittest.TestCase):
     @classmethod
     def setUpClass(cls):
         cls.models = [(n, name, mesh, ok, tspline_model(mesh)) for n in (3, 5, 6) for name, mesh, ok in cases(n)]
-        cls.models += [(n, name, mesh, True, tspline_model(mesh)) for n in (3, 5) for name, mesh in off_cases(n)]
+        cls.models += [(n, name, mesh, OFF, tspline_model(mesh)) for n, pick in ((3, (0, 2)), (5, (1, 3)))
+                       for name, mesh in [list(off_cases(n))[i] for i in pick]]          # (time budget)
 
     def test_partition_of_unity(self):
         rng = np.random.default_rng(8)
@@ -198,7 +201,7 @@ class StarsWithTJunctionsAround(unittest.TestCase):
         """Control points on a plane: so is the surface, near the star and on every face."""
         rng = np.random.default_rng(9)
         for n, name, mesh, suitable, _ in self.models:
-            if not suitable or n == 6:             # valences 3 and 5 (the suite's time budget)
+            if not suitable or n == 6 or (n == 5 and suitable == OFF):    # (the suite's time budget)
                 continue
             plane = mesh.points.copy()
             plane[:, 2] = 0.3 * plane[:, 0] - 0.7 * plane[:, 1] + 0.2

@@ -56,13 +56,16 @@ spoke j+1; the first face F_j is [0, d_j] x [0, d_(j+1)], d_j the spoke's knot i
   b_k behind it along the spoke k of the T-junction that changed them), so that the
   differences are those of one valence-4 configuration and sum to what the T-junctions
   change: the level-1 rows stay affine and the functions a partition of unity at any
-  valence. At valence 4 the sum is the T-spline's own.
+  valence. At valence 4 the sum is the T-spline's own. A spoke vertex that is a T-junction
+  leaves a second-ring face across the spoke: it is charted in sector j, whose chart holds
+  both sides.
 * A first-ring T-junction off its side's middle, at the fraction r of the side from the
   spoke (``_levelm_parts``): the differences are refined (exactly, by knot insertion) onto
   a graded grid that is the star's level-m grid next to S, m the first level at which r is
   a grid knot (k/2^m) or lies three level-m intervals or more from the spoke (so no piece
   around S holds the T-junction's knot; m <= ``MAX_TJ_LEVEL``, nearer ones are refused).
-  Each T-junction's differences are taken in its own face's sector chart, and each piece
+  Each T-junction's differences are taken in its own face's sector chart (what it changes
+  beyond the star's functions lies in the half-planes ahead of S there), and each piece
   with its coefficient from the knot intervals its row and column see there (``_frame``:
   b_s along spoke s on the spoke's row, the sectors' intervals elsewhere, b_k at S along
   the T-junction's spoke k), so that the pieces at one place are one function and their
@@ -71,11 +74,12 @@ spoke j+1; the first face F_j is [0, d_j] x [0, d_(j+1)], d_j the spoke's knot i
   their level), the others are plain B-splines; pieces behind S (the quadrant opposite the
   face, the sector j + 2 at valence 4) have no place at other valences and are left out:
   their coefficients sum to zero, so the functions stay a partition of unity. Spokes whose
-  T-junctions all sit at their sides' middles keep the level-1 path above. Refused by name:
+  T-junctions all sit at their sides' middles keep the level-1 path above (when all the
+  star's do). A function whose rays meet T-junctions of several faces changes one ray at a
+  time (middle ones first), each step in its T-junction's face's chart. Refused by name:
   two T-junctions on one side, a diagonal whose rays meet T-junctions on both sides of S,
-  and (with a T-junction off the middle) a vertex whose rays meet T-junctions of two faces.
-  A spoke vertex that is a T-junction leaves a second-ring face across the spoke: it is
-  charted in sector j, whose chart holds both sides.
+  and (with a T-junction off the middle) T-junctions on both faces at one spoke (the
+  diagonal vertices beside it see one or the other: no step is one T-junction's).
 * W_k functions reach only 1.5 level-k intervals from S, so the two rings of faces around
   S (the zone) contain every piece that is not a plain B-spline: the surface there is
   the sum of plain B-splines (the other functions, and the children split off at every
@@ -540,8 +544,8 @@ def find_stars(walker: Walker, extra=()) -> dict:
 
 def _ring1_corners(walker: Walker, v: int, f: int, i: int) -> tuple[int, int]:
     """Spoke and diagonal corners of face f (loop position i at star v) when f has T-junctions:
-    they must lie on its two sides away from the star, one at most per side, at the side's
-    middle in knot space (``ring1_t_junctions``); refused by name otherwise."""
+    they must lie on its two sides away from the star, one at most per side, where the refined
+    star takes them (``tj_level``); refused by name otherwise."""
     mesh, topo = walker.mesh, walker.topo
     loop = [int(x) for x in mesh.faces[f]]
     m = len(loop)
@@ -595,8 +599,7 @@ def tj_level(r: float) -> int | None:
 
 def ring1_t_junctions(walker: Walker, v: int, faces: list, charts: dict) -> list:
     """The T-junctions on the outer sides of star v's first faces: [(vertex, sector, x, y)]
-    with (x, y) in the sector's chart (the middle of the side: (d_j, d_(j+1)/2) or
-    (d_j / 2, d_(j+1)))."""
+    with (x, y) in the sector's chart ((d_j, y) or (x, d_(j+1)))."""
     mesh, topo = walker.mesh, walker.topo
     out = []
     for j, f in enumerate(faces):

@@ -746,9 +746,9 @@ def build_zone(walker: Walker, v: int, star, knots, Pw: np.ndarray) -> StarZone:
         fns.append(Fn(j, 0.0, 0.0, xk, yk, rows[0]))
     rows1, plain1 = zone.step(0, rows, fns, e, gx, gy)
     # the level of the refined star on whose grid every T-junction along spoke k lies
-    # the level of the refined star for each first face's T-junctions: level 1 (``_level1_parts``)
-    # where they all sit at their sides' middles; else, per face, the first level that takes
-    # them (``tj_level``, at least 2: ``_levelm_parts``)
+    # the level of the refined star for the first faces' T-junctions: level 1 (``_level1_parts``)
+    # where they all sit at their sides' middles; else the first level that takes them all
+    # (``tj_level``, at least 2: ``_levelm_parts``)
     on_spoke, in_face, faces_on = {}, {}, {}
     for _, j, x, y in ring1:
         k = j if abs(x - d[j]) <= tol else (j + 1) % n
@@ -766,6 +766,9 @@ def build_zone(walker: Walker, v: int, star, knots, Pw: np.ndarray) -> StarZone:
                                  f"T-junction not at the middle of its side in the star's first faces: the "
                                  f"diagonal vertices' rays see one or the other); move one of them one face "
                                  f"further out", vertex=v)
+    # a step's functions may hold the knots of the T-junctions of earlier steps: every step
+    # off the level-1 path takes the deepest level
+    top = max(in_face.values(), default=2)
     steps = []                             # (function, spoke, level, face)
     for f, spoke, virtual, sides in corrections:
         if level1:
@@ -775,7 +778,7 @@ def build_zone(walker: Walker, v: int, star, knots, Pw: np.ndarray) -> StarZone:
             continue                       # a virtual function: in its actual one's steps
         if virtual is None:                # a T-junction's own function
             face = sides[0][3]
-            steps.append((f, spoke, 1 if on_spoke[spoke] == 1 else in_face[face], face))
+            steps.append((f, spoke, 1 if on_spoke[spoke] == 1 else top, face))
             continue
         # the difference, actual minus virtual, one T-junction at a time (middle ones first):
         # each step is the change that one T-junction makes, in its own face's chart
@@ -784,7 +787,7 @@ def build_zone(walker: Walker, v: int, star, knots, Pw: np.ndarray) -> StarZone:
         for axis, lo, hi, face, sp in order:
             nxk, nyk = xk.copy(), yk.copy()
             (nxk if axis == 0 else nyk)[lo:hi] = (f.xk if axis == 0 else f.yk)[lo:hi]
-            m = 1 if face is None or on_spoke[sp] == 1 else in_face[face]
+            m = 1 if face is None or on_spoke[sp] == 1 else top
             steps.append((Fn(f.sector, f.cx, f.cy, nxk, nyk, f.row), sp, m, face))
             steps.append((Fn(f.sector, f.cx, f.cy, xk, yk, -f.row), sp, m, face))
             xk, yk = nxk, nyk
@@ -1136,7 +1139,7 @@ def _levelm_parts(zone: StarZone, f: Fn, spoke: int, m: int, sector: int) -> tup
                     # behind it the NURCC mean's where the valence is not 4
                     if _match_last(cxk, txk, tol) or _match_last(cyk, tyk, tol):
                         raise Uncleared(f"a level-{m} piece at the star's level-{m} point {node} whose "
-                                        f"knots are not the point's")
+                                        f"last knots are not the point's")
     return w, plain
 
 

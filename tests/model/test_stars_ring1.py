@@ -154,7 +154,7 @@ class RegularVertexWithTJunctionsAround(unittest.TestCase):
 
     def test_equals_the_t_spline(self):
         rng = np.random.default_rng(11)
-        off = [c for i, c in enumerate(off_cases(4)) if i != 1]          # (3/8: at valence 5; time budget)
+        off = list(off_cases(4))[2:]            # (1/4 and 3/8: at valences 3 and 5; time budget)
         for name, mesh, _ in list(cases(4)) + [(name, mesh, True) for name, mesh in off]:
             plain, star = tspline_model(mesh), tspline_model(mesh, subdivide_at=[0])
             faces = [f for f in range(len(mesh.faces)) if min(plain.face_size[f]) > 0]

@@ -56,10 +56,30 @@ spoke j+1; the first face F_j is [0, d_j] x [0, d_(j+1)], d_j the spoke's knot i
   b_k behind it along the spoke k of the T-junction that changed them), so that the
   differences are those of one valence-4 configuration and sum to what the T-junctions
   change: the level-1 rows stay affine and the functions a partition of unity at any
-  valence. At valence 4 the sum is the T-spline's own. A T-junction elsewhere on F_j's
-  sides, or a diagonal whose rays meet T-junctions on both sides of S, is refused by name.
-  A spoke vertex that is a T-junction leaves a second-ring face across the spoke: it is
-  charted in sector j, whose chart holds both sides.
+  valence. At valence 4 the sum is the T-spline's own. A spoke vertex that is a T-junction
+  leaves a second-ring face across the spoke: it is charted in sector j, whose chart holds
+  both sides.
+* A first-ring T-junction off its side's middle, at the fraction r of the side from the
+  spoke (``_levelm_parts``): the differences are refined (exactly, by knot insertion) onto
+  a graded grid that is the star's level-m grid next to S, m the first level at which r is
+  a grid knot (k/2^m) or lies three level-m intervals or more from the spoke (so no piece
+  around S holds the T-junction's knot; m <= ``MAX_TJ_LEVEL``, nearer ones are refused).
+  Each T-junction's differences are taken in its own face's sector chart (what it changes
+  beyond the star's functions lies in the half-planes ahead of S there), and each piece
+  with its coefficient from the knot intervals its row and column see there (``_frame``:
+  b_s along spoke s on the spoke's row, the sectors' intervals elsewhere, b_k at S along
+  the T-junction's spoke k), so that the pieces at one place are one function and their
+  coefficients those of one valence-4 configuration. Pieces at the level-m points next to
+  S join W_m (level 2: the rows; deeper: ``StarLevels`` adds them to the configuration of
+  their level), the others are plain B-splines; pieces behind S (the quadrant opposite the
+  face, the sector j + 2 at valence 4) have no place at other valences and are left out:
+  their coefficients sum to zero, so the functions stay a partition of unity. Spokes whose
+  T-junctions all sit at their sides' middles keep the level-1 path above (when all the
+  star's do). A function whose rays meet T-junctions of several faces changes one ray at a
+  time (middle ones first), each step in its T-junction's face's chart. Refused by name:
+  two T-junctions on one side, a diagonal whose rays meet T-junctions on both sides of S,
+  and (with a T-junction off the middle) T-junctions on both faces at one spoke (the
+  diagonal vertices beside it see one or the other: no step is one T-junction's).
 * W_k functions reach only 1.5 level-k intervals from S, so the two rings of faces around
   S (the zone) contain every piece that is not a plain B-spline: the surface there is
   the sum of plain B-splines (the other functions, and the children split off at every
@@ -91,6 +111,7 @@ MAX_LEVEL = 56                 # below 2^-56 of a face the point is the limit po
 EPS_LEVEL = 50                 # derivatives at S itself are taken this close to it (as LevelCells)
 NET_LEVEL = 24                 # levels 2 .. NET_LEVEL are kept as Bezier nets (StarLevels)
 RADIUS = 5                     # configuration nodes per sector: 0..5 along x and y
+MAX_TJ_LEVEL = 10              # first-face T-junctions at 3/2^m of their side or further (tj_level)
 
 
 # -- one-dimensional midpoint refinement -------------------------------------------------
@@ -523,8 +544,8 @@ def find_stars(walker: Walker, extra=()) -> dict:
 
 def _ring1_corners(walker: Walker, v: int, f: int, i: int) -> tuple[int, int]:
     """Spoke and diagonal corners of face f (loop position i at star v) when f has T-junctions:
-    they must lie on its two sides away from the star, one at most per side, at the side's
-    middle in knot space (``ring1_t_junctions``); refused by name otherwise."""
+    they must lie on its two sides away from the star, one at most per side, where the refined
+    star takes them (``tj_level``); refused by name otherwise."""
     mesh, topo = walker.mesh, walker.topo
     loop = [int(x) for x in mesh.faces[f]]
     m = len(loop)
@@ -545,20 +566,40 @@ def _ring1_corners(walker: Walker, v: int, f: int, i: int) -> tuple[int, int]:
         a, b = topo.pos[f][cs[k]], topo.pos[f][cs[(k + 1) % 4]]
         length = abs(complex(b[0] - a[0]).real) + abs(complex(b[1] - a[1]).real)
         along = abs(complex(topo.pos[f][p][0] - a[0]).real) + abs(complex(topo.pos[f][p][1] - a[1]).real)
-        if count[k] > 1 or abs(along - 0.5 * length) > 1e-9 * max(length, walker.tol):
+        if count[k] > 1:
+            raise mesh.error(f"{mesh.vertex_name(loop[p])} is a second T-junction on one outer side of "
+                             f"{mesh.face_name(f)} next to extraordinary {name}: the first faces around a "
+                             f"star point take one T-junction per outer side; split the faces there or move "
+                             f"one T-junction one face further out", vertex=loop[p])
+        # the fraction of the side from its corner on a spoke (the star's row)
+        r = along / length if length > 0 else 0.5
+        r = r if k == (k0 + 1) % 4 else 1.0 - r
+        if tj_level(r) is None:
             raise mesh.error(f"{mesh.vertex_name(loop[p])} is a T-junction on {mesh.face_name(f)} next to "
-                             f"extraordinary {name} that is not the only one at the middle of its side "
-                             f"(at {along:g} of {length:g} in knot space): the first faces around a star "
-                             f"point take one T-junction per outer side, at its middle (the knot line of "
-                             f"the refined star); split the faces there or move the T-junction one face "
-                             f"further out", vertex=loop[p])
+                             f"extraordinary {name} at {r:.6g} of its side from the spoke (in knot space): "
+                             f"the first faces around a star point take a T-junction on an outer side only "
+                             f"at 3/{2 ** MAX_TJ_LEVEL} of it or further from the spoke, or at k/"
+                             f"{2 ** MAX_TJ_LEVEL} (knots of the star refined {MAX_TJ_LEVEL} times); split "
+                             f"the faces there or move the T-junction one face further out", vertex=loop[p])
     return loop[cs[(k0 + 1) % 4]], loop[cs[(k0 + 2) % 4]]
+
+
+def tj_level(r: float) -> int | None:
+    """The level m (1 .. MAX_TJ_LEVEL) of the refined star that takes a first face's T-junction
+    at the fraction r in (0, 1) of its side from the spoke (``_levelm_parts``): the first at
+    which r is a knot of the star's grid (r = k / 2^m) or lies at least three level-m intervals
+    from the spoke (3 / 2^m <= r: the pieces of the level-m refinement around the star then
+    have none of its knots), or None."""
+    for m in range(1, MAX_TJ_LEVEL + 1):
+        k = r * 2 ** m
+        if (abs(k - round(k)) <= 1e-9 * 2 ** m and 0 < round(k) < 2 ** m) or k >= 3.0 - 1e-9:
+            return m
+    return None
 
 
 def ring1_t_junctions(walker: Walker, v: int, faces: list, charts: dict) -> list:
     """The T-junctions on the outer sides of star v's first faces: [(vertex, sector, x, y)]
-    with (x, y) in the sector's chart (the middle of the side: (d_j, d_(j+1)/2) or
-    (d_j / 2, d_(j+1)))."""
+    with (x, y) in the sector's chart ((d_j, y) or (x, d_(j+1)))."""
     mesh, topo = walker.mesh, walker.topo
     out = []
     for j, f in enumerate(faces):
@@ -704,18 +745,74 @@ def build_zone(walker: Walker, v: int, star, knots, Pw: np.ndarray) -> StarZone:
                        d[(j + 1) % n] + e[(j + 1) % n]])
         fns.append(Fn(j, 0.0, 0.0, xk, yk, rows[0]))
     rows1, plain1 = zone.step(0, rows, fns, e, gx, gy)
-    for f, spoke in corrections:           # the first faces' T-junctions: exact differences
+    # the level of the refined star on whose grid every T-junction along spoke k lies
+    # the level of the refined star for the first faces' T-junctions: level 1 (``_level1_parts``)
+    # where they all sit at their sides' middles; else the first level that takes them all
+    # (``tj_level``, at least 2: ``_levelm_parts``)
+    on_spoke, in_face, faces_on = {}, {}, {}
+    for _, j, x, y in ring1:
+        k = j if abs(x - d[j]) <= tol else (j + 1) % n
+        m = tj_level(y / d[(j + 1) % n] if k == j else x / d[j])
+        on_spoke[k] = max(on_spoke.get(k, 1), m)
+        in_face[j] = max(in_face.get(j, 2), m)
+        faces_on.setdefault(k, set()).add(j)
+    level1 = all(m == 1 for m in on_spoke.values())
+    if not level1:
+        for k, fs in faces_on.items():
+            if len(fs) > 1:
+                raise mesh.error(f"T-junctions on the first faces around extraordinary {mesh.vertex_name(v)} that "
+                                 f"the refinement cannot take (on both faces at spoke {k}, "
+                                 f"{' and '.join(mesh.face_name(zone.faces[s_]) for s_ in sorted(fs))}, with a "
+                                 f"T-junction not at the middle of its side in the star's first faces: the "
+                                 f"diagonal vertices' rays see one or the other); move one of them one face "
+                                 f"further out", vertex=v)
+    # a step's functions may hold the knots of the T-junctions of earlier steps: every step
+    # off the level-1 path takes the deepest level
+    top = max(in_face.values(), default=2)
+    steps = []                             # (function, spoke, level, face)
+    for f, spoke, virtual, sides in corrections:
+        if level1:
+            steps.append((f, spoke, 1, None))
+            continue
+        if sides is None:
+            continue                       # a virtual function: in its actual one's steps
+        if virtual is None:                # a T-junction's own function
+            face = sides[0][3]
+            steps.append((f, spoke, 1 if on_spoke[spoke] == 1 else top, face))
+            continue
+        # the difference, actual minus virtual, one T-junction at a time (middle ones first):
+        # each step is the change that one T-junction makes, in its own face's chart
+        xk, yk = virtual.xk.copy(), virtual.yk.copy()
+        order = sorted(sides, key=lambda t: (t[3] is not None and on_spoke[t[4]] != 1, t[3] or 0, t[0]))
+        for axis, lo, hi, face, sp in order:
+            nxk, nyk = xk.copy(), yk.copy()
+            (nxk if axis == 0 else nyk)[lo:hi] = (f.xk if axis == 0 else f.yk)[lo:hi]
+            m = 1 if face is None or on_spoke[sp] == 1 else top
+            steps.append((Fn(f.sector, f.cx, f.cy, nxk, nyk, f.row), sp, m, face))
+            steps.append((Fn(f.sector, f.cx, f.cy, xk, yk, -f.row), sp, m, face))
+            xk, yk = nxk, nyk
+    late = {}                              # level m >= 2 -> rows added to W_m
+    for f, spoke, m, face in steps:        # the first faces' T-junctions: exact differences
         try:
-            w, plain = _level1_parts(zone, f, (e, gx, gy), spoke)
+            if m == 1:
+                w, plain = _level1_parts(zone, f, (e, gx, gy), spoke)
+            else:
+                w, plain = _levelm_parts(zone, f, spoke, m, face)
         except Uncleared as exc:
             raise mesh.error(f"T-junctions on the first faces around extraordinary {mesh.vertex_name(v)} "
                              f"that the refinement cannot take ({exc}); move them one face further out",
                              vertex=v) from None
-        rows1 = rows1 + w
+        if m == 1:
+            rows1 = rows1 + w
+        else:
+            late[m] = late.get(m, 0.0) + w
         plain1 = plain1 + plain
     # W1 as functions: their outermost knots in the second ring, where the T-mesh's are
     zone.w1 = zone.level_fns(rows1, 1, beyond=(e, gx, gy))
     rows2, plain2 = zone.step(1, rows1, zone.w1, *zone.self_similar())
+    if 2 in late:
+        rows2 = rows2 + late.pop(2)
+    zone.late = late
     zone.d1, zone.d2 = _merge(plain1 + extra), _merge(plain2)
     zone.points = Pw[zone.w0]
     zone.rows2 = rows2
@@ -745,8 +842,10 @@ def _ring1_functions(walker: Walker, zone: StarZone, knots, ring1: list, fns: li
         for k, (f, xk, yk) in enumerate(((s_f, s_f.xk, sy), (q_f, qx, qy))):
             if max(np.abs(xk - f.xk).max(), np.abs(yk - f.yk).max()) <= tol:
                 continue
-            behind = [any(abs(u + d[s_] / 2) <= tol for u in kn) for kn, s_ in
-                      ((f.xk, (j + 2) % n), (f.yk, (j - 1) % n))]
+            # a T-junction's knot behind the star's row (the spoke's own knot there, b_j, is
+            # not one: no T-junction lies on a spoke)
+            behind = [k == 1 and any(-d[(j + 2) % n] + tol < u < -tol for u in f.xk),
+                      any(-d[(j - 1) % n] + tol < u < -tol for u in f.yk)]
             if all(behind):
                 w = (zone.spokes if k == 0 else zone.diags)[j]
                 raise Uncleared(f"the rays of {walker.mesh.vertex_name(w)}, the {'spoke' if k == 0 else 'diagonal'} "
@@ -754,14 +853,31 @@ def _ring1_functions(walker: Walker, zone: StarZone, knots, ring1: list, fns: li
             virtual = Fn(f.sector, f.cx, f.cy, np.asarray(xk, float), np.asarray(yk, float), f.row)
             fns[2 * j + k] = virtual
             spoke = j if k == 0 else _cut_by(f, j, n, d, tol)
-            out.append((f, spoke))
-            out.append((Fn(f.sector, f.cx, f.cy, virtual.xk, virtual.yk, -f.row), spoke))
+            # the rays' knot pairs that differ, each with the face (and spoke) of the T-junction
+            # that cut it: (axis, first, last, face, spoke); a pair with no first-face
+            # T-junction's knot (a second-ring knot) goes with the level-1 path (face None)
+            sides = []
+            for axis, act, vir in ((0, f.xk, virtual.xk), (1, f.yk, virtual.yk)):
+                ranges = ((0.0, d[j], j, (j + 1) % n), (-d[(j + 2) % n], 0.0, (j + 1) % n, (j + 1) % n)) if axis == 0 \
+                    else ((0.0, d[(j + 1) % n], j, j), (-d[(j - 1) % n], 0.0, (j - 1) % n, j))
+                for lo, hi in ((0, 2), (3, 5)):
+                    if np.abs(act[lo:hi] - vir[lo:hi]).max() <= tol:
+                        continue
+                    hits = {(face, sp) for a, b, face, sp in ranges if any(a + tol < u < b - tol for u in act[lo:hi])}
+                    if len(hits) > 1:
+                        raise Uncleared(f"a ray of {walker.mesh.vertex_name((zone.spokes if k == 0 else zone.diags)[j])} "
+                                        f"meets T-junctions of two first faces")
+                    face, sp = hits.pop() if hits else (None, (j + 1) % n if axis == 0 else j)
+                    sides.append((axis, lo, hi, face, sp))
+            out.append((f, spoke, virtual, sides))
+            out.append((Fn(f.sector, f.cx, f.cy, virtual.xk, virtual.yk, -f.row), spoke, None, None))
     for col, (t, j, x, y) in enumerate(ring1):
         m = zone.chart[zone.faces[j]][1]
         tx, ty = (np.asarray(k).real for k in knots.in_frame(t, inverse(_vertex_to_chart(
             walker, t, zone.faces[j], m))))
         spoke = j if abs(x - d[j]) <= tol else (j + 1) % n          # along spoke j or spoke j + 1
-        out.append((Fn(j, x, y, np.array(tx, float), np.array(ty, float), eye[2 * n + 1 + col]), spoke))
+        out.append((Fn(j, x, y, np.array(tx, float), np.array(ty, float), eye[2 * n + 1 + col]), spoke, None,
+                    [(None, 0, 0, j, spoke)]))
     return out
 
 
@@ -769,8 +885,7 @@ def _cut_by(q: Fn, j: int, n: int, d: np.ndarray, tol: float) -> int:
     """The spoke along which the first-face T-junction lies that cut diagonal q_j's rays:
     spoke j (a T-junction on F_j's side along spoke j, or on F_(j-1)'s along spoke j) or
     spoke j + 1."""
-    near = lambda kn, u: any(abs(x - u) <= tol for x in kn)
-    if near(q.yk, d[(j + 1) % n] / 2) or near(q.yk, -d[(j - 1) % n] / 2):
+    if any(tol < u < d[(j + 1) % n] - tol or -d[(j - 1) % n] + tol < u < -tol for u in q.yk):
         return j
     return (j + 1) % n
 
@@ -899,6 +1014,132 @@ def _level1_parts(zone: StarZone, f: Fn, beyond, spoke: int) -> tuple[np.ndarray
                     raise Uncleared("a remainder piece at the star")
                 plain.append(Fn(r[0], r[1], r[2], np.asarray(r[3], float), np.asarray(r[4], float),
                                 f.row * (coef * c1)))
+    return w, plain
+
+
+@lru_cache(maxsize=None)
+def _refine_grid(knots: tuple, neg: float, pos: float, m: int, tol: float) -> tuple[np.ndarray, np.ndarray]:
+    """The cubic B-spline N[t0..t4] refined onto the level-m grid of a star's sector chart
+    along one axis, graded: the knots i pos / 2^l (i = 1, 2, 3, l = 1 .. m) in [0, pos] (the
+    first face) and -i neg / 2^l in [-neg, 0] (behind the star), so that every piece whose
+    support holds the star's row has the level-m grid's knots (h, 2h, 3h and -h, -2h, -3h)
+    and the pieces further out grow with their distance; each interval beyond halved.
+    (children knots (k, 5), coefficients (k,)), by Boehm's insertion (exact). A piece's
+    coefficient depends only on its own knots, whatever else is inserted."""
+    t = [float(x) for x in knots]
+    ins = []
+    for a, b in zip(t[:-1], t[1:]):
+        if b - a <= tol:
+            continue
+        if a >= -tol and b <= pos + tol:
+            grid = [i * pos / 2 ** l for l in range(1, m + 1) for i in (1, 2, 3)]
+        elif a >= -neg - tol and b <= tol:
+            grid = [-i * neg / 2 ** l for l in range(1, m + 1) for i in (1, 2, 3)]
+        else:
+            grid = [(a + b) / 2]
+        ins.extend(u for u in sorted(set(grid)) if a + tol < u < b - tol)
+    T = [t[0]] * 3 + t + [t[-1]] * 3
+    c = [0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0]
+    for u in sorted(ins):
+        l = max(i for i in range(len(T) - 1) if T[i] <= u < T[i + 1])
+        new = []
+        for i in range(len(c) + 1):
+            if i <= l - 3:
+                new.append(c[i])
+            elif i > l:
+                new.append(c[i - 1])
+            else:
+                den = T[i + 3] - T[i]
+                alpha = (u - T[i]) / den if den > 0 else 0.0
+                new.append((1 - alpha) * c[i - 1] + alpha * c[i])
+        c = new
+        T = T[:l + 1] + [u] + T[l + 1:]
+    r = np.sort(np.array(t + ins))
+    k = len(r) - 4
+    return np.array([r[i:i + 5] for i in range(k)]), np.array(c[3:3 + k])
+
+
+def _frame(zone: StarZone, j: int, spoke: int, rc: int, cc: int) -> tuple[float, float, float, float]:
+    """The knot intervals (behind along x, ahead along x, behind along y, ahead along y) that a
+    level-m piece of a first-face T-junction's difference sees in sector j's chart, by the row
+    (rc: sign of its centre's y) and column (cc: sign of its x) it is centred on: a piece on
+    spoke s's row has b_s behind the star along that spoke, one off the spokes the intervals
+    of the sectors its row and column cross; at the star itself b_k along the spoke k of the
+    T-junction (``_level1_parts``' rules, which are these at level 1). At valence 4 every one
+    is the T-mesh's own."""
+    n, d, b = zone.n, zone.d, zone.b
+    xm = {1: d[(j + 2) % n], 0: b[j], -1: d[(j - 2) % n]}[rc]
+    ym = {1: d[(j - 1) % n], 0: b[(j + 1) % n] if rc > 0 else d[(j - 1) % n], -1: d[(j + 3) % n]}[cc]
+    xp = b[(j + 2) % n] if (rc == 0 and cc < 0) else d[j]
+    yp = b[(j - 1) % n] if (cc == 0 and rc < 0) else d[(j + 1) % n]
+    if rc == 0 and cc == 0:
+        xm = b[j] if spoke == j else d[(j + 2) % n]
+        ym = b[(j + 1) % n] if spoke == (j + 1) % n else d[(j - 1) % n]
+    return float(xm), float(xp), float(ym), float(yp)
+
+
+def _levelm_parts(zone: StarZone, f: Fn, spoke: int, m: int, sector: int) -> tuple[np.ndarray, list]:
+    """``_level1_parts`` for the T-junctions along spoke ``spoke`` whose knots lie on the
+    refined star's level-m grid only (m >= 2: at k / 2^m of their sides, k odd): f refined
+    onto that grid (``_refine_grid``), its pieces at the level-m points next to the star
+    (rows (2n + 1, W0) added to the W_m rows) and the others as plain B-splines. Each piece
+    takes its knots and coefficient from f with the intervals behind and beyond the star that
+    its row and column see (``_frame``): so the pieces of all the differences at one place
+    are one function and their coefficients those of one valence-4 configuration, which sum
+    to what the T-junctions change (zero at the star's points and behind it). Pieces behind
+    the star (in the sector opposite f's at valence 4; their coefficients sum to zero) have
+    no place at other valences and are left out there."""
+    n, d = zone.n, zone.d
+    j = sector
+    tol = 1e-9 * float(d.max())
+    fx, fy = np.asarray(f.xk, float), np.asarray(f.yk, float)
+    if f.sector != j:                  # a neighbouring sector's function, seen in sector j's chart
+        q = 3 if f.sector == (j - 1) % n else 1
+        fx, fy = (np.asarray(k, float) for k in map_knots(fx, fy, (q, 0.0, 0.0)))
+    ftol = 1e-12 * float(fx[-1] - fx[0])
+    sign = lambda u: 0 if abs(u) <= tol else (1 if u > 0 else -1)
+    nat = _frame(zone, j, spoke, sign(fy[2]), sign(fx[2]))     # f's own intervals
+
+    def scaled(k, neg, pos, nneg, npos):
+        return tuple(float(u) for u in np.where(k < -ftol, k * (neg / nneg), np.where(k > ftol, k * (pos / npos), k)))
+
+    w = np.zeros((2 * n + 1, len(f.row)))
+    plain = []
+    for rc in (1, 0, -1):
+        for cc in (1, 0, -1):
+            xm, xp, ym, yp = _frame(zone, j, spoke, rc, cc)
+            kx, cx_ = _refine_grid(scaled(fx, xm, xp, nat[0], nat[1]), xm, xp, m, tol)
+            ky, cy_ = _refine_grid(scaled(fy, ym, yp, nat[2], nat[3]), ym, yp, m, tol)
+            cols = [a for a in range(len(cx_)) if cx_[a] != 0.0 and sign(kx[a][2]) == cc]
+            for b_ in range(len(cy_)):
+                if cy_[b_] == 0.0 or sign(ky[b_][2]) != rc:
+                    continue
+                yk = ky[b_]
+                for a in cols:
+                    xk, coef = kx[a], cx_[a] * cy_[b_]
+                    if rc == 0 and cc == 0:
+                        node, s, txk, tyk = 0, j, *zone.s_knots(j, m)
+                        cxk, cyk = xk, yk
+                    else:
+                        c = _canon(n, j, xk[2], yk[2], xk, yk)
+                        if c is None:
+                            if n != 4:
+                                continue          # behind the star (coefficients summing to zero)
+                            rx, ry = map_knots(np.asarray(xk), np.asarray(yk), (2, 0.0, 0.0))
+                            c = _canon(n, (j + 2) % n, rx[2], ry[2], rx, ry)
+                        s, x, y, cxk, cyk = c
+                        cxk, cyk = np.asarray(cxk, float), np.asarray(cyk, float)
+                        node = zone.w_index(s, x, y, m, tol)
+                        if node is None:
+                            plain.append(Fn(s, x, y, cxk, cyk, f.row * coef))
+                            continue
+                        _, txk, tyk = zone.w_knots(node, m)
+                    w[node] += coef * f.row
+                    # the W_m function's knots: the same ahead of the star (checked), those
+                    # behind it the NURCC mean's where the valence is not 4
+                    if _match_last(cxk, txk, tol) or _match_last(cyk, tyk, tol):
+                        raise Uncleared(f"a level-{m} piece at the star's level-{m} point {node} whose "
+                                        f"last knots are not the point's")
     return w, plain
 
 
@@ -1150,15 +1391,34 @@ class StarLevels:
         AW = A[:Wn, :Wn]
         _, sv, vt = np.linalg.svd((AW - np.eye(Wn)).T)
         l0 = vt[-1] / vt[-1].sum()
-        self.limit = l0 @ X2[:Wn]                                  # (4,)
+        late = getattr(zone, "late", None)
         dm = np.empty((MAX_LEVEL + 1, K, X2.shape[1]))
-        dm[2] = X2 - np.outer(xinf, self.limit)
-        for m in range(3, MAX_LEVEL + 1):
+        if late:
+            # first-face T-junctions at k / 2^m (m >= 3): their pieces at the level-m points
+            # next to the star join the configuration of that level (those of W_m reach
+            # 1.5 level-(m-1) intervals from S: not the ring of level m - 1)
+            top = max(late)
+            Xs = {2: X2}
+            for m in range(3, top + 1):
+                Xs[m] = A @ Xs[m - 1]
+                if m in late:
+                    Xs[m][:Wn] += late[m] @ zone.points
+            Xtop = Xs[top]
+            self.limit = l0 @ Xtop[:Wn]
+            for m in range(2, top + 1):
+                dm[m] = Xs[m] - np.outer(xinf, self.limit)
+            first = top + 1
+        else:
+            Xtop = X2
+            self.limit = l0 @ X2[:Wn]                              # (4,)
+            dm[2] = X2 - np.outer(xinf, self.limit)
+            first = 3
+        for m in range(first, MAX_LEVEL + 1):
             dm[m] = A @ dm[m - 1]
         self.d = dm
         L = self.limit
         X = L[:3] / L[3]
-        t1, t2 = ((mk @ X2[:Wn])[:3] - X * (mk @ X2[:Wn])[3] for mk in pieces.masks)
+        t1, t2 = ((mk @ Xtop[:Wn])[:3] - X * (mk @ Xtop[:Wn])[3] for mk in pieces.masks)
         nrm = np.cross(t1, t2)
         self.normal = nrm / max(np.linalg.norm(nrm), 1e-300)
         self.spectrum = pieces.spectrum

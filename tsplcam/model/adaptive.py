@@ -67,6 +67,56 @@ def classify(mesh: QuadMesh, f: int, rot: int, tainted: np.ndarray | None = None
     return None
 
 
+def classify_many(mesh: QuadMesh, faces, rots, H: np.ndarray, tainted: np.ndarray | None = None) -> list:
+    """``classify`` of the faces ``faces`` (cell corner 0 at face corner ``rots``), all at once:
+    per face None, ("bezier", its 16 B-spline points (16, d) from H) or ("stam", scheme,
+    configuration, corner). Regularity, stationarity and stencils are array operations over
+    the whole mesh (``QuadMesh.regularity_arrays``, ``regular_stencils``); the points are
+    summed in the order of the sparse stencil's product, so they are the same to the bit."""
+    faces = np.asarray(faces, dtype=np.int64).reshape(-1)
+    rots = np.asarray(rots, dtype=np.int64).reshape(-1)
+    arrays = mesh.regularity_arrays()
+    if arrays is None:                               # not a clean manifold: the face-by-face path
+        out = []
+        for f, rot in zip(faces.tolist(), rots.tolist()):
+            leaf = classify(mesh, f, rot, tainted)
+            out.append(leaf if leaf is None or leaf[0] != "bezier" else ("bezier", leaf[1] @ H))
+        return out
+    regular, semi = arrays
+    reg4 = regular.reshape(-1, 4)[faces]
+    nirr = 4 - reg4.sum(axis=1)
+    semi_f = semi[mesh.faces].any(axis=1)
+    touch = np.bincount(mesh.faces.reshape(-1), weights=np.repeat(semi_f, 4),
+                        minlength=mesh.n_vertices) > 0
+    stationary = ~touch[mesh.faces[faces]].any(axis=1)
+    out: list = [None] * len(faces)
+    bez = np.nonzero(nirr == 0)[0]
+    if len(bez):
+        cols, wts, ok = mesh.regular_stencils(faces[bez], rots[bez])
+        G = mesh.stencil_points(cols, wts, H)
+        if tainted is not None and (tainted[cols] & (wts != 0.0))[ok].any():
+            raise AssertionError("a regular stencil uses a point of an incomplete neighbourhood")
+        for n, i in enumerate(bez.tolist()):
+            if ok[n]:
+                out[i] = ("bezier", G[n])
+            else:
+                stencil = mesh.regular_stencil(int(faces[i]), int(rots[i]))
+                if tainted is not None and tainted[stencil.indices].any():
+                    raise AssertionError("a regular stencil uses a point of an incomplete neighbourhood")
+                out[i] = ("bezier", stencil @ H)
+    for i in np.nonzero((nirr == 1) & stationary)[0].tolist():
+        f = int(faces[i])
+        k = int(np.nonzero(~reg4[i])[0][0])
+        try:
+            scheme, cfg = scheme_for(mesh, f, k)
+        except NotSelfSimilar:
+            continue
+        if tainted is not None and tainted[cfg].any():
+            raise AssertionError("a configuration uses a point of an incomplete neighbourhood")
+        out[i] = ("stam", scheme, cfg, k)
+    return out
+
+
 def _ring(mesh: QuadMesh, faces, rings: int) -> list[int]:
     out = list(dict.fromkeys(int(f) for f in faces))
     seen = set(out)
@@ -122,12 +172,12 @@ def resolve(mesh: QuadMesh, H: np.ndarray, roots: list[tuple[int, int]]) -> list
     cur, Hc, tainted = mesh, H, np.zeros(mesh.n_vertices, dtype=bool)
     for level in range(MAX_LEVEL + 1):
         todo = []
-        for f, r, L, i, j, rot in items:
-            leaf = classify(cur, f, rot, tainted)
+        found = classify_many(cur, [t[0] for t in items], [t[5] for t in items], Hc, tainted)
+        for (f, r, L, i, j, rot), leaf in zip(items, found):
             if leaf is None:
                 todo.append((f, r, L, i, j, rot))
             elif leaf[0] == "bezier":
-                G = (leaf[1] @ Hc).reshape(4, 4, 4)
+                G = leaf[1].reshape(4, 4, 4)
                 leaves[r].append((L, i, j, ("bezier", np.einsum("aj,bi,jic->abc", BSPLINE_TO_BEZIER,
                                                                  BSPLINE_TO_BEZIER, G))))
             else:

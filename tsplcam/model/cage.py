@@ -15,7 +15,7 @@ import numpy as np
 
 from ..errors import InputError
 from .basis import BSPLINE_TO_BEZIER
-from .adaptive import AdaptiveCells, classify, resolve
+from .adaptive import AdaptiveCells, classify_many, resolve
 from .cells import BezierCells, LevelCells
 from .decompose import QuadDecomposition, decompose
 from .eigen import NotSelfSimilar
@@ -91,15 +91,15 @@ def _build_patches(mesh: QuadMesh, H0: np.ndarray, dec: QuadDecomposition, level
         bez, eig, deep = [], {}, []
         items = _children([(int(f), int(i), int(j), int(rot))
                            for f, (i, j), rot in zip(reg.faces, reg.cell, reg.rot)], level)
-        for e, ci, cj, re in items:
-            leaf = classify(emesh, e, re)
+        found = classify_many(emesh, [t[0] for t in items], [t[3] for t in items], He)
+        for (e, ci, cj, re), leaf in zip(items, found):
             if leaf is None:                 # near semi-sharp creases, several irregular corners
                 local[ci, cj] = len(deep)
                 group[ci, cj] = -3
                 deep.append((e, re))
                 continue
             if leaf[0] == "bezier":
-                G = (leaf[1] @ He).reshape(4, 4, 4)      # [j, i, c]
+                G = leaf[1].reshape(4, 4, 4)             # [j, i, c]
                 local[ci, cj] = len(bez)
                 group[ci, cj] = -1
                 bez.append(np.einsum("aj,bi,jic->abc", M, M, G))

@@ -26,6 +26,7 @@ Sharpness values are single precision, as OpenSubdiv keeps them.
 """
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -66,6 +67,7 @@ class QuadMesh:
     corner_sharpness: dict | None = None
     _edges: dict = field(default=None, init=False, repr=False)
     _fans: list = field(default=None, init=False, repr=False)
+    _arr: dict = field(default=None, init=False, repr=False)
 
     def __post_init__(self):
         self.faces = np.asarray(self.faces, dtype=int).reshape(-1, 4)
@@ -94,6 +96,15 @@ class QuadMesh:
         return self._edges
 
     def _build_edges(self):
+        t = self.arrays()
+        if t is not None:
+            self._edges = dict(zip(zip(t["a"].tolist(), t["b"].tolist()),
+                                   zip(t["hf"].tolist(), t["hk"].tolist())))
+            return
+        self._build_edges_checked()
+
+    def _build_edges_checked(self):
+        """The directed-edge map built edge by edge, raising the error of the first bad edge."""
         edges = {}
         for f, quad in enumerate(self.faces):
             for k in range(4):
@@ -112,6 +123,79 @@ class QuadMesh:
                         path=self.source, line=self.face_line(f))
                 edges[(a, b)] = (f, k)
         self._edges = edges
+
+    def arrays(self) -> dict | None:
+        """The topology as arrays (cached), or None where the cage is not a clean manifold (a
+        face repeating a vertex, a repeated directed edge, a non-manifold vertex: the Python
+        walks of ``_build_edges_checked``/``_build_fans_walked`` then raise the errors).
+
+        Half-edge (and corner) c = 4 f + k runs from a[c] = faces[f][k] to b[c] =
+        faces[f][k+1]; twin[c] is the opposite half-edge or -1 on the boundary. fan_c lists the
+        corners of each vertex in the order of ``fan`` (fan_ptr: CSR offsets), boundary[v]
+        whether v is a boundary vertex."""
+        if self._arr is not None:
+            return self._arr or None
+        self._arr = {}
+        F, n = len(self.faces), self.n_vertices
+        if F == 0 or self.faces.min() < 0 or self.faces.max() >= n:
+            return None
+        a = self.faces.reshape(-1)
+        b = self.faces[:, (1, 2, 3, 0)].reshape(-1)
+        srt = np.sort(self.faces, axis=1)
+        if (srt[:, 1:] == srt[:, :-1]).any():
+            return None                      # a face uses a vertex twice
+        key = a.astype(np.int64) * n + b
+        order = np.argsort(key, kind="stable")
+        ks = key[order]
+        if len(ks) > 1 and (ks[1:] == ks[:-1]).any():
+            return None                      # a directed edge used twice
+        rkey = b.astype(np.int64) * n + a
+        pos = np.minimum(np.searchsorted(ks, rkey), len(ks) - 1)
+        twin = np.where(ks[pos] == rkey, order[pos], -1)
+        c = np.arange(4 * F)
+        f4 = c - c % 4
+        # around vertex a[c]: next turns across edge (v, prev), prev across (v, next)
+        inc = f4 + (c + 3) % 4
+        nxt = twin[inc]                                          # corner of the twin's face at v
+        prv = np.where(twin >= 0, (twin - twin % 4) + (twin + 1) % 4, -1)
+        cnt = np.bincount(a, minlength=n)
+        heads = np.bincount(a[prv < 0], minlength=n)
+        if (heads > 1).any():
+            return None
+        boundary = heads == 1
+        # closed fans start at the vertex's first corner (lowest c): cut the cycle there
+        fan_ptr = np.zeros(n + 1, dtype=np.int64)
+        np.cumsum(cnt, out=fan_ptr[1:])
+        by_vertex = np.argsort(a, kind="stable")
+        closed = np.nonzero(~boundary & (cnt > 0))[0]
+        prv_cut = prv.copy()
+        prv_cut[by_vertex[fan_ptr[closed]]] = -1
+        # list ranking by pointer doubling: rank = steps back to the fan's first corner
+        rank = (prv_cut >= 0).astype(np.int64)
+        ptr = prv_cut.copy()
+        for _ in range(64):
+            live = ptr >= 0
+            if not live.any():
+                break
+            rank[live] += rank[ptr[live]]
+            ptr[live] = ptr[ptr[live]]
+        else:
+            return None
+        fan_c = np.lexsort((rank, a))
+        expect = np.arange(4 * F) - np.repeat(fan_ptr[:-1], cnt)
+        if not np.array_equal(rank[fan_c], expect):
+            return None                      # several fans (or cycles) around one vertex
+        # the fan order must follow ``nxt`` from corner to corner, as the walk does
+        fa = fan_c
+        last = np.zeros(4 * F, dtype=bool)
+        last[fan_ptr[1:][cnt > 0] - 1] = True
+        if not np.array_equal(nxt[fa[:-1]][~last[:-1]], fa[1:][~last[:-1]]):
+            return None
+        pos_in_fan = np.empty(4 * F, dtype=np.int64)
+        pos_in_fan[fan_c] = expect
+        self._arr = dict(a=a, b=b, twin=twin, hf=c // 4, hk=c % 4, fan_c=fan_c, fan_ptr=fan_ptr,
+                         boundary=boundary, valence=cnt, pos=pos_in_fan)
+        return self._arr
 
     def is_boundary_edge(self, a: int, b: int) -> bool:
         return ((a, b) in self.edges) != ((b, a) in self.edges)
@@ -148,6 +232,16 @@ class QuadMesh:
         return None if hit is None else (hit[0], (hit[1] + 1) % 4)
 
     def _build_fans(self):
+        t = self.arrays()
+        if t is not None:
+            fc, ptr, bnd = t["fan_c"].tolist(), t["fan_ptr"].tolist(), t["boundary"].tolist()
+            pairs = [(c >> 2, c & 3) for c in fc]
+            self._fans = [(pairs[ptr[v]:ptr[v + 1]], bnd[v]) for v in range(self.n_vertices)]
+            return
+        self._build_fans_walked()
+
+    def _build_fans_walked(self):
+        """Fans by walking around each vertex, raising the error of the first non-manifold one."""
         incident = [[] for _ in range(self.n_vertices)]
         for f, quad in enumerate(self.faces):
             for k in range(4):
@@ -278,6 +372,72 @@ class QuadMesh:
         if is_semi_sharp(self.vertex_sharpness(v)):
             return True
         return any(is_semi_sharp(self.edge_sharpness(v, w)) for w in self.neighbours(v))
+
+    def sharpness_arrays(self) -> tuple[np.ndarray, np.ndarray]:
+        """``edge_sharpness`` of every half-edge (4F,) and ``vertex_sharpness`` of every vertex
+        (n,), as arrays (cached; needs ``arrays()``)."""
+        t = self._arr
+        if "he_sharp" not in t:
+            a, b, n = t["a"], t["b"], self.n_vertices
+            hs = np.zeros(len(a))
+            if self.sharpness:
+                kv = np.array(list(self.sharpness), dtype=np.int64).reshape(-1, 2)
+                keys = kv[:, 0] * n + kv[:, 1]
+                vals = np.array(list(self.sharpness.values()), dtype=float)
+                srt = np.argsort(keys)
+                keys, vals = keys[srt], vals[srt]
+                q = np.minimum(a, b).astype(np.int64) * n + np.maximum(a, b)
+                pos = np.minimum(np.searchsorted(keys, q), len(keys) - 1)
+                hit = keys[pos] == q
+                hs[hit] = vals[pos[hit]]
+            hs[t["twin"] < 0] = INFINITE
+            vs = np.zeros(n)
+            if self.corner_sharpness:
+                vs[list(self.corner_sharpness)] = list(self.corner_sharpness.values())
+            if self.boundary_rule == "edge-and-corner":
+                vs[t["boundary"] & (t["valence"] == 1)] = INFINITE
+            t["he_sharp"], t["v_sharp"] = hs, vs
+        return t["he_sharp"], t["v_sharp"]
+
+    def regularity_arrays(self) -> tuple[np.ndarray, np.ndarray] | None:
+        """(regular, semi): ``is_regular_in`` of every corner c = 4 f + k (4F,) and
+        ``has_semi_sharp_at`` of every vertex (n,), as arrays; None where ``arrays()`` is."""
+        t = self.arrays()
+        if t is None:
+            return None
+        if "regular" in t:
+            return t["regular"], t["semi"]
+        hs, vs = self.sharpness_arrays()
+        a, n = t["a"], self.n_vertices
+        semi_e = (hs > 0.0) & (hs < INFINITE)
+        semi = ((vs > 0.0) & (vs < INFINITE)) | (np.bincount(a, weights=semi_e, minlength=n) > 0)
+        bnd, val = t["boundary"], t["valence"]
+        # sharp edges at v: its outgoing half-edges, and the incoming boundary edge
+        nsharp = np.bincount(a, weights=hs > 0.0, minlength=n).astype(np.int64) + bnd
+        kind = np.where(vs > 0.0, 2, np.where(nsharp > 2, 2, np.where(nsharp == 2, 1, 0)))
+        # sectors: fans cut after corners whose edge to the previous vertex is infinitely sharp
+        fc, ptr = t["fan_c"], t["fan_ptr"]
+        inc = fc - fc % 4 + (fc + 3) % 4
+        cut = (hs[inc] >= INFINITE).astype(np.int64)
+        av = a[fc]
+        ends = ptr[1:][val > 0] - 1
+        cut[ends[bnd[val > 0]]] = 0                # a boundary fan's last corner ends it anyway
+        cs = np.cumsum(cut) - cut                  # cuts before each corner
+        base = np.zeros(n, dtype=np.int64)
+        base[val > 0] = cs[ptr[:-1][val > 0]]
+        sid = cs - base[av]
+        ncut = np.bincount(av, weights=cut, minlength=n).astype(np.int64)
+        wrap = ~bnd[av] & (ncut[av] > 0)
+        sid[wrap] %= ncut[av][wrap]
+        gid = ptr[:-1][av] + sid
+        size = np.bincount(gid, minlength=len(fc))[gid]
+        regular = np.zeros(len(a), dtype=bool)
+        k = kind[av]
+        reg_fan = np.where(k == 0, ~bnd[av] & (val[av] == 4) & (nsharp[av] == 0),
+                           size == np.where(k == 1, 2, 1))
+        regular[fc] = reg_fan & ~semi[av]
+        t["regular"], t["semi"] = regular, semi
+        return regular, semi
 
     def is_regular_in(self, v: int, f: int) -> bool:
         """Whether the limit surface of face f near its corner v is a plain B-spline (with
@@ -569,6 +729,96 @@ class QuadMesh:
         M.sum_duplicates()
         return M
 
+    def regular_stencils(self, f: np.ndarray, k0: np.ndarray):
+        """``regular_stencil`` of many faces at once, as (cols, weights, ok): (n, 16, 4) arrays
+        whose row r lists the terms of stencil row r in increasing column order (padding:
+        weight 0 after them), so that summing weight * point in that order from 0 repeats the
+        sparse product bit for bit (``stencil_points``). ``ok`` is False for faces whose
+        neighbourhood is not a plain 3 x 3 grid of cells (folds, cells reached round a
+        corner, one vertex twice in a row's terms): ``regular_stencil`` handles those,
+        errors included. Needs ``arrays()``."""
+        t = self.arrays()
+        hs, _ = self.sharpness_arrays()
+        twin, Q = t["twin"], self.faces
+        f = np.asarray(f, dtype=np.int64).reshape(-1)
+        N = len(f)
+        face = np.full((3, 3, N), -1, dtype=np.int64)
+        rot = np.zeros((3, 3, N), dtype=np.int64)
+        face[1, 1], rot[1, 1] = f, np.asarray(k0, dtype=np.int64).reshape(-1)
+
+        def across(ci, cj, m):
+            fc = face[ci, cj]
+            h = 4 * np.maximum(fc, 0) + (rot[ci, cj] + m) % 4
+            tw = twin[h]
+            ok = (fc >= 0) & (tw >= 0) & (hs[h] < INFINITE)
+            return ok, tw // 4, (tw % 4 - (m + 2)) % 4
+
+        edge_cells = ((1, 0), (2, 1), (1, 2), (0, 1))
+        bad = np.zeros(N, dtype=bool)
+        for m, (ni, nj) in enumerate(edge_cells):
+            ok, g, rg = across(1, 1, m)
+            face[ni, nj] = np.where(ok, g, -1)
+            rot[ni, nj] = np.where(ok, rg, 0)
+        corner_cells = []
+        for ci, cj in edge_cells:                      # the breadth-first order of regular_stencil
+            for m, (di, dj) in enumerate(_STEPS):
+                ni, nj = ci + di, cj + dj
+                if not (0 <= ni <= 2 and 0 <= nj <= 2) or (ni, nj) == (1, 1) or (ni, nj) in edge_cells:
+                    continue
+                ok, g, rg = across(ci, cj, m)
+                new = ok & (face[ni, nj] < 0)
+                face[ni, nj] = np.where(new, g, face[ni, nj])
+                rot[ni, nj] = np.where(new, rg, rot[ni, nj])
+                if (ni, nj) not in corner_cells:
+                    corner_cells.append((ni, nj))
+        for ci, cj in corner_cells:                    # a second wave would reach missing edge cells
+            for m, (di, dj) in enumerate(_STEPS):
+                ni, nj = ci + di, cj + dj
+                if (ni, nj) in edge_cells:
+                    ok, _, _ = across(ci, cj, m)
+                    bad |= ok & (face[ni, nj] < 0)
+        V = np.full((4, 4, N), -1, dtype=np.int64)      # grid point (i, j)
+        for ci in range(3):
+            for cj in range(3):
+                fc = face[ci, cj]
+                there = fc >= 0
+                for m, (di, dj) in enumerate(_OFFSETS):
+                    v = np.where(there, Q[np.maximum(fc, 0), (rot[ci, cj] + m) % 4], -1)
+                    cur = V[ci + di, cj + dj]
+                    bad |= there & (cur >= 0) & (cur != v)
+                    V[ci + di, cj + dj] = np.where(cur >= 0, cur, v)
+        sides = np.stack([face[1, 0] < 0, face[1, 2] < 0, face[0, 1] < 0, face[2, 1] < 0])
+        present = (V >= 0).transpose(1, 0, 2).reshape(16, N)          # grid index j*4+i
+        code = (present * (1 << np.arange(16))[:, None]).sum(0) + (sides * (1 << np.arange(16, 20))[:, None]).sum(0)
+        Vf = V.transpose(1, 0, 2).reshape(16, N)
+        cols = np.zeros((N, 16, 4), dtype=np.int64)
+        wts = np.zeros((N, 16, 4))
+        for c in np.unique(code):
+            sel = np.nonzero(code == c)[0]
+            pat = _phantom_pattern(int(c))
+            if pat is None:
+                bad[sel] = True
+                continue
+            gp, w = pat                                  # (16, 4) grid indices (-1: none), weights
+            vid = np.where(gp[None] >= 0, Vf[:, sel][np.maximum(gp, 0)].transpose(2, 0, 1), -1)   # (n, 16, 4)
+            real = vid >= 0
+            srt = np.sort(np.where(real, vid, -1), axis=2)
+            bad[sel] |= ((srt[:, :, 1:] == srt[:, :, :-1]) & (srt[:, :, 1:] >= 0)).any(axis=(1, 2))
+            big = np.iinfo(np.int64).max
+            order = np.argsort(np.where(real, vid, big), axis=2, kind="stable")
+            cols[sel] = np.take_along_axis(np.where(real, vid, 0), order, axis=2)
+            wts[sel] = np.take_along_axis(np.broadcast_to(w, vid.shape), order, axis=2)
+        return cols, wts, ~bad
+
+    @staticmethod
+    def stencil_points(cols: np.ndarray, wts: np.ndarray, H: np.ndarray) -> np.ndarray:
+        """Stencils (``regular_stencils``) applied to points H: (n, 16, d), summed term by term
+        in column order from 0 as scipy's sparse product does."""
+        out = np.zeros(cols.shape[:2] + H.shape[1:])
+        for t in range(cols.shape[2]):
+            out = out + wts[:, :, t, None] * H[cols[:, :, t]]
+        return out
+
     def config(self, f: int, k: int) -> list[int]:
         """Vertices of the faces around the corners of face f, in a canonical order starting
         at corner k: the configuration whose subdivision is closed (Stam 1998's 2N+8 points
@@ -595,3 +845,47 @@ class QuadMesh:
                     seen.add(g)
                     out.append(g)
         return out
+
+
+_STEPS = ((0, -1), (1, 0), (0, 1), (-1, 0))          # across cell edge m
+_OFFSETS = ((0, 0), (1, 0), (1, 1), (0, 1))          # cell corner m
+
+
+@functools.lru_cache(maxsize=None)
+def _phantom_pattern(code: int):
+    """The rows of ``regular_stencil`` for one pattern of present grid points (bits 0-15, grid
+    index j*4+i) and missing side cells (bits 16-19: (1,0), (1,2), (0,1), (2,1)), in grid
+    points: ((16, 4) grid indices, -1 for none; (16, 4) weights), or None if incomplete."""
+    rows = {(i, j): {j * 4 + i: 1.0} for j in range(4) for i in range(4) if code >> (j * 4 + i) & 1}
+    jside = {0: bool(code >> 16 & 1), 3: bool(code >> 17 & 1)}
+    iside = {0: bool(code >> 18 & 1), 3: bool(code >> 19 & 1)}
+
+    def lin(p, q):   # 2 p - q, as regular_stencil combines them
+        out = {}
+        for w, x in rows[p].items():
+            out[w] = out.get(w, 0.0) + 2.0 * x
+        for w, x in rows[q].items():
+            out[w] = out.get(w, 0.0) - x
+        return out
+
+    for (i, j) in [(i, j) for j in range(4) for i in range(4)]:
+        if (i, j) in rows or iside.get(i, False):
+            continue
+        if jside.get(j, False):
+            dj = 1 if j == 0 else -1
+            if (i, j + dj) in rows and (i, j + 2 * dj) in rows:
+                rows[(i, j)] = lin((i, j + dj), (i, j + 2 * dj))
+    for (i, j) in [(i, j) for j in range(4) for i in range(4)]:
+        if (i, j) in rows or not iside.get(i, False):
+            continue
+        di = 1 if i == 0 else -1
+        if (i + di, j) in rows and (i + 2 * di, j) in rows:
+            rows[(i, j)] = lin((i + di, j), (i + 2 * di, j))
+    if len(rows) != 16 or max(len(r) for r in rows.values()) > 4:
+        return None
+    gp = np.full((16, 4), -1, dtype=np.int64)
+    w = np.zeros((16, 4))
+    for (i, j), combo in rows.items():
+        for n, (g, x) in enumerate(combo.items()):
+            gp[j * 4 + i, n], w[j * 4 + i, n] = g, x
+    return gp, w

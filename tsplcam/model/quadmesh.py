@@ -537,6 +537,8 @@ class QuadMesh:
         new points whose rule would need the missing faces are flagged in ``tainted``, and so
         are points made from vertices flagged in ``tainted_in``.
         """
+        if self.arrays() is not None:
+            return self._refine_arrays(cut_edges, tainted_in)
         cut_edges = cut_edges or set()
         nv = self.n_vertices
         und = self.undirected_edges()
@@ -619,6 +621,146 @@ class QuadMesh:
             corners = {v: decrement(s_) for v, s_ in self.corner_sharpness.items() if decrement(s_) > 0.0}
         mesh = QuadMesh(child, nv + ne + nf, self.boundary_rule, self.source, lines, sharpness or None,
                         corners or None)
+        return mesh, R, tainted
+
+    def _refine_arrays(self, cut_edges: set | None, tainted_in: np.ndarray | None
+                       ) -> tuple["QuadMesh", sp.csr_matrix, np.ndarray]:
+        """``refine`` with the topology as arrays: the same matrix entry for entry, each row's
+        entries in the same order (so scipy sums repeated entries alike), smooth vertices'
+        masks written as arrays and the few crease and corner vertices one by one."""
+        t = self.arrays()
+        nv, nf = self.n_vertices, len(self.faces)
+        a, b, twin, Q = t["a"], t["b"], t["twin"], self.faces
+        hc = np.arange(4 * nf)
+        inc = hc - hc % 4 + (hc + 3) % 4                  # the half-edge into each corner
+        lo = np.minimum(a, b).astype(np.int64)
+        hi = np.maximum(a, b).astype(np.int64)
+        key = lo * nv + hi
+        uk, first, he_eid = np.unique(key, return_index=True, return_inverse=True)
+        rank = np.empty(len(uk), dtype=np.int64)
+        rank[np.argsort(first, kind="stable")] = np.arange(len(uk))
+        he_eid = rank[he_eid]                             # edge of each half-edge, in undirected_edges() order
+        ec = np.sort(first)                               # each edge's first half-edge
+        ne = len(ec)
+        ea, eb = lo[ec], hi[ec]
+        rows, cols, vals = [], [], []
+        # face points
+        rows.append(np.repeat(nv + ne + np.arange(nf), 4))
+        cols.append(Q.reshape(-1))
+        vals.append(np.full(4 * nf, 0.25))
+        tainted = np.zeros(nv + ne + nf, dtype=bool)
+        cut_he = np.zeros(4 * nf, dtype=bool)
+        if cut_edges:
+            ck = np.array([x * nv + y for x, y in cut_edges], dtype=np.int64)
+            cut_he = np.isin(key, ck)
+            tainted[nv:nv + ne] = cut_he[ec]
+        # edge points: smooth (a + b + F1 + F2) / 4, crease (a + b) / 2, blended for 0 < s < 1
+        hs, _ = self.sharpness_arrays()
+        sharp = hs[ec]
+        hard = sharp >= 1.0
+        r_e = nv + np.arange(ne)
+        h1 = np.where(a[ec] == ea, ec, twin[ec])          # half-edge ea -> eb, and eb -> ea
+        h2 = np.where(a[ec] == ea, twin[ec], ec)
+        soft = np.nonzero(~hard)[0]
+        wab = np.where(hard, 0.5, 0.25 + 0.25 * sharp)
+        wf = 0.0625 * (1.0 - sharp[soft])
+        Fs = np.concatenate([Q[h1[soft] // 4], Q[h2[soft] // 4]], axis=1)        # (m, 8)
+        nrow = np.where(hard, 2, 10)
+        start = np.zeros(ne, dtype=np.int64)
+        np.cumsum(nrow[:-1], out=start[1:])
+        er = np.empty(int(nrow.sum()), dtype=np.int64)
+        ecol = np.empty_like(er)
+        ev = np.empty(len(er))
+        er[start], ecol[start], ev[start] = r_e, ea, wab
+        er[start + 1], ecol[start + 1], ev[start + 1] = r_e, eb, wab
+        pos = start[soft][:, None] + 2 + np.arange(8)
+        er[pos], ecol[pos], ev[pos] = r_e[soft][:, None], Fs, wf[:, None]
+        rows.append(er)
+        cols.append(ecol)
+        vals.append(ev)
+        # vertex points: smooth vertices by arrays, the rest as ``refine`` does them
+        fc, ptr, val, bnd = t["fan_c"], t["fan_ptr"], t["valence"], t["boundary"]
+        if cut_edges:
+            tv = np.zeros(nv, dtype=bool)
+            tv[a[cut_he]] = True
+            tv[b[cut_he]] = True
+            tainted[:nv] |= tv
+        if self.creased:
+            _, vs = self.sharpness_arrays()
+            nsharp = np.bincount(a, weights=hs > 0.0, minlength=nv).astype(np.int64) + bnd
+            smooth = (vs <= 0.0) & (nsharp < 2) & (val > 0)
+        else:
+            smooth = ~bnd & (val > 0)
+        sv = np.nonzero(smooth)[0]
+        n = val[sv].astype(float)
+        nn = n * n
+        cnt = val[sv]
+        corners = fc[np.concatenate([np.arange(ptr[v], ptr[v + 1]) for v in sv]) if len(sv) else np.zeros(0, int)]
+        # per row: v, then its n neighbours, then the 4 n vertices of its faces
+        rl = 1 + 5 * cnt
+        vstart = np.zeros(len(sv), dtype=np.int64)
+        np.cumsum(rl[:-1], out=vstart[1:])
+        m = int(rl.sum())
+        vr = np.repeat(sv, rl)
+        vcol = np.empty(m, dtype=np.int64)
+        vval = np.empty(m)
+        vcol[vstart], vval[vstart] = sv, (n - 2.0) / n
+        grp = np.repeat(np.arange(len(sv)), cnt)                       # vertex of each fan corner
+        j = np.arange(len(corners)) - np.repeat(np.cumsum(cnt) - cnt, cnt)
+        pn = vstart[grp] + 1 + j
+        vcol[pn], vval[pn] = b[corners], (1.0 / nn)[grp]
+        pf = (vstart[grp] + 1 + cnt[grp] + 4 * j)[:, None] + np.arange(4)
+        vcol[pf], vval[pf] = Q[corners // 4], (0.25 / nn)[grp][:, None]
+        rows.append(vr)
+        cols.append(vcol)
+        vals.append(vval)
+        prow, pcol, pval = [], [], []
+
+        def put(r, c, w):
+            prow.append(r)
+            pcol.append(c)
+            pval.append(w)
+
+        for v in np.nonzero(~smooth & (val > 0))[0].tolist():
+            fan, boundary = self.fan(v)
+            nbrs = self.neighbours(v)
+            if not self.creased:
+                rule = (("corner", ()) if len(fan) == 1 and self.boundary_rule == "edge-and-corner"
+                        else ("crease", (nbrs[0], nbrs[-1])))
+                self._put_vertex_mask(put, v, fan, nbrs, rule, 1.0)
+                continue
+            rule = self.vertex_rule(v)
+            child = self.vertex_rule(v, child=True)
+            if rule[0] == "smooth" or child[0] == rule[0]:
+                self._put_vertex_mask(put, v, fan, nbrs, rule, 1.0)
+                continue
+            w = self._fractional_weight(v)
+            self._put_vertex_mask(put, v, fan, nbrs, rule, w)
+            self._put_vertex_mask(put, v, fan, nbrs, child, 1.0 - w)
+        rows.append(np.array(prow, dtype=np.int64))
+        cols.append(np.array(pcol, dtype=np.int64))
+        vals.append(np.array(pval, dtype=float))
+        R = sp.csr_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
+                          shape=(nv + ne + nf, nv))
+        R.sum_duplicates()
+        if tainted_in is not None and tainted_in.any():
+            tainted |= (abs(R) @ tainted_in.astype(float)) > 0
+        child = np.stack([a, nv + he_eid, nv + ne + hc // 4, nv + he_eid[inc]], axis=1)
+        lines = None if self.face_lines is None else np.repeat(self.face_lines, 4)
+        sharpness, corners_ = None, None
+        if self.sharpness:
+            eid = dict(zip(zip(ea.tolist(), eb.tolist()), range(ne)))
+            sharpness = {}
+            for (x, y), s_ in self.sharpness.items():
+                c_ = decrement(s_)
+                if c_ > 0.0 and (x, y) in eid:
+                    e = nv + eid[(x, y)]
+                    sharpness[(x, e)] = c_
+                    sharpness[(y, e)] = c_
+        if self.corner_sharpness:
+            corners_ = {v: decrement(s_) for v, s_ in self.corner_sharpness.items() if decrement(s_) > 0.0}
+        mesh = QuadMesh(child, nv + ne + nf, self.boundary_rule, self.source, lines, sharpness or None,
+                        corners_ or None)
         return mesh, R, tainted
 
     def _put_vertex_mask(self, put, v, fan, nbrs, rule, weight):

@@ -118,6 +118,30 @@ def classify_many(mesh: QuadMesh, faces, rots, H: np.ndarray, tainted: np.ndarra
 
 
 def _ring(mesh: QuadMesh, faces, rings: int) -> list[int]:
+    """The faces, then ``rings`` times the faces sharing a vertex with those so far, each
+    face once, in the order of first meeting (``neighbourhood_faces`` face by face)."""
+    t = mesh.arrays()
+    if t is None:
+        return _ring_walked(mesh, faces, rings)
+    out = np.array(list(dict.fromkeys(int(f) for f in faces)), dtype=np.int64)
+    seen = np.zeros(len(mesh.faces), dtype=bool)
+    seen[out] = True
+    fc, ptr = t["fan_c"], t["fan_ptr"]
+    for _ in range(rings):
+        v = mesh.faces[out].reshape(-1)
+        cnt = ptr[v + 1] - ptr[v]
+        idx = np.repeat(ptr[v] - np.cumsum(cnt) + cnt, cnt) + np.arange(int(cnt.sum()))
+        seq = fc[idx] // 4
+        uniq, first = np.unique(seq, return_index=True)
+        new = uniq[np.argsort(first, kind="stable")]
+        new = new[~seen[new]]
+        seen[new] = True
+        out = np.concatenate([out, new])
+    return out.tolist()
+
+
+def _ring_walked(mesh: QuadMesh, faces, rings: int) -> list[int]:
+    """``_ring`` face by face, for cages ``QuadMesh.arrays`` does not take."""
     out = list(dict.fromkeys(int(f) for f in faces))
     seen = set(out)
     for _ in range(rings):
@@ -133,6 +157,40 @@ def _submesh(mesh: QuadMesh, faces: list[int]):
     """The faces as a mesh of their own: (mesh, global vertex ids, cut edges). Edges where it
     was cut out look like boundaries in it; only points flagged by the refinement's taint
     depend on that, and only faces whose neighbourhood lies inside are classified."""
+    t = mesh.arrays()
+    if t is None:
+        return _submesh_walked(mesh, faces)
+    faces = np.asarray(faces, dtype=np.int64)
+    Qs = mesh.faces[faces]
+    verts = np.unique(Qs)
+    quads = np.searchsorted(verts, Qs)
+    inside = np.zeros(len(mesh.faces), dtype=bool)
+    inside[faces] = True
+    h = (4 * faces[:, None] + np.arange(4)).reshape(-1)
+    tw = t["twin"][h]
+    hit = (tw >= 0) & ~inside[np.maximum(tw, 0) // 4]
+    la = np.searchsorted(verts, t["a"][h[hit]])
+    lb = np.searchsorted(verts, t["b"][h[hit]])
+    cut = set(zip(np.minimum(la, lb).tolist(), np.maximum(la, lb).tolist()))
+    used = np.zeros(mesh.n_vertices, dtype=bool)
+    used[verts] = True
+    sharp = None
+    if mesh.sharpness:
+        kv = np.array(list(mesh.sharpness), dtype=np.int64).reshape(-1, 2)
+        keep = used[kv[:, 0]] & used[kv[:, 1]]
+        lk = np.searchsorted(verts, kv[keep]).tolist()
+        vals = [s for s, k in zip(mesh.sharpness.values(), keep.tolist()) if k]
+        sharp = {(x, y): s for (x, y), s in zip(lk, vals)}
+    corners = None
+    if mesh.corner_sharpness:
+        corners = {int(np.searchsorted(verts, v)): s for v, s in mesh.corner_sharpness.items() if used[v]}
+    lines = None if mesh.face_lines is None else mesh.face_lines[faces]
+    sub = QuadMesh(quads, len(verts), mesh.boundary_rule, mesh.source, lines, sharp or None, corners or None)
+    return sub, verts, cut
+
+
+def _submesh_walked(mesh: QuadMesh, faces: list[int]):
+    """``_submesh`` face by face, for cages ``QuadMesh.arrays`` does not take."""
     verts = sorted({int(v) for f in faces for v in mesh.faces[f]})
     loc = {v: i for i, v in enumerate(verts)}
     quads = np.array([[loc[int(v)] for v in mesh.faces[f]] for f in faces])

@@ -721,14 +721,53 @@ class QuadMesh:
             pcol.append(c)
             pval.append(w)
 
-        for v in np.nonzero(~smooth & (val > 0))[0].tolist():
+        # crease and corner vertices whose rule stays: one mask each, as arrays
+        rest = np.nonzero(~smooth & (val > 0))[0]
+        L = val + bnd
+        nb_ptr = np.zeros(nv + 1, dtype=np.int64)
+        np.cumsum(L, out=nb_ptr[1:])
+        nb = np.empty(int(nb_ptr[-1]), dtype=np.int64)         # ``neighbours`` of every vertex
+        nb_s = np.full(len(nb), INFINITE)                       # and the sharpness of each edge
+        fv = a[fc]
+        fj = np.arange(len(fc)) - ptr[fv]
+        nb[nb_ptr[fv] + fj] = b[fc]
+        ends_at = np.nonzero(bnd & (val > 0))[0]
+        nb[nb_ptr[ends_at] + val[ends_at]] = a[inc[fc[ptr[ends_at + 1] - 1]]]
+        if self.creased:
+            nb_s[nb_ptr[fv] + fj] = hs[fc]
+            dec = _decrement_array
+            owner = np.repeat(np.arange(nv), L)
+
+            def rule_kind(vsx, nsx):
+                sharp = nsx > 0.0
+                count = np.bincount(owner, weights=sharp, minlength=nv)
+                kind = np.where(vsx > 0.0, 2, np.where(count > 2, 2, np.where(count == 2, 1, 0)))
+                cum = np.cumsum(sharp) - np.repeat(np.concatenate([[0], np.cumsum(sharp)])[nb_ptr[:-1]], L)
+                e0 = np.zeros(nv, dtype=np.int64)
+                e1 = np.zeros(nv, dtype=np.int64)
+                e0[owner[sharp & (cum == 1)]] = nb[sharp & (cum == 1)]
+                e1[owner[sharp & (cum == 2)]] = nb[sharp & (cum == 2)]
+                return kind, e0, e1
+
+            kind, e0, e1 = rule_kind(vs, nb_s)
+            ckind, _, _ = rule_kind(dec(vs), dec(nb_s))
+            stays = rest[ckind[rest] == kind[rest]]
+            blend = rest[ckind[rest] != kind[rest]]
+        else:
+            kind = np.where(val == 1, 2 if self.boundary_rule == "edge-and-corner" else 1, 1)
+            e0, e1 = nb[nb_ptr[:-1].clip(max=len(nb) - 1)], nb[(nb_ptr[1:] - 1).clip(min=0)]
+            stays, blend = rest, rest[:0]
+        cv = stays[kind[stays] == 2]
+        rows.append(cv)
+        cols.append(cv)
+        vals.append(np.ones(len(cv)))
+        kv = stays[kind[stays] == 1]
+        rows.append(np.repeat(kv, 3))
+        cols.append(np.stack([kv, e0[kv], e1[kv]], axis=1).reshape(-1))
+        vals.append(np.tile([0.75, 0.125, 0.125], len(kv)))
+        for v in blend.tolist():
             fan, boundary = self.fan(v)
             nbrs = self.neighbours(v)
-            if not self.creased:
-                rule = (("corner", ()) if len(fan) == 1 and self.boundary_rule == "edge-and-corner"
-                        else ("crease", (nbrs[0], nbrs[-1])))
-                self._put_vertex_mask(put, v, fan, nbrs, rule, 1.0)
-                continue
             rule = self.vertex_rule(v)
             child = self.vertex_rule(v, child=True)
             if rule[0] == "smooth" or child[0] == rule[0]:
@@ -987,6 +1026,12 @@ class QuadMesh:
                     seen.add(g)
                     out.append(g)
         return out
+
+
+def _decrement_array(s: np.ndarray) -> np.ndarray:
+    """``decrement`` of an array of sharpness values (the same single-precision steps)."""
+    step = (s.astype(np.float32) - np.float32(1.0)).astype(float)
+    return np.where(s >= INFINITE, INFINITE, np.where(s > 1.0, step, 0.0))
 
 
 _STEPS = ((0, -1), (1, 0), (0, 1), (-1, 0))          # across cell edge m

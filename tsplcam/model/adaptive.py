@@ -19,6 +19,8 @@ per root face, points located in its quadtree by one sorted search per level.
 """
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 
 from ..errors import InputError
@@ -28,6 +30,8 @@ from .eigen import NotSelfSimilar, scheme_for
 from .patch import rotation_map
 from .quadmesh import QuadMesh
 
+#: ``patch.rotation_map``, remembered (it tests all eight square maps each call)
+rotation_index = functools.lru_cache(maxsize=None)(rotation_map)
 MAX_LEVEL = 20          # semi-sharp creases are resolved after ceil(s) < 10 levels
 _OFFSET = ((0, 0), (1, 0), (1, 1), (0, 1))
 
@@ -240,7 +244,7 @@ def resolve(mesh: QuadMesh, H: np.ndarray, roots: list[tuple[int, int]]) -> list
                                                                  BSPLINE_TO_BEZIER, G))))
             else:
                 _, scheme, cfg, k = leaf
-                leaves[r].append((L, i, j, ("stam", scheme, Hc[cfg], rotation_map((rot - k) % 4))))
+                leaves[r].append((L, i, j, ("stam", scheme, Hc[cfg], rotation_index((rot - k) % 4))))
         if not todo:
             return leaves
         if level == MAX_LEVEL:

@@ -327,16 +327,7 @@ class QuadMesh:
 
     def _fractional_weight(self, v: int) -> float:
         """Weight of the parent rule where a vertex's rule changes (uniform creasing)."""
-        count, total = 0, 0.0
-        sv = self.vertex_sharpness(v)
-        if sv > 0.0 and decrement(sv) <= 0.0:
-            count, total = 1, sv
-        for w in self.neighbours(v):
-            s = self.edge_sharpness(v, w)
-            if 0.0 < s <= 1.0:
-                count += 1
-                total += s
-        return 0.0 if count == 0 else min(1.0, total / count)
+        return _fractional_weight(self.vertex_sharpness(v), [self.edge_sharpness(v, w) for w in self.neighbours(v)])
 
     def sectors(self, v: int) -> list[list[tuple[int, int]]]:
         """v's faces split into runs between infinitely sharp edges (and the boundary)."""
@@ -750,7 +741,7 @@ class QuadMesh:
                 return kind, e0, e1
 
             kind, e0, e1 = rule_kind(vs, nb_s)
-            ckind, _, _ = rule_kind(dec(vs), dec(nb_s))
+            ckind, c0, c1 = rule_kind(dec(vs), dec(nb_s))
             stays = rest[ckind[rest] == kind[rest]]
             blend = rest[ckind[rest] != kind[rest]]
         else:
@@ -765,15 +756,13 @@ class QuadMesh:
         rows.append(np.repeat(kv, 3))
         cols.append(np.stack([kv, e0[kv], e1[kv]], axis=1).reshape(-1))
         vals.append(np.tile([0.75, 0.125, 0.125], len(kv)))
-        for v in blend.tolist():
-            fan, boundary = self.fan(v)
-            nbrs = self.neighbours(v)
-            rule = self.vertex_rule(v)
-            child = self.vertex_rule(v, child=True)
-            if rule[0] == "smooth" or child[0] == rule[0]:
-                self._put_vertex_mask(put, v, fan, nbrs, rule, 1.0)
-                continue
-            w = self._fractional_weight(v)
+        names = ("smooth", "crease", "corner")
+        for v in blend.tolist():                          # rules blended by the fractional weight
+            fan = [(c >> 2, c & 3) for c in fc[ptr[v]:ptr[v + 1]].tolist()]
+            nbrs = nb[nb_ptr[v]:nb_ptr[v + 1]].tolist()
+            rule = (names[kind[v]], (int(e0[v]), int(e1[v])) if kind[v] == 1 else ())
+            child = (names[ckind[v]], (int(c0[v]), int(c1[v])) if ckind[v] == 1 else ())
+            w = _fractional_weight(float(vs[v]), nb_s[nb_ptr[v]:nb_ptr[v + 1]].tolist())
             self._put_vertex_mask(put, v, fan, nbrs, rule, w)
             self._put_vertex_mask(put, v, fan, nbrs, child, 1.0 - w)
         rows.append(np.array(prow, dtype=np.int64))
@@ -1026,6 +1015,19 @@ class QuadMesh:
                     seen.add(g)
                     out.append(g)
         return out
+
+
+def _fractional_weight(sv: float, edges: list) -> float:
+    """The parent rule's weight for a vertex of sharpness sv with edges of these sharpnesses
+    (in ``neighbours`` order): the mean of the sharpness values that drop to 0, capped at 1."""
+    count, total = 0, 0.0
+    if sv > 0.0 and decrement(sv) <= 0.0:
+        count, total = 1, sv
+    for s in edges:
+        if 0.0 < s <= 1.0:
+            count += 1
+            total += s
+    return 0.0 if count == 0 else min(1.0, total / count)
 
 
 def _decrement_array(s: np.ndarray) -> np.ndarray:

@@ -124,7 +124,7 @@ def classify_many(mesh: QuadMesh, faces, rots, H: np.ndarray, tainted: np.ndarra
 def _ring(mesh: QuadMesh, faces, rings: int) -> list[int]:
     """The faces, then ``rings`` times the faces sharing a vertex with those so far, each
     face once, in the order of first meeting (``neighbourhood_faces`` face by face)."""
-    t = mesh.arrays()
+    t = mesh.fast_arrays()
     if t is None:
         return _ring_walked(mesh, faces, rings)
     out = np.array(list(dict.fromkeys(int(f) for f in faces)), dtype=np.int64)
@@ -161,7 +161,7 @@ def _submesh(mesh: QuadMesh, faces: list[int]):
     """The faces as a mesh of their own: (mesh, global vertex ids, cut edges). Edges where it
     was cut out look like boundaries in it; only points flagged by the refinement's taint
     depend on that, and only faces whose neighbourhood lies inside are classified."""
-    t = mesh.arrays()
+    t = mesh.fast_arrays()
     if t is None:
         return _submesh_walked(mesh, faces)
     faces = np.asarray(faces, dtype=np.int64)

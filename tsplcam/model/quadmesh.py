@@ -38,6 +38,8 @@ BOUNDARY_RULES = ("edge-only", "edge-and-corner")
 #: sharpness at or above which an edge or vertex is infinitely sharp (OpenSubdiv's
 #: ``Sdc::Crease::SHARPNESS_INFINITE``)
 INFINITE = 10.0
+#: meshes with fewer faces are refined and classified face by face (``QuadMesh.fast_arrays``)
+ARRAY_MIN_FACES = 64
 
 
 def decrement(s: float) -> float:
@@ -96,7 +98,7 @@ class QuadMesh:
         return self._edges
 
     def _build_edges(self):
-        t = self.arrays()
+        t = self.fast_arrays()
         if t is not None:
             self._edges = dict(zip(zip(t["a"].tolist(), t["b"].tolist()),
                                    zip(t["hf"].tolist(), t["hk"].tolist())))
@@ -123,6 +125,13 @@ class QuadMesh:
                         path=self.source, line=self.face_line(f))
                 edges[(a, b)] = (f, k)
         self._edges = edges
+
+    def fast_arrays(self) -> dict | None:
+        """``arrays()`` for meshes big enough to gain from them; None for small ones (Stam
+        configurations, templates), where the face-by-face code is quicker."""
+        if self._arr is None and len(self.faces) < ARRAY_MIN_FACES:
+            return None
+        return self.arrays()
 
     def arrays(self) -> dict | None:
         """The topology as arrays (cached), or None where the cage is not a clean manifold (a
@@ -232,7 +241,7 @@ class QuadMesh:
         return None if hit is None else (hit[0], (hit[1] + 1) % 4)
 
     def _build_fans(self):
-        t = self.arrays()
+        t = self.fast_arrays()
         if t is not None:
             fc, ptr, bnd = t["fan_c"].tolist(), t["fan_ptr"].tolist(), t["boundary"].tolist()
             pairs = [(c >> 2, c & 3) for c in fc]
@@ -392,8 +401,8 @@ class QuadMesh:
 
     def regularity_arrays(self) -> tuple[np.ndarray, np.ndarray] | None:
         """(regular, semi): ``is_regular_in`` of every corner c = 4 f + k (4F,) and
-        ``has_semi_sharp_at`` of every vertex (n,), as arrays; None where ``arrays()`` is."""
-        t = self.arrays()
+        ``has_semi_sharp_at`` of every vertex (n,), as arrays; None where ``fast_arrays()`` is."""
+        t = self.fast_arrays()
         if t is None:
             return None
         if "regular" in t:
@@ -528,7 +537,7 @@ class QuadMesh:
         new points whose rule would need the missing faces are flagged in ``tainted``, and so
         are points made from vertices flagged in ``tainted_in``.
         """
-        if self.arrays() is not None:
+        if self.fast_arrays() is not None:
             return self._refine_arrays(cut_edges, tainted_in)
         cut_edges = cut_edges or set()
         nv = self.n_vertices

@@ -14,7 +14,9 @@ Each level refines only the faces still unresolved and the two rings of faces ar
 (the support every new point of their children needs); points computed from an incomplete
 neighbourhood are flagged (``QuadMesh.refine``'s taint) and never used.
 
-``resolve(mesh, H, roots)`` returns the leaves; ``AdaptiveCells`` evaluates them: one cell
+Each level's faces are classified together (``classify_many``: regularity, stationarity and
+stencils as array operations on the level's mesh, the same numbers as ``classify`` face by
+face). ``resolve(mesh, H, roots)`` returns the leaves; ``AdaptiveCells`` evaluates them: one cell
 per root face, points located in its quadtree by one sorted search per level.
 """
 from __future__ import annotations

@@ -15,7 +15,7 @@ import numpy as np
 
 from ..errors import InputError
 from .basis import BSPLINE_TO_BEZIER
-from .adaptive import AdaptiveCells, rotation_index, classify_many, resolve
+from .adaptive import AdaptiveCells, classify_many, resolve, rotation_index
 from .cells import BezierCells, LevelCells
 from .decompose import QuadDecomposition, decompose
 from .eigen import NotSelfSimilar

@@ -23,6 +23,15 @@ neighbours), more, or a sharp vertex, a corner (v' = v). Where the rule of the c
 differs from the parent's, the two masks are blended with the parent's fractional weight
 (the mean sharpness of the edges that become smooth, and the vertex's own, capped at 1).
 Sharpness values are single precision, as OpenSubdiv keeps them.
+
+Speed: the topology is also kept as arrays (``arrays``: half-edge twins, fans in the order
+of ``fan``), and refinement, corner regularity and regular stencils are array operations
+over a whole mesh (``_refine_arrays``, ``regularity_arrays``, ``regular_stencils``). They
+give the same numbers to the bit as the face-by-face code: the refinement matrix gets each
+row's entries in the same order (scipy sums repeated entries in that order), and stencil
+terms are summed in column order from 0, as the sparse product does. The face-by-face code
+stays for meshes under ``ARRAY_MIN_FACES`` faces and for cages that are not clean manifolds,
+whose errors it names.
 """
 from __future__ import annotations
 
@@ -336,7 +345,8 @@ class QuadMesh:
 
     def _fractional_weight(self, v: int) -> float:
         """Weight of the parent rule where a vertex's rule changes (uniform creasing)."""
-        return _fractional_weight(self.vertex_sharpness(v), [self.edge_sharpness(v, w) for w in self.neighbours(v)])
+        return _fractional_weight(self.vertex_sharpness(v),
+                                  [self.edge_sharpness(v, w) for w in self.neighbours(v)])
 
     def sectors(self, v: int) -> list[list[tuple[int, int]]]:
         """v's faces split into runs between infinitely sharp edges (and the boundary)."""
@@ -639,7 +649,7 @@ class QuadMesh:
         uk, first, he_eid = np.unique(key, return_index=True, return_inverse=True)
         rank = np.empty(len(uk), dtype=np.int64)
         rank[np.argsort(first, kind="stable")] = np.arange(len(uk))
-        he_eid = rank[he_eid]                             # edge of each half-edge, in undirected_edges() order
+        he_eid = rank[he_eid]                     # each half-edge's edge, in undirected_edges() order
         ec = np.sort(first)                               # each edge's first half-edge
         ne = len(ec)
         ea, eb = lo[ec], hi[ec]
@@ -695,7 +705,7 @@ class QuadMesh:
         n = val[sv].astype(float)
         nn = n * n
         cnt = val[sv]
-        corners = fc[np.concatenate([np.arange(ptr[v], ptr[v + 1]) for v in sv]) if len(sv) else np.zeros(0, int)]
+        corners = fc[np.repeat(ptr[sv] - np.cumsum(cnt) + cnt, cnt) + np.arange(int(cnt.sum()))]
         # per row: v, then its n neighbours, then the 4 n vertices of its faces
         rl = 1 + 5 * cnt
         vstart = np.zeros(len(sv), dtype=np.int64)
@@ -968,7 +978,8 @@ class QuadMesh:
                     V[ci + di, cj + dj] = np.where(cur >= 0, cur, v)
         sides = np.stack([face[1, 0] < 0, face[1, 2] < 0, face[0, 1] < 0, face[2, 1] < 0])
         present = (V >= 0).transpose(1, 0, 2).reshape(16, N)          # grid index j*4+i
-        code = (present * (1 << np.arange(16))[:, None]).sum(0) + (sides * (1 << np.arange(16, 20))[:, None]).sum(0)
+        code = ((present * (1 << np.arange(16))[:, None]).sum(0)
+                + (sides * (1 << np.arange(16, 20))[:, None]).sum(0))
         Vf = V.transpose(1, 0, 2).reshape(16, N)
         cols = np.zeros((N, 16, 4), dtype=np.int64)
         wts = np.zeros((N, 16, 4))

@@ -14,10 +14,14 @@ Each level refines only the faces still unresolved and the two rings of faces ar
 (the support every new point of their children needs); points computed from an incomplete
 neighbourhood are flagged (``QuadMesh.refine``'s taint) and never used.
 
-``resolve(mesh, H, roots)`` returns the leaves; ``AdaptiveCells`` evaluates them: one cell
+Each level's faces are classified together (``classify_many``: regularity, stationarity and
+stencils as array operations on the level's mesh, the same numbers as ``classify`` face by
+face). ``resolve(mesh, H, roots)`` returns the leaves; ``AdaptiveCells`` evaluates them: one cell
 per root face, points located in its quadtree by one sorted search per level.
 """
 from __future__ import annotations
+
+import functools
 
 import numpy as np
 
@@ -28,6 +32,8 @@ from .eigen import NotSelfSimilar, scheme_for
 from .patch import rotation_map
 from .quadmesh import QuadMesh
 
+#: ``patch.rotation_map``, remembered (it tests all eight square maps each call)
+rotation_index = functools.lru_cache(maxsize=None)(rotation_map)
 MAX_LEVEL = 20          # semi-sharp creases are resolved after ceil(s) < 10 levels
 _OFFSET = ((0, 0), (1, 0), (1, 1), (0, 1))
 
@@ -67,7 +73,81 @@ def classify(mesh: QuadMesh, f: int, rot: int, tainted: np.ndarray | None = None
     return None
 
 
+def classify_many(mesh: QuadMesh, faces, rots, H: np.ndarray, tainted: np.ndarray | None = None) -> list:
+    """``classify`` of the faces ``faces`` (cell corner 0 at face corner ``rots``), all at once:
+    per face None, ("bezier", its 16 B-spline points (16, d) from H) or ("stam", scheme,
+    configuration, corner). Regularity, stationarity and stencils are array operations over
+    the whole mesh (``QuadMesh.regularity_arrays``, ``regular_stencils``); the points are
+    summed in the order of the sparse stencil's product, so they are the same to the bit."""
+    faces = np.asarray(faces, dtype=np.int64).reshape(-1)
+    rots = np.asarray(rots, dtype=np.int64).reshape(-1)
+    arrays = mesh.regularity_arrays()
+    if arrays is None:                               # not a clean manifold: the face-by-face path
+        out = []
+        for f, rot in zip(faces.tolist(), rots.tolist()):
+            leaf = classify(mesh, f, rot, tainted)
+            out.append(leaf if leaf is None or leaf[0] != "bezier" else ("bezier", leaf[1] @ H))
+        return out
+    regular, semi = arrays
+    reg4 = regular.reshape(-1, 4)[faces]
+    nirr = 4 - reg4.sum(axis=1)
+    semi_f = semi[mesh.faces].any(axis=1)
+    touch = np.bincount(mesh.faces.reshape(-1), weights=np.repeat(semi_f, 4),
+                        minlength=mesh.n_vertices) > 0
+    stationary = ~touch[mesh.faces[faces]].any(axis=1)
+    out: list = [None] * len(faces)
+    bez = np.nonzero(nirr == 0)[0]
+    if len(bez):
+        cols, wts, ok = mesh.regular_stencils(faces[bez], rots[bez])
+        G = mesh.stencil_points(cols, wts, H)
+        if tainted is not None and (tainted[cols] & (wts != 0.0))[ok].any():
+            raise AssertionError("a regular stencil uses a point of an incomplete neighbourhood")
+        for n, i in enumerate(bez.tolist()):
+            if ok[n]:
+                out[i] = ("bezier", G[n])
+            else:
+                stencil = mesh.regular_stencil(int(faces[i]), int(rots[i]))
+                if tainted is not None and tainted[stencil.indices].any():
+                    raise AssertionError("a regular stencil uses a point of an incomplete neighbourhood")
+                out[i] = ("bezier", stencil @ H)
+    for i in np.nonzero((nirr == 1) & stationary)[0].tolist():
+        f = int(faces[i])
+        k = int(np.nonzero(~reg4[i])[0][0])
+        try:
+            scheme, cfg = scheme_for(mesh, f, k)
+        except NotSelfSimilar:
+            continue
+        if tainted is not None and tainted[cfg].any():
+            raise AssertionError("a configuration uses a point of an incomplete neighbourhood")
+        out[i] = ("stam", scheme, cfg, k)
+    return out
+
+
 def _ring(mesh: QuadMesh, faces, rings: int) -> list[int]:
+    """The faces, then ``rings`` times the faces sharing a vertex with those so far, each
+    face once, in the order of first meeting (``neighbourhood_faces`` face by face)."""
+    t = mesh.fast_arrays()
+    if t is None:
+        return _ring_walked(mesh, faces, rings)
+    out = np.array(list(dict.fromkeys(int(f) for f in faces)), dtype=np.int64)
+    seen = np.zeros(len(mesh.faces), dtype=bool)
+    seen[out] = True
+    fc, ptr = t["fan_c"], t["fan_ptr"]
+    for _ in range(rings):
+        v = mesh.faces[out].reshape(-1)
+        cnt = ptr[v + 1] - ptr[v]
+        idx = np.repeat(ptr[v] - np.cumsum(cnt) + cnt, cnt) + np.arange(int(cnt.sum()))
+        seq = fc[idx] // 4
+        uniq, first = np.unique(seq, return_index=True)
+        new = uniq[np.argsort(first, kind="stable")]
+        new = new[~seen[new]]
+        seen[new] = True
+        out = np.concatenate([out, new])
+    return out.tolist()
+
+
+def _ring_walked(mesh: QuadMesh, faces, rings: int) -> list[int]:
+    """``_ring`` face by face, for cages ``QuadMesh.arrays`` does not take."""
     out = list(dict.fromkeys(int(f) for f in faces))
     seen = set(out)
     for _ in range(rings):
@@ -83,6 +163,40 @@ def _submesh(mesh: QuadMesh, faces: list[int]):
     """The faces as a mesh of their own: (mesh, global vertex ids, cut edges). Edges where it
     was cut out look like boundaries in it; only points flagged by the refinement's taint
     depend on that, and only faces whose neighbourhood lies inside are classified."""
+    t = mesh.fast_arrays()
+    if t is None:
+        return _submesh_walked(mesh, faces)
+    faces = np.asarray(faces, dtype=np.int64)
+    Qs = mesh.faces[faces]
+    verts = np.unique(Qs)
+    quads = np.searchsorted(verts, Qs)
+    inside = np.zeros(len(mesh.faces), dtype=bool)
+    inside[faces] = True
+    h = (4 * faces[:, None] + np.arange(4)).reshape(-1)
+    tw = t["twin"][h]
+    hit = (tw >= 0) & ~inside[np.maximum(tw, 0) // 4]
+    la = np.searchsorted(verts, t["a"][h[hit]])
+    lb = np.searchsorted(verts, t["b"][h[hit]])
+    cut = set(zip(np.minimum(la, lb).tolist(), np.maximum(la, lb).tolist()))
+    used = np.zeros(mesh.n_vertices, dtype=bool)
+    used[verts] = True
+    sharp = None
+    if mesh.sharpness:
+        kv = np.array(list(mesh.sharpness), dtype=np.int64).reshape(-1, 2)
+        keep = used[kv[:, 0]] & used[kv[:, 1]]
+        lk = np.searchsorted(verts, kv[keep]).tolist()
+        vals = [s for s, k in zip(mesh.sharpness.values(), keep.tolist()) if k]
+        sharp = {(x, y): s for (x, y), s in zip(lk, vals)}
+    corners = None
+    if mesh.corner_sharpness:
+        corners = {int(np.searchsorted(verts, v)): s for v, s in mesh.corner_sharpness.items() if used[v]}
+    lines = None if mesh.face_lines is None else mesh.face_lines[faces]
+    sub = QuadMesh(quads, len(verts), mesh.boundary_rule, mesh.source, lines, sharp or None, corners or None)
+    return sub, verts, cut
+
+
+def _submesh_walked(mesh: QuadMesh, faces: list[int]):
+    """``_submesh`` face by face, for cages ``QuadMesh.arrays`` does not take."""
     verts = sorted({int(v) for f in faces for v in mesh.faces[f]})
     loc = {v: i for i, v in enumerate(verts)}
     quads = np.array([[loc[int(v)] for v in mesh.faces[f]] for f in faces])
@@ -122,17 +236,17 @@ def resolve(mesh: QuadMesh, H: np.ndarray, roots: list[tuple[int, int]]) -> list
     cur, Hc, tainted = mesh, H, np.zeros(mesh.n_vertices, dtype=bool)
     for level in range(MAX_LEVEL + 1):
         todo = []
-        for f, r, L, i, j, rot in items:
-            leaf = classify(cur, f, rot, tainted)
+        found = classify_many(cur, [t[0] for t in items], [t[5] for t in items], Hc, tainted)
+        for (f, r, L, i, j, rot), leaf in zip(items, found):
             if leaf is None:
                 todo.append((f, r, L, i, j, rot))
             elif leaf[0] == "bezier":
-                G = (leaf[1] @ Hc).reshape(4, 4, 4)
+                G = leaf[1].reshape(4, 4, 4)
                 leaves[r].append((L, i, j, ("bezier", np.einsum("aj,bi,jic->abc", BSPLINE_TO_BEZIER,
                                                                  BSPLINE_TO_BEZIER, G))))
             else:
                 _, scheme, cfg, k = leaf
-                leaves[r].append((L, i, j, ("stam", scheme, Hc[cfg], rotation_map((rot - k) % 4))))
+                leaves[r].append((L, i, j, ("stam", scheme, Hc[cfg], rotation_index((rot - k) % 4))))
         if not todo:
             return leaves
         if level == MAX_LEVEL:

@@ -15,12 +15,12 @@ import numpy as np
 
 from ..errors import InputError
 from .basis import BSPLINE_TO_BEZIER
-from .adaptive import AdaptiveCells, classify, resolve
+from .adaptive import AdaptiveCells, classify_many, resolve, rotation_index
 from .cells import BezierCells, LevelCells
 from .decompose import QuadDecomposition, decompose
 from .eigen import NotSelfSimilar
 from .model import ExtraordinaryPoint, FaceMap, Model, link_patches
-from .patch import CORNER_UV, Patch, rotation_map
+from .patch import CORNER_UV, Patch
 from .quadmesh import QuadMesh
 
 
@@ -91,15 +91,15 @@ def _build_patches(mesh: QuadMesh, H0: np.ndarray, dec: QuadDecomposition, level
         bez, eig, deep = [], {}, []
         items = _children([(int(f), int(i), int(j), int(rot))
                            for f, (i, j), rot in zip(reg.faces, reg.cell, reg.rot)], level)
-        for e, ci, cj, re in items:
-            leaf = classify(emesh, e, re)
+        found = classify_many(emesh, [t[0] for t in items], [t[3] for t in items], He)
+        for (e, ci, cj, re), leaf in zip(items, found):
             if leaf is None:                 # near semi-sharp creases, several irregular corners
                 local[ci, cj] = len(deep)
                 group[ci, cj] = -3
                 deep.append((e, re))
                 continue
             if leaf[0] == "bezier":
-                G = (leaf[1] @ He).reshape(4, 4, 4)      # [j, i, c]
+                G = leaf[1].reshape(4, 4, 4)             # [j, i, c]
                 local[ci, cj] = len(bez)
                 group[ci, cj] = -1
                 bez.append(np.einsum("aj,bi,jic->abc", M, M, G))
@@ -109,7 +109,7 @@ def _build_patches(mesh: QuadMesh, H0: np.ndarray, dec: QuadDecomposition, level
             local[ci, cj] = len(lst[1])
             group[ci, cj] = -4 - list(eig).index(id(scheme))
             lst[1].append(He[cfg])
-            lst[2].append(rotation_map((re - k) % 4))
+            lst[2].append(rotation_index((re - k) % 4))
             lst[3].append((int(emesh.faces[e][k]), e))
         groups, gid = [], {}
         if bez:
@@ -166,7 +166,7 @@ def _finish(mesh: QuadMesh, dec: QuadDecomposition, patches: list[Patch], cage: 
     for reg in dec.regions:
         for f, c, rot in zip(reg.faces, reg.cell, reg.rot):
             fmap_cell[f] = c
-            fmap_map[f] = rotation_map((-int(rot)) % 4)     # face corner c -> cell corner c - rot
+            fmap_map[f] = rotation_index((-int(rot)) % 4)     # face corner c -> cell corner c - rot
             fmap_size[f] = reg.size
     model = Model(patches, node_points, eps, "catmull-clark", mesh.source,
                   FaceMap(fmap_patch, fmap_cell, fmap_map, fmap_size), control=cage, name=name)

@@ -195,13 +195,12 @@ def scheme_for(mesh: QuadMesh, face: int, corner: int) -> tuple[SubdivisionSchem
     faces = mesh.neighbourhood_faces(face)
     tfaces = np.array([[local[int(v)] for v in mesh.faces[g]] for g in faces])
     real_boundary, cut = [], set()
+    directed = {(int(mesh.faces[h][m]), int(mesh.faces[h][(m + 1) % 4])) for h in faces for m in range(4)}
     for g in faces:
         quad = mesh.faces[g]
         for k in range(4):
             a, b = int(quad[k]), int(quad[(k + 1) % 4])
-            in_sub = any((int(mesh.faces[h][(m + 1) % 4]), int(mesh.faces[h][m])) == (a, b)
-                         for h in faces for m in range(4))
-            if in_sub:
+            if (b, a) in directed:           # the edge's other side is in the neighbourhood
                 continue
             la, lb = local[a], local[b]
             key = (min(la, lb), max(la, lb))

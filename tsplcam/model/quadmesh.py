@@ -23,9 +23,19 @@ neighbours), more, or a sharp vertex, a corner (v' = v). Where the rule of the c
 differs from the parent's, the two masks are blended with the parent's fractional weight
 (the mean sharpness of the edges that become smooth, and the vertex's own, capped at 1).
 Sharpness values are single precision, as OpenSubdiv keeps them.
+
+Speed: the topology is also kept as arrays (``arrays``: half-edge twins, fans in the order
+of ``fan``), and refinement, corner regularity and regular stencils are array operations
+over a whole mesh (``_refine_arrays``, ``regularity_arrays``, ``regular_stencils``). They
+give the same numbers to the bit as the face-by-face code: the refinement matrix gets each
+row's entries in the same order (scipy sums repeated entries in that order), and stencil
+terms are summed in column order from 0, as the sparse product does. The face-by-face code
+stays for meshes under ``ARRAY_MIN_FACES`` faces and for cages that are not clean manifolds,
+whose errors it names.
 """
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -37,6 +47,8 @@ BOUNDARY_RULES = ("edge-only", "edge-and-corner")
 #: sharpness at or above which an edge or vertex is infinitely sharp (OpenSubdiv's
 #: ``Sdc::Crease::SHARPNESS_INFINITE``)
 INFINITE = 10.0
+#: meshes with fewer faces are refined and classified face by face (``QuadMesh.fast_arrays``)
+ARRAY_MIN_FACES = 64
 
 
 def decrement(s: float) -> float:
@@ -66,6 +78,7 @@ class QuadMesh:
     corner_sharpness: dict | None = None
     _edges: dict = field(default=None, init=False, repr=False)
     _fans: list = field(default=None, init=False, repr=False)
+    _arr: dict = field(default=None, init=False, repr=False)
 
     def __post_init__(self):
         self.faces = np.asarray(self.faces, dtype=int).reshape(-1, 4)
@@ -94,6 +107,15 @@ class QuadMesh:
         return self._edges
 
     def _build_edges(self):
+        t = self.fast_arrays()
+        if t is not None:
+            self._edges = dict(zip(zip(t["a"].tolist(), t["b"].tolist()),
+                                   zip(t["hf"].tolist(), t["hk"].tolist())))
+            return
+        self._build_edges_checked()
+
+    def _build_edges_checked(self):
+        """The directed-edge map built edge by edge, raising the error of the first bad edge."""
         edges = {}
         for f, quad in enumerate(self.faces):
             for k in range(4):
@@ -112,6 +134,86 @@ class QuadMesh:
                         path=self.source, line=self.face_line(f))
                 edges[(a, b)] = (f, k)
         self._edges = edges
+
+    def fast_arrays(self) -> dict | None:
+        """``arrays()`` for meshes big enough to gain from them; None for small ones (Stam
+        configurations, templates), where the face-by-face code is quicker."""
+        if self._arr is None and len(self.faces) < ARRAY_MIN_FACES:
+            return None
+        return self.arrays()
+
+    def arrays(self) -> dict | None:
+        """The topology as arrays (cached), or None where the cage is not a clean manifold (a
+        face repeating a vertex, a repeated directed edge, a non-manifold vertex: the Python
+        walks of ``_build_edges_checked``/``_build_fans_walked`` then raise the errors).
+
+        Half-edge (and corner) c = 4 f + k runs from a[c] = faces[f][k] to b[c] =
+        faces[f][k+1]; twin[c] is the opposite half-edge or -1 on the boundary. fan_c lists the
+        corners of each vertex in the order of ``fan`` (fan_ptr: CSR offsets), boundary[v]
+        whether v is a boundary vertex."""
+        if self._arr is not None:
+            return self._arr or None
+        self._arr = {}
+        F, n = len(self.faces), self.n_vertices
+        if F == 0 or self.faces.min() < 0 or self.faces.max() >= n:
+            return None
+        a = self.faces.reshape(-1)
+        b = self.faces[:, (1, 2, 3, 0)].reshape(-1)
+        srt = np.sort(self.faces, axis=1)
+        if (srt[:, 1:] == srt[:, :-1]).any():
+            return None                      # a face uses a vertex twice
+        key = a.astype(np.int64) * n + b
+        order = np.argsort(key, kind="stable")
+        ks = key[order]
+        if len(ks) > 1 and (ks[1:] == ks[:-1]).any():
+            return None                      # a directed edge used twice
+        rkey = b.astype(np.int64) * n + a
+        pos = np.minimum(np.searchsorted(ks, rkey), len(ks) - 1)
+        twin = np.where(ks[pos] == rkey, order[pos], -1)
+        c = np.arange(4 * F)
+        f4 = c - c % 4
+        # around vertex a[c]: next turns across edge (v, prev), prev across (v, next)
+        inc = f4 + (c + 3) % 4
+        nxt = twin[inc]                                          # corner of the twin's face at v
+        prv = np.where(twin >= 0, (twin - twin % 4) + (twin + 1) % 4, -1)
+        cnt = np.bincount(a, minlength=n)
+        heads = np.bincount(a[prv < 0], minlength=n)
+        if (heads > 1).any():
+            return None
+        boundary = heads == 1
+        # closed fans start at the vertex's first corner (lowest c): cut the cycle there
+        fan_ptr = np.zeros(n + 1, dtype=np.int64)
+        np.cumsum(cnt, out=fan_ptr[1:])
+        by_vertex = np.argsort(a, kind="stable")
+        closed = np.nonzero(~boundary & (cnt > 0))[0]
+        prv_cut = prv.copy()
+        prv_cut[by_vertex[fan_ptr[closed]]] = -1
+        # list ranking by pointer doubling: rank = steps back to the fan's first corner
+        rank = (prv_cut >= 0).astype(np.int64)
+        ptr = prv_cut.copy()
+        for _ in range(64):
+            live = ptr >= 0
+            if not live.any():
+                break
+            rank[live] += rank[ptr[live]]
+            ptr[live] = ptr[ptr[live]]
+        else:
+            return None
+        fan_c = np.lexsort((rank, a))
+        expect = np.arange(4 * F) - np.repeat(fan_ptr[:-1], cnt)
+        if not np.array_equal(rank[fan_c], expect):
+            return None                      # several fans (or cycles) around one vertex
+        # the fan order must follow ``nxt`` from corner to corner, as the walk does
+        fa = fan_c
+        last = np.zeros(4 * F, dtype=bool)
+        last[fan_ptr[1:][cnt > 0] - 1] = True
+        if not np.array_equal(nxt[fa[:-1]][~last[:-1]], fa[1:][~last[:-1]]):
+            return None
+        pos_in_fan = np.empty(4 * F, dtype=np.int64)
+        pos_in_fan[fan_c] = expect
+        self._arr = dict(a=a, b=b, twin=twin, hf=c // 4, hk=c % 4, fan_c=fan_c, fan_ptr=fan_ptr,
+                         boundary=boundary, valence=cnt, pos=pos_in_fan)
+        return self._arr
 
     def is_boundary_edge(self, a: int, b: int) -> bool:
         return ((a, b) in self.edges) != ((b, a) in self.edges)
@@ -148,6 +250,16 @@ class QuadMesh:
         return None if hit is None else (hit[0], (hit[1] + 1) % 4)
 
     def _build_fans(self):
+        t = self.fast_arrays()
+        if t is not None:
+            fc, ptr, bnd = t["fan_c"].tolist(), t["fan_ptr"].tolist(), t["boundary"].tolist()
+            pairs = [(c >> 2, c & 3) for c in fc]
+            self._fans = [(pairs[ptr[v]:ptr[v + 1]], bnd[v]) for v in range(self.n_vertices)]
+            return
+        self._build_fans_walked()
+
+    def _build_fans_walked(self):
+        """Fans by walking around each vertex, raising the error of the first non-manifold one."""
         incident = [[] for _ in range(self.n_vertices)]
         for f, quad in enumerate(self.faces):
             for k in range(4):
@@ -233,16 +345,8 @@ class QuadMesh:
 
     def _fractional_weight(self, v: int) -> float:
         """Weight of the parent rule where a vertex's rule changes (uniform creasing)."""
-        count, total = 0, 0.0
-        sv = self.vertex_sharpness(v)
-        if sv > 0.0 and decrement(sv) <= 0.0:
-            count, total = 1, sv
-        for w in self.neighbours(v):
-            s = self.edge_sharpness(v, w)
-            if 0.0 < s <= 1.0:
-                count += 1
-                total += s
-        return 0.0 if count == 0 else min(1.0, total / count)
+        return _fractional_weight(self.vertex_sharpness(v),
+                                  [self.edge_sharpness(v, w) for w in self.neighbours(v)])
 
     def sectors(self, v: int) -> list[list[tuple[int, int]]]:
         """v's faces split into runs between infinitely sharp edges (and the boundary)."""
@@ -278,6 +382,72 @@ class QuadMesh:
         if is_semi_sharp(self.vertex_sharpness(v)):
             return True
         return any(is_semi_sharp(self.edge_sharpness(v, w)) for w in self.neighbours(v))
+
+    def sharpness_arrays(self) -> tuple[np.ndarray, np.ndarray]:
+        """``edge_sharpness`` of every half-edge (4F,) and ``vertex_sharpness`` of every vertex
+        (n,), as arrays (cached; needs ``arrays()``)."""
+        t = self._arr
+        if "he_sharp" not in t:
+            a, b, n = t["a"], t["b"], self.n_vertices
+            hs = np.zeros(len(a))
+            if self.sharpness:
+                kv = np.array(list(self.sharpness), dtype=np.int64).reshape(-1, 2)
+                keys = kv[:, 0] * n + kv[:, 1]
+                vals = np.array(list(self.sharpness.values()), dtype=float)
+                srt = np.argsort(keys)
+                keys, vals = keys[srt], vals[srt]
+                q = np.minimum(a, b).astype(np.int64) * n + np.maximum(a, b)
+                pos = np.minimum(np.searchsorted(keys, q), len(keys) - 1)
+                hit = keys[pos] == q
+                hs[hit] = vals[pos[hit]]
+            hs[t["twin"] < 0] = INFINITE
+            vs = np.zeros(n)
+            if self.corner_sharpness:
+                vs[list(self.corner_sharpness)] = list(self.corner_sharpness.values())
+            if self.boundary_rule == "edge-and-corner":
+                vs[t["boundary"] & (t["valence"] == 1)] = INFINITE
+            t["he_sharp"], t["v_sharp"] = hs, vs
+        return t["he_sharp"], t["v_sharp"]
+
+    def regularity_arrays(self) -> tuple[np.ndarray, np.ndarray] | None:
+        """(regular, semi): ``is_regular_in`` of every corner c = 4 f + k (4F,) and
+        ``has_semi_sharp_at`` of every vertex (n,), as arrays; None where ``fast_arrays()`` is."""
+        t = self.fast_arrays()
+        if t is None:
+            return None
+        if "regular" in t:
+            return t["regular"], t["semi"]
+        hs, vs = self.sharpness_arrays()
+        a, n = t["a"], self.n_vertices
+        semi_e = (hs > 0.0) & (hs < INFINITE)
+        semi = ((vs > 0.0) & (vs < INFINITE)) | (np.bincount(a, weights=semi_e, minlength=n) > 0)
+        bnd, val = t["boundary"], t["valence"]
+        # sharp edges at v: its outgoing half-edges, and the incoming boundary edge
+        nsharp = np.bincount(a, weights=hs > 0.0, minlength=n).astype(np.int64) + bnd
+        kind = np.where(vs > 0.0, 2, np.where(nsharp > 2, 2, np.where(nsharp == 2, 1, 0)))
+        # sectors: fans cut after corners whose edge to the previous vertex is infinitely sharp
+        fc, ptr = t["fan_c"], t["fan_ptr"]
+        inc = fc - fc % 4 + (fc + 3) % 4
+        cut = (hs[inc] >= INFINITE).astype(np.int64)
+        av = a[fc]
+        ends = ptr[1:][val > 0] - 1
+        cut[ends[bnd[val > 0]]] = 0                # a boundary fan's last corner ends it anyway
+        cs = np.cumsum(cut) - cut                  # cuts before each corner
+        base = np.zeros(n, dtype=np.int64)
+        base[val > 0] = cs[ptr[:-1][val > 0]]
+        sid = cs - base[av]
+        ncut = np.bincount(av, weights=cut, minlength=n).astype(np.int64)
+        wrap = ~bnd[av] & (ncut[av] > 0)
+        sid[wrap] %= ncut[av][wrap]
+        gid = ptr[:-1][av] + sid
+        size = np.bincount(gid, minlength=len(fc))[gid]
+        regular = np.zeros(len(a), dtype=bool)
+        k = kind[av]
+        reg_fan = np.where(k == 0, ~bnd[av] & (val[av] == 4) & (nsharp[av] == 0),
+                           size == np.where(k == 1, 2, 1))
+        regular[fc] = reg_fan & ~semi[av]
+        t["regular"], t["semi"] = regular, semi
+        return regular, semi
 
     def is_regular_in(self, v: int, f: int) -> bool:
         """Whether the limit surface of face f near its corner v is a plain B-spline (with
@@ -377,6 +547,8 @@ class QuadMesh:
         new points whose rule would need the missing faces are flagged in ``tainted``, and so
         are points made from vertices flagged in ``tainted_in``.
         """
+        if self.fast_arrays() is not None:
+            return self._refine_arrays(cut_edges, tainted_in)
         cut_edges = cut_edges or set()
         nv = self.n_vertices
         und = self.undirected_edges()
@@ -459,6 +631,183 @@ class QuadMesh:
             corners = {v: decrement(s_) for v, s_ in self.corner_sharpness.items() if decrement(s_) > 0.0}
         mesh = QuadMesh(child, nv + ne + nf, self.boundary_rule, self.source, lines, sharpness or None,
                         corners or None)
+        return mesh, R, tainted
+
+    def _refine_arrays(self, cut_edges: set | None, tainted_in: np.ndarray | None
+                       ) -> tuple["QuadMesh", sp.csr_matrix, np.ndarray]:
+        """``refine`` with the topology as arrays: the same matrix entry for entry, each row's
+        entries in the same order (so scipy sums repeated entries alike), smooth vertices'
+        masks written as arrays and the few crease and corner vertices one by one."""
+        t = self.arrays()
+        nv, nf = self.n_vertices, len(self.faces)
+        a, b, twin, Q = t["a"], t["b"], t["twin"], self.faces
+        hc = np.arange(4 * nf)
+        inc = hc - hc % 4 + (hc + 3) % 4                  # the half-edge into each corner
+        lo = np.minimum(a, b).astype(np.int64)
+        hi = np.maximum(a, b).astype(np.int64)
+        key = lo * nv + hi
+        uk, first, he_eid = np.unique(key, return_index=True, return_inverse=True)
+        rank = np.empty(len(uk), dtype=np.int64)
+        rank[np.argsort(first, kind="stable")] = np.arange(len(uk))
+        he_eid = rank[he_eid]                     # each half-edge's edge, in undirected_edges() order
+        ec = np.sort(first)                               # each edge's first half-edge
+        ne = len(ec)
+        ea, eb = lo[ec], hi[ec]
+        rows, cols, vals = [], [], []
+        # face points
+        rows.append(np.repeat(nv + ne + np.arange(nf), 4))
+        cols.append(Q.reshape(-1))
+        vals.append(np.full(4 * nf, 0.25))
+        tainted = np.zeros(nv + ne + nf, dtype=bool)
+        cut_he = np.zeros(4 * nf, dtype=bool)
+        if cut_edges:
+            ck = np.array([x * nv + y for x, y in cut_edges], dtype=np.int64)
+            cut_he = np.isin(key, ck)
+            tainted[nv:nv + ne] = cut_he[ec]
+        # edge points: smooth (a + b + F1 + F2) / 4, crease (a + b) / 2, blended for 0 < s < 1
+        hs, _ = self.sharpness_arrays()
+        sharp = hs[ec]
+        hard = sharp >= 1.0
+        r_e = nv + np.arange(ne)
+        h1 = np.where(a[ec] == ea, ec, twin[ec])          # half-edge ea -> eb, and eb -> ea
+        h2 = np.where(a[ec] == ea, twin[ec], ec)
+        soft = np.nonzero(~hard)[0]
+        wab = np.where(hard, 0.5, 0.25 + 0.25 * sharp)
+        wf = 0.0625 * (1.0 - sharp[soft])
+        Fs = np.concatenate([Q[h1[soft] // 4], Q[h2[soft] // 4]], axis=1)        # (m, 8)
+        nrow = np.where(hard, 2, 10)
+        start = np.zeros(ne, dtype=np.int64)
+        np.cumsum(nrow[:-1], out=start[1:])
+        er = np.empty(int(nrow.sum()), dtype=np.int64)
+        ecol = np.empty_like(er)
+        ev = np.empty(len(er))
+        er[start], ecol[start], ev[start] = r_e, ea, wab
+        er[start + 1], ecol[start + 1], ev[start + 1] = r_e, eb, wab
+        pos = start[soft][:, None] + 2 + np.arange(8)
+        er[pos], ecol[pos], ev[pos] = r_e[soft][:, None], Fs, wf[:, None]
+        rows.append(er)
+        cols.append(ecol)
+        vals.append(ev)
+        # vertex points: smooth vertices by arrays, the rest as ``refine`` does them
+        fc, ptr, val, bnd = t["fan_c"], t["fan_ptr"], t["valence"], t["boundary"]
+        if cut_edges:
+            tv = np.zeros(nv, dtype=bool)
+            tv[a[cut_he]] = True
+            tv[b[cut_he]] = True
+            tainted[:nv] |= tv
+        if self.creased:
+            _, vs = self.sharpness_arrays()
+            nsharp = np.bincount(a, weights=hs > 0.0, minlength=nv).astype(np.int64) + bnd
+            smooth = (vs <= 0.0) & (nsharp < 2) & (val > 0)
+        else:
+            smooth = ~bnd & (val > 0)
+        sv = np.nonzero(smooth)[0]
+        n = val[sv].astype(float)
+        nn = n * n
+        cnt = val[sv]
+        corners = fc[np.repeat(ptr[sv] - np.cumsum(cnt) + cnt, cnt) + np.arange(int(cnt.sum()))]
+        # per row: v, then its n neighbours, then the 4 n vertices of its faces
+        rl = 1 + 5 * cnt
+        vstart = np.zeros(len(sv), dtype=np.int64)
+        np.cumsum(rl[:-1], out=vstart[1:])
+        m = int(rl.sum())
+        vr = np.repeat(sv, rl)
+        vcol = np.empty(m, dtype=np.int64)
+        vval = np.empty(m)
+        vcol[vstart], vval[vstart] = sv, (n - 2.0) / n
+        grp = np.repeat(np.arange(len(sv)), cnt)                       # vertex of each fan corner
+        j = np.arange(len(corners)) - np.repeat(np.cumsum(cnt) - cnt, cnt)
+        pn = vstart[grp] + 1 + j
+        vcol[pn], vval[pn] = b[corners], (1.0 / nn)[grp]
+        pf = (vstart[grp] + 1 + cnt[grp] + 4 * j)[:, None] + np.arange(4)
+        vcol[pf], vval[pf] = Q[corners // 4], (0.25 / nn)[grp][:, None]
+        rows.append(vr)
+        cols.append(vcol)
+        vals.append(vval)
+        prow, pcol, pval = [], [], []
+
+        def put(r, c, w):
+            prow.append(r)
+            pcol.append(c)
+            pval.append(w)
+
+        # crease and corner vertices whose rule stays: one mask each, as arrays
+        rest = np.nonzero(~smooth & (val > 0))[0]
+        L = val + bnd
+        nb_ptr = np.zeros(nv + 1, dtype=np.int64)
+        np.cumsum(L, out=nb_ptr[1:])
+        nb = np.empty(int(nb_ptr[-1]), dtype=np.int64)         # ``neighbours`` of every vertex
+        nb_s = np.full(len(nb), INFINITE)                       # and the sharpness of each edge
+        fv = a[fc]
+        fj = np.arange(len(fc)) - ptr[fv]
+        nb[nb_ptr[fv] + fj] = b[fc]
+        ends_at = np.nonzero(bnd & (val > 0))[0]
+        nb[nb_ptr[ends_at] + val[ends_at]] = a[inc[fc[ptr[ends_at + 1] - 1]]]
+        if self.creased:
+            nb_s[nb_ptr[fv] + fj] = hs[fc]
+            dec = _decrement_array
+            owner = np.repeat(np.arange(nv), L)
+
+            def rule_kind(vsx, nsx):
+                sharp = nsx > 0.0
+                count = np.bincount(owner, weights=sharp, minlength=nv)
+                kind = np.where(vsx > 0.0, 2, np.where(count > 2, 2, np.where(count == 2, 1, 0)))
+                cum = np.cumsum(sharp) - np.repeat(np.concatenate([[0], np.cumsum(sharp)])[nb_ptr[:-1]], L)
+                e0 = np.zeros(nv, dtype=np.int64)
+                e1 = np.zeros(nv, dtype=np.int64)
+                e0[owner[sharp & (cum == 1)]] = nb[sharp & (cum == 1)]
+                e1[owner[sharp & (cum == 2)]] = nb[sharp & (cum == 2)]
+                return kind, e0, e1
+
+            kind, e0, e1 = rule_kind(vs, nb_s)
+            ckind, c0, c1 = rule_kind(dec(vs), dec(nb_s))
+            stays = rest[ckind[rest] == kind[rest]]
+            blend = rest[ckind[rest] != kind[rest]]
+        else:
+            kind = np.where(val == 1, 2 if self.boundary_rule == "edge-and-corner" else 1, 1)
+            e0, e1 = nb[nb_ptr[:-1].clip(max=len(nb) - 1)], nb[(nb_ptr[1:] - 1).clip(min=0)]
+            stays, blend = rest, rest[:0]
+        cv = stays[kind[stays] == 2]
+        rows.append(cv)
+        cols.append(cv)
+        vals.append(np.ones(len(cv)))
+        kv = stays[kind[stays] == 1]
+        rows.append(np.repeat(kv, 3))
+        cols.append(np.stack([kv, e0[kv], e1[kv]], axis=1).reshape(-1))
+        vals.append(np.tile([0.75, 0.125, 0.125], len(kv)))
+        names = ("smooth", "crease", "corner")
+        for v in blend.tolist():                          # rules blended by the fractional weight
+            fan = [(c >> 2, c & 3) for c in fc[ptr[v]:ptr[v + 1]].tolist()]
+            nbrs = nb[nb_ptr[v]:nb_ptr[v + 1]].tolist()
+            rule = (names[kind[v]], (int(e0[v]), int(e1[v])) if kind[v] == 1 else ())
+            child = (names[ckind[v]], (int(c0[v]), int(c1[v])) if ckind[v] == 1 else ())
+            w = _fractional_weight(float(vs[v]), nb_s[nb_ptr[v]:nb_ptr[v + 1]].tolist())
+            self._put_vertex_mask(put, v, fan, nbrs, rule, w)
+            self._put_vertex_mask(put, v, fan, nbrs, child, 1.0 - w)
+        rows.append(np.array(prow, dtype=np.int64))
+        cols.append(np.array(pcol, dtype=np.int64))
+        vals.append(np.array(pval, dtype=float))
+        R = sp.csr_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
+                          shape=(nv + ne + nf, nv))
+        R.sum_duplicates()
+        if tainted_in is not None and tainted_in.any():
+            tainted |= (abs(R) @ tainted_in.astype(float)) > 0
+        child = np.stack([a, nv + he_eid, nv + ne + hc // 4, nv + he_eid[inc]], axis=1)
+        lines = None if self.face_lines is None else np.repeat(self.face_lines, 4)
+        sharpness, corners_ = None, None
+        if self.sharpness:
+            eid = dict(zip(zip(ea.tolist(), eb.tolist()), range(ne)))
+            sharpness = {}
+            for (x, y), s_ in self.sharpness.items():
+                c_ = decrement(s_)
+                if c_ > 0.0 and (x, y) in eid:
+                    e = nv + eid[(x, y)]
+                    sharpness[(x, e)] = c_
+                    sharpness[(y, e)] = c_
+        if self.corner_sharpness:
+            corners_ = {v: decrement(s_) for v, s_ in self.corner_sharpness.items() if decrement(s_) > 0.0}
+        mesh = QuadMesh(child, nv + ne + nf, self.boundary_rule, self.source, lines, sharpness or None,
+                        corners_ or None)
         return mesh, R, tainted
 
     def _put_vertex_mask(self, put, v, fan, nbrs, rule, weight):
@@ -569,6 +918,97 @@ class QuadMesh:
         M.sum_duplicates()
         return M
 
+    def regular_stencils(self, f: np.ndarray, k0: np.ndarray):
+        """``regular_stencil`` of many faces at once, as (cols, weights, ok): (n, 16, 4) arrays
+        whose row r lists the terms of stencil row r in increasing column order (padding:
+        weight 0 after them), so that summing weight * point in that order from 0 repeats the
+        sparse product bit for bit (``stencil_points``). ``ok`` is False for faces whose
+        neighbourhood is not a plain 3 x 3 grid of cells (folds, cells reached round a
+        corner, one vertex twice in a row's terms): ``regular_stencil`` handles those,
+        errors included. Needs ``arrays()``."""
+        t = self.arrays()
+        hs, _ = self.sharpness_arrays()
+        twin, Q = t["twin"], self.faces
+        f = np.asarray(f, dtype=np.int64).reshape(-1)
+        N = len(f)
+        face = np.full((3, 3, N), -1, dtype=np.int64)
+        rot = np.zeros((3, 3, N), dtype=np.int64)
+        face[1, 1], rot[1, 1] = f, np.asarray(k0, dtype=np.int64).reshape(-1)
+
+        def across(ci, cj, m):
+            fc = face[ci, cj]
+            h = 4 * np.maximum(fc, 0) + (rot[ci, cj] + m) % 4
+            tw = twin[h]
+            ok = (fc >= 0) & (tw >= 0) & (hs[h] < INFINITE)
+            return ok, tw // 4, (tw % 4 - (m + 2)) % 4
+
+        edge_cells = ((1, 0), (2, 1), (1, 2), (0, 1))
+        bad = np.zeros(N, dtype=bool)
+        for m, (ni, nj) in enumerate(edge_cells):
+            ok, g, rg = across(1, 1, m)
+            face[ni, nj] = np.where(ok, g, -1)
+            rot[ni, nj] = np.where(ok, rg, 0)
+        corner_cells = []
+        for ci, cj in edge_cells:                      # the breadth-first order of regular_stencil
+            for m, (di, dj) in enumerate(_STEPS):
+                ni, nj = ci + di, cj + dj
+                if not (0 <= ni <= 2 and 0 <= nj <= 2) or (ni, nj) == (1, 1) or (ni, nj) in edge_cells:
+                    continue
+                ok, g, rg = across(ci, cj, m)
+                new = ok & (face[ni, nj] < 0)
+                face[ni, nj] = np.where(new, g, face[ni, nj])
+                rot[ni, nj] = np.where(new, rg, rot[ni, nj])
+                if (ni, nj) not in corner_cells:
+                    corner_cells.append((ni, nj))
+        for ci, cj in corner_cells:                    # a second wave would reach missing edge cells
+            for m, (di, dj) in enumerate(_STEPS):
+                ni, nj = ci + di, cj + dj
+                if (ni, nj) in edge_cells:
+                    ok, _, _ = across(ci, cj, m)
+                    bad |= ok & (face[ni, nj] < 0)
+        V = np.full((4, 4, N), -1, dtype=np.int64)      # grid point (i, j)
+        for ci in range(3):
+            for cj in range(3):
+                fc = face[ci, cj]
+                there = fc >= 0
+                for m, (di, dj) in enumerate(_OFFSETS):
+                    v = np.where(there, Q[np.maximum(fc, 0), (rot[ci, cj] + m) % 4], -1)
+                    cur = V[ci + di, cj + dj]
+                    bad |= there & (cur >= 0) & (cur != v)
+                    V[ci + di, cj + dj] = np.where(cur >= 0, cur, v)
+        sides = np.stack([face[1, 0] < 0, face[1, 2] < 0, face[0, 1] < 0, face[2, 1] < 0])
+        present = (V >= 0).transpose(1, 0, 2).reshape(16, N)          # grid index j*4+i
+        code = ((present * (1 << np.arange(16))[:, None]).sum(0)
+                + (sides * (1 << np.arange(16, 20))[:, None]).sum(0))
+        Vf = V.transpose(1, 0, 2).reshape(16, N)
+        cols = np.zeros((N, 16, 4), dtype=np.int64)
+        wts = np.zeros((N, 16, 4))
+        for c in np.unique(code):
+            sel = np.nonzero(code == c)[0]
+            pat = _phantom_pattern(int(c))
+            if pat is None:
+                bad[sel] = True
+                continue
+            gp, w = pat                                  # (16, 4) grid indices (-1: none), weights
+            vid = np.where(gp[None] >= 0, Vf[:, sel][np.maximum(gp, 0)].transpose(2, 0, 1), -1)   # (n, 16, 4)
+            real = vid >= 0
+            srt = np.sort(np.where(real, vid, -1), axis=2)
+            bad[sel] |= ((srt[:, :, 1:] == srt[:, :, :-1]) & (srt[:, :, 1:] >= 0)).any(axis=(1, 2))
+            big = np.iinfo(np.int64).max
+            order = np.argsort(np.where(real, vid, big), axis=2, kind="stable")
+            cols[sel] = np.take_along_axis(np.where(real, vid, 0), order, axis=2)
+            wts[sel] = np.take_along_axis(np.broadcast_to(w, vid.shape), order, axis=2)
+        return cols, wts, ~bad
+
+    @staticmethod
+    def stencil_points(cols: np.ndarray, wts: np.ndarray, H: np.ndarray) -> np.ndarray:
+        """Stencils (``regular_stencils``) applied to points H: (n, 16, d), summed term by term
+        in column order from 0 as scipy's sparse product does."""
+        out = np.zeros(cols.shape[:2] + H.shape[1:])
+        for t in range(cols.shape[2]):
+            out = out + wts[:, :, t, None] * H[cols[:, :, t]]
+        return out
+
     def config(self, f: int, k: int) -> list[int]:
         """Vertices of the faces around the corners of face f, in a canonical order starting
         at corner k: the configuration whose subdivision is closed (Stam 1998's 2N+8 points
@@ -595,3 +1035,66 @@ class QuadMesh:
                     seen.add(g)
                     out.append(g)
         return out
+
+
+def _fractional_weight(sv: float, edges: list) -> float:
+    """The parent rule's weight for a vertex of sharpness sv with edges of these sharpnesses
+    (in ``neighbours`` order): the mean of the sharpness values that drop to 0, capped at 1."""
+    count, total = 0, 0.0
+    if sv > 0.0 and decrement(sv) <= 0.0:
+        count, total = 1, sv
+    for s in edges:
+        if 0.0 < s <= 1.0:
+            count += 1
+            total += s
+    return 0.0 if count == 0 else min(1.0, total / count)
+
+
+def _decrement_array(s: np.ndarray) -> np.ndarray:
+    """``decrement`` of an array of sharpness values (the same single-precision steps)."""
+    step = (s.astype(np.float32) - np.float32(1.0)).astype(float)
+    return np.where(s >= INFINITE, INFINITE, np.where(s > 1.0, step, 0.0))
+
+
+_STEPS = ((0, -1), (1, 0), (0, 1), (-1, 0))          # across cell edge m
+_OFFSETS = ((0, 0), (1, 0), (1, 1), (0, 1))          # cell corner m
+
+
+@functools.lru_cache(maxsize=None)
+def _phantom_pattern(code: int):
+    """The rows of ``regular_stencil`` for one pattern of present grid points (bits 0-15, grid
+    index j*4+i) and missing side cells (bits 16-19: (1,0), (1,2), (0,1), (2,1)), in grid
+    points: ((16, 4) grid indices, -1 for none; (16, 4) weights), or None if incomplete."""
+    rows = {(i, j): {j * 4 + i: 1.0} for j in range(4) for i in range(4) if code >> (j * 4 + i) & 1}
+    jside = {0: bool(code >> 16 & 1), 3: bool(code >> 17 & 1)}
+    iside = {0: bool(code >> 18 & 1), 3: bool(code >> 19 & 1)}
+
+    def lin(p, q):   # 2 p - q, as regular_stencil combines them
+        out = {}
+        for w, x in rows[p].items():
+            out[w] = out.get(w, 0.0) + 2.0 * x
+        for w, x in rows[q].items():
+            out[w] = out.get(w, 0.0) - x
+        return out
+
+    for (i, j) in [(i, j) for j in range(4) for i in range(4)]:
+        if (i, j) in rows or iside.get(i, False):
+            continue
+        if jside.get(j, False):
+            dj = 1 if j == 0 else -1
+            if (i, j + dj) in rows and (i, j + 2 * dj) in rows:
+                rows[(i, j)] = lin((i, j + dj), (i, j + 2 * dj))
+    for (i, j) in [(i, j) for j in range(4) for i in range(4)]:
+        if (i, j) in rows or not iside.get(i, False):
+            continue
+        di = 1 if i == 0 else -1
+        if (i + di, j) in rows and (i + 2 * di, j) in rows:
+            rows[(i, j)] = lin((i + di, j), (i + 2 * di, j))
+    if len(rows) != 16 or max(len(r) for r in rows.values()) > 4:
+        return None
+    gp = np.full((16, 4), -1, dtype=np.int64)
+    w = np.zeros((16, 4))
+    for (i, j), combo in rows.items():
+        for n, (g, x) in enumerate(combo.items()):
+            gp[j * 4 + i, n], w[j * 4 + i, n] = g, x
+    return gp, w

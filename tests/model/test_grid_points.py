@@ -1,4 +1,4 @@
-"""Patch.grid_points (the collision checker's tessellation route: positions alone) against
+"""Patch.grid_points and grids_points (the collision checker's tessellation route: positions alone) against
 Patch.evaluate_grid's P. The claim is not closeness but the same values bit for bit (the same
 products on the same arrays, LevelCells point by point), since the tessellation's triangles
 and measured error feed the collision margins and the program bytes: so the comparison is
@@ -49,6 +49,12 @@ class GridPoints(unittest.TestCase):
                 want = patch.evaluate_grid(us, vs).P
                 self.assertEqual(got.shape, (len(us) * len(vs), 3))
                 np.testing.assert_array_equal(got, want, err_msg=f"{patch.name}: {len(us)} x {len(vs)}")
+            # several grids at once: their extraordinary cells together (the first three), or
+            # grid by grid when one has points next to a cell's corner (all four)
+            every = list(grids(patch, np.random.default_rng(seed)))
+            for some in (every[:2] + every[3:], every):
+                for (us, vs), got in zip(some, patch.grids_points(some)):
+                    np.testing.assert_array_equal(got, patch.evaluate_grid(us, vs).P, err_msg=patch.name)
 
     def test_keycap_bezier_and_extraordinary_cells(self):
         self.check(cage_model(samples.keycap()).patches)

@@ -205,6 +205,51 @@ class Patch:
         made once per row and column of cells (``BezierCells.tensor_positions``: the same
         products on the same arrays); the extraordinary cells' blocks (LevelCells, evaluated
         point by point) in one :meth:`evaluate` call; other blocks as there."""
+        return self.grids_points([(us, vs)])[0]
+
+    def grids_points(self, grids) -> list:
+        """:meth:`grid_points` of several grids [(us, vs), ...]: the extraordinary cells' points
+        of all of them in one :meth:`evaluate` call (a tessellation measures five grids at a
+        time) when none lies within 2^-20 of a cell's corner but on it (no point there goes
+        below the cached nets' levels, the one route whose products span points), else one
+        call per grid."""
+        outs, pending = [], []
+        for us, vs in grids:
+            out, blocks = self._grid_blocks(us, vs)
+            outs.append(out)
+            pending.append(blocks)
+        if any(pending):
+            together = len(pending) == 1 or not self._near_corners(
+                np.concatenate([b[3] for bs in pending for b in bs]),
+                np.concatenate([b[4] for bs in pending for b in bs]))
+            for ks in ([range(len(pending))] if together else [[k] for k in range(len(pending))]):
+                blocks = [(k, b) for k in ks for b in pending[k]]
+                if not blocks:
+                    continue
+                # their points are evaluated point by point (LevelCells' nets, _LevelSet), the
+                # few below the nets' deepest level per cell and level: the same values together
+                P = self.evaluate(np.concatenate([b[3] for _, b in blocks]),
+                                  np.concatenate([b[4] for _, b in blocks])).P.T
+                start = 0
+                for k, (rows, ni, nj, _, _) in blocks:
+                    outs[k][(slice(None),) + tuple(rows)] = P[:, start:start + ni * nj].reshape(3, ni, nj)
+                    start += ni * nj
+        return [out.reshape(3, -1).T for out in outs]
+
+    def _near_corners(self, u, v) -> bool:
+        """Whether a point lies within 2^-20 of its cell's width from one of the cell's corners
+        without being on it."""
+        nu, nv = self.shape
+        iu = _clip(np.searchsorted(self.ubreaks, u, side="right") - 1, 0, nu - 1)
+        iv = _clip(np.searchsorted(self.vbreaks, v, side="right") - 1, 0, nv - 1)
+        a = (u - self.ubreaks[iu]) / (self.ubreaks[iu + 1] - self.ubreaks[iu])
+        b = (v - self.vbreaks[iv]) / (self.vbreaks[iv + 1] - self.vbreaks[iv])
+        d = np.maximum(np.minimum(a, 1.0 - a), np.minimum(b, 1.0 - b))
+        return bool(np.any((d > 0.0) & (d < 2.0 ** -20)))
+
+    def _grid_blocks(self, us, vs):
+        """One grid of :meth:`grids_points`: its positions (3, len(us), len(vs)) with every
+        block but the LevelCells ones filled, and those as (rows, ni, nj, u, v)."""
         us, vs, iu, iv = self._grid_cells(us, vs)
         out = np.empty((3, len(us), len(vs)))             # coordinate-major, as evaluate_grid's P
         ucells = [(ci, _index_or_slice(np.nonzero(iu == ci)[0])) for ci in np.unique(iu).tolist()]
@@ -250,16 +295,7 @@ class Patch:
                         continue
                     P = self.evaluate(U.ravel(), V.ravel()).P.T
                 out[(slice(None),) + tuple(rows)] = P.reshape(3, ni, nj)
-        if level_blocks:
-            # their points are evaluated point by point (LevelCells' nets, _LevelSet), the
-            # few below the nets' deepest level per cell and level: the same values together
-            P = self.evaluate(np.concatenate([b[3] for b in level_blocks]),
-                              np.concatenate([b[4] for b in level_blocks])).P.T
-            start = 0
-            for rows, ni, nj, _, _ in level_blocks:
-                out[(slice(None),) + tuple(rows)] = P[:, start:start + ni * nj].reshape(3, ni, nj)
-                start += ni * nj
-        return out.reshape(3, -1).T
+        return out, level_blocks
 
     def _evaluate_h(self, u, v):
         """Homogeneous derivatives (6, 4, m) of the points sorted by cell, the sorting order

@@ -99,25 +99,24 @@ def _patch_grid_error(patch, gu: np.ndarray, gv: np.ndarray) -> tuple[float, flo
 
     Sampled at edge midpoints (distance from the chord) and at the quarter points of each
     cell's diagonals (distance from the triangle planes): the error of a smooth surface
-    between grid lines peaks near those places. Positions only (``Patch.grid_points``, the
-    same values as ``evaluate_grid``'s): no derivative is needed here.
+    between grid lines peaks near those places. Positions only (``Patch.grids_points``, the
+    same values as ``evaluate_grid``'s, the five grids in one call): no derivative is needed.
     """
     nu, nv = len(gu) - 1, len(gv) - 1
     mu = 0.5 * (gu[:-1] + gu[1:])
     mv = 0.5 * (gv[:-1] + gv[1:])
-    # u-edges: (mu, gv)
-    Pm = patch.grid_points(mu, gv).reshape(nu, nv + 1, 3)
-    grid = patch.grid_points(gu, gv)
+    # the points of every cell at 1/3 along both triangles' barycentres form tensor grids
+    thirds = [(gu[:-1] + fa * np.diff(gu), gv[:-1] + fb * np.diff(gv))
+              for fa, fb in ((2 / 3, 1 / 3), (1 / 3, 2 / 3))]
+    Pu, grid, Pv, *Pc = patch.grids_points([(mu, gv), (gu, gv), (gu, mv)] + thirds)
     G = grid.reshape(nu + 1, nv + 1, 3)
-    eu = np.linalg.norm(Pm - 0.5 * (G[:-1] + G[1:]), axis=2).max()
-    Pm = patch.grid_points(gu, mv).reshape(nu + 1, nv, 3)
-    ev = np.linalg.norm(Pm - 0.5 * (G[:, :-1] + G[:, 1:]), axis=2).max()
-    # inside the cells: points at 1/3 along both triangles' barycentres
+    # u-edges: (mu, gv), v-edges: (gu, mv)
+    eu = np.linalg.norm(Pu.reshape(nu, nv + 1, 3) - 0.5 * (G[:-1] + G[1:]), axis=2).max()
+    ev = np.linalg.norm(Pv.reshape(nu + 1, nv, 3) - 0.5 * (G[:, :-1] + G[:, 1:]), axis=2).max()
+    # inside the cells: distance from the planes of the cell's two triangles
     A, B, C, D = G[:-1, :-1], G[1:, :-1], G[1:, 1:], G[:-1, 1:]
     ec = 0.0
-    for (fa, fb), tri in (((2 / 3, 1 / 3), (A, B, C)), ((1 / 3, 2 / 3), (A, C, D))):
-        # the points of every cell form a tensor grid: one grid evaluation
-        P = patch.grid_points(gu[:-1] + fa * np.diff(gu), gv[:-1] + fb * np.diff(gv))
+    for P, tri in zip(Pc, ((A, B, C), (A, C, D))):
         ec = max(ec, _plane_distance(P, *(t.reshape(-1, 3) for t in tri)).max())
     return max(eu, ec), max(ev, ec), grid
 

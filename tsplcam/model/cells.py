@@ -187,7 +187,7 @@ class BezierCells:
         tessellation needs only the points)."""
         if self.rational:
             raise ValueError("tensor_positions is for polynomial cells (weights 1)")
-        nc, p1, q1 = self.nc, self.p + 1, self.q + 1
+        nc, q1 = self.nc, self.q + 1
         bsT, btT = a_basis, b_basis
         na = bsT.shape[1] // 3
         T = (self._cj[cell] @ bsT).reshape(q1, nc, na, 3)

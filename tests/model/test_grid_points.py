@@ -41,6 +41,10 @@ def rational_patch(rng) -> Patch:
 
 
 class GridPoints(unittest.TestCase):
+    @classmethod
+    def setUpClass(cls):
+        cls.keycap = cage_model(samples.keycap())
+
     def check(self, patches, seed=0):
         rng = np.random.default_rng(seed)
         for patch in patches:
@@ -57,14 +61,14 @@ class GridPoints(unittest.TestCase):
                     np.testing.assert_array_equal(got, patch.evaluate_grid(us, vs).P, err_msg=patch.name)
 
     def test_keycap_bezier_and_extraordinary_cells(self):
-        self.check(cage_model(samples.keycap()).patches)
+        self.check([self.keycap.patches[0], self.keycap.patches[4]])     # 2 and 4 such cells
 
     def test_rational_bezier_cells(self):
         self.check([rational_patch(np.random.default_rng(1))])
 
     def test_tspline_star_cells(self):
-        model = tspline_model(star_disc(5, random_intervals(5, 3, k=3)))
-        self.check(model.patches[:2])
+        model = tspline_model(star_disc(3, random_intervals(3, 3, k=2)))
+        self.check(model.patches[:1])
 
     def test_bad_grid_is_refused_naming_the_patch(self):
         patch = rational_patch(np.random.default_rng(2))
@@ -73,7 +77,7 @@ class GridPoints(unittest.TestCase):
 
     def test_tessellation_uv_is_the_grid(self):
         """tessellate_patch's (u, v) per vertex: the grid in evaluate_grid's row order."""
-        patch = cage_model(samples.keycap()).patches[0]
+        patch = self.keycap.patches[0]
         V, T, uv, err = tessellate_patch(patch, 0.05)
         self.assertEqual(len(uv), len(V))
         np.testing.assert_allclose(patch.evaluate(uv[:, 0], uv[:, 1]).P, V, atol=1e-9, rtol=0)

@@ -167,6 +167,35 @@ class BezierCells:
         out[0] += self._origin[cell][:, None, None]
         return out
 
+    @staticmethod
+    def tensor_bases(values: np.ndarray, width: float = 1.0):
+        """The bases :meth:`evaluate_tensor` makes along one parameter from its Bernstein values
+        and derivatives ``values`` (n, 3, degree+1) (``basis.bernstein``; a grid's whole row or
+        column of cells in one call, since they are made point by point) and the cell's width:
+        (scaled to the width, (3 n, degree+1) transposed as the contraction along a takes them;
+        (3, degree+1, n) as the one along b does)."""
+        bs = values.copy()
+        bs[:, 1] /= width
+        bs[:, 2] /= width * width
+        return bs.reshape(-1, bs.shape[2]).T, np.ascontiguousarray(bs.transpose(1, 2, 0))
+
+    def tensor_positions(self, cell: int, a_basis, b_basis, out: np.ndarray) -> np.ndarray:
+        """The positions alone (``out[0]`` of :meth:`evaluate_tensor`) of a polynomial cell on
+        a tensor grid, into ``out`` ((3, na, nb), rows contiguous), from the bases
+        :meth:`tensor_bases` gives for its a and b: the same BLAS products on the same arrays
+        for them, so the same values bit for bit, without the five derivative products (a
+        tessellation needs only the points)."""
+        if self.rational:
+            raise ValueError("tensor_positions is for polynomial cells (weights 1)")
+        nc, q1 = self.nc, self.q + 1
+        bsT, btT = a_basis, b_basis
+        na = bsT.shape[1] // 3
+        T = (self._cj[cell] @ bsT).reshape(q1, nc, na, 3)
+        T0 = np.ascontiguousarray(T.transpose(3, 1, 2, 0)[0])        # (nc, na, q+1)
+        np.matmul(T0, btT[0], out=out)
+        out += self._origin[cell][:, None, None]
+        return out
+
 
 # The eight symmetries of the unit square, as (A, o) with (s, t) = A (a, b) + o.
 SQUARE_MAPS = []

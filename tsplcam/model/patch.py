@@ -21,6 +21,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import InputError
+from .basis import bernstein
 from .cells import SQUARE_MAPS, BezierCells, LevelCells
 from .diffgeom import SurfacePoints, rational_from_homogeneous
 
@@ -137,15 +138,7 @@ class Patch:
         ``np.meshgrid(us, vs, indexing='ij')`` (u slowest). Bezier cells are evaluated with
         two BLAS products per cell (tessellation, verification grids, iso-lines); other cells
         through :meth:`evaluate`."""
-        us = np.asarray(us, float).reshape(-1)
-        vs = np.asarray(vs, float).reshape(-1)
-        for name, x in (("u", us), ("v", vs)):
-            if not np.all(np.isfinite(x)) or x.min(initial=0.0) < -1e-9 or x.max(initial=0.0) > 1 + 1e-9:
-                raise InputError(f"grid {name} values must lie in [0, 1]", item=self.name)
-        us, vs = np.clip(us, 0.0, 1.0), np.clip(vs, 0.0, 1.0)
-        nu, nv = self.shape
-        iu = np.clip(np.searchsorted(self.ubreaks, us, side="right") - 1, 0, nu - 1)
-        iv = np.clip(np.searchsorted(self.vbreaks, vs, side="right") - 1, 0, nv - 1)
+        us, vs, iu, iv = self._grid_cells(us, vs)
         out = np.empty((6, 3, len(us), len(vs)))          # coordinate-major, filled by blocks
         normal = None
         for ci in np.unique(iu):
@@ -189,6 +182,120 @@ class Patch:
             normal[fill] = _unit(np.cross(Pu[fill], Pv[fill]))
         return SurfacePoints(P, Pu, Pv, Puu, Puv, Pvv, np.repeat(us, len(vs)), np.tile(vs, len(us)),
                              self.index, normal)
+
+    def _grid_cells(self, us, vs):
+        """The grid's parameters checked and clipped to [0, 1], and the cell row and column of
+        each (a value on a cell break goes to the cell above it, the last break to the last
+        cell)."""
+        us = np.asarray(us, float).reshape(-1)
+        vs = np.asarray(vs, float).reshape(-1)
+        for name, x in (("u", us), ("v", vs)):
+            if not np.all(np.isfinite(x)) or x.min(initial=0.0) < -1e-9 or x.max(initial=0.0) > 1 + 1e-9:
+                raise InputError(f"grid {name} values must lie in [0, 1]", item=self.name)
+        us, vs = np.clip(us, 0.0, 1.0), np.clip(vs, 0.0, 1.0)
+        nu, nv = self.shape
+        iu = np.clip(np.searchsorted(self.ubreaks, us, side="right") - 1, 0, nu - 1)
+        iv = np.clip(np.searchsorted(self.vbreaks, vs, side="right") - 1, 0, nv - 1)
+        return us, vs, iu, iv
+
+    def grid_points(self, us, vs) -> np.ndarray:
+        """The positions of :meth:`evaluate_grid` (its ``P``, bit for bit), (len(us) * len(vs),
+        3) in its row order, for callers that need no derivatives (the collision checker's
+        tessellation): polynomial Bezier blocks take only the position's product from bases
+        made once per row and column of cells (``BezierCells.tensor_positions``: the same
+        products on the same arrays); the extraordinary cells' blocks (LevelCells, evaluated
+        point by point) in one :meth:`evaluate` call; other blocks as there."""
+        return self.grids_points([(us, vs)])[0]
+
+    def grids_points(self, grids) -> list:
+        """:meth:`grid_points` of several grids [(us, vs), ...]: the extraordinary cells' points
+        of all of them in one :meth:`evaluate` call (a tessellation measures five grids at a
+        time) when none lies within 2^-20 of a cell's corner but on it (no point there goes
+        below the cached nets' levels, the one route whose products span points), else one
+        call per grid."""
+        outs, pending = [], []
+        for us, vs in grids:
+            out, blocks = self._grid_blocks(us, vs)
+            outs.append(out)
+            pending.append(blocks)
+        if any(pending):
+            together = len(pending) == 1 or not self._near_corners(
+                np.concatenate([b[3] for bs in pending for b in bs]),
+                np.concatenate([b[4] for bs in pending for b in bs]))
+            for ks in ([range(len(pending))] if together else [[k] for k in range(len(pending))]):
+                blocks = [(k, b) for k in ks for b in pending[k]]
+                if not blocks:
+                    continue
+                # their points are evaluated point by point (LevelCells' nets, _LevelSet), the
+                # few below the nets' deepest level per cell and level: the same values together
+                P = self.evaluate(np.concatenate([b[3] for _, b in blocks]),
+                                  np.concatenate([b[4] for _, b in blocks])).P.T
+                start = 0
+                for k, (rows, ni, nj, _, _) in blocks:
+                    outs[k][(slice(None),) + tuple(rows)] = P[:, start:start + ni * nj].reshape(3, ni, nj)
+                    start += ni * nj
+        return [out.reshape(3, -1).T for out in outs]
+
+    def _near_corners(self, u, v) -> bool:
+        """Whether a point lies within 2^-20 of its cell's width from one of the cell's corners
+        without being on it."""
+        nu, nv = self.shape
+        iu = _clip(np.searchsorted(self.ubreaks, u, side="right") - 1, 0, nu - 1)
+        iv = _clip(np.searchsorted(self.vbreaks, v, side="right") - 1, 0, nv - 1)
+        a = (u - self.ubreaks[iu]) / (self.ubreaks[iu + 1] - self.ubreaks[iu])
+        b = (v - self.vbreaks[iv]) / (self.vbreaks[iv + 1] - self.vbreaks[iv])
+        d = np.maximum(np.minimum(a, 1.0 - a), np.minimum(b, 1.0 - b))
+        return bool(np.any((d > 0.0) & (d < 2.0 ** -20)))
+
+    def _grid_blocks(self, us, vs):
+        """One grid of :meth:`grids_points`: its positions (3, len(us), len(vs)) with every
+        block but the LevelCells ones filled, and those as (rows, ni, nj, u, v)."""
+        us, vs, iu, iv = self._grid_cells(us, vs)
+        out = np.empty((3, len(us), len(vs)))             # coordinate-major, as evaluate_grid's P
+        ucells = [(ci, _index_or_slice(np.nonzero(iu == ci)[0])) for ci in np.unique(iu).tolist()]
+        vcells = [(cj, _index_or_slice(np.nonzero(iv == cj)[0])) for cj in np.unique(iv).tolist()]
+        # every grid value's local parameter in its cell (as per block: the same operations)
+        wu_all = self.ubreaks[iu + 1] - self.ubreaks[iu]
+        wv_all = self.vbreaks[iv + 1] - self.vbreaks[iv]
+        a_all = (us - self.ubreaks[iu]) / wu_all
+        b_all = (vs - self.vbreaks[iv]) / wv_all
+        values, bases = {}, {}
+        level_blocks = []                                 # extraordinary cells: one call for all
+        for ci, I in ucells:
+            wu = self.ubreaks[ci + 1] - self.ubreaks[ci]
+            a = (us[I] - self.ubreaks[ci]) / wu
+            for cj, J in vcells:
+                group = self.groups[self.cell_group[ci, cj]]
+                contiguous = isinstance(I, slice) and isinstance(J, slice)
+                if isinstance(group, BezierCells) and not group.rational and contiguous:
+                    ka, kb = ("u", ci, group.p), ("v", cj, group.q)
+                    if ka not in bases:
+                        if ("u", group.p) not in values:
+                            values["u", group.p] = bernstein(group.p, a_all)
+                        bases[ka] = BezierCells.tensor_bases(values["u", group.p][I], wu)
+                    if kb not in bases:
+                        if ("v", group.q) not in values:
+                            values["v", group.q] = bernstein(group.q, b_all)
+                        bases[kb] = BezierCells.tensor_bases(values["v", group.q][J], wv_all[J.start])
+                    group.tensor_positions(self.cell_local[ci, cj], bases[ka][0], bases[kb][1], out[:, I, J])
+                    continue
+                # every other block as evaluate_grid does it, its positions kept
+                rows = (I, J) if contiguous else np.ix_(np.arange(len(us))[I], np.arange(len(vs))[J])
+                ni, nj = len(a), len(vs[J])
+                if isinstance(group, BezierCells):
+                    wv = self.vbreaks[cj + 1] - self.vbreaks[cj]
+                    b = (vs[J] - self.vbreaks[cj]) / wv
+                    H = group.evaluate_tensor(self.cell_local[ci, cj], a, b, wu, wv)
+                    P = (rational_from_homogeneous(H.reshape(6, 4, -1))[0] if group.rational
+                         else H.reshape(6, 3, -1)[0])
+                else:
+                    U, V = np.meshgrid(us[I], vs[J], indexing="ij")
+                    if type(group) is LevelCells:
+                        level_blocks.append((rows, ni, nj, U.ravel(), V.ravel()))
+                        continue
+                    P = self.evaluate(U.ravel(), V.ravel()).P.T
+                out[(slice(None),) + tuple(rows)] = P.reshape(3, ni, nj)
+        return out, level_blocks
 
     def _evaluate_h(self, u, v):
         """Homogeneous derivatives (6, 4, m) of the points sorted by cell, the sorting order

@@ -93,30 +93,30 @@ def _plane_distance(P, A, B, C):
     return np.abs(np.einsum("ij,ij->i", P - A, nrm)) / np.where(ln > 0, ln, 1.0)
 
 
-def _patch_grid_error(patch, gu: np.ndarray, gv: np.ndarray) -> tuple[float, float, object]:
+def _patch_grid_error(patch, gu: np.ndarray, gv: np.ndarray) -> tuple[float, float, np.ndarray]:
     """Chordal error of the grid gu x gv measured on the patch: (along u, along v) maxima,
-    and the grid's own points (SurfacePoints, the tessellation's vertices once it is fine).
+    and the grid's own points ((nu+1)(nv+1), 3), the tessellation's vertices once it is fine.
 
     Sampled at edge midpoints (distance from the chord) and at the quarter points of each
     cell's diagonals (distance from the triangle planes): the error of a smooth surface
-    between grid lines peaks near those places.
+    between grid lines peaks near those places. Positions only (``Patch.grids_points``, the
+    same values as ``evaluate_grid``'s, the five grids in one call): no derivative is needed.
     """
     nu, nv = len(gu) - 1, len(gv) - 1
     mu = 0.5 * (gu[:-1] + gu[1:])
     mv = 0.5 * (gv[:-1] + gv[1:])
-    # u-edges: (mu, gv)
-    Pm = patch.evaluate_grid(mu, gv).P.reshape(nu, nv + 1, 3)
-    grid = patch.evaluate_grid(gu, gv)
-    G = grid.P.reshape(nu + 1, nv + 1, 3)
-    eu = np.linalg.norm(Pm - 0.5 * (G[:-1] + G[1:]), axis=2).max()
-    Pm = patch.evaluate_grid(gu, mv).P.reshape(nu + 1, nv, 3)
-    ev = np.linalg.norm(Pm - 0.5 * (G[:, :-1] + G[:, 1:]), axis=2).max()
-    # inside the cells: points at 1/3 along both triangles' barycentres
+    # the points of every cell at 1/3 along both triangles' barycentres form tensor grids
+    thirds = [(gu[:-1] + fa * np.diff(gu), gv[:-1] + fb * np.diff(gv))
+              for fa, fb in ((2 / 3, 1 / 3), (1 / 3, 2 / 3))]
+    Pu, grid, Pv, *Pc = patch.grids_points([(mu, gv), (gu, gv), (gu, mv)] + thirds)
+    G = grid.reshape(nu + 1, nv + 1, 3)
+    # u-edges: (mu, gv), v-edges: (gu, mv)
+    eu = np.linalg.norm(Pu.reshape(nu, nv + 1, 3) - 0.5 * (G[:-1] + G[1:]), axis=2).max()
+    ev = np.linalg.norm(Pv.reshape(nu + 1, nv, 3) - 0.5 * (G[:, :-1] + G[:, 1:]), axis=2).max()
+    # inside the cells: distance from the planes of the cell's two triangles
     A, B, C, D = G[:-1, :-1], G[1:, :-1], G[1:, 1:], G[:-1, 1:]
     ec = 0.0
-    for (fa, fb), tri in (((2 / 3, 1 / 3), (A, B, C)), ((1 / 3, 2 / 3), (A, C, D))):
-        # the points of every cell form a tensor grid: one grid evaluation
-        P = patch.evaluate_grid(gu[:-1] + fa * np.diff(gu), gv[:-1] + fb * np.diff(gv)).P
+    for P, tri in zip(Pc, ((A, B, C), (A, C, D))):
         ec = max(ec, _plane_distance(P, *(t.reshape(-1, 3) for t in tri)).max())
     return max(eu, ec), max(ev, ec), grid
 
@@ -134,7 +134,7 @@ def tessellate_patch(patch, tolerance: float, max_cells: int = 4000) -> tuple:
     for _ in range(12):
         gu = np.linspace(0.0, 1.0, nu + 1)
         gv = np.linspace(0.0, 1.0, nv + 1)
-        eu, ev, sp = _patch_grid_error(patch, gu, gv)
+        eu, ev, P = _patch_grid_error(patch, gu, gv)
         if eu <= tolerance and ev <= tolerance:
             break
         if eu > tolerance:
@@ -146,7 +146,8 @@ def tessellate_patch(patch, tolerance: float, max_cells: int = 4000) -> tuple:
                                 f"{max_cells} grid lines (error {max(eu, ev):.3g} mm at {nu} x {nv})")
     else:                                                      # pragma: no cover
         raise GeometryError(f"{patch.name}: tessellation did not reach {tolerance:g} mm")
-    return np.ascontiguousarray(sp.P), _grid_triangles(nu, nv), np.column_stack([sp.u, sp.v]), max(eu, ev)
+    uv = np.column_stack([np.repeat(gu, len(gv)), np.tile(gv, len(gu))])
+    return np.ascontiguousarray(P), _grid_triangles(nu, nv), uv, max(eu, ev)
 
 
 def _tessellate_piece(model, tolerance, patches, i):

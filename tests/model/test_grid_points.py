@@ -1,0 +1,88 @@
+"""Patch.grid_points and grids_points (the collision checker's tessellation route: positions alone) against
+Patch.evaluate_grid's P. The claim is not closeness but the same values bit for bit (the same
+products on the same arrays, LevelCells point by point), since the tessellation's triangles
+and measured error feed the collision margins and the program bytes: so the comparison is
+exact. Grids: uniform, on the cell breaks, within 2^-30 of a cell's corner (below the cached
+nets' levels), unsorted (blocks that are not one run); cells: polynomial and rational
+Bezier, Catmull-Clark cells next to extraordinary points (LevelCells), T-spline star cells."""
+import unittest
+
+import numpy as np
+
+from tsplcam.model import samples
+from tsplcam.model.cage import cage_model
+from tsplcam.model.cells import BezierCells
+from tsplcam.model.patch import Patch
+from tsplcam.model.tspline import tspline_model
+from tsplcam.orientation.collision import tessellate_patch
+from test_stars import random_intervals, star_disc
+
+
+def grids(patch, rng):
+    """(us, vs) pairs that take every route of grid_points."""
+    deep = np.ldexp(1.0, -30)
+    yield np.linspace(0, 1, 23), np.linspace(0, 1, 17)
+    yield patch.ubreaks, patch.vbreaks
+    yield (np.sort(np.concatenate([patch.ubreaks[:-1] + deep, patch.ubreaks[1:] - deep, [0.0, 1.0]])),
+           np.sort(np.concatenate([patch.vbreaks[:-1] + deep, patch.vbreaks[1:] - deep, [0.0, 1.0]])))
+    yield rng.permutation(np.linspace(0, 1, 11)), rng.random(7)
+
+
+def rational_patch(rng) -> Patch:
+    """Two rational bicubic Bezier cells side by side (random weights)."""
+    ctrl = np.empty((2, 4, 4, 4))
+    j, i = np.meshgrid(np.arange(4), np.arange(4), indexing="ij")
+    for c in range(2):
+        w = rng.uniform(0.5, 2.0, (4, 4))
+        xyz = np.stack([i + 3 * c, j, rng.random((4, 4))], axis=-1)
+        ctrl[c] = np.concatenate([xyz * w[..., None], w[..., None]], axis=-1)
+    return Patch(0, [0.0, 0.5, 1.0], [0.0, 1.0], np.zeros((2, 1), int), np.array([[0], [1]]),
+                 [BezierCells(ctrl)])
+
+
+class GridPoints(unittest.TestCase):
+    @classmethod
+    def setUpClass(cls):
+        cls.keycap = cage_model(samples.keycap())
+
+    def check(self, patches, seed=0):
+        rng = np.random.default_rng(seed)
+        for patch in patches:
+            for us, vs in grids(patch, rng):
+                got = patch.grid_points(us, vs)
+                want = patch.evaluate_grid(us, vs).P
+                self.assertEqual(got.shape, (len(us) * len(vs), 3))
+                np.testing.assert_array_equal(got, want, err_msg=f"{patch.name}: {len(us)} x {len(vs)}")
+            # several grids at once: their extraordinary cells together (the first three), or
+            # grid by grid when one has points next to a cell's corner (all four)
+            every = list(grids(patch, np.random.default_rng(seed)))
+            for some in (every[:2] + every[3:], every):
+                for (us, vs), got in zip(some, patch.grids_points(some)):
+                    np.testing.assert_array_equal(got, patch.evaluate_grid(us, vs).P, err_msg=patch.name)
+
+    def test_keycap_bezier_and_extraordinary_cells(self):
+        self.check([self.keycap.patches[0], self.keycap.patches[4]])     # 2 and 4 such cells
+
+    def test_rational_bezier_cells(self):
+        self.check([rational_patch(np.random.default_rng(1))])
+
+    def test_tspline_star_cells(self):
+        model = tspline_model(star_disc(3, random_intervals(3, 3, k=2)))
+        self.check(model.patches[:1])
+
+    def test_bad_grid_is_refused_naming_the_patch(self):
+        patch = rational_patch(np.random.default_rng(2))
+        with self.assertRaisesRegex(Exception, "patch 0"):
+            patch.grid_points([0.0, 1.5], [0.5])
+
+    def test_tessellation_uv_is_the_grid(self):
+        """tessellate_patch's (u, v) per vertex: the grid in evaluate_grid's row order."""
+        patch = self.keycap.patches[0]
+        V, T, uv, err = tessellate_patch(patch, 0.05)
+        self.assertEqual(len(uv), len(V))
+        np.testing.assert_allclose(patch.evaluate(uv[:, 0], uv[:, 1]).P, V, atol=1e-9, rtol=0)
+        self.assertLessEqual(err, 0.05)
+
+
+if __name__ == "__main__":
+    unittest.main()

@@ -130,7 +130,7 @@ class CloseStarsInATMesh(unittest.TestCase):
         cls.cage = Cage(QuadMesh(np.array(faces), len(P)), P, w)
         cls.ref = cage_model(cls.cage)
         cls.mesh = quad_tmesh(P, faces, w)
-        cls.rings = close_stars.rings_of(cls.mesh, cls.stars, 8)
+        cls.rings = close_stars.rings(cls.mesh, cls.stars, 8)
         # a T-junction seven rings out: no longer a cage, the close stars come here
         cls.split = split_face(cls.mesh, cls.rings[6][1])
         cls.model = tspline_model(cls.split)
@@ -181,7 +181,7 @@ class CloseStarsOnAnOpenDisc(unittest.TestCase):
         mesh, stars = disc(spoke0=(1.5,))
         model = tspline_model(mesh)
         self.assertEqual(sorted(e.valence for e in model.extraordinary), [3, 3, 3, 5, 5])
-        rs = close_stars.rings_of(mesh, stars, 4)
+        rs = close_stars.rings(mesh, stars, 4)
         around = [f for r in rs for f in r]
         loops = np.array([[int(x) for x in mesh.faces[f]] for f in around])
         verts, inv = np.unique(loops, return_inverse=True)
@@ -207,7 +207,7 @@ class Refused(unittest.TestCase):
     def test_t_junction_within_the_rings(self):
         P, faces, w, stars = torus()
         mesh = quad_tmesh(P, faces, w)
-        ring3 = close_stars.rings_of(mesh, stars, 3)[2]
+        ring3 = close_stars.rings(mesh, stars, 3)[2]
         self.assertRefused(split_face(mesh, ring3[0]), "closer than three edges apart", "has a T-junction")
 
     def test_other_interval_between_the_stars(self):

@@ -110,14 +110,22 @@ def without_faces(mesh, drop):
     return out, index
 
 
-def rings(mesh, v: int, n: int) -> list[list[int]]:
-    """The faces of T-mesh ``mesh`` within ``n`` rings of vertex v, ring by ring: ring 1 the
-    faces at v, ring k + 1 the faces sharing a vertex with rings 1 .. k."""
+def vertex_faces(mesh) -> dict:
+    """Vertex -> the set of faces of T-mesh ``mesh`` at it."""
     at = {}
     for f, loop in enumerate(mesh.faces):
         for w in loop:
             at.setdefault(int(w), set()).add(f)
-    seen = set(at.get(v, ()))
+    return at
+
+
+def rings(mesh, vertices, n: int, at: dict | None = None) -> list[list[int]]:
+    """The faces of T-mesh ``mesh`` within ``n`` rings of a vertex or a set of vertices, ring
+    by ring: ring 1 the faces at them, ring k + 1 the faces sharing a vertex with rings
+    1 .. k. ``at``: :func:`vertex_faces` of the mesh, when the caller has it."""
+    at = vertex_faces(mesh) if at is None else at
+    vertices = [vertices] if np.ndim(vertices) == 0 else vertices
+    seen = {f for v in vertices for f in at.get(int(v), ())}
     out = [sorted(seen)]
     for _ in range(n - 1):
         new = {g for f in out[-1] for w in mesh.faces[f] for g in at[int(w)]} - seen

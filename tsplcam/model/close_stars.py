@@ -38,7 +38,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .boundary_stars import CageCells, override
+from .boundary_stars import CageCells, override, rings, vertex_faces
 from .cells import _chain
 from .stars import _too_close
 
@@ -56,27 +56,6 @@ NEED = ZONE + 3
 UNIFORM_TOL = 1e-9
 
 
-def _vertex_faces(mesh) -> dict:
-    at = {}
-    for f, loop in enumerate(mesh.faces):
-        for w in loop:
-            at.setdefault(int(w), set()).add(f)
-    return at
-
-
-def rings_of(mesh, vertices, n: int, at: dict | None = None) -> list[list[int]]:
-    """The faces within ``n`` rings of a set of vertices, ring by ring: ring 1 the faces at
-    them, ring k + 1 the faces sharing a vertex with rings 1 .. k."""
-    at = at if at is not None else _vertex_faces(mesh)
-    seen = {f for v in vertices for f in at.get(int(v), ())}
-    out = [sorted(seen)]
-    for _ in range(n - 1):
-        new = {g for f in out[-1] for w in mesh.faces[f] for g in at[int(w)]} - seen
-        seen |= new
-        out.append(sorted(new))
-    return out
-
-
 def interior_stars(mesh) -> list[int]:
     """Interior vertices whose faces do not make a full turn (the kernel's star points)."""
     topo = mesh.topology
@@ -88,7 +67,7 @@ def clusters(mesh) -> list[list[int]]:
     vertices of their faces meet (they share a face, or one is the other's neighbour, or
     they share a neighbour); clusters are the chains of close stars. Stars with no close
     star are left to the T-NURCC construction."""
-    at = _vertex_faces(mesh)
+    at = vertex_faces(mesh)
     stars = interior_stars(mesh)
     near = {v: {int(w) for f in at.get(v, ()) for w in mesh.faces[f]} for v in stars}
     parent = {v: v for v in stars}
@@ -125,7 +104,7 @@ def check_cluster(mesh, cluster: list[int], at: dict) -> tuple[list[list[int]], 
         if int(topo.total[v]) < 3:
             raise mesh.error(f"{mesh.vertex_name(v)} is an interior vertex with only {int(topo.total[v])} "
                              f"faces", vertex=v)
-    rs = rings_of(mesh, cluster, NEED, at)
+    rs = rings(mesh, cluster, NEED, at)
     faces = [f for r in rs for f in r]
     for f in faces:
         if len(mesh.faces[f]) != 4:
@@ -204,7 +183,7 @@ def close_star_model(mesh, walker, name=None):
     from .patch import CORNER_UV
     from .stars import build_zone, find_stars
     from .tspline import _assemble, _extract, _zone_faces
-    at = _vertex_faces(mesh)
+    at = vertex_faces(mesh)
     groups = clusters(mesh)
     checked = [(c, *check_cluster(mesh, c, at)) for c in groups]
     close = {v for c in groups for v in c}

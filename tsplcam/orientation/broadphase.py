@@ -99,6 +99,7 @@ EXACT_PROBE = 2000            # spheres the exact pass is tried on before its ga
 PLANE_SLACK = 1e-9            # mm: a triangle's plane distance counts only this much beyond R (rounding)
 GRID_ROWS = 16384             # points a distance grid reads at a time
 READ_WORK = 30.0              # a grid read in numpy costs about as much as this many Viterbi elements
+SPHERE_WORK = 300.0           # a pose's part in the numpy sphere loop: about this many Viterbi elements
 _CORNERS = np.array([(i, j, k) for i in (0, 1) for j in (0, 1) for k in (0, 1)], np.int64)
 DIRECTIONS = np.array([(i, j, k) for i in (-1, 0, 1) for j in (-1, 0, 1) for k in (-1, 0, 1)
                        if (i, j, k) != (0, 0, 0)], float)
@@ -440,6 +441,7 @@ class BroadPhase:
                                          10 * COARSE[0], COARSE[1])]
         self._covers: dict[float, SphereCover] = {}
         self._side_grid = None                    # BrickGrid, made when the side pass first needs it
+        self._stacked = None                      # the grids' arrays for the compiled sphere loop
         self.centres = CentreTable()
         self._gouge = np.zeros(0, np.int8)        # per centre: 1 clear, 0 not proven, -1 not asked yet
         self._cone_a = {}                         # per grow: (slots, CONES, 3) axes
@@ -765,6 +767,84 @@ class BroadPhase:
         unresolved[done] = False
         return len(done) + int((status[members] == HIT).sum()) - before, self.stats["exact"] - asked0
 
+    def _sphere_loop(self, C, A, cov: SphereCover, todo, asked, parts, status, unresolved, phi, cell):
+        """The sphere cover of the poses ``todo`` (parts ``asked``), level by level over all
+        of them: a sphere the grids clear narrows the pose's free cone ``phi``; one they do not
+        is split while a smaller one might clear, else its part is left ``unresolved``; the
+        grid nodes' samples of failing spheres are tried as hits. Updates ``status``,
+        ``unresolved`` and ``phi`` in place (:meth:`_sphere_kernel` is the same, compiled)."""
+        prof = cov.prof
+        pose = np.repeat(todo, len(asked))
+        part = np.tile(asked, len(todo))
+        seg = np.zeros(len(pose), np.int64)
+        level = 0
+        while len(pose):
+            zc, s, rmax = cov.spheres(part, level, seg)
+            x = C[pose] + zc[:, None] * A[pose]
+            # (the coarse grid only where the fine one leaves less than a cone of CONE_WANT)
+            bound, jg, _ = self.lower_bound(x, s + EPS + CONE_WANT * zc)
+            cert = bound >= s + EPS
+            split = np.zeros(len(pose), bool)
+            rest = np.nonzero(~cert)[0]
+            if len(rest):
+                # the grid node's sample: inside the tool (hit)
+                jr = jg[rest]
+                has = jr >= 0
+                found = self._hits(status, self.samples[jr[has]], jr[has], pose[rest[has]], C, A, prof, parts)
+                self._remember(cell, found)
+                # the sphere is split while it can be, and a pose left with spheres the grids
+                # cannot clear is asked again with exact bounds (_exact_pass), else of fcl
+                hopeless = bound[rest] < rmax[rest] + EPS      # no smaller sphere can clear
+                unresolved[pose[rest[hopeless]], part[rest[hopeless]]] = True
+                split[rest[~hopeless]] = True
+            ok = np.nonzero(cert)[0]
+            min_into(phi, pose[ok], (bound[ok] - s[ok] - EPS) / zc[ok])
+            keep = split & (status[pose] != HIT) & ~unresolved[pose, part]
+            last = keep & (level >= cov.max_level[part])
+            unresolved[pose[last], part[last]] = True
+            keep &= ~last
+            m = int(keep.sum())
+            pose, part = np.repeat(pose[keep], 2), np.repeat(part[keep], 2)
+            seg = 2 * np.repeat(seg[keep], 2) + np.tile([0, 1], m)
+            level += 1
+
+    def _grid_arrays(self):
+        """The two distance grids' parameters stacked and their nodes concatenated, for the
+        compiled sphere loop."""
+        if self._stacked is None:
+            g = self.grids
+            self._stacked = (np.array([x.origin for x in g], float), np.array([x.h for x in g], float),
+                             np.array([x.shape for x in g], np.int64), np.array([x.stride for x in g], np.int64),
+                             np.array([x._offsets for x in g], np.int64),
+                             np.array([0, len(g[0].lb)], np.int64), np.concatenate([x.lb for x in g]),
+                             np.concatenate([x.idx for x in g]).astype(np.int64))
+        return self._stacked
+
+    def _sphere_kernel(self, kern, C, A, cov: SphereCover, todo, asked, parts, status, unresolved, phi, cell):
+        """:meth:`_sphere_loop` by the compiled kernel (``compiled.sphere_loop``: pose by pose,
+        the same operations per sphere, so the same bits); the hits' witnesses are remembered
+        level by level as the loop does."""
+        prof = cov.prof
+        C = np.ascontiguousarray(C, float)
+        A = np.ascontiguousarray(A, float)
+        lo, hi = self.box
+        rows = max(16, 2 * len(todo))
+        while True:
+            st, un, ph = status.copy(), unresolved.copy(), phi.copy()
+            hits = np.empty((rows, 3), np.int64)
+            nh = kern(C, A, np.ascontiguousarray(todo, np.int64), np.ascontiguousarray(asked, np.int64),
+                      prof.z0, prof.z1, prof.rout0, prof.rout1, prof.rin0, prof.rin1,
+                      np.ascontiguousarray(cov.max_level, np.int64), np.int64(parts),
+                      np.ascontiguousarray(lo, float), np.ascontiguousarray(hi, float), *self._grid_arrays(),
+                      self.samples, self.sample_comp, self.anchors, EPS, CONE_WANT, st, un, ph, hits)
+            if nh >= 0:
+                break
+            rows *= 4
+        status[:], unresolved[:], phi[:] = st, un, ph
+        hits = hits[:nh]
+        for lev in np.unique(hits[:, 0]):
+            self._remember(cell, hits[hits[:, 0] == lev, 1:])
+
     @staticmethod
     def side_balls(prof: Profile, part: np.ndarray, level: int, seg: np.ndarray):
         """(centre height, radius) of a ball containing slab ``seg`` of ``part`` at ``level``
@@ -893,39 +973,11 @@ class BroadPhase:
         K = len(prof.z0)
         unresolved = np.zeros((n, K), bool)      # parts the spheres could not clear
         asked = np.nonzero((parts >> np.arange(K)) & 1)[0]
-        pose = np.repeat(todo, len(asked))
-        part = np.tile(asked, len(todo))
-        seg = np.zeros(len(pose), np.int64)
-        level = 0
-        while len(pose):
-            zc, s, rmax = cov.spheres(part, level, seg)
-            x = C[pose] + zc[:, None] * A[pose]
-            # (the coarse grid only where the fine one leaves less than a cone of CONE_WANT)
-            bound, jg, _ = self.lower_bound(x, s + EPS + CONE_WANT * zc)
-            cert = bound >= s + EPS
-            split = np.zeros(len(pose), bool)
-            rest = np.nonzero(~cert)[0]
-            if len(rest):
-                # the grid node's sample: inside the tool (hit)
-                jr = jg[rest]
-                has = jr >= 0
-                found = self._hits(status, self.samples[jr[has]], jr[has], pose[rest[has]], C, A, prof, parts)
-                self._remember(cell, found)
-                # the sphere is split while it can be, and a pose left with spheres the grids
-                # cannot clear is asked again with exact bounds (_exact_pass), else of fcl
-                hopeless = bound[rest] < rmax[rest] + EPS      # no smaller sphere can clear
-                unresolved[pose[rest[hopeless]], part[rest[hopeless]]] = True
-                split[rest[~hopeless]] = True
-            ok = np.nonzero(cert)[0]
-            min_into(phi, pose[ok], (bound[ok] - s[ok] - EPS) / zc[ok])
-            keep = split & (status[pose] != HIT) & ~unresolved[pose, part]
-            last = keep & (level >= cov.max_level[part])
-            unresolved[pose[last], part[last]] = True
-            keep &= ~last
-            m = int(keep.sum())
-            pose, part = np.repeat(pose[keep], 2), np.repeat(part[keep], 2)
-            seg = 2 * np.repeat(seg[keep], 2) + np.tile([0, 1], m)
-            level += 1
+        k = compiled.kernels(work=SPHERE_WORK * len(todo) * len(asked))
+        if k is not None:
+            self._sphere_kernel(k["sphere_loop"], C, A, cov, todo, asked, parts, status, unresolved, phi, cell)
+        else:
+            self._sphere_loop(C, A, cov, todo, asked, parts, status, unresolved, phi, cell)
         self._side_pass(C, A, prof, status, unresolved, phi, cell, parts)
         if grow == 0.0:
             # (a grown tool is what the clearance measurement asks, of poses within a hair

@@ -144,6 +144,50 @@ class AgreesWithFcl(unittest.TestCase):
             self.assertEqual(int(((st == FREE) & ref).sum()), 0)
             self.assertEqual(int(((st == HIT) & ~ref).sum()), 0)
 
+    @staticmethod
+    def _sphere_loop(b, C, A, grow, parts, kern):
+        """(status, unresolved parts, free cones, witness table) of the sphere loop alone on
+        poses C, A: numpy's loop (kern None) or the compiled one; the witnesses put back."""
+        cov = b._cover(grow)
+        K = len(cov.prof.z0)
+        n = len(C)
+        status = np.full(n, UNKNOWN, np.int8)
+        unresolved = np.zeros((n, K), bool)
+        phi = np.full(n, np.inf)
+        cell = b._witness_cells(C)
+        wit0 = b._wit.copy()
+        asked = np.nonzero((parts >> np.arange(K)) & 1)[0]
+        args = (C, A, cov, np.arange(n), asked, parts, status, unresolved, phi, cell)
+        if kern is None:
+            b._sphere_loop(*args)
+        else:
+            b._sphere_kernel(kern, *args)
+        wit, b._wit = b._wit, wit0
+        return status, unresolved, phi, wit
+
+    def test_compiled_sphere_loop(self):
+        """The compiled sphere loop (pose by pose) decides what numpy's loop (level by level
+        over all poses) decides: the same hits, unresolved parts, free cones (bit for bit) and
+        hit witnesses, on random poses around the mold (walls, stock) and the keycap, with and
+        without growth and for some parts only."""
+        from tsplcam.orientation import compiled
+        k = compiled.kernels()
+        if k is None:
+            self.skipTest("numba not available (or TSPLCAM_COMPILED=0)")
+        rng = np.random.default_rng(21)
+        kinds = np.zeros(3, int)
+        for checker, path, tilt in ((self.mold, self.mold_path, 75), (self.keycap, self.keycap_path, 80)):
+            for grow, parts in ((0.0, -1), (0.2, -1), (0.2, 0b1110)):
+                C, A = random_poses(path, 2000, rng, spread=0.1, tilt=np.radians(tilt))
+                ref = self._sphere_loop(checker.broad, C, A, grow, parts, None)
+                got = self._sphere_loop(checker.broad, C, A, grow, parts, k["sphere_loop"])
+                for r, g in zip(ref, got):
+                    np.testing.assert_array_equal(g, r)
+                st, un, _, _ = ref
+                kinds += [(st == HIT).sum(), (un.any(axis=1) & (st != HIT)).sum(),
+                          ((st != HIT) & ~un.any(axis=1)).sum()]
+        self.assertTrue(np.all(kinds > 100), kinds)         # hits, open poses and cleared ones
+
     def test_keycap_poses(self):
         st, mesh = self.check(self.keycap, self.keycap_path, 0.0, 5)
         self.assertGreater(np.mean(st != UNKNOWN), 0.6)

@@ -357,16 +357,17 @@ class Geometry(unittest.TestCase):
             else:                                                  # a cylinder: the same ball
                 np.testing.assert_allclose(R, s, rtol=1e-12)
 
-    def test_brick_grid(self):
-        """The side pass's brick grid: bounds never above the distance to the mesh (brute force
+    def test_lazy_grid(self):
+        """The side pass's lazy grid: bounds never above the distance to the mesh (brute force
         over every triangle), within a cell's diagonal of it below the cap, its sample the
-        nearest one of the nearest node; bricks are made only where read."""
-        from tsplcam.orientation.broadphase import BrickGrid, BroadPhase, Profile
+        nearest one of the nearest node; nodes are made only where read, each the value a
+        whole grid has there."""
+        from tsplcam.orientation.broadphase import BroadPhase, DistanceGrid, LazyGrid, Profile
         rng = np.random.default_rng(3)
         V, T = wavy_sheet()
         one = np.ones(1)
         bp = BroadPhase(V, T, lambda grow: Profile(0 * one, one, one, one, one, one), 0.1, 0.3)
-        grid = BrickGrid(bp.tree, bp.e2, 0.25, 3.0, 4)
+        grid = LazyGrid(bp.tree, bp.e2, 0.25, 3.0)
         x = rng.random((2000, 3)) * [4, 4, 2] + [0, 0, 0.5]
         lb, near = grid(x)
         true = np.full(len(x), np.inf)
@@ -377,12 +378,19 @@ class Geometry(unittest.TestCase):
         low = true < 2.5
         self.assertTrue(np.all(lb[low] >= true[low] - 0.25 * np.sqrt(3) - 0.1))
         self.assertTrue(np.all(near[low] >= 0))
-        made = grid.bricks.size
+        made = grid.nodes
         grid(x[:10])
-        self.assertEqual(grid.bricks.size, made)                 # read again: nothing new
-        small = BrickGrid(bp.tree, bp.e2, 0.25, 3.0, 4)          # bricks of 1 mm
-        small(rng.random((500, 3)) * 0.9 + [1.05, 2.05, 1.05])   # inside one 1 mm cube
-        self.assertLessEqual(small.bricks.size, 8)
+        self.assertEqual(grid.nodes, made)                       # read again: nothing new
+        small = LazyGrid(bp.tree, bp.e2, 0.25, 3.0)
+        small(rng.random((500, 3)) * 0.2 + [1.02, 2.02, 1.02])   # inside one cell
+        self.assertEqual(small.nodes, 8)
+        # the same bits as a whole grid over the same nodes (origin on a node, 0.25 mm)
+        whole = DistanceGrid(bp.tree, bp.e2, np.zeros(3), np.array([4.0, 4.0, 2.5]), 0.25, 0.0, 3.0, 10 ** 6)
+        self.assertEqual(whole.h, 0.25)
+        wl, wn, ins = whole(x)
+        np.testing.assert_array_equal(lb[ins], wl[ins])
+        np.testing.assert_array_equal(near[ins], wn[ins])
+        self.assertGreater(ins.mean(), 0.9)
 
     def test_sample_bound(self):
         """Every point of a triangle lies at least sqrt(d^2 - e^2/3) from a point whose

@@ -41,11 +41,12 @@ convex, the slab the rings' hull) but are centred where a ball is tangent to the
 (``slope * radius`` along the axis from the slab's middle): beyond the side they reach a hair
 (0.026 mm at 2^3 slabs of that cone). Their centres lie a few mm from the mesh, beyond the
 fine grid's cap, where the coarse grid loses up to 1.7 mm: their bounds come from a grid of
-their own (:class:`BrickGrid`, 0.4 mm, made brick by brick where first read), else from the
+their own (:class:`LazyGrid`, 0.4 mm, made node by node where first read), else from the
 exact bound, which is not asked where the grid node's sample lies inside the ball (the ball
 cannot clear; that sample is tried as a hit). 2^3 slabs first, a failing ball split down to
 2^5. On the keycap_mold job fcl is left 11k queries of 78k (about 45k had been the holder
-cone's alone), for about 0.7 CPU-s here (25k grid nodes, 24k exact bounds).
+cone's alone), for about 0.7 CPU-s here (24k exact bounds; the grid's nodes cost 5-11 us
+each, 5.7k of them read, where bricks of 6^3 cells made whole had cost 24.7k).
 
 **Free cones.** Turning the axis by an angle phi about the ball centre moves a point at
 distance l from it by at most l phi. A pose cleared with that much to spare leaves a cone of
@@ -67,6 +68,12 @@ centre and only when asked (:meth:`BroadPhase.ball_free`).
 
 Every comparison keeps ``EPS`` (1e-6 mm) on the safe side, for fcl's own rounding. The tests
 compare the decisions with fcl on random poses (tests/orientation).
+
+**Compiled.** With numba (:mod:`~tsplcam.orientation.compiled`) the sphere loop runs pose by
+pose in one kernel (``sphere_loop``: each pose's spheres level by level, its grid reads and
+hit tests), with the same operations per sphere as numpy's level-by-level loop
+(:meth:`BroadPhase._sphere_loop`, the fallback): the same decisions, open parts, free cones
+and hit witnesses, bit for bit (tests/orientation/test_broadphase.py compares them).
 """
 from __future__ import annotations
 
@@ -93,7 +100,7 @@ WITNESS_CELL = 1.0            # mm
 CONE_WANT = np.radians(2.0)   # free cones the bounds are refined for
 EXACT_LEVELS = 3              # the exact pass splits a part's sphere this often at most
 SIDE_LEVELS = (3, 5)          # the side pass's balls: 2^3 slabs of a cone part first, split up to 2^5
-SIDE_GRID = (0.4, 6)          # the side pass's own grid: spacing (mm), cells per brick edge
+SIDE_GRID = 0.4               # the side pass's own grid: spacing (mm)
 EXACT_COST = 3                # spheres of the exact pass that cost about as much as one fcl query
 EXACT_PROBE = 2000            # spheres the exact pass is tried on before its gain counts
 PLANE_SLACK = 1e-9            # mm: a triangle's plane distance counts only this much beyond R (rounding)
@@ -301,54 +308,67 @@ class DistanceGrid:
         return np.where(ins, lb, 0.0), np.where(ins, self.idx[near], -1), ins
 
 
-class BrickGrid:
+class LazyGrid:
     """Lower bounds of the distance to the mesh at the nodes of a regular grid of spacing
     ``h`` (capped at ``cap``) and the nearest sample of each node, as :class:`DistanceGrid`,
-    but unbounded and computed a brick of ``cells``^3 cells at a time where first read: for
-    the side pass's ball centres, a few mm from the mesh in a region no box known beforehand
-    describes well."""
+    but unbounded and computed node by node where first read (the eight nodes around each
+    point asked): for the side pass's ball centres, a few mm from the mesh in a region no box
+    known beforehand describes well. Its KD-tree queries there cost 5-11 us a node; bricks of
+    6^3 cells made whole where first read asked about 12 nodes per point read (all-candidates
+    on the keycap: 41.5k nodes for 3.5k points), this only the nodes read, with the same
+    value at each node (the same query of the same point)."""
 
-    def __init__(self, tree: cKDTree, e2: float, h: float, cap: float, cells: int):
-        self.tree, self.e2, self.h, self.cap, self.B = tree, float(e2), float(h), float(cap), int(cells)
-        n = self.B + 1
-        self.bricks = CentreTable()
-        self.lb = np.zeros((0, n ** 3))
-        self.idx = np.zeros((0, n ** 3), np.int64)
-        self.stride = np.array([n * n, n, 1])
-        self._offsets = _CORNERS @ self.stride
-        g = np.arange(n)
-        self._local = np.stack(np.meshgrid(g, g, g, indexing="ij"), axis=-1).reshape(-1, 3)
+    OFF = 1 << 20                    # node coordinates are keyed in 21 bits each
+
+    def __init__(self, tree: cKDTree, e2: float, h: float, cap: float):
+        self.tree, self.e2, self.h, self.cap = tree, float(e2), float(h), float(cap)
+        self.keys = np.zeros(0, np.int64)          # sorted node keys
+        self.lb = np.zeros(0)                      # per key: the bound
+        self.idx = np.zeros(0, np.int64)           # per key: the nearest sample (-1 beyond the cap)
 
     @property
     def nodes(self) -> int:
-        return self.bricks.size * len(self._local)
+        return len(self.keys)
 
-    def _slots(self, brick: np.ndarray) -> np.ndarray:
-        slot, first = self.bricks.slots(brick.astype(float))
-        if len(first):
-            nodes = ((brick[first][:, None, :] * self.B + self._local[None]) * self.h).reshape(-1, 3)
-            d, j = self.tree.query(nodes, distance_upper_bound=self.cap, workers=2)
+    def _values(self, k: np.ndarray):
+        """(bound, sample) at the nodes of integer coordinates k (m, 3), computed where new."""
+        if len(k) and (np.abs(k).max() >= self.OFF):
+            raise ValueError(f"LazyGrid: a point more than {self.OFF * self.h:.0f} mm from the origin")
+        o = k + self.OFF
+        key = (o[:, 0] << 42) | (o[:, 1] << 21) | o[:, 2]
+        uk, inv = np.unique(key, return_inverse=True)
+        pos = np.searchsorted(self.keys, uk)
+        known = np.zeros(len(uk), bool)
+        if len(self.keys):
+            known = self.keys[np.minimum(pos, len(self.keys) - 1)] == uk
+        new = uk[~known]
+        if len(new):
+            nk = np.column_stack([new >> 42, (new >> 21) & ((1 << 21) - 1), new & ((1 << 21) - 1)]) - self.OFF
+            d, j = self.tree.query(nk * self.h, distance_upper_bound=self.cap, workers=2)
             far = ~np.isfinite(d)
             lb = np.where(far, np.sqrt(max(self.cap * self.cap - self.e2, 0.0)), np.sqrt(np.maximum(d * d - self.e2, 0.0)))
-            self.lb = np.concatenate([self.lb, lb.reshape(len(first), -1)])
-            self.idx = np.concatenate([self.idx, np.where(far, -1, j).reshape(len(first), -1)])
-        return slot
+            keys = np.concatenate([self.keys, new])
+            order = np.argsort(keys, kind="stable")
+            self.keys = keys[order]
+            self.lb = np.concatenate([self.lb, lb])[order]
+            self.idx = np.concatenate([self.idx, np.where(far, -1, j)])[order]
+            pos = np.searchsorted(self.keys, uk)
+        return self.lb[pos][inv], self.idx[pos][inv]
 
     def __call__(self, x: np.ndarray):
         """(lower bound, sample index or -1) at points x: as :meth:`DistanceGrid._read`, the best
         over the eight nodes around x of the node's bound less the distance to it."""
         f = x / self.h
         k0 = np.floor(f).astype(np.int64)
-        brick = np.floor_divide(k0, self.B)
-        slot = self._slots(brick)
         r = f - k0
-        base = (k0 - brick * self.B) @ self.stride
+        lbn, idn = self._values((k0[:, None, :] + _CORNERS[None]).reshape(-1, 3))
+        lbn, idn = lbn.reshape(len(x), 8), idn.reshape(len(x), 8)
         sq = np.stack([r * r, (1.0 - r) * (1.0 - r)], axis=2)
         d2 = sq[:, 0, :, None, None] + sq[:, 1, None, :, None] + sq[:, 2, None, None, :]
         dist = self.h * np.sqrt(d2.reshape(len(x), 8))
-        lb = (self.lb[slot[:, None], base[:, None] + self._offsets] - dist).max(axis=1)
-        near = base + (r >= 0.5).astype(np.int64) @ self.stride
-        return lb, self.idx[slot, near]
+        lb = (lbn - dist).max(axis=1)
+        near = (r >= 0.5).astype(np.int64) @ np.array([4, 2, 1])          # _CORNERS' order
+        return lb, idn[np.arange(len(x)), near]
 
 
 class CentreTable:
@@ -440,7 +460,7 @@ class BroadPhase:
         self.grids = [fine, DistanceGrid(self.tree, self.e2, lo, hi, COARSE[0], reach + COARSE[0],
                                          10 * COARSE[0], COARSE[1])]
         self._covers: dict[float, SphereCover] = {}
-        self._side_grid = None                    # BrickGrid, made when the side pass first needs it
+        self._side_grid = None                    # LazyGrid, made when the side pass first needs it
         self._stacked = None                      # the grids' arrays for the compiled sphere loop
         self.centres = CentreTable()
         self._gouge = np.zeros(0, np.int8)        # per centre: 1 clear, 0 not proven, -1 not asked yet
@@ -860,12 +880,12 @@ class BroadPhase:
         return t, np.maximum(np.sqrt(ra * ra + (t - za) ** 2), np.sqrt(rb * rb + (t - zb) ** 2))
 
     def _side_bound(self, x: np.ndarray, R: np.ndarray):
-        """(lower bound, a sample near x or -1) from the side grid (:class:`BrickGrid`, made
+        """(lower bound, a sample near x or -1) from the side grid (:class:`LazyGrid`, made
         on first use, capped a millimetre beyond the largest ball asked so far)."""
         g = self._side_grid
         if g is None or g.cap < R.max() + EPS:
             cap = float(np.ceil(R.max() + 1.0))
-            g = self._side_grid = BrickGrid(self.tree, self.e2, SIDE_GRID[0], cap, SIDE_GRID[1])
+            g = self._side_grid = LazyGrid(self.tree, self.e2, SIDE_GRID, cap)
         return g(x)
 
     def _side_pass(self, C, A, prof: Profile, status, unresolved, phi, cell, parts: int = -1):

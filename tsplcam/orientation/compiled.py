@@ -20,6 +20,13 @@ points on the keycap_mold job) is a gather of eight nodes per point: numpy's tem
 cost about 250 ns a point, the kernel a tenth of that, with the same operations in the same
 order (the same bounds, bit for bit).
 
+The broad phase's sphere loop (:meth:`~tsplcam.orientation.broadphase.BroadPhase.decide`:
+each pose's tool parts covered by spheres, split level by level, bounded by the distance
+grids, the grid nodes' samples of failing spheres tried as hits) is, in numpy, a sequence of
+array calls per level over all poses with temporaries per sphere; ``sphere_loop`` takes the
+poses one by one with the same operations per sphere in the same order (about 0.5 us a
+pose on the keycap's candidates against 1.5-2 us), so the same decisions and bits.
+
 The banded Cholesky solve of the smoothing's polish (``_Banded.solve_box``, 215 solves on
 the keycap) is latency-bound in LAPACK as here; the kernel takes LAPACK's operations in
 LAPACK's reference order, with less overhead per call. Where OpenBLAS's dtbsv keeps that
@@ -694,6 +701,10 @@ def _exercise() -> None:
     from .broadphase import DistanceGrid
     P = np.zeros((1, 3))
     DistanceGrid(cKDTree(P), 0.0, P[0], P[0] + 1.0, 0.5, 0.5, 1.0, 64)(np.full((2, 3), 0.25))
+    from .broadphase import BroadPhase, Profile
+    one = np.ones(1)
+    tri = BroadPhase(np.eye(3), np.array([[0, 1, 2]]), lambda grow: Profile(0.5 * one, 3 * one, one, one, one, one), 0.5)
+    tri.decide(np.full((2, 3), 0.5), np.array([[0.0, 0.0, 1.0], [1.0, 0.0, 0.0]]))
 
 
 def warm() -> float:

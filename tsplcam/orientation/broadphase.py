@@ -383,7 +383,14 @@ class CentreTable:
         """(slot per row of C, the new slots' first rows in C)."""
         C = np.ascontiguousarray(C, float)
         keys = C.view(np.dtype((np.void, 24))).ravel()
-        uk, first, inv = np.unique(keys, return_index=True, return_inverse=True)
+        # runs of equal rows (a batch asks several axes per centre, one after the other) taken
+        # once: sorting the void keys costs about 0.4 us a row; the same uk, first and inv
+        bits = C.view(np.uint64)
+        start = np.flatnonzero(np.concatenate(([True], (bits[1:] != bits[:-1]).any(axis=1)))) \
+            if len(C) > 1 else np.arange(len(C))
+        uk, first, inv = np.unique(keys[start], return_index=True, return_inverse=True)
+        first = start[first]
+        inv = np.repeat(inv, np.diff(np.append(start, len(C))))
         if len(self.keys):
             pos = np.searchsorted(self.keys, uk)
             known = (pos < len(self.keys)) & (self.keys[np.minimum(pos, len(self.keys) - 1)] == uk)

@@ -174,12 +174,14 @@ class AgreesWithFcl(unittest.TestCase):
         k = compiled.kernels()
         if k is None:
             self.skipTest("numba not available (or TSPLCAM_COMPILED=0)")
+        from unittest import mock
         rng = np.random.default_rng(21)
         kinds = np.zeros(3, int)
         for checker, path, tilt in ((self.mold, self.mold_path, 75), (self.keycap, self.keycap_path, 80)):
             for grow, parts in ((0.0, -1), (0.2, -1), (0.2, 0b1110)):
                 C, A = random_poses(path, 2000, rng, spread=0.1, tilt=np.radians(tilt))
-                ref = self._sphere_loop(checker.broad, C, A, grow, parts, None)
+                with mock.patch.object(compiled, "kernels", lambda work=None: None):    # all numpy
+                    ref = self._sphere_loop(checker.broad, C, A, grow, parts, None)
                 got = self._sphere_loop(checker.broad, C, A, grow, parts, k["sphere_loop"])
                 for r, g in zip(ref, got):
                     np.testing.assert_array_equal(g, r)
@@ -187,6 +189,36 @@ class AgreesWithFcl(unittest.TestCase):
                 kinds += [(st == HIT).sum(), (un.any(axis=1) & (st != HIT)).sum(),
                           ((st != HIT) & ~un.any(axis=1)).sum()]
         self.assertTrue(np.all(kinds > 100), kinds)         # hits, open poses and cleared ones
+
+    def test_compiled_hits(self):
+        """The compiled hit test (``hit_pairs``) marks the poses numpy's ``_hits`` marks and
+        gives the same witnesses: the samples nearest to points on the axes of random mold
+        poses (inside the tool or not), some poses hit already."""
+        from unittest import mock
+        from tsplcam.orientation import compiled
+        if compiled.kernels() is None:
+            self.skipTest("numba not available (or TSPLCAM_COMPILED=0)")
+        rng = np.random.default_rng(22)
+        b = self.mold.broad
+        C, A = random_poses(self.mold_path, 1500, rng, spread=0.1, tilt=np.radians(75))
+        x = C[:, None] + rng.random((len(C), 4, 1)) * 12.0 * A[:, None]
+        _, j = b.tree.query(x.reshape(-1, 3), k=3)
+        j = j.ravel()
+        pose = np.repeat(np.arange(len(C)), 12)
+        prof = b._cover(0.0).prof
+        start = np.where(rng.random(len(C)) < 0.1, HIT, UNKNOWN).astype(np.int8)
+        out = []
+        for kern in (False, True):
+            st = start.copy()
+            if kern:
+                found = b._hits(st, b.samples[j], j, pose, C, A, prof, 0b1110)
+            else:
+                with mock.patch.object(compiled, "kernels", lambda work=None: None):
+                    found = b._hits(st, b.samples[j], j, pose, C, A, prof, 0b1110)
+            out.append((st, found[np.lexsort(found.T[::-1])]))
+        np.testing.assert_array_equal(out[1][0], out[0][0])
+        np.testing.assert_array_equal(out[1][1], out[0][1])
+        self.assertGreater(int((out[0][0] != start).sum()), 100)
 
     def test_keycap_poses(self):
         st, mesh = self.check(self.keycap, self.keycap_path, 0.0, 5)

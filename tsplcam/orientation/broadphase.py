@@ -106,6 +106,7 @@ EXACT_PROBE = 2000            # spheres the exact pass is tried on before its ga
 PLANE_SLACK = 1e-9            # mm: a triangle's plane distance counts only this much beyond R (rounding)
 GRID_ROWS = 16384             # points a distance grid reads at a time
 READ_WORK = 30.0              # a grid read in numpy costs about as much as this many Viterbi elements
+HIT_WORK = 100.0              # a sample tried as a hit in numpy: about this many Viterbi elements
 SPHERE_WORK = 300.0           # a pose's part in the numpy sphere loop: about this many Viterbi elements
 _CORNERS = np.array([(i, j, k) for i in (0, 1) for j in (0, 1) for k in (0, 1)], np.int64)
 DIRECTIONS = np.array([(i, j, k) for i in (-1, 0, 1) for j in (-1, 0, 1) for k in (-1, 0, 1)
@@ -636,6 +637,16 @@ class BroadPhase:
         q, j, pose = q[live], j[live], pose[live]
         if len(pose) == 0:
             return np.zeros((0, 2), np.int64)
+        k = compiled.kernels(work=HIT_WORK * len(pose))
+        if k is not None:
+            found = np.empty((len(pose), 2), np.int64)
+            j = np.ascontiguousarray(j, np.int64)
+            pose = np.ascontiguousarray(pose, np.int64)
+            nf = k["hit_pairs"](self.samples, j, pose, np.argsort(pose, kind="stable"),
+                                np.ascontiguousarray(C, float), np.ascontiguousarray(A, float),
+                                prof.z0, prof.z1, prof.rin0, prof.rin1, prof.rout0, prof.rout1, np.int64(parts),
+                                self.sample_comp, self.anchors, EPS, status, found)
+            return found[:nf]
         cand = self._inside(q, C[pose], A[pose], prof, parts)
         if not cand.any():
             return np.zeros((0, 2), np.int64)

@@ -25,7 +25,9 @@ each pose's tool parts covered by spheres, split level by level, bounded by the 
 grids, the grid nodes' samples of failing spheres tried as hits) is, in numpy, a sequence of
 array calls per level over all poses with temporaries per sphere; ``sphere_loop`` takes the
 poses one by one with the same operations per sphere in the same order (about 0.5 us a
-pose on the keycap's candidates against 1.5-2 us), so the same decisions and bits.
+pose on the keycap's candidates against 1.5-2 us), so the same decisions and bits. Its hit
+test (``hit_pairs``: samples inside the tool, their pieces' anchors outside) serves the
+broad phase's other passes too (keycap_mold: 0.32 CPU-s in numpy).
 
 The banded Cholesky solve of the smoothing's polish (``_Banded.solve_box``, 215 solves on
 the keycap) is latency-bound in LAPACK as here; the kernel takes LAPACK's operations in
@@ -632,7 +634,87 @@ def _build():
                 level += 1
         return nh
 
-    return {"viterbi_steps": viterbi_steps, "joint_steps": joint_steps, "viterbi_path": viterbi_path,
+    @jit
+    def hit_pairs(samples, j, pose, order, C, A, z0, z1, rin0, rin1, rout0, rout1, parts, sample_comp,
+                  anchors, eps, status, found):
+        """:meth:`~tsplcam.orientation.broadphase.BroadPhase._hits` pose by pose (``order``:
+        the pairs sorted by pose, stably), the same operations per point (so the same
+        answers): the samples ``j`` inside a part asked at their pose, the least one per piece
+        of the mesh, the pieces' anchors tried one direction at a time; a pose with an anchor
+        outside the tool is hit. ``found`` (rows pose, sample, at least as many as pairs)
+        receives the witnesses; returns their number. Poses already hit are left out."""
+        K = z0.shape[0]
+        nd = anchors.shape[1]
+        n = order.shape[0]
+        comp_c = np.empty(n, np.int64)
+        comp_j = np.empty(n, np.int64)
+        nf = 0
+        i = 0
+        while i < n:
+            p = pose[order[i]]
+            e = i
+            while e < n and pose[order[e]] == p:
+                e += 1
+            if status[p] == 1:
+                i = e
+                continue
+            ncomp = 0
+            for t in range(i, e):
+                jj = j[order[t]]
+                w0 = samples[jj, 0] - C[p, 0]
+                w1 = samples[jj, 1] - C[p, 1]
+                w2 = samples[jj, 2] - C[p, 2]
+                z = w0 * A[p, 0] + w1 * A[p, 1] + w2 * A[p, 2]
+                rad2 = max(w0 * w0 + w1 * w1 + w2 * w2 - z * z, 0.0)
+                ins = False
+                for k in range(K):
+                    if not (parts >> k) & 1:
+                        continue
+                    zz = min(max(z, z0[k]), z1[k])
+                    fz = (zz - z0[k]) / (z1[k] - z0[k])
+                    rr = rin0[k] + fz * (rin1[k] - rin0[k]) - eps
+                    if z >= z0[k] + eps and z <= z1[k] - eps and rad2 < rr * rr:
+                        ins = True
+                if not ins:
+                    continue
+                cc = sample_comp[jj]
+                known = False
+                for q in range(ncomp):
+                    if comp_c[q] == cc:
+                        known = True
+                        if jj < comp_j[q]:
+                            comp_j[q] = jj
+                if not known:
+                    comp_c[ncomp] = cc
+                    comp_j[ncomp] = jj
+                    ncomp += 1
+            for a in range(nd if ncomp > 0 else 0):
+                hit = False
+                for q in range(ncomp):
+                    w0 = anchors[comp_c[q], a, 0] - C[p, 0]
+                    w1 = anchors[comp_c[q], a, 1] - C[p, 1]
+                    w2 = anchors[comp_c[q], a, 2] - C[p, 2]
+                    z = w0 * A[p, 0] + w1 * A[p, 1] + w2 * A[p, 2]
+                    rad2 = max(w0 * w0 + w1 * w1 + w2 * w2 - z * z, 0.0)
+                    out = True
+                    for k in range(K):
+                        zz = min(max(z, z0[k]), z1[k])
+                        fz = (zz - z0[k]) / (z1[k] - z0[k])
+                        rr = rout0[k] + fz * (rout1[k] - rout0[k]) + eps
+                        if not (z < z0[k] - eps or z > z1[k] + eps or rad2 > rr * rr):
+                            out = False
+                    if out:
+                        found[nf, 0] = p
+                        found[nf, 1] = comp_j[q]
+                        nf += 1
+                        hit = True
+                if hit:
+                    status[p] = 1
+                    break
+            i = e
+        return nf
+
+    return {"hit_pairs": hit_pairs, "viterbi_steps": viterbi_steps, "joint_steps": joint_steps, "viterbi_path": viterbi_path,
             "banded_solve": banded_solve, "grid_read": grid_read, "two_states": two_states,
             "solve_box": solve_box, "sphere_loop": sphere_loop}
 
@@ -704,7 +786,9 @@ def _exercise() -> None:
     from .broadphase import BroadPhase, Profile
     one = np.ones(1)
     tri = BroadPhase(np.eye(3), np.array([[0, 1, 2]]), lambda grow: Profile(0.5 * one, 3 * one, one, one, one, one), 0.5)
-    tri.decide(np.full((2, 3), 0.5), np.array([[0.0, 0.0, 1.0], [1.0, 0.0, 0.0]]))
+    C, A = np.full((2, 3), 0.5), np.array([[0.0, 0.0, 1.0], [1.0, 0.0, 0.0]])
+    tri.decide(C, A)
+    tri._hits(np.full(2, -1, np.int8), tri.samples[[0, 1]], np.arange(2), np.arange(2), C, A, tri._cover(0.0).prof)
 
 
 def warm() -> float:

@@ -144,6 +144,82 @@ class AgreesWithFcl(unittest.TestCase):
             self.assertEqual(int(((st == FREE) & ref).sum()), 0)
             self.assertEqual(int(((st == HIT) & ~ref).sum()), 0)
 
+    @staticmethod
+    def _sphere_loop(b, C, A, grow, parts, kern):
+        """(status, unresolved parts, free cones, witness table) of the sphere loop alone on
+        poses C, A: numpy's loop (kern None) or the compiled one; the witnesses put back."""
+        cov = b._cover(grow)
+        K = len(cov.prof.z0)
+        n = len(C)
+        status = np.full(n, UNKNOWN, np.int8)
+        unresolved = np.zeros((n, K), bool)
+        phi = np.full(n, np.inf)
+        cell = b._witness_cells(C)
+        wit0 = b._wit.copy()
+        asked = np.nonzero((parts >> np.arange(K)) & 1)[0]
+        args = (C, A, cov, np.arange(n), asked, parts, status, unresolved, phi, cell)
+        if kern is None:
+            b._sphere_loop(*args)
+        else:
+            b._sphere_kernel(kern, *args)
+        wit, b._wit = b._wit, wit0
+        return status, unresolved, phi, wit
+
+    def test_compiled_sphere_loop(self):
+        """The compiled sphere loop (pose by pose) decides what numpy's loop (level by level
+        over all poses) decides: the same hits, unresolved parts, free cones (bit for bit) and
+        hit witnesses, on random poses around the mold (walls, stock) and the keycap, with and
+        without growth and for some parts only."""
+        from tsplcam.orientation import compiled
+        k = compiled.kernels()
+        if k is None:
+            self.skipTest("numba not available (or TSPLCAM_COMPILED=0)")
+        from unittest import mock
+        rng = np.random.default_rng(21)
+        kinds = np.zeros(3, int)
+        for checker, path, tilt in ((self.mold, self.mold_path, 75), (self.keycap, self.keycap_path, 80)):
+            for grow, parts in ((0.0, -1), (0.2, -1), (0.2, 0b1110)):
+                C, A = random_poses(path, 2000, rng, spread=0.1, tilt=np.radians(tilt))
+                with mock.patch.object(compiled, "kernels", lambda work=None: None):    # all numpy
+                    ref = self._sphere_loop(checker.broad, C, A, grow, parts, None)
+                got = self._sphere_loop(checker.broad, C, A, grow, parts, k["sphere_loop"])
+                for r, g in zip(ref, got):
+                    np.testing.assert_array_equal(g, r)
+                st, un, _, _ = ref
+                kinds += [(st == HIT).sum(), (un.any(axis=1) & (st != HIT)).sum(),
+                          ((st != HIT) & ~un.any(axis=1)).sum()]
+        self.assertTrue(np.all(kinds > 100), kinds)         # hits, open poses and cleared ones
+
+    def test_compiled_hits(self):
+        """The compiled hit test (``hit_pairs``) marks the poses numpy's ``_hits`` marks and
+        gives the same witnesses: the samples nearest to points on the axes of random mold
+        poses (inside the tool or not), some poses hit already."""
+        from unittest import mock
+        from tsplcam.orientation import compiled
+        if compiled.kernels() is None:
+            self.skipTest("numba not available (or TSPLCAM_COMPILED=0)")
+        rng = np.random.default_rng(22)
+        b = self.mold.broad
+        C, A = random_poses(self.mold_path, 1500, rng, spread=0.1, tilt=np.radians(75))
+        x = C[:, None] + rng.random((len(C), 4, 1)) * 12.0 * A[:, None]
+        _, j = b.tree.query(x.reshape(-1, 3), k=3)
+        j = j.ravel()
+        pose = np.repeat(np.arange(len(C)), 12)
+        prof = b._cover(0.0).prof
+        start = np.where(rng.random(len(C)) < 0.1, HIT, UNKNOWN).astype(np.int8)
+        out = []
+        for kern in (False, True):
+            st = start.copy()
+            if kern:
+                found = b._hits(st, b.samples[j], j, pose, C, A, prof, 0b1110)
+            else:
+                with mock.patch.object(compiled, "kernels", lambda work=None: None):
+                    found = b._hits(st, b.samples[j], j, pose, C, A, prof, 0b1110)
+            out.append((st, found[np.lexsort(found.T[::-1])]))
+        np.testing.assert_array_equal(out[1][0], out[0][0])
+        np.testing.assert_array_equal(out[1][1], out[0][1])
+        self.assertGreater(int((out[0][0] != start).sum()), 100)
+
     def test_keycap_poses(self):
         st, mesh = self.check(self.keycap, self.keycap_path, 0.0, 5)
         self.assertGreater(np.mean(st != UNKNOWN), 0.6)
@@ -313,16 +389,17 @@ class Geometry(unittest.TestCase):
             else:                                                  # a cylinder: the same ball
                 np.testing.assert_allclose(R, s, rtol=1e-12)
 
-    def test_brick_grid(self):
-        """The side pass's brick grid: bounds never above the distance to the mesh (brute force
+    def test_lazy_grid(self):
+        """The side pass's lazy grid: bounds never above the distance to the mesh (brute force
         over every triangle), within a cell's diagonal of it below the cap, its sample the
-        nearest one of the nearest node; bricks are made only where read."""
-        from tsplcam.orientation.broadphase import BrickGrid, BroadPhase, Profile
+        nearest one of the nearest node; nodes are made only where read, each the value a
+        whole grid has there."""
+        from tsplcam.orientation.broadphase import BroadPhase, DistanceGrid, LazyGrid, Profile
         rng = np.random.default_rng(3)
         V, T = wavy_sheet()
         one = np.ones(1)
         bp = BroadPhase(V, T, lambda grow: Profile(0 * one, one, one, one, one, one), 0.1, 0.3)
-        grid = BrickGrid(bp.tree, bp.e2, 0.25, 3.0, 4)
+        grid = LazyGrid(bp.tree, bp.e2, 0.25, 3.0)
         x = rng.random((2000, 3)) * [4, 4, 2] + [0, 0, 0.5]
         lb, near = grid(x)
         true = np.full(len(x), np.inf)
@@ -333,12 +410,19 @@ class Geometry(unittest.TestCase):
         low = true < 2.5
         self.assertTrue(np.all(lb[low] >= true[low] - 0.25 * np.sqrt(3) - 0.1))
         self.assertTrue(np.all(near[low] >= 0))
-        made = grid.bricks.size
+        made = grid.nodes
         grid(x[:10])
-        self.assertEqual(grid.bricks.size, made)                 # read again: nothing new
-        small = BrickGrid(bp.tree, bp.e2, 0.25, 3.0, 4)          # bricks of 1 mm
-        small(rng.random((500, 3)) * 0.9 + [1.05, 2.05, 1.05])   # inside one 1 mm cube
-        self.assertLessEqual(small.bricks.size, 8)
+        self.assertEqual(grid.nodes, made)                       # read again: nothing new
+        small = LazyGrid(bp.tree, bp.e2, 0.25, 3.0)
+        small(rng.random((500, 3)) * 0.2 + [1.02, 2.02, 1.02])   # inside one cell
+        self.assertEqual(small.nodes, 8)
+        # the same bits as a whole grid over the same nodes (origin on a node, 0.25 mm)
+        whole = DistanceGrid(bp.tree, bp.e2, np.zeros(3), np.array([4.0, 4.0, 2.5]), 0.25, 0.0, 3.0, 10 ** 6)
+        self.assertEqual(whole.h, 0.25)
+        wl, wn, ins = whole(x)
+        np.testing.assert_array_equal(lb[ins], wl[ins])
+        np.testing.assert_array_equal(near[ins], wn[ins])
+        self.assertGreater(ins.mean(), 0.9)
 
     def test_sample_bound(self):
         """Every point of a triangle lies at least sqrt(d^2 - e^2/3) from a point whose

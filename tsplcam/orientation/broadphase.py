@@ -41,11 +41,12 @@ convex, the slab the rings' hull) but are centred where a ball is tangent to the
 (``slope * radius`` along the axis from the slab's middle): beyond the side they reach a hair
 (0.026 mm at 2^3 slabs of that cone). Their centres lie a few mm from the mesh, beyond the
 fine grid's cap, where the coarse grid loses up to 1.7 mm: their bounds come from a grid of
-their own (:class:`BrickGrid`, 0.4 mm, made brick by brick where first read), else from the
+their own (:class:`LazyGrid`, 0.4 mm, made node by node where first read), else from the
 exact bound, which is not asked where the grid node's sample lies inside the ball (the ball
 cannot clear; that sample is tried as a hit). 2^3 slabs first, a failing ball split down to
 2^5. On the keycap_mold job fcl is left 11k queries of 78k (about 45k had been the holder
-cone's alone), for about 0.7 CPU-s here (25k grid nodes, 24k exact bounds).
+cone's alone), for about 0.7 CPU-s here (24k exact bounds; the grid's nodes cost 5-11 us
+each, 5.7k of them read, where bricks of 6^3 cells made whole had cost 24.7k).
 
 **Free cones.** Turning the axis by an angle phi about the ball centre moves a point at
 distance l from it by at most l phi. A pose cleared with that much to spare leaves a cone of
@@ -67,6 +68,12 @@ centre and only when asked (:meth:`BroadPhase.ball_free`).
 
 Every comparison keeps ``EPS`` (1e-6 mm) on the safe side, for fcl's own rounding. The tests
 compare the decisions with fcl on random poses (tests/orientation).
+
+**Compiled.** With numba (:mod:`~tsplcam.orientation.compiled`) the sphere loop runs pose by
+pose in one kernel (``sphere_loop``: each pose's spheres level by level, its grid reads and
+hit tests), with the same operations per sphere as numpy's level-by-level loop
+(:meth:`BroadPhase._sphere_loop`, the fallback): the same decisions, open parts, free cones
+and hit witnesses, bit for bit (tests/orientation/test_broadphase.py compares them).
 """
 from __future__ import annotations
 
@@ -93,12 +100,14 @@ WITNESS_CELL = 1.0            # mm
 CONE_WANT = np.radians(2.0)   # free cones the bounds are refined for
 EXACT_LEVELS = 3              # the exact pass splits a part's sphere this often at most
 SIDE_LEVELS = (3, 5)          # the side pass's balls: 2^3 slabs of a cone part first, split up to 2^5
-SIDE_GRID = (0.4, 6)          # the side pass's own grid: spacing (mm), cells per brick edge
+SIDE_GRID = 0.4               # the side pass's own grid: spacing (mm)
 EXACT_COST = 3                # spheres of the exact pass that cost about as much as one fcl query
 EXACT_PROBE = 2000            # spheres the exact pass is tried on before its gain counts
 PLANE_SLACK = 1e-9            # mm: a triangle's plane distance counts only this much beyond R (rounding)
 GRID_ROWS = 16384             # points a distance grid reads at a time
 READ_WORK = 30.0              # a grid read in numpy costs about as much as this many Viterbi elements
+HIT_WORK = 100.0              # a sample tried as a hit in numpy: about this many Viterbi elements
+SPHERE_WORK = 300.0           # a pose's part in the numpy sphere loop: about this many Viterbi elements
 _CORNERS = np.array([(i, j, k) for i in (0, 1) for j in (0, 1) for k in (0, 1)], np.int64)
 DIRECTIONS = np.array([(i, j, k) for i in (-1, 0, 1) for j in (-1, 0, 1) for k in (-1, 0, 1)
                        if (i, j, k) != (0, 0, 0)], float)
@@ -300,54 +309,67 @@ class DistanceGrid:
         return np.where(ins, lb, 0.0), np.where(ins, self.idx[near], -1), ins
 
 
-class BrickGrid:
+class LazyGrid:
     """Lower bounds of the distance to the mesh at the nodes of a regular grid of spacing
     ``h`` (capped at ``cap``) and the nearest sample of each node, as :class:`DistanceGrid`,
-    but unbounded and computed a brick of ``cells``^3 cells at a time where first read: for
-    the side pass's ball centres, a few mm from the mesh in a region no box known beforehand
-    describes well."""
+    but unbounded and computed node by node where first read (the eight nodes around each
+    point asked): for the side pass's ball centres, a few mm from the mesh in a region no box
+    known beforehand describes well. Its KD-tree queries there cost 5-11 us a node; bricks of
+    6^3 cells made whole where first read asked about 12 nodes per point read (all-candidates
+    on the keycap: 41.5k nodes for 3.5k points), this only the nodes read, with the same
+    value at each node (the same query of the same point)."""
 
-    def __init__(self, tree: cKDTree, e2: float, h: float, cap: float, cells: int):
-        self.tree, self.e2, self.h, self.cap, self.B = tree, float(e2), float(h), float(cap), int(cells)
-        n = self.B + 1
-        self.bricks = CentreTable()
-        self.lb = np.zeros((0, n ** 3))
-        self.idx = np.zeros((0, n ** 3), np.int64)
-        self.stride = np.array([n * n, n, 1])
-        self._offsets = _CORNERS @ self.stride
-        g = np.arange(n)
-        self._local = np.stack(np.meshgrid(g, g, g, indexing="ij"), axis=-1).reshape(-1, 3)
+    OFF = 1 << 20                    # node coordinates are keyed in 21 bits each
+
+    def __init__(self, tree: cKDTree, e2: float, h: float, cap: float):
+        self.tree, self.e2, self.h, self.cap = tree, float(e2), float(h), float(cap)
+        self.keys = np.zeros(0, np.int64)          # sorted node keys
+        self.lb = np.zeros(0)                      # per key: the bound
+        self.idx = np.zeros(0, np.int64)           # per key: the nearest sample (-1 beyond the cap)
 
     @property
     def nodes(self) -> int:
-        return self.bricks.size * len(self._local)
+        return len(self.keys)
 
-    def _slots(self, brick: np.ndarray) -> np.ndarray:
-        slot, first = self.bricks.slots(brick.astype(float))
-        if len(first):
-            nodes = ((brick[first][:, None, :] * self.B + self._local[None]) * self.h).reshape(-1, 3)
-            d, j = self.tree.query(nodes, distance_upper_bound=self.cap, workers=2)
+    def _values(self, k: np.ndarray):
+        """(bound, sample) at the nodes of integer coordinates k (m, 3), computed where new."""
+        if len(k) and (np.abs(k).max() >= self.OFF):
+            raise ValueError(f"LazyGrid: a point more than {self.OFF * self.h:.0f} mm from the origin")
+        o = k + self.OFF
+        key = (o[:, 0] << 42) | (o[:, 1] << 21) | o[:, 2]
+        uk, inv = np.unique(key, return_inverse=True)
+        pos = np.searchsorted(self.keys, uk)
+        known = np.zeros(len(uk), bool)
+        if len(self.keys):
+            known = self.keys[np.minimum(pos, len(self.keys) - 1)] == uk
+        new = uk[~known]
+        if len(new):
+            nk = np.column_stack([new >> 42, (new >> 21) & ((1 << 21) - 1), new & ((1 << 21) - 1)]) - self.OFF
+            d, j = self.tree.query(nk * self.h, distance_upper_bound=self.cap, workers=2)
             far = ~np.isfinite(d)
             lb = np.where(far, np.sqrt(max(self.cap * self.cap - self.e2, 0.0)), np.sqrt(np.maximum(d * d - self.e2, 0.0)))
-            self.lb = np.concatenate([self.lb, lb.reshape(len(first), -1)])
-            self.idx = np.concatenate([self.idx, np.where(far, -1, j).reshape(len(first), -1)])
-        return slot
+            keys = np.concatenate([self.keys, new])
+            order = np.argsort(keys, kind="stable")
+            self.keys = keys[order]
+            self.lb = np.concatenate([self.lb, lb])[order]
+            self.idx = np.concatenate([self.idx, np.where(far, -1, j)])[order]
+            pos = np.searchsorted(self.keys, uk)
+        return self.lb[pos][inv], self.idx[pos][inv]
 
     def __call__(self, x: np.ndarray):
         """(lower bound, sample index or -1) at points x: as :meth:`DistanceGrid._read`, the best
         over the eight nodes around x of the node's bound less the distance to it."""
         f = x / self.h
         k0 = np.floor(f).astype(np.int64)
-        brick = np.floor_divide(k0, self.B)
-        slot = self._slots(brick)
         r = f - k0
-        base = (k0 - brick * self.B) @ self.stride
+        lbn, idn = self._values((k0[:, None, :] + _CORNERS[None]).reshape(-1, 3))
+        lbn, idn = lbn.reshape(len(x), 8), idn.reshape(len(x), 8)
         sq = np.stack([r * r, (1.0 - r) * (1.0 - r)], axis=2)
         d2 = sq[:, 0, :, None, None] + sq[:, 1, None, :, None] + sq[:, 2, None, None, :]
         dist = self.h * np.sqrt(d2.reshape(len(x), 8))
-        lb = (self.lb[slot[:, None], base[:, None] + self._offsets] - dist).max(axis=1)
-        near = base + (r >= 0.5).astype(np.int64) @ self.stride
-        return lb, self.idx[slot, near]
+        lb = (lbn - dist).max(axis=1)
+        near = (r >= 0.5).astype(np.int64) @ np.array([4, 2, 1])          # _CORNERS' order
+        return lb, idn[np.arange(len(x)), near]
 
 
 class CentreTable:
@@ -362,7 +384,14 @@ class CentreTable:
         """(slot per row of C, the new slots' first rows in C)."""
         C = np.ascontiguousarray(C, float)
         keys = C.view(np.dtype((np.void, 24))).ravel()
-        uk, first, inv = np.unique(keys, return_index=True, return_inverse=True)
+        # runs of equal rows (a batch asks several axes per centre, one after the other) taken
+        # once: sorting the void keys costs about 0.4 us a row; the same uk, first and inv
+        bits = C.view(np.uint64)
+        start = np.flatnonzero(np.concatenate(([True], (bits[1:] != bits[:-1]).any(axis=1)))) \
+            if len(C) > 1 else np.arange(len(C))
+        uk, first, inv = np.unique(keys[start], return_index=True, return_inverse=True)
+        first = start[first]
+        inv = np.repeat(inv, np.diff(np.append(start, len(C))))
         if len(self.keys):
             pos = np.searchsorted(self.keys, uk)
             known = (pos < len(self.keys)) & (self.keys[np.minimum(pos, len(self.keys) - 1)] == uk)
@@ -439,7 +468,8 @@ class BroadPhase:
         self.grids = [fine, DistanceGrid(self.tree, self.e2, lo, hi, COARSE[0], reach + COARSE[0],
                                          10 * COARSE[0], COARSE[1])]
         self._covers: dict[float, SphereCover] = {}
-        self._side_grid = None                    # BrickGrid, made when the side pass first needs it
+        self._side_grid = None                    # LazyGrid, made when the side pass first needs it
+        self._stacked = None                      # the grids' arrays for the compiled sphere loop
         self.centres = CentreTable()
         self._gouge = np.zeros(0, np.int8)        # per centre: 1 clear, 0 not proven, -1 not asked yet
         self._cone_a = {}                         # per grow: (slots, CONES, 3) axes
@@ -607,6 +637,16 @@ class BroadPhase:
         q, j, pose = q[live], j[live], pose[live]
         if len(pose) == 0:
             return np.zeros((0, 2), np.int64)
+        k = compiled.kernels(work=HIT_WORK * len(pose))
+        if k is not None:
+            found = np.empty((len(pose), 2), np.int64)
+            j = np.ascontiguousarray(j, np.int64)
+            pose = np.ascontiguousarray(pose, np.int64)
+            nf = k["hit_pairs"](self.samples, j, pose, np.argsort(pose, kind="stable"),
+                                np.ascontiguousarray(C, float), np.ascontiguousarray(A, float),
+                                prof.z0, prof.z1, prof.rin0, prof.rin1, prof.rout0, prof.rout1, np.int64(parts),
+                                self.sample_comp, self.anchors, EPS, status, found)
+            return found[:nf]
         cand = self._inside(q, C[pose], A[pose], prof, parts)
         if not cand.any():
             return np.zeros((0, 2), np.int64)
@@ -765,6 +805,84 @@ class BroadPhase:
         unresolved[done] = False
         return len(done) + int((status[members] == HIT).sum()) - before, self.stats["exact"] - asked0
 
+    def _sphere_loop(self, C, A, cov: SphereCover, todo, asked, parts, status, unresolved, phi, cell):
+        """The sphere cover of the poses ``todo`` (parts ``asked``), level by level over all
+        of them: a sphere the grids clear narrows the pose's free cone ``phi``; one they do not
+        is split while a smaller one might clear, else its part is left ``unresolved``; the
+        grid nodes' samples of failing spheres are tried as hits. Updates ``status``,
+        ``unresolved`` and ``phi`` in place (:meth:`_sphere_kernel` is the same, compiled)."""
+        prof = cov.prof
+        pose = np.repeat(todo, len(asked))
+        part = np.tile(asked, len(todo))
+        seg = np.zeros(len(pose), np.int64)
+        level = 0
+        while len(pose):
+            zc, s, rmax = cov.spheres(part, level, seg)
+            x = C[pose] + zc[:, None] * A[pose]
+            # (the coarse grid only where the fine one leaves less than a cone of CONE_WANT)
+            bound, jg, _ = self.lower_bound(x, s + EPS + CONE_WANT * zc)
+            cert = bound >= s + EPS
+            split = np.zeros(len(pose), bool)
+            rest = np.nonzero(~cert)[0]
+            if len(rest):
+                # the grid node's sample: inside the tool (hit)
+                jr = jg[rest]
+                has = jr >= 0
+                found = self._hits(status, self.samples[jr[has]], jr[has], pose[rest[has]], C, A, prof, parts)
+                self._remember(cell, found)
+                # the sphere is split while it can be, and a pose left with spheres the grids
+                # cannot clear is asked again with exact bounds (_exact_pass), else of fcl
+                hopeless = bound[rest] < rmax[rest] + EPS      # no smaller sphere can clear
+                unresolved[pose[rest[hopeless]], part[rest[hopeless]]] = True
+                split[rest[~hopeless]] = True
+            ok = np.nonzero(cert)[0]
+            min_into(phi, pose[ok], (bound[ok] - s[ok] - EPS) / zc[ok])
+            keep = split & (status[pose] != HIT) & ~unresolved[pose, part]
+            last = keep & (level >= cov.max_level[part])
+            unresolved[pose[last], part[last]] = True
+            keep &= ~last
+            m = int(keep.sum())
+            pose, part = np.repeat(pose[keep], 2), np.repeat(part[keep], 2)
+            seg = 2 * np.repeat(seg[keep], 2) + np.tile([0, 1], m)
+            level += 1
+
+    def _grid_arrays(self):
+        """The two distance grids' parameters stacked and their nodes concatenated, for the
+        compiled sphere loop."""
+        if self._stacked is None:
+            g = self.grids
+            self._stacked = (np.array([x.origin for x in g], float), np.array([x.h for x in g], float),
+                             np.array([x.shape for x in g], np.int64), np.array([x.stride for x in g], np.int64),
+                             np.array([x._offsets for x in g], np.int64),
+                             np.array([0, len(g[0].lb)], np.int64), np.concatenate([x.lb for x in g]),
+                             np.concatenate([x.idx for x in g]).astype(np.int64))
+        return self._stacked
+
+    def _sphere_kernel(self, kern, C, A, cov: SphereCover, todo, asked, parts, status, unresolved, phi, cell):
+        """:meth:`_sphere_loop` by the compiled kernel (``compiled.sphere_loop``: pose by pose,
+        the same operations per sphere, so the same bits); the hits' witnesses are remembered
+        level by level as the loop does."""
+        prof = cov.prof
+        C = np.ascontiguousarray(C, float)
+        A = np.ascontiguousarray(A, float)
+        lo, hi = self.box
+        rows = max(16, 2 * len(todo))
+        while True:
+            st, un, ph = status.copy(), unresolved.copy(), phi.copy()
+            hits = np.empty((rows, 3), np.int64)
+            nh = kern(C, A, np.ascontiguousarray(todo, np.int64), np.ascontiguousarray(asked, np.int64),
+                      prof.z0, prof.z1, prof.rout0, prof.rout1, prof.rin0, prof.rin1,
+                      np.ascontiguousarray(cov.max_level, np.int64), np.int64(parts),
+                      np.ascontiguousarray(lo, float), np.ascontiguousarray(hi, float), *self._grid_arrays(),
+                      self.samples, self.sample_comp, self.anchors, EPS, CONE_WANT, st, un, ph, hits)
+            if nh >= 0:
+                break
+            rows *= 4
+        status[:], unresolved[:], phi[:] = st, un, ph
+        hits = hits[:nh]
+        for lev in np.unique(hits[:, 0]):
+            self._remember(cell, hits[hits[:, 0] == lev, 1:])
+
     @staticmethod
     def side_balls(prof: Profile, part: np.ndarray, level: int, seg: np.ndarray):
         """(centre height, radius) of a ball containing slab ``seg`` of ``part`` at ``level``
@@ -780,12 +898,12 @@ class BroadPhase:
         return t, np.maximum(np.sqrt(ra * ra + (t - za) ** 2), np.sqrt(rb * rb + (t - zb) ** 2))
 
     def _side_bound(self, x: np.ndarray, R: np.ndarray):
-        """(lower bound, a sample near x or -1) from the side grid (:class:`BrickGrid`, made
+        """(lower bound, a sample near x or -1) from the side grid (:class:`LazyGrid`, made
         on first use, capped a millimetre beyond the largest ball asked so far)."""
         g = self._side_grid
         if g is None or g.cap < R.max() + EPS:
             cap = float(np.ceil(R.max() + 1.0))
-            g = self._side_grid = BrickGrid(self.tree, self.e2, SIDE_GRID[0], cap, SIDE_GRID[1])
+            g = self._side_grid = LazyGrid(self.tree, self.e2, SIDE_GRID, cap)
         return g(x)
 
     def _side_pass(self, C, A, prof: Profile, status, unresolved, phi, cell, parts: int = -1):
@@ -893,39 +1011,11 @@ class BroadPhase:
         K = len(prof.z0)
         unresolved = np.zeros((n, K), bool)      # parts the spheres could not clear
         asked = np.nonzero((parts >> np.arange(K)) & 1)[0]
-        pose = np.repeat(todo, len(asked))
-        part = np.tile(asked, len(todo))
-        seg = np.zeros(len(pose), np.int64)
-        level = 0
-        while len(pose):
-            zc, s, rmax = cov.spheres(part, level, seg)
-            x = C[pose] + zc[:, None] * A[pose]
-            # (the coarse grid only where the fine one leaves less than a cone of CONE_WANT)
-            bound, jg, _ = self.lower_bound(x, s + EPS + CONE_WANT * zc)
-            cert = bound >= s + EPS
-            split = np.zeros(len(pose), bool)
-            rest = np.nonzero(~cert)[0]
-            if len(rest):
-                # the grid node's sample: inside the tool (hit)
-                jr = jg[rest]
-                has = jr >= 0
-                found = self._hits(status, self.samples[jr[has]], jr[has], pose[rest[has]], C, A, prof, parts)
-                self._remember(cell, found)
-                # the sphere is split while it can be, and a pose left with spheres the grids
-                # cannot clear is asked again with exact bounds (_exact_pass), else of fcl
-                hopeless = bound[rest] < rmax[rest] + EPS      # no smaller sphere can clear
-                unresolved[pose[rest[hopeless]], part[rest[hopeless]]] = True
-                split[rest[~hopeless]] = True
-            ok = np.nonzero(cert)[0]
-            min_into(phi, pose[ok], (bound[ok] - s[ok] - EPS) / zc[ok])
-            keep = split & (status[pose] != HIT) & ~unresolved[pose, part]
-            last = keep & (level >= cov.max_level[part])
-            unresolved[pose[last], part[last]] = True
-            keep &= ~last
-            m = int(keep.sum())
-            pose, part = np.repeat(pose[keep], 2), np.repeat(part[keep], 2)
-            seg = 2 * np.repeat(seg[keep], 2) + np.tile([0, 1], m)
-            level += 1
+        k = compiled.kernels(work=SPHERE_WORK * len(todo) * len(asked))
+        if k is not None:
+            self._sphere_kernel(k["sphere_loop"], C, A, cov, todo, asked, parts, status, unresolved, phi, cell)
+        else:
+            self._sphere_loop(C, A, cov, todo, asked, parts, status, unresolved, phi, cell)
         self._side_pass(C, A, prof, status, unresolved, phi, cell, parts)
         if grow == 0.0:
             # (a grown tool is what the clearance measurement asks, of poses within a hair

@@ -20,6 +20,15 @@ points on the keycap_mold job) is a gather of eight nodes per point: numpy's tem
 cost about 250 ns a point, the kernel a tenth of that, with the same operations in the same
 order (the same bounds, bit for bit).
 
+The broad phase's sphere loop (:meth:`~tsplcam.orientation.broadphase.BroadPhase.decide`:
+each pose's tool parts covered by spheres, split level by level, bounded by the distance
+grids, the grid nodes' samples of failing spheres tried as hits) is, in numpy, a sequence of
+array calls per level over all poses with temporaries per sphere; ``sphere_loop`` takes the
+poses one by one with the same operations per sphere in the same order (about 0.5 us a
+pose on the keycap's candidates against 1.5-2 us), so the same decisions and bits. Its hit
+test (``hit_pairs``: samples inside the tool, their pieces' anchors outside) serves the
+broad phase's other passes too (keycap_mold: 0.32 CPU-s in numpy).
+
 The banded Cholesky solve of the smoothing's polish (``_Banded.solve_box``, 215 solves on
 the keycap) is latency-bound in LAPACK as here; the kernel takes LAPACK's operations in
 LAPACK's reference order, with less overhead per call. Where OpenBLAS's dtbsv keeps that
@@ -422,9 +431,292 @@ def _build():
             lb[p] = best if inside else 0.0
             near[p] = idx[base + nb] if inside else -1
 
-    return {"viterbi_steps": viterbi_steps, "joint_steps": joint_steps, "viterbi_path": viterbi_path,
+    @jit
+    def sphere_loop(C, A, todo, asked, z0, z1, rout0, rout1, rin0, rin1, max_level, parts,
+                    box_lo, box_hi, g_origin, g_h, g_shape, g_stride, g_offsets, g_base, g_lb, g_idx,
+                    samples, sample_comp, anchors, eps, cone_want, status, unresolved, phi, hits):
+        """The sphere loop of :meth:`~tsplcam.orientation.broadphase.BroadPhase.decide` pose by
+        pose instead of level by level over all poses, the same operations in the same order
+        per sphere (so the same bits): the sphere of each slab, its bound from the box and the
+        fine grid (``g_*[0]``; the coarse grid ``g_*[1]`` where that bound is short of the
+        need), cleared / split / unresolved, and at each level the grid nodes' samples of the
+        failing spheres tried as hits (``_hits``: inside a part asked, then the piece's
+        anchors one direction at a time). The grids' node arrays are concatenated
+        (``g_base`` where each begins); their read is :func:`grid_read`'s, written out here
+        (a kernel calling another misses numba's cache). Updates ``status``, ``unresolved``,
+        ``phi``; ``hits`` (rows level, pose, sample: what ``_hits`` returns per level) is
+        filled from row 0; returns the rows used, or -1 when ``hits`` is too short (the
+        caller asks again with a longer one)."""
+        K = z0.shape[0]
+        width = 0
+        for k in range(K):
+            w = 1 << max_level[k]
+            if w > width:
+                width = w
+        cap = asked.shape[0] * width
+        a_part = np.empty(cap, np.int64)
+        a_seg = np.empty(cap, np.int64)
+        b_part = np.empty(cap, np.int64)
+        b_seg = np.empty(cap, np.int64)
+        split = np.empty(cap, np.bool_)
+        cand = np.empty(cap, np.int64)
+        comp_j = np.empty(cap, np.int64)
+        comp_c = np.empty(cap, np.int64)
+        xs = np.empty(3)
+        f = np.empty(3)
+        r = np.empty(3)
+        kk = np.empty(3, np.int64)
+        sq = np.empty((3, 2))
+        nd = anchors.shape[1]
+        nh = 0
+        for t in range(todo.shape[0]):
+            p = todo[t]
+            n = asked.shape[0]
+            for i in range(n):
+                a_part[i] = asked[i]
+                a_seg[i] = 0
+            level = 0
+            while n > 0:
+                nc = 0
+                for i in range(n):
+                    k = a_part[i]
+                    seg = a_seg[i]
+                    # SphereCover.spheres
+                    length = (z1[k] - z0[k]) / (1 << level)
+                    za = z0[k] + seg * length
+                    zb = za + length
+                    fa = (za - z0[k]) / (z1[k] - z0[k])
+                    ra = rout0[k] + fa * (rout1[k] - rout0[k])
+                    fb = (zb - z0[k]) / (z1[k] - z0[k])
+                    rb = rout0[k] + fb * (rout1[k] - rout0[k])
+                    rmax = ra if ra >= rb else rb
+                    zc = 0.5 * (za + zb)
+                    s = np.sqrt(rmax * rmax + 0.25 * length * length)
+                    # lower_bound: the box, the fine grid, the coarse one where short of the need
+                    for d in range(3):
+                        xs[d] = C[p, d] + zc * A[p, d]
+                    o0 = max(max(box_lo[0] - xs[0], xs[0] - box_hi[0]), 0.0)
+                    o1 = max(max(box_lo[1] - xs[1], xs[1] - box_hi[1]), 0.0)
+                    o2 = max(max(box_lo[2] - xs[2], xs[2] - box_hi[2]), 0.0)
+                    bound = np.sqrt(o0 * o0 + o1 * o1 + o2 * o2)
+                    need = s + eps + cone_want * zc
+                    jg = -1
+                    for g in range(2):
+                        if g == 1 and not bound < need:
+                            break
+                        inside = True
+                        base = 0
+                        nb = 0
+                        h = g_h[g]
+                        for d in range(3):
+                            f[d] = (xs[d] - g_origin[g, d]) / h
+                            kk[d] = np.int64(np.floor(f[d]))
+                            if kk[d] < 0 or kk[d] >= g_shape[g, d] - 1:
+                                inside = False
+                            kk[d] = min(max(kk[d], 0), g_shape[g, d] - 2)
+                            r[d] = f[d] - np.float64(kk[d])
+                            base += kk[d] * g_stride[g, d]
+                            if r[d] >= 0.5:
+                                nb += g_stride[g, d]
+                            sq[d, 0] = r[d] * r[d]
+                            sq[d, 1] = (1.0 - r[d]) * (1.0 - r[d])
+                        if inside:
+                            best = -np.inf
+                            c = 0
+                            for a in range(2):
+                                for b in range(2):
+                                    for e in range(2):
+                                        dd = h * np.sqrt(sq[0, a] + sq[1, b] + sq[2, e])
+                                        v = g_lb[g_base[g] + base + g_offsets[g, c]] - dd
+                                        if v > best:
+                                            best = v
+                                        c += 1
+                            near = g_idx[g_base[g] + base + nb]
+                        else:
+                            best = 0.0
+                            near = -1
+                        if best > bound:
+                            bound = best
+                        if g == 0 or jg < 0:
+                            jg = near
+                    split[i] = False
+                    if bound >= s + eps:
+                        v = (bound - s - eps) / zc
+                        if v < phi[p]:
+                            phi[p] = v
+                    else:
+                        if jg >= 0:
+                            cand[nc] = jg
+                            nc += 1
+                        if bound < rmax + eps:
+                            unresolved[p, k] = True
+                        else:
+                            split[i] = True
+                if nc > 0:
+                    # _hits: the candidates inside a part asked, the least sample per piece
+                    ncomp = 0
+                    for i in range(nc):
+                        j = cand[i]
+                        w0 = samples[j, 0] - C[p, 0]
+                        w1 = samples[j, 1] - C[p, 1]
+                        w2 = samples[j, 2] - C[p, 2]
+                        z = w0 * A[p, 0] + w1 * A[p, 1] + w2 * A[p, 2]
+                        rad2 = max(w0 * w0 + w1 * w1 + w2 * w2 - z * z, 0.0)
+                        ins = False
+                        for k in range(K):
+                            if not (parts >> k) & 1:
+                                continue
+                            zz = min(max(z, z0[k]), z1[k])
+                            fz = (zz - z0[k]) / (z1[k] - z0[k])
+                            rr = rin0[k] + fz * (rin1[k] - rin0[k]) - eps
+                            if z >= z0[k] + eps and z <= z1[k] - eps and rad2 < rr * rr:
+                                ins = True
+                        if not ins:
+                            continue
+                        cc = sample_comp[j]
+                        known = False
+                        for q in range(ncomp):
+                            if comp_c[q] == cc:
+                                known = True
+                                if j < comp_j[q]:
+                                    comp_j[q] = j
+                        if not known:
+                            comp_c[ncomp] = cc
+                            comp_j[ncomp] = j
+                            ncomp += 1
+                    # _outside: the pieces' anchors, one direction at a time
+                    for a in range(nd):
+                        hit = False
+                        for q in range(ncomp):
+                            w0 = anchors[comp_c[q], a, 0] - C[p, 0]
+                            w1 = anchors[comp_c[q], a, 1] - C[p, 1]
+                            w2 = anchors[comp_c[q], a, 2] - C[p, 2]
+                            z = w0 * A[p, 0] + w1 * A[p, 1] + w2 * A[p, 2]
+                            rad2 = max(w0 * w0 + w1 * w1 + w2 * w2 - z * z, 0.0)
+                            out = True
+                            for k in range(K):
+                                zz = min(max(z, z0[k]), z1[k])
+                                fz = (zz - z0[k]) / (z1[k] - z0[k])
+                                rr = rout0[k] + fz * (rout1[k] - rout0[k]) + eps
+                                if not (z < z0[k] - eps or z > z1[k] + eps or rad2 > rr * rr):
+                                    out = False
+                            if out:
+                                if nh >= hits.shape[0]:
+                                    return -1
+                                hits[nh, 0] = level
+                                hits[nh, 1] = p
+                                hits[nh, 2] = comp_j[q]
+                                nh += 1
+                                hit = True
+                        if hit:
+                            status[p] = 1
+                            break
+                if status[p] == 1:
+                    break
+                # the next level: split spheres of parts still open, up to the part's finest
+                m = 0
+                for i in range(n):
+                    k = a_part[i]
+                    if not split[i] or unresolved[p, k]:
+                        continue
+                    if level >= max_level[k]:
+                        unresolved[p, k] = True
+                        continue
+                    b_part[m] = k
+                    b_seg[m] = 2 * a_seg[i]
+                    b_part[m + 1] = k
+                    b_seg[m + 1] = 2 * a_seg[i] + 1
+                    m += 2
+                for i in range(m):
+                    a_part[i] = b_part[i]
+                    a_seg[i] = b_seg[i]
+                n = m
+                level += 1
+        return nh
+
+    @jit
+    def hit_pairs(samples, j, pose, order, C, A, z0, z1, rin0, rin1, rout0, rout1, parts, sample_comp,
+                  anchors, eps, status, found):
+        """:meth:`~tsplcam.orientation.broadphase.BroadPhase._hits` pose by pose (``order``:
+        the pairs sorted by pose, stably), the same operations per point (so the same
+        answers): the samples ``j`` inside a part asked at their pose, the least one per piece
+        of the mesh, the pieces' anchors tried one direction at a time; a pose with an anchor
+        outside the tool is hit. ``found`` (rows pose, sample, at least as many as pairs)
+        receives the witnesses; returns their number. Poses already hit are left out."""
+        K = z0.shape[0]
+        nd = anchors.shape[1]
+        n = order.shape[0]
+        comp_c = np.empty(n, np.int64)
+        comp_j = np.empty(n, np.int64)
+        nf = 0
+        i = 0
+        while i < n:
+            p = pose[order[i]]
+            e = i
+            while e < n and pose[order[e]] == p:
+                e += 1
+            if status[p] == 1:
+                i = e
+                continue
+            ncomp = 0
+            for t in range(i, e):
+                jj = j[order[t]]
+                w0 = samples[jj, 0] - C[p, 0]
+                w1 = samples[jj, 1] - C[p, 1]
+                w2 = samples[jj, 2] - C[p, 2]
+                z = w0 * A[p, 0] + w1 * A[p, 1] + w2 * A[p, 2]
+                rad2 = max(w0 * w0 + w1 * w1 + w2 * w2 - z * z, 0.0)
+                ins = False
+                for k in range(K):
+                    if not (parts >> k) & 1:
+                        continue
+                    zz = min(max(z, z0[k]), z1[k])
+                    fz = (zz - z0[k]) / (z1[k] - z0[k])
+                    rr = rin0[k] + fz * (rin1[k] - rin0[k]) - eps
+                    if z >= z0[k] + eps and z <= z1[k] - eps and rad2 < rr * rr:
+                        ins = True
+                if not ins:
+                    continue
+                cc = sample_comp[jj]
+                known = False
+                for q in range(ncomp):
+                    if comp_c[q] == cc:
+                        known = True
+                        if jj < comp_j[q]:
+                            comp_j[q] = jj
+                if not known:
+                    comp_c[ncomp] = cc
+                    comp_j[ncomp] = jj
+                    ncomp += 1
+            for a in range(nd if ncomp > 0 else 0):
+                hit = False
+                for q in range(ncomp):
+                    w0 = anchors[comp_c[q], a, 0] - C[p, 0]
+                    w1 = anchors[comp_c[q], a, 1] - C[p, 1]
+                    w2 = anchors[comp_c[q], a, 2] - C[p, 2]
+                    z = w0 * A[p, 0] + w1 * A[p, 1] + w2 * A[p, 2]
+                    rad2 = max(w0 * w0 + w1 * w1 + w2 * w2 - z * z, 0.0)
+                    out = True
+                    for k in range(K):
+                        zz = min(max(z, z0[k]), z1[k])
+                        fz = (zz - z0[k]) / (z1[k] - z0[k])
+                        rr = rout0[k] + fz * (rout1[k] - rout0[k]) + eps
+                        if not (z < z0[k] - eps or z > z1[k] + eps or rad2 > rr * rr):
+                            out = False
+                    if out:
+                        found[nf, 0] = p
+                        found[nf, 1] = comp_j[q]
+                        nf += 1
+                        hit = True
+                if hit:
+                    status[p] = 1
+                    break
+            i = e
+        return nf
+
+    return {"hit_pairs": hit_pairs, "viterbi_steps": viterbi_steps, "joint_steps": joint_steps, "viterbi_path": viterbi_path,
             "banded_solve": banded_solve, "grid_read": grid_read, "two_states": two_states,
-            "solve_box": solve_box}
+            "solve_box": solve_box, "sphere_loop": sphere_loop}
 
 
 def kernels(work: float | None = None):
@@ -491,6 +783,12 @@ def _exercise() -> None:
     from .broadphase import DistanceGrid
     P = np.zeros((1, 3))
     DistanceGrid(cKDTree(P), 0.0, P[0], P[0] + 1.0, 0.5, 0.5, 1.0, 64)(np.full((2, 3), 0.25))
+    from .broadphase import BroadPhase, Profile
+    one = np.ones(1)
+    tri = BroadPhase(np.eye(3), np.array([[0, 1, 2]]), lambda grow: Profile(0.5 * one, 3 * one, one, one, one, one), 0.5)
+    C, A = np.full((2, 3), 0.5), np.array([[0.0, 0.0, 1.0], [1.0, 0.0, 0.0]])
+    tri.decide(C, A)
+    tri._hits(np.full(2, -1, np.int8), tri.samples[[0, 1]], np.arange(2), np.arange(2), C, A, tri._cover(0.0).prof)
 
 
 def warm() -> float:

@@ -544,7 +544,7 @@ def find_stars(walker: Walker, extra=()) -> dict:
 
 def _ring1_corners(walker: Walker, v: int, f: int, i: int) -> tuple[int, int]:
     """Spoke and diagonal corners of face f (loop position i at star v) when f has T-junctions:
-    they must lie on its two sides away from the star, one at most per side, where the refined
+    they must lie on its two sides away from the star (any number per side), where the refined
     star takes them (``tj_level``); refused by name otherwise."""
     mesh, topo = walker.mesh, walker.topo
     loop = [int(x) for x in mesh.faces[f]]
@@ -553,7 +553,6 @@ def _ring1_corners(walker: Walker, v: int, f: int, i: int) -> tuple[int, int]:
     side = topo.side[f]
     k0 = cs.index(i)
     name = mesh.vertex_name(v)
-    count = {}
     for p in range(m):
         if p in cs:
             continue
@@ -562,15 +561,9 @@ def _ring1_corners(walker: Walker, v: int, f: int, i: int) -> tuple[int, int]:
             raise mesh.error(f"{mesh.vertex_name(loop[p])} is a T-junction on {mesh.face_name(f)} next to "
                              f"extraordinary {name}, on a side at the star (one of its spokes): the spokes "
                              f"of a star point must run to its first faces' corners", vertex=loop[p])
-        count[k] = count.get(k, 0) + 1
         a, b = topo.pos[f][cs[k]], topo.pos[f][cs[(k + 1) % 4]]
         length = abs(complex(b[0] - a[0]).real) + abs(complex(b[1] - a[1]).real)
         along = abs(complex(topo.pos[f][p][0] - a[0]).real) + abs(complex(topo.pos[f][p][1] - a[1]).real)
-        if count[k] > 1:
-            raise mesh.error(f"{mesh.vertex_name(loop[p])} is a second T-junction on one outer side of "
-                             f"{mesh.face_name(f)} next to extraordinary {name}: the first faces around a "
-                             f"star point take one T-junction per outer side; split the faces there or move "
-                             f"one T-junction one face further out", vertex=loop[p])
         # the fraction of the side from its corner on a spoke (the star's row)
         r = along / length if length > 0 else 0.5
         r = r if k == (k0 + 1) % 4 else 1.0 - r

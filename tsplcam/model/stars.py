@@ -760,47 +760,54 @@ def build_zone(walker: Walker, v: int, star, knots, Pw: np.ndarray) -> StarZone:
     # off the level-1 path takes the deepest level
     top = max(in_face.values(), default=2)
     steps = []                             # (function, spoke, level, face)
-    for f, spoke, virtual, sides in corrections:
-        if level1:
-            steps.append((f, spoke, 1, None))
-            continue
-        if sides is None:
-            continue                       # a virtual function: in its actual one's steps
-        if virtual is None:                # a T-junction's own function
-            face = sides[0][3]
-            if spoke in two and face == two[spoke][0]:
-                # in the first face's step as the layout without the second face's T-junctions
-                g = _two_faced(zone, f, spoke, ring1, two[spoke][:1], None, corrections, tol)
-                steps.append((g, spoke, top, face))
-                steps.append((Fn(f.sector, f.cx, f.cy, f.xk, f.yk, f.row), spoke, top, two[spoke][1]))
-                steps.append((Fn(g.sector, g.cx, g.cy, g.xk, g.yk, -g.row), spoke, top, two[spoke][1]))
+    try:
+        for f, spoke, virtual, sides in corrections:
+            if level1:
+                steps.append((f, spoke, 1, None))
                 continue
-            steps.append((f, spoke, 1 if on_spoke[spoke] == 1 else top, face))
-            continue
-        # the difference, actual minus virtual, one T-junction at a time (middle ones first):
-        # each step is the change that one T-junction makes, in its own face's chart
-        xk, yk = virtual.xk.copy(), virtual.yk.copy()
-        order = sorted(sides, key=lambda t: (t[3] is not None and on_spoke[t[4]] != 1, t[3] or 0, t[0]))
-        for axis, lo, hi, face, sp in order:
-            if sp in two and face is not None and _on_line(zone, f, sp, tol) == axis:
-                # first the change of the first face's T-junctions alone, then the second's
-                g = _two_faced(zone, f, sp, ring1, two[sp][:1], virtual, corrections, tol)
-                mid = (g.xk if axis == 0 else g.yk)[lo:hi]
-                if np.abs(mid - (xk if axis == 0 else yk)[lo:hi]).max() > tol:
-                    nxk, nyk = xk.copy(), yk.copy()
-                    (nxk if axis == 0 else nyk)[lo:hi] = mid
-                    steps.append((Fn(f.sector, f.cx, f.cy, nxk, nyk, f.row), sp, top, two[sp][0]))
-                    steps.append((Fn(f.sector, f.cx, f.cy, xk, yk, -f.row), sp, top, two[sp][0]))
-                    xk, yk = nxk, nyk
-                face = two[sp][1]
-                if np.abs((f.xk if axis == 0 else f.yk)[lo:hi] - (xk if axis == 0 else yk)[lo:hi]).max() <= tol:
+            if sides is None:
+                continue                       # a virtual function: in its actual one's steps
+            if virtual is None:                # a T-junction's own function
+                face = sides[0][3]
+                m = 1 if on_spoke[spoke] == 1 else top
+                if spoke in two and face == two[spoke][0]:
+                    # in the first face's step as the layout without the second face's T-junctions
+                    g = _two_faced(zone, f, spoke, ring1, two[spoke][:1], None, corrections, tol)
+                    steps.append((g, spoke, m, face))
+                    steps.append((Fn(f.sector, f.cx, f.cy, f.xk, f.yk, f.row), spoke, m, two[spoke][1]))
+                    steps.append((Fn(g.sector, g.cx, g.cy, g.xk, g.yk, -g.row), spoke, m, two[spoke][1]))
                     continue
-            nxk, nyk = xk.copy(), yk.copy()
-            (nxk if axis == 0 else nyk)[lo:hi] = (f.xk if axis == 0 else f.yk)[lo:hi]
-            m = 1 if face is None or on_spoke[sp] == 1 else top
-            steps.append((Fn(f.sector, f.cx, f.cy, nxk, nyk, f.row), sp, m, face))
-            steps.append((Fn(f.sector, f.cx, f.cy, xk, yk, -f.row), sp, m, face))
-            xk, yk = nxk, nyk
+                steps.append((f, spoke, 1 if on_spoke[spoke] == 1 else top, face))
+                continue
+            # the difference, actual minus virtual, one T-junction at a time (middle ones first):
+            # each step is the change that one T-junction makes, in its own face's chart
+            xk, yk = virtual.xk.copy(), virtual.yk.copy()
+            order = sorted(sides, key=lambda t: (t[3] is not None and on_spoke[t[4]] != 1, t[3] or 0, t[0]))
+            for axis, lo, hi, face, sp in order:
+                if sp in two and face is not None and _on_line(zone, f, sp, tol) == axis:
+                    # first the change of the first face's T-junctions alone, then the second's
+                    g = _two_faced(zone, f, sp, ring1, two[sp][:1], virtual, corrections, tol)
+                    mid = (g.xk if axis == 0 else g.yk)[lo:hi]
+                    if np.abs(mid - (xk if axis == 0 else yk)[lo:hi]).max() > tol:
+                        nxk, nyk = xk.copy(), yk.copy()
+                        (nxk if axis == 0 else nyk)[lo:hi] = mid
+                        m = 1 if on_spoke[sp] == 1 else top
+                        steps.append((Fn(f.sector, f.cx, f.cy, nxk, nyk, f.row), sp, m, two[sp][0]))
+                        steps.append((Fn(f.sector, f.cx, f.cy, xk, yk, -f.row), sp, m, two[sp][0]))
+                        xk, yk = nxk, nyk
+                    face = two[sp][1]
+                    if np.abs((f.xk if axis == 0 else f.yk)[lo:hi] - (xk if axis == 0 else yk)[lo:hi]).max() <= tol:
+                        continue
+                nxk, nyk = xk.copy(), yk.copy()
+                (nxk if axis == 0 else nyk)[lo:hi] = (f.xk if axis == 0 else f.yk)[lo:hi]
+                m = 1 if face is None or on_spoke[sp] == 1 else top
+                steps.append((Fn(f.sector, f.cx, f.cy, nxk, nyk, f.row), sp, m, face))
+                steps.append((Fn(f.sector, f.cx, f.cy, xk, yk, -f.row), sp, m, face))
+                xk, yk = nxk, nyk
+    except Uncleared as exc:
+        raise mesh.error(f"T-junctions on the first faces around extraordinary {mesh.vertex_name(v)} "
+                         f"that the refinement cannot take ({exc}); move them one face further out",
+                         vertex=v) from None
     late = {}                              # level m >= 2 -> rows added to W_m
     for f, spoke, m, face in steps:        # the first faces' T-junctions: exact differences
         try:
@@ -852,8 +859,10 @@ def _two_faced(zone: StarZone, f: Fn, k: int, ring1: list, faces: list, virtual,
     if axis is None:
         return f
     sgn = 1.0 if f.sector == k else -1.0          # sector k's coordinate along the line -> f's
-    sk = next(v for g, _, v, sd in corrections if v is not None and g.sector == k
-              and abs(g.cx - d[k]) <= tol and abs(g.cy) <= tol)
+    sk = next((v for g, _, v, sd in corrections if v is not None and g.sector == k
+               and abs(g.cx - d[k]) <= tol and abs(g.cy) <= tol), None)
+    if sk is None:
+        raise Uncleared(f"no ray of spoke vertex {k} along the line across spoke {k}")
     ts = {}                                          # face -> T-junction positions (f's coordinate)
     for _, j, x, y in ring1:
         if j == k and abs(x - d[k]) <= tol:

@@ -75,11 +75,15 @@ spoke j+1; the first face F_j is [0, d_j] x [0, d_(j+1)], d_j the spoke's knot i
   face, the sector j + 2 at valence 4) have no place at other valences and are left out:
   their coefficients sum to zero, so the functions stay a partition of unity. Spokes whose
   T-junctions all sit at their sides' middles keep the level-1 path above (when all the
-  star's do). A function whose rays meet T-junctions of several faces changes one ray at a
-  time (middle ones first), each step in its T-junction's face's chart. Refused by name:
-  two T-junctions on one side, a diagonal whose rays meet T-junctions on both sides of S,
-  and (with a T-junction off the middle) T-junctions on both faces at one spoke (the
-  diagonal vertices beside it see one or the other: no step is one T-junction's).
+  star's do). A side may hold several T-junctions. A function whose rays meet T-junctions
+  of several faces changes one ray at a time (middle ones first), each step in its
+  T-junction's face's chart. Where both faces at a spoke have T-junctions, the functions
+  along the line across the spoke (the diagonal vertices beside it, the T-junctions' own)
+  see one face's or both: their changes are taken face after face in index order (the
+  order of every function's steps), each the change that face's T-junctions make to the
+  layout with the earlier face's (``_two_faced``: the knots with the first face's
+  T-junctions only). Refused by name: a diagonal whose rays meet T-junctions on both sides
+  of S.
 * W_k functions reach only 1.5 level-k intervals from S, so the two rings of faces around
   S (the zone) contain every piece that is not a plain B-spline: the surface there is
   the sum of plain B-splines (the other functions, and the children split off at every

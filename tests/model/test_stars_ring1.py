@@ -15,7 +15,7 @@ T-junction. Against independent references:
   the same spoke (3/4);
 * what the construction cannot take is refused by name: a T-junction too close to the spoke,
   one on a spoke, and at valence 3 a diagonal whose rays meet T-junctions on both sides of
-  the star."""
+  the star (from valence 4 on it loads: at valence 4 it is the T-spline)."""
 import unittest
 
 import numpy as np
@@ -97,14 +97,15 @@ def top(mesh: TMesh, j: int) -> TMesh:
 def cases(n: int):
     """(name, T-mesh, analysis-suitable) with T-junctions in the first ring of the star (vertex 0)
     of valence n. The T-spline of the valence-4 disc is a partition of unity in the suitable
-    ones only (measured: 0; the two others, where the T-junctions' lines cross near the star,
-    0.19 and 0.21)."""
+    ones only (measured: 0; the others, where the T-junctions' lines cross near the star,
+    0.19 and 0.21, and 8.5e-3 at valence 4 where diagonal 3 is between two T-junctions)."""
     mesh = star_disc(n, random_intervals(n, 40 + n))
     yield "outer side along spoke 0", right(mesh, 0), True
     yield "outer side along spoke 1", top(mesh, 0), True
     yield "along spoke 1 in sector 1 and spoke 1 in sector 0", top(right(mesh, 1), 0), True
-    if n != 4:                 # at valence 4: Refused.test_diagonal_between_two_t_junctions
-        yield "along spoke 0 in sector 0 and spoke 3 in sector 2", top(right(mesh, 0), 2), True
+    # (at valence 4 diagonal 3's rays meet both: not analysis-suitable, the T-spline's sums
+    # miss 1 by 8.5e-3 as much as the construction's; it is checked against the T-spline only)
+    yield "along spoke 0 in sector 0 and spoke 3 in sector 2", top(right(mesh, 0), 2), n != 4
     yield "diagonal 0 a T-junction (no line upwards)", merge(mesh, face_at(0, 0, 1), face_at(0, 1, 1)), True
     yield "diagonal 0 a T-junction (no line outwards)", merge(mesh, face_at(0, 1, 0), face_at(0, 1, 1)), True
     yield "spoke vertex 0 a T-junction", merge(mesh, face_at(0, 1, 0), face_at(n - 1, 0, 1)), True
@@ -261,16 +262,12 @@ class Refused(unittest.TestCase):
             self.assertRefused(split_face(mesh, face_at(0, 0, 0)), "on a side at the star")
 
     def test_diagonal_between_two_t_junctions(self):
-        """A diagonal vertex whose rays through both spoke vertices next to it meet a first
-        face's T-junction (valence 3: sector 2's, T-junctions in sectors 0 and 1; valence 4:
-        sector 3's, T-junctions in sectors 0 and 2, whose lines cross near the star: the
-        construction differed from the T-spline by 1.3e-3 of the model size there)."""
+        """Valence 3: a diagonal vertex whose rays through both spoke vertices next to it meet
+        a first face's T-junction (sector 2's, T-junctions in sectors 0 and 1: the valence-4
+        copy with those sectors next to each other is analysis-suitable, and the construction
+        missed the partition of unity by 1.4e-2). From valence 4 on it loads (``cases``)."""
         mesh = star_disc(3, random_intervals(3, 43))
         self.assertRefused(top(right(mesh, 0), 1), "both sides of the star")
-        mesh = star_disc(4, random_intervals(4, 44))
-        with self.assertRaises(InputError) as cm:
-            tspline_model(top(right(mesh, 0), 2), subdivide_at=[0])
-        self.assertIn("both sides of the star", str(cm.exception))
 
 
 if __name__ == "__main__":

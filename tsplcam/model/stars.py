@@ -82,8 +82,10 @@ spoke j+1; the first face F_j is [0, d_j] x [0, d_(j+1)], d_j the spoke's knot i
   see one face's or both: their changes are taken face after face in index order (the
   order of every function's steps), each the change that face's T-junctions make to the
   layout with the earlier face's (``_two_faced``: the knots with the first face's
-  T-junctions only). Refused by name: a diagonal whose rays meet T-junctions on both sides
-  of S.
+  T-junctions only). A diagonal whose rays meet T-junctions on both sides of S loads from
+  valence 4 on (at valence 4 the T-spline's own; such layouts are not analysis-suitable);
+  refused by name at valence 3, where the valence-4 copy with those faces next to each
+  other is suitable and the construction missed the partition of unity by 1.4e-2.
 * W_k functions reach only 1.5 level-k intervals from S, so the two rings of faces around
   S (the zone) contain every piece that is not a plain B-spline: the surface there is
   the sum of plain B-splines (the other functions, and the children split off at every
@@ -927,7 +929,7 @@ def _ring1_functions(walker: Walker, zone: StarZone, knots, ring1: list, fns: li
             # not one: no T-junction lies on a spoke)
             behind = [k == 1 and any(-d[(j + 2) % n] + tol < u < -tol for u in f.xk),
                       any(-d[(j - 1) % n] + tol < u < -tol for u in f.yk)]
-            if all(behind):
+            if all(behind) and n == 3:
                 w = (zone.spokes if k == 0 else zone.diags)[j]
                 raise Uncleared(f"the rays of {walker.mesh.vertex_name(w)}, the {'spoke' if k == 0 else 'diagonal'} "
                                 f"vertex of sector {j}, meet first-face T-junctions on both sides of the star")

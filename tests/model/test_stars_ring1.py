@@ -11,11 +11,11 @@ T-junction. Against independent references:
   every edge, one normal at the star (also with rational weights);
 * T-junctions off the middle of their sides (``_levelm_parts``: at k/2^m, or anywhere at
   3/2^m of the side from the spoke or further, m <= 10): the same checks, at 1/4, 3/8, 7/8,
-  1/3 and 0.1 of the sides;
+  1/3 and 0.1 of the sides, and two on one side (1/4 and 5/8) with one on the other face at
+  the same spoke (3/4);
 * what the construction cannot take is refused by name: a T-junction too close to the spoke,
-  two on one side, one on a spoke, at valence 3 a diagonal whose rays meet T-junctions on
-  both sides of the star, and T-junctions on both faces at a spoke with one of them off the
-  middle."""
+  one on a spoke, and at valence 3 a diagonal whose rays meet T-junctions on both sides of
+  the star (from valence 4 on it loads: at valence 4 it is the T-spline)."""
 import unittest
 
 import numpy as np
@@ -97,14 +97,15 @@ def top(mesh: TMesh, j: int) -> TMesh:
 def cases(n: int):
     """(name, T-mesh, analysis-suitable) with T-junctions in the first ring of the star (vertex 0)
     of valence n. The T-spline of the valence-4 disc is a partition of unity in the suitable
-    ones only (measured: 0; the two others, where the T-junctions' lines cross near the star,
-    0.19 and 0.21)."""
+    ones only (measured: 0; the others, where the T-junctions' lines cross near the star,
+    0.19 and 0.21, and 8.5e-3 at valence 4 where diagonal 3 is between two T-junctions)."""
     mesh = star_disc(n, random_intervals(n, 40 + n))
     yield "outer side along spoke 0", right(mesh, 0), True
     yield "outer side along spoke 1", top(mesh, 0), True
     yield "along spoke 1 in sector 1 and spoke 1 in sector 0", top(right(mesh, 1), 0), True
-    if n != 4:                 # at valence 4: Refused.test_diagonal_between_two_t_junctions
-        yield "along spoke 0 in sector 0 and spoke 3 in sector 2", top(right(mesh, 0), 2), True
+    # (at valence 4 diagonal 3's rays meet both: not analysis-suitable, the T-spline's sums
+    # miss 1 by 8.5e-3 as much as the construction's; it is checked against the T-spline only)
+    yield "along spoke 0 in sector 0 and spoke 3 in sector 2", top(right(mesh, 0), 2), n != 4
     yield "diagonal 0 a T-junction (no line upwards)", merge(mesh, face_at(0, 0, 1), face_at(0, 1, 1)), True
     yield "diagonal 0 a T-junction (no line outwards)", merge(mesh, face_at(0, 1, 0), face_at(0, 1, 1)), True
     yield "spoke vertex 0 a T-junction", merge(mesh, face_at(0, 1, 0), face_at(n - 1, 0, 1)), True
@@ -138,7 +139,8 @@ def off_top(mesh: TMesh, j: int, ratio: float) -> TMesh:
 
 def off_cases(n: int):
     """(name, T-mesh) with first-face T-junctions off their sides' middles (all analysis
-    suitable): dyadic and not, alone, with a middle one on another spoke, on two spokes."""
+    suitable): dyadic and not, alone, with a middle one on another spoke, on two spokes, two on
+    one side and one on the other face at that spoke."""
     mesh = star_disc(n, random_intervals(n, 60 + n))
     yield "1/4 along spoke 0", off_right(mesh, 0, 0.25)
     yield "3/8 along spoke 1", off_top(mesh, 0, 0.375)
@@ -146,6 +148,9 @@ def off_cases(n: int):
                                                                 face_at(1, 1, 1))
     if n != 3:                 # at valence 3 diagonal 2's rays meet both (refused)
         yield "7/8 along spoke 0, 0.1 along spoke 2 in sector 1", off_top(off_right(mesh, 0, 0.875), 1, 0.1)
+    two = off_right(mesh, 1, 0.25)            # the face beyond cut again, halfway along its part
+    yield "1/4 and 5/8 along spoke 1 in sector 1, 3/4 along spoke 1 in sector 0", off_top(
+        split_at(two, len(two.faces) - 1, 0.5), 0, 0.75)
 
 
 class RegularVertexWithTJunctionsAround(unittest.TestCase):
@@ -173,7 +178,7 @@ class StarsWithTJunctionsAround(unittest.TestCase):
     @classmethod
     def setUpClass(cls):
         cls.models = [(n, name, mesh, ok, tspline_model(mesh)) for n in (3, 5, 6) for name, mesh, ok in cases(n)]
-        cls.models += [(n, name, mesh, OFF, tspline_model(mesh)) for n, pick in ((3, (0, 2)), (5, (1, 3)))
+        cls.models += [(n, name, mesh, OFF, tspline_model(mesh)) for n, pick in ((3, (0, 2, 3)), (5, (1, 3)))
                        for name, mesh in [list(off_cases(n))[i] for i in pick]]          # (time budget)
 
     def test_partition_of_unity(self):
@@ -251,34 +256,18 @@ class Refused(unittest.TestCase):
                 tspline_model(cut, subdivide_at=[0])
             self.assertIn("at 0.0005 of its side from the spoke", str(cm.exception))
 
-    def test_two_t_junctions_on_one_side(self):
-        """At 1/4 and 5/8 of sector 0's outer side along spoke 0 (the face beyond cut twice)."""
-        mesh = off_right(star_disc(5, random_intervals(5, 45)), 0, 0.25)
-        self.assertRefused(split_at(mesh, len(mesh.faces) - 1, 0.5), "second T-junction on one outer side")
-
-    def test_t_junctions_on_both_faces_at_a_spoke(self):
-        """On sector 1's first face at 1/4 of its side along spoke 1 and on sector 0's at the
-        middle (the middle pair alone loads: ``cases``): the diagonal vertices beside spoke 1
-        see one or the other."""
-        mesh = star_disc(5, random_intervals(5, 45))
-        self.assertRefused(top(off_right(mesh, 1, 0.25), 0), "on both faces at spoke 1")
-
     def test_t_junction_on_a_spoke(self):
         for n in (3, 5):
             mesh = star_disc(n, random_intervals(n, 40 + n))
             self.assertRefused(split_face(mesh, face_at(0, 0, 0)), "on a side at the star")
 
     def test_diagonal_between_two_t_junctions(self):
-        """A diagonal vertex whose rays through both spoke vertices next to it meet a first
-        face's T-junction (valence 3: sector 2's, T-junctions in sectors 0 and 1; valence 4:
-        sector 3's, T-junctions in sectors 0 and 2, whose lines cross near the star: the
-        construction differed from the T-spline by 1.3e-3 of the model size there)."""
+        """Valence 3: a diagonal vertex whose rays through both spoke vertices next to it meet
+        a first face's T-junction (sector 2's, T-junctions in sectors 0 and 1: the valence-4
+        copy with those sectors next to each other is analysis-suitable, and the construction
+        missed the partition of unity by 1.4e-2). From valence 4 on it loads (``cases``)."""
         mesh = star_disc(3, random_intervals(3, 43))
         self.assertRefused(top(right(mesh, 0), 1), "both sides of the star")
-        mesh = star_disc(4, random_intervals(4, 44))
-        with self.assertRaises(InputError) as cm:
-            tspline_model(top(right(mesh, 0), 2), subdivide_at=[0])
-        self.assertIn("both sides of the star", str(cm.exception))
 
 
 if __name__ == "__main__":

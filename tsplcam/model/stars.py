@@ -75,11 +75,17 @@ spoke j+1; the first face F_j is [0, d_j] x [0, d_(j+1)], d_j the spoke's knot i
   face, the sector j + 2 at valence 4) have no place at other valences and are left out:
   their coefficients sum to zero, so the functions stay a partition of unity. Spokes whose
   T-junctions all sit at their sides' middles keep the level-1 path above (when all the
-  star's do). A function whose rays meet T-junctions of several faces changes one ray at a
-  time (middle ones first), each step in its T-junction's face's chart. Refused by name:
-  two T-junctions on one side, a diagonal whose rays meet T-junctions on both sides of S,
-  and (with a T-junction off the middle) T-junctions on both faces at one spoke (the
-  diagonal vertices beside it see one or the other: no step is one T-junction's).
+  star's do). A side may hold several T-junctions. A function whose rays meet T-junctions
+  of several faces changes one ray at a time (middle ones first), each step in its
+  T-junction's face's chart. Where both faces at a spoke have T-junctions, the functions
+  along the line across the spoke (the diagonal vertices beside it, the T-junctions' own)
+  see one face's or both: their changes are taken face after face in index order (the
+  order of every function's steps), each the change that face's T-junctions make to the
+  layout with the earlier face's (``_two_faced``: the knots with the first face's
+  T-junctions only). A diagonal whose rays meet T-junctions on both sides of S loads from
+  valence 4 on (at valence 4 the T-spline's own; such layouts are not analysis-suitable);
+  refused by name at valence 3, where the valence-4 copy with those faces next to each
+  other is suitable and the construction missed the partition of unity by 1.4e-2.
 * W_k functions reach only 1.5 level-k intervals from S, so the two rings of faces around
   S (the zone) contain every piece that is not a plain B-spline: the surface there is
   the sum of plain B-splines (the other functions, and the children split off at every
@@ -544,7 +550,7 @@ def find_stars(walker: Walker, extra=()) -> dict:
 
 def _ring1_corners(walker: Walker, v: int, f: int, i: int) -> tuple[int, int]:
     """Spoke and diagonal corners of face f (loop position i at star v) when f has T-junctions:
-    they must lie on its two sides away from the star, one at most per side, where the refined
+    they must lie on its two sides away from the star (any number per side), where the refined
     star takes them (``tj_level``); refused by name otherwise."""
     mesh, topo = walker.mesh, walker.topo
     loop = [int(x) for x in mesh.faces[f]]
@@ -553,7 +559,6 @@ def _ring1_corners(walker: Walker, v: int, f: int, i: int) -> tuple[int, int]:
     side = topo.side[f]
     k0 = cs.index(i)
     name = mesh.vertex_name(v)
-    count = {}
     for p in range(m):
         if p in cs:
             continue
@@ -562,15 +567,9 @@ def _ring1_corners(walker: Walker, v: int, f: int, i: int) -> tuple[int, int]:
             raise mesh.error(f"{mesh.vertex_name(loop[p])} is a T-junction on {mesh.face_name(f)} next to "
                              f"extraordinary {name}, on a side at the star (one of its spokes): the spokes "
                              f"of a star point must run to its first faces' corners", vertex=loop[p])
-        count[k] = count.get(k, 0) + 1
         a, b = topo.pos[f][cs[k]], topo.pos[f][cs[(k + 1) % 4]]
         length = abs(complex(b[0] - a[0]).real) + abs(complex(b[1] - a[1]).real)
         along = abs(complex(topo.pos[f][p][0] - a[0]).real) + abs(complex(topo.pos[f][p][1] - a[1]).real)
-        if count[k] > 1:
-            raise mesh.error(f"{mesh.vertex_name(loop[p])} is a second T-junction on one outer side of "
-                             f"{mesh.face_name(f)} next to extraordinary {name}: the first faces around a "
-                             f"star point take one T-junction per outer side; split the faces there or move "
-                             f"one T-junction one face further out", vertex=loop[p])
         # the fraction of the side from its corner on a spoke (the star's row)
         r = along / length if length > 0 else 0.5
         r = r if k == (k0 + 1) % 4 else 1.0 - r
@@ -757,40 +756,64 @@ def build_zone(walker: Walker, v: int, star, knots, Pw: np.ndarray) -> StarZone:
         in_face[j] = max(in_face.get(j, 2), m)
         faces_on.setdefault(k, set()).add(j)
     level1 = all(m == 1 for m in on_spoke.values())
-    if not level1:
-        for k, fs in faces_on.items():
-            if len(fs) > 1:
-                raise mesh.error(f"T-junctions on the first faces around extraordinary {mesh.vertex_name(v)} that "
-                                 f"the refinement cannot take (on both faces at spoke {k}, "
-                                 f"{' and '.join(mesh.face_name(zone.faces[s_]) for s_ in sorted(fs))}, with a "
-                                 f"T-junction not at the middle of its side in the star's first faces: the "
-                                 f"diagonal vertices' rays see one or the other); move one of them one face "
-                                 f"further out", vertex=v)
+    # T-junctions on both faces at one spoke (off the level-1 path): their changes are taken one
+    # face after the other (``_two_faced``), each step the change its face's T-junctions make
+    # to the layout with those of the faces before; the faces in index order, the order in
+    # which every function's changes are taken (measured: the other order at spoke 1 misses
+    # the partition of unity by 1e-2 at valences 3 to 6)
+    two = {k: sorted(fs) for k, fs in faces_on.items() if len(fs) > 1 and not level1}
     # a step's functions may hold the knots of the T-junctions of earlier steps: every step
     # off the level-1 path takes the deepest level
     top = max(in_face.values(), default=2)
     steps = []                             # (function, spoke, level, face)
-    for f, spoke, virtual, sides in corrections:
-        if level1:
-            steps.append((f, spoke, 1, None))
-            continue
-        if sides is None:
-            continue                       # a virtual function: in its actual one's steps
-        if virtual is None:                # a T-junction's own function
-            face = sides[0][3]
-            steps.append((f, spoke, 1 if on_spoke[spoke] == 1 else top, face))
-            continue
-        # the difference, actual minus virtual, one T-junction at a time (middle ones first):
-        # each step is the change that one T-junction makes, in its own face's chart
-        xk, yk = virtual.xk.copy(), virtual.yk.copy()
-        order = sorted(sides, key=lambda t: (t[3] is not None and on_spoke[t[4]] != 1, t[3] or 0, t[0]))
-        for axis, lo, hi, face, sp in order:
-            nxk, nyk = xk.copy(), yk.copy()
-            (nxk if axis == 0 else nyk)[lo:hi] = (f.xk if axis == 0 else f.yk)[lo:hi]
-            m = 1 if face is None or on_spoke[sp] == 1 else top
-            steps.append((Fn(f.sector, f.cx, f.cy, nxk, nyk, f.row), sp, m, face))
-            steps.append((Fn(f.sector, f.cx, f.cy, xk, yk, -f.row), sp, m, face))
-            xk, yk = nxk, nyk
+    try:
+        for f, spoke, virtual, sides in corrections:
+            if level1:
+                steps.append((f, spoke, 1, None))
+                continue
+            if sides is None:
+                continue                       # a virtual function: in its actual one's steps
+            if virtual is None:                # a T-junction's own function
+                face = sides[0][3]
+                m = 1 if on_spoke[spoke] == 1 else top
+                if spoke in two and face == two[spoke][0]:
+                    # in the first face's step as the layout without the second face's T-junctions
+                    g = _two_faced(zone, f, spoke, ring1, two[spoke][:1], None, corrections, tol)
+                    steps.append((g, spoke, m, face))
+                    steps.append((Fn(f.sector, f.cx, f.cy, f.xk, f.yk, f.row), spoke, m, two[spoke][1]))
+                    steps.append((Fn(g.sector, g.cx, g.cy, g.xk, g.yk, -g.row), spoke, m, two[spoke][1]))
+                    continue
+                steps.append((f, spoke, 1 if on_spoke[spoke] == 1 else top, face))
+                continue
+            # the difference, actual minus virtual, one T-junction at a time (middle ones first):
+            # each step is the change that one T-junction makes, in its own face's chart
+            xk, yk = virtual.xk.copy(), virtual.yk.copy()
+            order = sorted(sides, key=lambda t: (t[3] is not None and on_spoke[t[4]] != 1, t[3] or 0, t[0]))
+            for axis, lo, hi, face, sp in order:
+                if sp in two and face is not None and _on_line(zone, f, sp, tol) == axis:
+                    # first the change of the first face's T-junctions alone, then the second's
+                    g = _two_faced(zone, f, sp, ring1, two[sp][:1], virtual, corrections, tol)
+                    mid = (g.xk if axis == 0 else g.yk)[lo:hi]
+                    if np.abs(mid - (xk if axis == 0 else yk)[lo:hi]).max() > tol:
+                        nxk, nyk = xk.copy(), yk.copy()
+                        (nxk if axis == 0 else nyk)[lo:hi] = mid
+                        m = 1 if on_spoke[sp] == 1 else top
+                        steps.append((Fn(f.sector, f.cx, f.cy, nxk, nyk, f.row), sp, m, two[sp][0]))
+                        steps.append((Fn(f.sector, f.cx, f.cy, xk, yk, -f.row), sp, m, two[sp][0]))
+                        xk, yk = nxk, nyk
+                    face = two[sp][1]
+                    if np.abs((f.xk if axis == 0 else f.yk)[lo:hi] - (xk if axis == 0 else yk)[lo:hi]).max() <= tol:
+                        continue
+                nxk, nyk = xk.copy(), yk.copy()
+                (nxk if axis == 0 else nyk)[lo:hi] = (f.xk if axis == 0 else f.yk)[lo:hi]
+                m = 1 if face is None or on_spoke[sp] == 1 else top
+                steps.append((Fn(f.sector, f.cx, f.cy, nxk, nyk, f.row), sp, m, face))
+                steps.append((Fn(f.sector, f.cx, f.cy, xk, yk, -f.row), sp, m, face))
+                xk, yk = nxk, nyk
+    except Uncleared as exc:
+        raise mesh.error(f"T-junctions on the first faces around extraordinary {mesh.vertex_name(v)} "
+                         f"that the refinement cannot take ({exc}); move them one face further out",
+                         vertex=v) from None
     late = {}                              # level m >= 2 -> rows added to W_m
     for f, spoke, m, face in steps:        # the first faces' T-junctions: exact differences
         try:
@@ -817,6 +840,66 @@ def build_zone(walker: Walker, v: int, star, knots, Pw: np.ndarray) -> StarZone:
     zone.points = Pw[zone.w0]
     zone.rows2 = rows2
     return zone
+
+
+def _on_line(zone: StarZone, f: Fn, k: int, tol: float) -> int | None:
+    """The axis of f's chart along which f's centre lies on the line through spoke vertex s_k
+    across spoke k (x = d_k in sector k's chart, y = d_k in sector k - 1's), or None."""
+    n, d = zone.n, zone.d
+    if f.sector == k and abs(f.cx - d[k]) <= tol:
+        return 1
+    if f.sector == (k - 1) % n and abs(f.cy - d[k]) <= tol:
+        return 0
+    return None
+
+
+def _two_faced(zone: StarZone, f: Fn, k: int, ring1: list, faces: list, virtual, corrections: list,
+               tol: float) -> Fn:
+    """Function f (actual knots; ``virtual`` its knots without first-face T-junctions, or None
+    for a T-junction's own function) as it is in the layout with only the T-junctions of
+    ``faces`` on the line through s_k across spoke k: its two knot pairs along that line are
+    the nearest crossings of the line, the T-mesh's (s_k's virtual knots, f's own) and those
+    T-junctions. Checked: with all the line's T-junctions they are f's actual knots."""
+    n, d = zone.n, zone.d
+    axis = _on_line(zone, f, k, tol)
+    if axis is None:
+        return f
+    sgn = 1.0 if f.sector == k else -1.0          # sector k's coordinate along the line -> f's
+    sk = next((v for g, _, v, sd in corrections if v is not None and g.sector == k
+               and abs(g.cx - d[k]) <= tol and abs(g.cy) <= tol), None)
+    if sk is None:
+        raise Uncleared(f"no ray of spoke vertex {k} along the line across spoke {k}")
+    ts = {}                                          # face -> T-junction positions (f's coordinate)
+    for _, j, x, y in ring1:
+        if j == k and abs(x - d[k]) <= tol:
+            ts.setdefault(j, []).append(sgn * y)
+        elif j == (k - 1) % n and abs(y - d[k]) <= tol:
+            ts.setdefault(j, []).append(-sgn * x)
+    every = [u for us in ts.values() for u in us]
+    own = np.asarray(f.xk if axis == 0 else f.yk, float)
+    base = [sgn * u for u in sk.yk] + list(own)
+    if virtual is not None:
+        base += list(virtual.xk if axis == 0 else virtual.yk)
+    base = [u for u in base if all(abs(u - t) > tol for t in every)]
+
+    def knots(keep):
+        pts = []
+        for u in sorted(base + [t for j in keep for t in ts.get(j, [])]):
+            if not pts or u - pts[-1] > tol:
+                pts.append(u)
+        c = own[2]
+        below = [u for u in pts if u < c - tol][-2:]
+        above = [u for u in pts if u > c + tol][:2]
+        if len(below) < 2 or len(above) < 2:
+            raise Uncleared(f"the crossings of the line across spoke {k} near a function at ({f.cx:g}, {f.cy:g})")
+        return np.array(below + [c] + above)
+
+    if np.abs(knots(list(ts)) - own).max() > 1e-9 * float(d.max()):
+        raise Uncleared(f"a function at ({f.cx:g}, {f.cy:g}) whose knots along the line across spoke {k} "
+                        f"are not the line's crossings")
+    new = knots(faces)
+    xk, yk = (new, np.asarray(f.yk, float)) if axis == 0 else (np.asarray(f.xk, float), new)
+    return Fn(f.sector, f.cx, f.cy, xk, yk, f.row)
 
 
 def _ring1_functions(walker: Walker, zone: StarZone, knots, ring1: list, fns: list, e, gx, gy,
@@ -846,7 +929,7 @@ def _ring1_functions(walker: Walker, zone: StarZone, knots, ring1: list, fns: li
             # not one: no T-junction lies on a spoke)
             behind = [k == 1 and any(-d[(j + 2) % n] + tol < u < -tol for u in f.xk),
                       any(-d[(j - 1) % n] + tol < u < -tol for u in f.yk)]
-            if all(behind):
+            if all(behind) and n == 3:
                 w = (zone.spokes if k == 0 else zone.diags)[j]
                 raise Uncleared(f"the rays of {walker.mesh.vertex_name(w)}, the {'spoke' if k == 0 else 'diagonal'} "
                                 f"vertex of sector {j}, meet first-face T-junctions on both sides of the star")

@@ -137,32 +137,11 @@ def split(knots: np.ndarray):
 def _split_keeping(knots: tuple, keep: tuple, tol: float) -> tuple[np.ndarray, np.ndarray]:
     """``_split`` with the intervals next to the knots ``keep`` (within tol) left whole: there
     a first face's T-junction already halves an interval, its knot is one of the refined
-    star's. Boehm's insertion, one midpoint at a time; the refined padded vector is [t0 x3,
-    r, t4 x3] and the children are its basis functions 3, 4, ..."""
+    star's. The midpoints inserted by ``_boehm``."""
     t = [float(x) for x in knots]
     half = [t[i + 1] > t[i] and not any(min(abs(t[i] - k), abs(t[i + 1] - k)) <= tol for k in keep)
             for i in range(4)]
-    T = [t[0]] * 3 + t + [t[-1]] * 3
-    c = [0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0]
-    ins = [(t[i] + t[i + 1]) / 2 for i in range(4) if half[i]]
-    for u in ins:
-        l = max(i for i in range(len(T) - 1) if T[i] <= u < T[i + 1])
-        new = []
-        for i in range(len(c) + 1):
-            if i <= l - 3:
-                new.append(c[i])
-            elif i > l:
-                new.append(c[i - 1])
-            else:
-                den = T[i + 3] - T[i]
-                alpha = (u - T[i]) / den if den > 0 else 0.0
-                new.append((1 - alpha) * c[i - 1] + alpha * c[i])
-        c = new
-        T = T[:l + 1] + [u] + T[l + 1:]
-    r = np.sort(np.array(t + ins))
-    k = len(r) - 4
-    kids = np.array([r[j:j + 5] for j in range(k)])
-    return kids, np.array(c[3:3 + k])
+    return _boehm(t, [(t[i] + t[i + 1]) / 2 for i in range(4) if half[i]])
 
 
 @dataclass
@@ -1121,6 +1100,14 @@ def _refine_grid(knots: tuple, neg: float, pos: float, m: int, tol: float) -> tu
         else:
             grid = [(a + b) / 2]
         ins.extend(u for u in sorted(set(grid)) if a + tol < u < b - tol)
+    return _boehm(t, ins)
+
+
+def _boehm(t: list, ins: list) -> tuple[np.ndarray, np.ndarray]:
+    """The cubic B-spline N[t0..t4] with the knots ``ins`` inserted (Boehm's insertion, one
+    knot at a time in increasing order): (children knots (k, 5), coefficients (k,)), the
+    refined padded vector being [t0 x3, r, t4 x3] and the children its basis functions
+    3, 4, ..."""
     T = [t[0]] * 3 + t + [t[-1]] * 3
     c = [0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0]
     for u in sorted(ins):

@@ -879,32 +879,10 @@ class QuadMesh:
         rows = {}
         for key, v in grid.items():
             rows[key] = {v: 1.0}
-
-        def lin(p, q):   # 2 p - q
-            out = {}
-            for w, x in rows[p].items():
-                out[w] = out.get(w, 0.0) + 2.0 * x
-            for w, x in rows[q].items():
-                out[w] = out.get(w, 0.0) - x
-            return out
-
         # The boundary lines of a regular configuration are sides of F whose neighbouring
         # cell is missing; phantoms are extrapolated across those lines only.
-        jside = {0: (1, 0) not in cells, 3: (1, 2) not in cells}       # rows beyond a boundary
-        iside = {0: (0, 1) not in cells, 3: (2, 1) not in cells}       # columns beyond one
-        for (i, j) in [(i, j) for j in range(4) for i in range(4)]:
-            if (i, j) in rows or iside.get(i, False):
-                continue
-            if jside.get(j, False):
-                dj = 1 if j == 0 else -1
-                if (i, j + dj) in rows and (i, j + 2 * dj) in rows:
-                    rows[(i, j)] = lin((i, j + dj), (i, j + 2 * dj))
-        for (i, j) in [(i, j) for j in range(4) for i in range(4)]:
-            if (i, j) in rows or not iside.get(i, False):
-                continue
-            di = 1 if i == 0 else -1
-            if (i + di, j) in rows and (i + 2 * di, j) in rows:
-                rows[(i, j)] = lin((i + di, j), (i + 2 * di, j))
+        _extrapolate_phantoms(rows, {0: (1, 0) not in cells, 3: (1, 2) not in cells},
+                              {0: (0, 1) not in cells, 3: (2, 1) not in cells})
         if len(rows) != 16:
             raise InputError(f"{self.face_name(f)}: cannot form its 4x4 stencil (irregular "
                              f"neighbourhood)", path=self.source)
@@ -1060,16 +1038,12 @@ _STEPS = ((0, -1), (1, 0), (0, 1), (-1, 0))          # across cell edge m
 _OFFSETS = ((0, 0), (1, 0), (1, 1), (0, 1))          # cell corner m
 
 
-@functools.lru_cache(maxsize=None)
-def _phantom_pattern(code: int):
-    """The rows of ``regular_stencil`` for one pattern of present grid points (bits 0-15, grid
-    index j*4+i) and missing side cells (bits 16-19: (1,0), (1,2), (0,1), (2,1)), in grid
-    points: ((16, 4) grid indices, -1 for none; (16, 4) weights), or None if incomplete."""
-    rows = {(i, j): {j * 4 + i: 1.0} for j in range(4) for i in range(4) if code >> (j * 4 + i) & 1}
-    jside = {0: bool(code >> 16 & 1), 3: bool(code >> 17 & 1)}
-    iside = {0: bool(code >> 18 & 1), 3: bool(code >> 19 & 1)}
-
-    def lin(p, q):   # 2 p - q, as regular_stencil combines them
+def _extrapolate_phantoms(rows: dict, jside: dict, iside: dict) -> None:
+    """The missing rows of a 4 x 4 stencil (``rows``: grid point (i, j) -> {point: weight})
+    as phantoms 2 p - q, extrapolated across the configuration's boundary lines only:
+    ``jside``/``iside`` {0 or 3: True} for the rows (columns) j (i) beyond a boundary; rows
+    first, then columns (the columns' phantoms may use the rows')."""
+    def lin(p, q):   # 2 p - q
         out = {}
         for w, x in rows[p].items():
             out[w] = out.get(w, 0.0) + 2.0 * x
@@ -1090,6 +1064,16 @@ def _phantom_pattern(code: int):
         di = 1 if i == 0 else -1
         if (i + di, j) in rows and (i + 2 * di, j) in rows:
             rows[(i, j)] = lin((i + di, j), (i + 2 * di, j))
+
+
+@functools.lru_cache(maxsize=None)
+def _phantom_pattern(code: int):
+    """The rows of ``regular_stencil`` for one pattern of present grid points (bits 0-15, grid
+    index j*4+i) and missing side cells (bits 16-19: (1,0), (1,2), (0,1), (2,1)), in grid
+    points: ((16, 4) grid indices, -1 for none; (16, 4) weights), or None if incomplete."""
+    rows = {(i, j): {j * 4 + i: 1.0} for j in range(4) for i in range(4) if code >> (j * 4 + i) & 1}
+    _extrapolate_phantoms(rows, {0: bool(code >> 16 & 1), 3: bool(code >> 17 & 1)},
+                          {0: bool(code >> 18 & 1), 3: bool(code >> 19 & 1)})
     if len(rows) != 16 or max(len(r) for r in rows.values()) > 4:
         return None
     gp = np.full((16, 4), -1, dtype=np.int64)

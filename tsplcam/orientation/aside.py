@@ -1,6 +1,7 @@
 """One piece of work beside this process: ``fn(*args)`` in a forked process while this one goes
-on with other work (e.g. the orientation's metrics while the program is posted), the result
-the same as computed here (the same code on the same data, inherited by the fork).
+on with other work (the orientation's metrics while the program is posted, the ball gouge
+check while the axes are searched), the result the same as computed here (the same code on
+the same data, inherited by the fork).
 
 :class:`Aside` forks only where :func:`tsplcam.toolpath.parallel.worker_count` allows more
 than one process (not inside FreeCAD, not with ``TSPLCAM_WORKERS=1``, not while that
@@ -12,8 +13,12 @@ error is raised as without the fork. A caller that meets an error of its own whi
 is out asks for the result first (:meth:`Aside.first`): the piece's error, when there is one,
 is the one a single process would have met first.
 
-A fork of the job's process costs it about 5 ms, and as much again for the result's way back:
-worth it for pieces of tens of ms and more (:data:`MIN_POINTS`).
+A fork of the job's process costs it about 5 ms, and its pages, shared with the child until
+written, cost its next work more (the keycap's post: 0.091 -> 0.109 s beside an idle
+child): worth it for pieces of 50 ms and more (:data:`MIN_POINTS`; the forced C travel's
+30-45 ms on the keycap did not pay). Where other sessions keep both cores busy, a job's
+processes share its one fair share of them (the kernel's autogroups) and the fork only
+costs: about the same total CPU time, spread over two processes.
 """
 from __future__ import annotations
 
@@ -24,7 +29,7 @@ import pickle
 from ..toolpath.parallel import worker_count
 
 #: path points from which the orientation's pieces of work beside the main one (ball gouges,
-#: forced rotary travel, metrics: 2-4 us a point) pay for a fork
+#: metrics: 3-12 us a point) pay for a fork
 MIN_POINTS = 5000
 
 

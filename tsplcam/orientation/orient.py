@@ -273,28 +273,16 @@ def orient_smooth(path, checker, preferred, limits: Limits, reach, feed, smoothi
                              f"axes within the maximum step of {max_step / DEG:.1f} deg (raise max_step "
                              "or the cone limits, or split the path there)") from None
     # the least rotary travel any sequence of the grid's poses known or presumed free can have
-    # (a figure for the report), beside the polish, which does not need it
-    with Aside(_forced_travel, grid, status, ds, air, beside=n >= MIN_POINTS) as travel:
-        theta = grid.theta[np.arange(n), states].copy()
-        phi = grid.phi[states]
-        phi = phi[0] + np.concatenate([[0.0], np.cumsum(np.pi - np.mod(np.pi - np.diff(phi), 2 * np.pi))])
-        moving = ~np.isin(path.move[1:], (Move.CUT, Move.LINK))
-        try:
-            theta, phi, info = smooth_joints(path, rot, theta, phi, pref, path.normal, cost, cons, checker=checker,
-                                             free_tilt=free_tilts(grid, status), move_free=moving,
-                                             pole_tilt=pole_tilt, tick=lambda: tick(M))
-        except Exception:
-            travel.first()
-            raise
-        forced = travel.result()
+    forced, _ = forced_rotary_travel(grid, status, ds, air=air)
+    theta = grid.theta[np.arange(n), states].copy()
+    phi = grid.phi[states]
+    phi = phi[0] + np.concatenate([[0.0], np.cumsum(np.pi - np.mod(np.pi - np.diff(phi), 2 * np.pi))])
+    moving = ~np.isin(path.move[1:], (Move.CUT, Move.LINK))
+    theta, phi, info = smooth_joints(path, rot, theta, phi, pref, path.normal, cost, cons, checker=checker,
+                                     free_tilt=free_tilts(grid, status), move_free=moving, pole_tilt=pole_tilt, tick=lambda: tick(M))
     return rot.axis(theta, phi), {"dp_rounds": rounds, "resolved_points": 0,
                                   "relaxation_moves": info["joint_checks"], "candidates": M,
                                   "dp_checks": checks, "c_travel_forced_deg": forced / DEG} | info
-
-
-def _forced_travel(grid, status, ds, air) -> float:
-    """:func:`~tsplcam.orientation.smoothing.forced_rotary_travel` (rad) alone."""
-    return forced_rotary_travel(grid, status, ds, air=air)[0]
 
 
 def forced_c_travel(path, checker, machine=None, *, resolution: float = 10.0, lead_max: float = 60.0,

@@ -55,5 +55,50 @@ class AsideWork(unittest.TestCase):
         self.assertEqual(small.result()["square"], 16)
 
 
+class ProgramBeside(unittest.TestCase):
+    """make_program with the metrics measured beside the post: the same metrics and program
+    bytes as one process; where both fail, the metrics' error (one process meets it first)."""
+
+    @classmethod
+    def setUpClass(cls):
+        from tsplcam.program import (collision_checker, load_model, load_stock, load_tool, make_path,
+                                     processing_list, tool_radius)
+        from tsplcam.settings import JobSettings
+        cls.s = s = JobSettings(scallop=0.2, chord_tol=0.01)
+        cls.model = load_model(s.model)
+        cls.plist = processing_list(cls.model, s)
+        tool, cls.stock = load_tool(s), load_stock(s)
+        with mock.patch.dict(os.environ, {"TSPLCAM_WORKERS": "1"}):
+            cls.path = make_path(cls.model, cls.plist, s, tool_radius(s, tool))
+        cls.checker = collision_checker(cls.model, tool, cls.stock, s.holder_clearance)
+
+    def program(self, workers: str):
+        from tsplcam.program import make_program
+        with mock.patch.dict(os.environ, {"TSPLCAM_WORKERS": workers}), \
+                mock.patch("tsplcam.orientation.aside.MIN_POINTS", 0):       # fork whatever the size
+            return make_program(self.path, self.model, self.s, stock=self.stock, plist=self.plist,
+                                checker=self.checker)
+
+    def test_same_metrics_and_program(self):
+        if not FORK:
+            self.skipTest("no forked workers here")
+        beside, alone = self.program("2"), self.program("1")
+        self.assertEqual(beside.metrics.as_dict(), alone.metrics.as_dict())
+        self.assertEqual(beside.posted.text, alone.posted.text)
+        self.assertEqual(beside.metrics.gouges, 0)
+        self.assertEqual(set(beside.seconds), {"orientation_s", "post_s"})
+
+    def test_metrics_error_first(self):
+        if not FORK:
+            self.skipTest("no forked workers here")
+
+        def fails(*a, **k):
+            raise ValueError(f"the {k.get('what', 'metrics')} failed")
+        with mock.patch("tsplcam.verify.orientation.orientation_metrics", fails), \
+                mock.patch("tsplcam.post.post_program", lambda *a, **k: fails(what="post")):
+            with self.assertRaisesRegex(ValueError, "the metrics failed"):
+                self.program("2")
+
+
 if __name__ == "__main__":
     unittest.main()

@@ -43,7 +43,9 @@ class Aside:
         self.fn, self.args = fn, args
         self._proc = self._conn = None
         self._done, self._value = False, None
-        self.forked = bool(beside) and worker_count(None, 2) > 1
+        # (a daemonic process, e.g. a pool's worker, may not have children)
+        self.forked = (bool(beside) and worker_count(None, 2) > 1
+                       and not multiprocessing.current_process().daemon)
         if self.forked:
             ctx = multiprocessing.get_context("fork")
             recv, send = ctx.Pipe(duplex=False)

@@ -102,3 +102,29 @@ class ProgramBeside(unittest.TestCase):
 
 if __name__ == "__main__":
     unittest.main()
+
+
+class ComponentForms(unittest.TestCase):
+    """Rotary.axis and angle_between component by component give numpy's (..., 3) forms bit
+    for bit (the programs' bytes depend on it), on the smoothing's grid shapes."""
+
+    def test_same_bits(self):
+        import numpy as np
+        from tsplcam.orientation.rotary import Rotary, angle_between
+        rng = np.random.default_rng(5)
+        th = rng.uniform(-3.2, 3.2, (400, 36))
+        th[rng.random(th.shape) < 0.1] = 0.0
+        phi = 2 * np.pi * np.arange(36) / 36
+        pref = rng.normal(size=(400, 3))
+        pref /= np.linalg.norm(pref, axis=1, keepdims=True)
+        pref[:200] = (0.0, 0.0, 1.0)
+        for about in "XY":
+            rot = Rotary(about=about)
+            K = rot.axis(th, phi[None, :])
+            ref = np.cos(th)[..., None] * np.array([0.0, 0.0, 1.0]) + np.sin(th)[..., None] * rot.meridian(phi[None, :])
+            self.assertEqual(K.tobytes(), ref.tobytes())
+            got = angle_between(K, pref[:, None, :])
+            ref = np.arctan2(np.linalg.norm(np.cross(K, pref[:, None, :]), axis=-1),
+                             np.einsum("...i,...i->...", K, pref[:, None, :]))
+            self.assertEqual(got.tobytes(), ref.tobytes())
+            self.assertEqual(rot.axis(0.3, 1.2).shape, (3,))

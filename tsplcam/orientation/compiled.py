@@ -54,6 +54,8 @@ from __future__ import annotations
 import os
 import time
 
+import numpy as np
+
 _STATE = {"work": 0.0}
 #: work (elements of the Viterbi recurrence, S^2 per point, or their equivalent) after which
 #: a process loads the kernels: about half the load's time in numpy (8.5 ns an element)
@@ -61,20 +63,40 @@ LOAD_WORK = 1.0e7
 
 
 def _build():
-    """Compile (lazily) the kernels; None without numba."""
+    """The kernels: the ahead-of-time module where it is built from this source, else numba's
+    (compiled lazily, or loaded from its cache); None without either or with
+    ``TSPLCAM_COMPILED=0``."""
     if os.environ.get("TSPLCAM_COMPILED", "1") == "0":
         return None
-    try:
-        import numba
-    except ImportError:
-        return None
-    import numpy as np
+    aot = _aot()
+    return aot if aot is not None else _jit()
 
-    def jit(f):
+
+def _jit():
+    """numba's kernels (compiled on first use, or loaded from numba's cache); None without
+    numba. Built once a process (the ahead-of-time kernels ask for them on arguments of
+    other types than :data:`SIGNATURES`')."""
+    if "jit" not in _STATE:
         try:
-            return numba.njit(cache=True, nogil=True)(f)
-        except RuntimeError:          # no writable cache location: compile in each process
-            return numba.njit(cache=False, nogil=True)(f)
+            import numba
+        except ImportError:
+            _STATE["jit"] = None
+        else:
+            def jit(f):
+                try:
+                    return numba.njit(cache=True, nogil=True)(f)
+                except RuntimeError:      # no writable cache location: compile in each process
+                    return numba.njit(cache=False, nogil=True)(f)
+            _STATE["jit"] = _define(jit)
+    return _STATE["jit"]
+
+
+def _define(jit):
+    """The kernels, each as ``jit`` makes it of its Python function (numba's ``njit``; the
+    identity for the ahead-of-time build, which compiles the functions themselves).
+    :func:`source_hash` reads this function's text: the ahead-of-time module is used only
+    while it is the text the module was built from."""
+    import numpy as np
 
     @jit
     def viterbi_steps(acc, node, T, i0, tie, back):
@@ -719,6 +741,166 @@ def _build():
             "solve_box": solve_box, "sphere_loop": sphere_loop}
 
 
+#: each kernel's types for the ahead-of-time module, as the callers pass them (numba's JIT
+#: specialises on the same): ``ret(arg, ...)``, an argument a scalar (f8 float64, i8 int64)
+#: or an array ``dtype[ndim]`` (C-contiguous; ``w`` written by the kernel, the others
+#: read-only); ``void`` returns None. A kernel's argument changed is to be changed here too.
+SIGNATURES = {
+    "viterbi_steps": "i8(f8[1]w, f8[2], f8[3], i8, f8, i4[2]w)",
+    "joint_steps": "i8(f8[1]w, f8[2], i8, i8, f8[2], f8[2], f8[2], f8[2], f8[2], f8[2], b1[2], f8, f8, f8,"
+                   " f8[1], b1[1], b1[1], f8, f8, i4[2]w)",
+    "viterbi_path": "void(i4[2], i8, i8[1]w)",
+    "two_states": "i8(f8[2], f8[3], f8, i8[1]w)",
+    "banded_solve": "i8(f8[2]w, f8[1]w)",
+    "solve_box": "i8(f8[2], f8[1], f8[1], f8[1], i8, f8[1]w)",
+    "grid_read": "void(f8[2], f8[1], f8, i8[1], i8[1], i8[1], f8[1], i8[1], f8[1]w, i8[1]w, b1[1]w)",
+    "sphere_loop": "i8(f8[2], f8[2], i8[1], i8[1], f8[1], f8[1], f8[1], f8[1], f8[1], f8[1], i8[1], i8,"
+                   " f8[1], f8[1], f8[2], f8[1], i8[2], i8[2], i8[2], i8[1], f8[1], i8[1], f8[2], i4[1],"
+                   " f8[3], f8, f8, i1[1]w, b1[2]w, f8[1]w, i8[2]w)",
+    "hit_pairs": "i8(f8[2], i8[1], i8[1], i8[1], f8[2], f8[2], f8[1], f8[1], f8[1], f8[1], f8[1], f8[1], i8,"
+                 " i4[1], f8[3], f8, i1[1]w, i8[2]w)",
+}
+#: the ahead-of-time module's name (beside this file, built by :func:`build_aot`)
+AOT_MODULE = "_aot_kernels"
+
+
+def _arguments(sig: str) -> tuple:
+    """``(return code, ((code, ndim, written), ...))`` of a :data:`SIGNATURES` entry (ndim 0:
+    a scalar)."""
+    ret, _, rest = sig.partition("(")
+    args = []
+    for tok in rest.rstrip(")").split(","):
+        tok = tok.strip()
+        code, _, dims = tok.partition("[")
+        args.append((code, int(dims[0]) if dims else 0, tok.endswith("w")))
+    return ret, tuple(args)
+
+
+def source_hash() -> int | None:
+    """A hash (60 bits) of the kernels' source (the text of :func:`_define`) and of their
+    :data:`SIGNATURES`: stored in the ahead-of-time module when it is built, compared when it
+    is loaded. None when this file cannot be read."""
+    import hashlib
+    try:
+        with open(__file__, "rb") as f:
+            text = f.read()
+    except OSError:
+        return None
+    i = text.find(b"\ndef _define(")
+    j = text.find(b"\n\n\n", i)
+    if i < 0 or j < 0:
+        return None
+    h = hashlib.sha256(text[i:j])
+    h.update(repr(sorted(SIGNATURES.items())).encode())
+    return int(h.hexdigest()[:15], 16)
+
+
+class _Exported:
+    """A kernel of the ahead-of-time module, called where the arguments have its
+    :data:`SIGNATURES`' types (arrays: dtype, ndim, C order, aligned, writeable where it
+    writes; scalars: float for f8, an integer for i8), else numba's kernel of the same name
+    (the module's wrapper would convert other arguments silently, or misread them)."""
+
+    __slots__ = ("name", "fn", "spec")
+
+    def __init__(self, name: str, fn, sig: str):
+        self.name, self.fn = name, fn
+        self.spec = tuple((np.dtype(code) if nd else code, nd, w) for code, nd, w in _arguments(sig)[1])
+
+    def __call__(self, *args):
+        if len(args) == len(self.spec):
+            for a, (dt, nd, w) in zip(args, self.spec):
+                if nd:
+                    if type(a) is not np.ndarray or a.ndim != nd or a.dtype != dt:
+                        break
+                    f = a.flags
+                    if not (f.c_contiguous and f.aligned and (f.writeable or not w)):
+                        break
+                elif dt == "f8":
+                    if not isinstance(a, float):
+                        break
+                elif isinstance(a, (bool, np.bool_)) or not isinstance(a, (int, np.integer)):
+                    break
+            else:
+                return self.fn(*args)
+        jit = _jit()
+        if jit is None:
+            raise TypeError(f"compiled.{self.name}: arguments not of the types {SIGNATURES[self.name]} "
+                            "of the ahead-of-time module, and numba is not there")
+        return jit[self.name](*args)
+
+
+def _aot():
+    """The ahead-of-time module's kernels (:class:`_Exported`), or None: not built, not
+    importable, or built from another source (:func:`source_hash`). Importing it loads
+    neither numba nor LLVM."""
+    if "aot" not in _STATE:
+        _STATE["aot"] = None
+        try:
+            from importlib import import_module
+            mod = import_module(f"{__package__}.{AOT_MODULE}")
+            built = mod.source_hash()
+        except (ImportError, OSError, AttributeError):
+            return None
+        want = source_hash()
+        if want is not None and built == want:
+            _STATE["aot"] = {name: _Exported(name, getattr(mod, name), sig) for name, sig in SIGNATURES.items()}
+    return _STATE["aot"]
+
+
+def build_aot(force: bool = False) -> str | None:
+    """Compile the kernels ahead of time (numba's ``pycc``, with :data:`SIGNATURES`) into the
+    extension module :data:`AOT_MODULE` beside this file; returns its path (None without
+    numba). Left alone when it is there and built from this source, unless ``force``.
+
+    The CPU is pycc's default, the architecture's generic one (x86-64: SSE2), so the module
+    runs wherever this Python does; numba is not asked for fast-math here either, so every
+    operation is the JIT kernels', in their order, and rounds the same (no sums reordered,
+    no fused multiply-adds). Written to a temporary name and moved into place, so a process
+    that has the old module loaded keeps it."""
+    import shutil
+    import tempfile
+    import warnings
+    here = os.path.dirname(os.path.abspath(__file__))
+    if not force and os.environ.get("TSPLCAM_COMPILED", "1") != "0" and _aot() is not None:
+        return _aot_path()
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")       # pycc is pending deprecation in numba 0.59
+            from numba.core import types
+            from numba.pycc import CC
+    except ImportError:
+        return None
+    codes = {"f8": types.float64, "i8": types.int64, "i4": types.int32, "i1": types.int8,
+             "b1": types.boolean, "void": types.void}
+    funcs = _define(lambda f: f)
+    h = source_hash()
+    tmp = tempfile.mkdtemp(prefix=".aot-build-", dir=here)
+    try:
+        cc = CC(AOT_MODULE)
+        cc.output_dir = tmp
+        for name, sig in SIGNATURES.items():
+            ret, args = _arguments(sig)
+            argtypes = [types.Array(codes[c], nd, "C", readonly=not w) if nd else codes[c] for c, nd, w in args]
+            cc.export(name, codes[ret](*argtypes))(funcs[name])
+        cc.export("source_hash", "i8()")(lambda: h)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            cc.compile()
+        out = os.path.join(here, cc.output_file)
+        os.replace(os.path.join(tmp, cc.output_file), out)
+    finally:
+        shutil.rmtree(tmp, ignore_errors=True)
+    _STATE.pop("aot", None)
+    return out
+
+
+def _aot_path() -> str:
+    """Where the ahead-of-time module is (or would be) for this Python."""
+    import sysconfig
+    return os.path.join(os.path.dirname(os.path.abspath(__file__)), AOT_MODULE + sysconfig.get_config_var("EXT_SUFFIX"))
+
+
 def kernels(work: float | None = None):
     """The compiled kernels (a dict of numba functions), or None without numba. ``work``: the
     size of the computation the caller would otherwise do in numpy; with it, the kernels are
@@ -741,15 +923,19 @@ def loaded():
 
 
 def prepare() -> None:
-    """Load numba's machinery and every kernel's machine code (numba's import, and each
-    kernel's first call: about 0.3-0.45 s and 7-20 ms a kernel) into a set of the kernels
-    kept aside, leaving :func:`kernels`' own choice (numba or numpy, by the work asked)
-    untouched: :func:`kernels` gives that set once it loads. A job does this while it would
-    only wait (``program.CheckerAhead``) and still makes the same bytes (the same kernels)."""
+    """Load the kernels into a set kept aside, leaving :func:`kernels`' own choice (compiled
+    or numpy, by the work asked) untouched: :func:`kernels` gives that set once it loads. A
+    job does this while it would only wait (``program.CheckerAhead``) and still makes the
+    same bytes (the same kernels). The ahead-of-time module loads in about a millisecond;
+    numba's kernels cost numba's import and each kernel's first call (about 0.3-0.45 s and
+    7-20 ms a kernel), taken here."""
     if "k" in _STATE or "spare" in _STATE:
         return
     spare = _build()
     if spare is None:
+        return
+    if spare is _STATE.get("aot"):    # loaded whole, nothing to call first
+        _STATE["spare"] = spare
         return
     _STATE["k"] = spare               # (kernels() gives this set while the calls below run)
     try:
@@ -792,11 +978,21 @@ def _exercise() -> None:
 
 
 def warm() -> float:
-    """Compile (or load from the cache) every kernel on a tiny input; returns the seconds
-    taken (0 without numba). ``scripts/install.sh`` calls it, so a job does not carry the
-    compilation."""
+    """Compile (or load from numba's cache) every numba kernel on a tiny input; returns the
+    seconds taken (0 without numba, or with ``TSPLCAM_COMPILED=0``). ``scripts/install.sh``
+    calls it (after :func:`build_aot`), so a job that runs numba's kernels (no ahead-of-time
+    module, or a stale one) does not carry their compilation."""
     t0 = time.perf_counter()
-    if kernels() is None:
+    if os.environ.get("TSPLCAM_COMPILED", "1") == "0" or _jit() is None:
         return 0.0
-    _exercise()
+    had = "k" in _STATE
+    k = _STATE.get("k")
+    _STATE["k"] = _jit()              # (the calls below run numba's set, whatever kernels() gives)
+    try:
+        _exercise()
+    finally:
+        if had:
+            _STATE["k"] = k
+        else:
+            del _STATE["k"]
     return time.perf_counter() - t0

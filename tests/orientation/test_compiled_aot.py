@@ -95,13 +95,13 @@ class AheadOfTime(unittest.TestCase):
                     self.assertEqual(a.tobytes(), b.tobytes(), name)
 
     def test_stale_or_other_types(self):
-        """A module built from another source is not used; arguments of other types than the
+        """A module built from another source (or for another processor) is not used; arguments of other types than the
         signature's (here a float32 array, a non-contiguous one, a read-only one written to,
         an int for a float) go to numba's kernel, not the module's."""
         if compiled._aot() is None:
             self.skipTest("no ahead-of-time module of this source (scripts/install.sh builds it)")
         with mock.patch.dict(compiled._STATE, clear=True), \
-                mock.patch.object(compiled, "source_hash", lambda: 1):
+                mock.patch.object(compiled, "build_key", lambda: 1):
             self.assertIsNone(compiled._aot())
         f = compiled._aot()["two_states"]
         node, t, states = np.zeros((3, 2)), np.ones((2, 2, 2)), np.zeros(3, np.int64)

@@ -94,7 +94,7 @@ def _jit():
 def _define(jit):
     """The kernels, each as ``jit`` makes it of its Python function (numba's ``njit``; the
     identity for the ahead-of-time build, which compiles the functions themselves).
-    :func:`source_hash` reads this function's text: the ahead-of-time module is used only
+    :func:`build_key` reads this function's text: the ahead-of-time module is used only
     while it is the text the module was built from."""
     import numpy as np
 
@@ -776,9 +776,23 @@ def _arguments(sig: str) -> tuple:
     return ret, tuple(args)
 
 
-def source_hash() -> int | None:
-    """A hash (60 bits) of the kernels' source (the text of :func:`_define`) and of their
-    :data:`SIGNATURES`: stored in the ahead-of-time module when it is built, compared when it
+def _processor() -> bytes:
+    """This processor's feature flags (Linux: /proc/cpuinfo's first ``flags`` line, ARM's
+    ``Features``), b"" where they cannot be read."""
+    try:
+        with open("/proc/cpuinfo", "rb") as f:
+            for line in f:
+                if line.startswith((b"flags", b"Features")):
+                    return line.partition(b":")[2].strip()
+    except OSError:
+        pass
+    return b""
+
+
+def build_key() -> int | None:
+    """A hash (60 bits) of the kernels' source (the text of :func:`_define`), their
+    :data:`SIGNATURES` and this processor's feature flags (:func:`_processor`; the module is
+    compiled for them): stored in the ahead-of-time module when it is built, compared when it
     is loaded. None when this file cannot be read."""
     import hashlib
     try:
@@ -792,6 +806,7 @@ def source_hash() -> int | None:
         return None
     h = hashlib.sha256(text[i:j])
     h.update(repr(sorted(SIGNATURES.items())).encode())
+    h.update(b"\0" + _processor())
     return int(h.hexdigest()[:15], 16)
 
 
@@ -832,17 +847,17 @@ class _Exported:
 
 def _aot():
     """The ahead-of-time module's kernels (:class:`_Exported`), or None: not built, not
-    importable, or built from another source (:func:`source_hash`). Importing it loads
+    importable, or built from another source or for another processor (:func:`build_key`). Importing it loads
     neither numba nor LLVM."""
     if "aot" not in _STATE:
         _STATE["aot"] = None
         try:
             from importlib import import_module
             mod = import_module(f"{__package__}.{AOT_MODULE}")
-            built = mod.source_hash()
+            built = mod.build_key()
         except (ImportError, OSError, AttributeError):
             return None
-        want = source_hash()
+        want = build_key()
         if want is not None and built == want:
             _STATE["aot"] = {name: _Exported(name, getattr(mod, name), sig) for name, sig in SIGNATURES.items()}
     return _STATE["aot"]
@@ -851,13 +866,17 @@ def _aot():
 def build_aot(force: bool = False) -> str | None:
     """Compile the kernels ahead of time (numba's ``pycc``, with :data:`SIGNATURES`) into the
     extension module :data:`AOT_MODULE` beside this file; returns its path (None without
-    numba). Left alone when it is there and built from this source, unless ``force``.
+    numba). Left alone when it is there and built from this source for this processor,
+    unless ``force``.
 
-    The CPU is pycc's default, the architecture's generic one (x86-64: SSE2), so the module
-    runs wherever this Python does; numba is not asked for fast-math here either, so every
-    operation is the JIT kernels', in their order, and rounds the same (no sums reordered,
-    no fused multiply-adds). Written to a temporary name and moved into place, so a process
-    that has the old module loaded keeps it."""
+    The module is compiled as numba's JIT compiles: for this processor (numba's host CPU
+    name and feature flags, where pycc's default is the architecture's generic CPU: on
+    x86-64 SSE2 only, a quarter slower in the Viterbi and sphere loops), and without
+    fast-math, so every operation is the JIT kernels', in their order, rounding the same (no
+    sums reordered, no fused multiply-adds). On another processor (other flags) the module
+    is not loaded (:func:`build_key`); where the flags cannot be read it is built for the
+    generic CPU. Written to a temporary name and moved into place, so a process that has
+    the old module loaded keeps it (and its numba kernels): the new one serves the next."""
     import shutil
     import tempfile
     import warnings
@@ -868,28 +887,34 @@ def build_aot(force: bool = False) -> str | None:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")       # pycc is pending deprecation in numba 0.59
             from numba.core import types
+            from numba.core.codegen import AOTCPUCodegen
             from numba.pycc import CC
     except ImportError:
         return None
     codes = {"f8": types.float64, "i8": types.int64, "i4": types.int32, "i1": types.int8,
              "b1": types.boolean, "void": types.void}
     funcs = _define(lambda f: f)
-    h = source_hash()
+    key = build_key()
     tmp = tempfile.mkdtemp(prefix=".aot-build-", dir=here)
+    features = AOTCPUCodegen._customize_tm_features
     try:
         cc = CC(AOT_MODULE)
         cc.output_dir = tmp
+        if _processor():                          # as the JIT: the host's name and flags
+            cc.target_cpu = "host"
+            AOTCPUCodegen._customize_tm_features = lambda self: self._get_host_cpu_features()
         for name, sig in SIGNATURES.items():
             ret, args = _arguments(sig)
             argtypes = [types.Array(codes[c], nd, "C", readonly=not w) if nd else codes[c] for c, nd, w in args]
             cc.export(name, codes[ret](*argtypes))(funcs[name])
-        cc.export("source_hash", "i8()")(lambda: h)
+        cc.export("build_key", "i8()")(lambda: key)
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
             cc.compile()
         out = os.path.join(here, cc.output_file)
         os.replace(os.path.join(tmp, cc.output_file), out)
     finally:
+        AOTCPUCodegen._customize_tm_features = features
         shutil.rmtree(tmp, ignore_errors=True)
     _STATE.pop("aot", None)
     return out

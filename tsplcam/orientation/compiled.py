@@ -41,13 +41,23 @@ Where the kernels are loaded already, ``solve_box`` runs the polish's whole acti
 (its numpy steps element for element, the solve as ``banded_solve``): the same x as the loop
 calling ``banded_solve``, without numpy's overhead per iteration.
 
-numba is optional: :func:`kernels` returns None when it cannot be imported (a FreeCAD
-without it) or when ``TSPLCAM_COMPILED=0`` is set, and the callers run their numpy version.
-Loading numba and the cached kernels costs a process about 0.17 s, the numpy recurrence of
-15,000 points at 36 states: a process loads them only once the work it has asked for
-reaches ``LOAD_WORK`` (small paths stay in numpy). Kernels are compiled on first use and
-cached on disk (``cache=True``: in ``__pycache__`` beside this file, else in the user's
-cache directory); with neither writable they are compiled in each process (about 0.7 s).
+Where the kernels come from, in this order: the ahead-of-time module ``_aot_kernels``
+beside this file (built by ``scripts/install.sh`` through :func:`build_aot`, numba's pycc,
+with the argument types of :data:`SIGNATURES`), loaded in about a millisecond without
+importing numba, if it was built from this file's kernel source for this processor
+(:func:`build_key`, stored in the module); else numba's JIT (``cache=True``: compiled on
+first use and cached on disk, in ``__pycache__`` beside this file, else in the user's cache
+directory; with neither writable compiled in each process, about 0.7 s), whose import and
+cached kernels cost a process about 0.35 s; else none. Both compile the same Python
+functions (:func:`_define`) for the same CPU without fast-math: the same bits. The module's
+kernels check their arguments' types (:class:`_Exported`) and hand others to numba's.
+
+The kernels are optional: :func:`kernels` returns None when neither is there (a FreeCAD
+without numba and no module) or when ``TSPLCAM_COMPILED=0`` is set, and the callers run
+their numpy version. A process asks for them only once the work it has asked for reaches
+``LOAD_WORK`` (about half numba's load in numpy's time: small paths stay in numpy; the
+threshold is kept with the module, so that which paths run compiled, and so the bytes, do
+not depend on where the kernels come from).
 """
 from __future__ import annotations
 
@@ -881,7 +891,7 @@ def build_aot(force: bool = False) -> str | None:
     import tempfile
     import warnings
     here = os.path.dirname(os.path.abspath(__file__))
-    if not force and os.environ.get("TSPLCAM_COMPILED", "1") != "0" and _aot() is not None:
+    if not force and _aot() is not None:
         return _aot_path()
     try:
         with warnings.catch_warnings():
@@ -927,7 +937,8 @@ def _aot_path() -> str:
 
 
 def kernels(work: float | None = None):
-    """The compiled kernels (a dict of numba functions), or None without numba. ``work``: the
+    """The compiled kernels (a dict of callables by name: the ahead-of-time module's, else
+    numba's), or None without either (see the module doc). ``work``: the
     size of the computation the caller would otherwise do in numpy; with it, the kernels are
     only loaded once the work asked of this process reaches :data:`LOAD_WORK` (None till
     then); without it, now. A set :func:`prepare` loaded ahead is the one given."""

@@ -16,8 +16,18 @@ from tsplcam.orientation import compiled
 HAVE_NUMBA = importlib.util.find_spec("numba") is not None and os.environ.get("TSPLCAM_COMPILED") != "0"
 
 
+def copy(a):
+    """A copy of an argument, an array read-only where it was (numba's JIT types it so: the
+    types ``compiled.warm`` compiled, nothing compiled here)."""
+    if not isinstance(a, np.ndarray):
+        return a
+    c = a.copy()
+    c.flags.writeable = a.flags.writeable
+    return c
+
+
 def snapshot(args) -> tuple:
-    return tuple(a.copy() if isinstance(a, np.ndarray) else a for a in args)
+    return tuple(copy(a) for a in args)
 
 
 class Recorder:

@@ -18,7 +18,9 @@
 #     psutil, pyyaml, tblib, toolz, tornado, zipp) and from pip, pinned, where it does not
 #     (cloudpickle >= 3, partd >= 1.4, zict >= 3, importlib_metadata >= 4.13). numba (with its
 #     llvmlite), pinned, with --no-deps, for the orientation's compiled kernels (optional: the
-#     engine falls back to numpy without it); its kernels are compiled once here, into the cache.
+#     engine falls back to numpy without it); its kernels are compiled once here: ahead of time
+#     (numba's pycc, with gcc, python3-dev and python3-distutils) into an extension module beside
+#     the source that a job loads without numba, and into numba's cache for where it does not.
 #  3. Links this checkout as the workbench "tsplcam" into an isolated FreeCAD user home
 #     ($TSPLCAM_FC_HOME, default <repo>/build/fchome, used as FREECAD_USER_HOME); the user's real home only with --user.
 set -euo pipefail
@@ -26,7 +28,7 @@ set -euo pipefail
 REPO="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 PY=/usr/bin/python3
 APT_PACKAGES=(freecad-python3 freecad python3-numpy python3-scipy python3-pip python3-pytest
-              xvfb xauth linuxcnc-uspace python3-matplotlib
+              xvfb xauth linuxcnc-uspace python3-matplotlib gcc python3-dev python3-distutils
               python3-click python3-fsspec python3-jinja2 python3-locket python3-msgpack python3-packaging
               python3-psutil python3-yaml python3-tblib python3-toolz python3-tornado python3-zipp)
 PIP_PACKAGES=("python-fcl==0.7.0.11:fcl" "elkai==2.0.1:elkai"
@@ -80,7 +82,11 @@ link_into() {  # $1 = a FreeCAD Mod directory
   ln -sfn "$REPO" "$target"
   say "linked $target -> $REPO"
 }
-# the compiled kernels into numba's cache (beside the source), so a job does not compile them
+# the compiled kernels: ahead of time into tsplcam/orientation/_aot_kernels*.so (kept while it is
+# built from the current kernel source; a job then loads them in about a millisecond, without
+# numba), and into numba's cache (beside the source) for a job that finds no current module
+PYTHONPATH="$REPO" $PY -c "from tsplcam.orientation.compiled import build_aot; build_aot()" \
+  || say "the kernels do not compile ahead of time (numba.pycc, gcc): jobs load numba's instead"
 PYTHONPATH="$REPO" $PY -c "from tsplcam.orientation.compiled import warm; warm()" \
   || { say "the compiled kernels do not build (numba)"; exit 1; }
 FC_HOME="${TSPLCAM_FC_HOME:-$REPO/build/fchome}"

@@ -293,13 +293,14 @@ class CompiledJointTransitions(unittest.TestCase):
             self.assertIsNone(compiled.loaded())
             k = compiled.kernels()
             for name in ("viterbi_steps", "joint_steps", "solve_box", "two_states", "grid_read"):
-                self.assertEqual(len(k[name].signatures), 1, name)
+                if not isinstance(k[name], compiled._Exported):     # (ahead of time: one type only)
+                    self.assertEqual(len(k[name].signatures), 1, name)
             self.assertIs(compiled.loaded(), k)
 
     def test_warm_compiles_it(self):
-        """``warm()`` (the install script's) compiles the kernel for the types the job uses."""
+        """``warm()`` (the install script's) compiles numba's kernel for the types the job uses."""
         compiled.warm()
-        self.assertEqual(len(compiled.kernels()["joint_steps"].signatures), 1)
+        self.assertEqual(len(compiled._jit()["joint_steps"].signatures), 1)
 
 
 @needs_numba

@@ -41,18 +41,30 @@ Where the kernels are loaded already, ``solve_box`` runs the polish's whole acti
 (its numpy steps element for element, the solve as ``banded_solve``): the same x as the loop
 calling ``banded_solve``, without numpy's overhead per iteration.
 
-numba is optional: :func:`kernels` returns None when it cannot be imported (a FreeCAD
-without it) or when ``TSPLCAM_COMPILED=0`` is set, and the callers run their numpy version.
-Loading numba and the cached kernels costs a process about 0.17 s, the numpy recurrence of
-15,000 points at 36 states: a process loads them only once the work it has asked for
-reaches ``LOAD_WORK`` (small paths stay in numpy). Kernels are compiled on first use and
-cached on disk (``cache=True``: in ``__pycache__`` beside this file, else in the user's
-cache directory); with neither writable they are compiled in each process (about 0.7 s).
+Where the kernels come from, in this order: the ahead-of-time module ``_aot_kernels``
+beside this file (built by ``scripts/install.sh`` through :func:`build_aot`, numba's pycc,
+with the argument types of :data:`SIGNATURES`), loaded in about a millisecond without
+importing numba, if it was built from this file's kernel source for this processor
+(:func:`build_key`, stored in the module); else numba's JIT (``cache=True``: compiled on
+first use and cached on disk, in ``__pycache__`` beside this file, else in the user's cache
+directory; with neither writable compiled in each process, about 0.7 s), whose import and
+cached kernels cost a process about 0.35 s; else none. Both compile the same Python
+functions (:func:`_define`) for the same CPU without fast-math: the same bits. The module's
+kernels check their arguments' types (:class:`_Exported`) and hand others to numba's.
+
+The kernels are optional: :func:`kernels` returns None when neither is there (a FreeCAD
+without numba and no module) or when ``TSPLCAM_COMPILED=0`` is set, and the callers run
+their numpy version. A process asks for them only once the work it has asked for reaches
+``LOAD_WORK`` (about half numba's load in numpy's time: small paths stay in numpy; the
+threshold is kept with the module, so that which paths run compiled, and so the bytes, do
+not depend on where the kernels come from).
 """
 from __future__ import annotations
 
 import os
 import time
+
+import numpy as np
 
 _STATE = {"work": 0.0}
 #: work (elements of the Viterbi recurrence, S^2 per point, or their equivalent) after which
@@ -61,20 +73,40 @@ LOAD_WORK = 1.0e7
 
 
 def _build():
-    """Compile (lazily) the kernels; None without numba."""
+    """The kernels: the ahead-of-time module where it is built from this source, else numba's
+    (compiled lazily, or loaded from its cache); None without either or with
+    ``TSPLCAM_COMPILED=0``."""
     if os.environ.get("TSPLCAM_COMPILED", "1") == "0":
         return None
-    try:
-        import numba
-    except ImportError:
-        return None
-    import numpy as np
+    aot = _aot()
+    return aot if aot is not None else _jit()
 
-    def jit(f):
+
+def _jit():
+    """numba's kernels (compiled on first use, or loaded from numba's cache); None without
+    numba. Built once a process (the ahead-of-time kernels ask for them on arguments of
+    other types than :data:`SIGNATURES`')."""
+    if "jit" not in _STATE:
         try:
-            return numba.njit(cache=True, nogil=True)(f)
-        except RuntimeError:          # no writable cache location: compile in each process
-            return numba.njit(cache=False, nogil=True)(f)
+            import numba
+        except ImportError:
+            _STATE["jit"] = None
+        else:
+            def jit(f):
+                try:
+                    return numba.njit(cache=True, nogil=True)(f)
+                except RuntimeError:      # no writable cache location: compile in each process
+                    return numba.njit(cache=False, nogil=True)(f)
+            _STATE["jit"] = _define(jit)
+    return _STATE["jit"]
+
+
+def _define(jit):
+    """The kernels, each as ``jit`` makes it of its Python function (numba's ``njit``; the
+    identity for the ahead-of-time build, which compiles the functions themselves).
+    :func:`build_key` reads this function's text: the ahead-of-time module is used only
+    while it is the text the module was built from."""
+    import numpy as np
 
     @jit
     def viterbi_steps(acc, node, T, i0, tie, back):
@@ -719,8 +751,194 @@ def _build():
             "solve_box": solve_box, "sphere_loop": sphere_loop}
 
 
+#: each kernel's types for the ahead-of-time module, as the callers pass them (numba's JIT
+#: specialises on the same): ``ret(arg, ...)``, an argument a scalar (f8 float64, i8 int64)
+#: or an array ``dtype[ndim]`` (C-contiguous; ``w`` written by the kernel, the others
+#: read-only); ``void`` returns None. A kernel's argument changed is to be changed here too.
+SIGNATURES = {
+    "viterbi_steps": "i8(f8[1]w, f8[2], f8[3], i8, f8, i4[2]w)",
+    "joint_steps": "i8(f8[1]w, f8[2], i8, i8, f8[2], f8[2], f8[2], f8[2], f8[2], f8[2], b1[2], f8, f8, f8,"
+                   " f8[1], b1[1], b1[1], f8, f8, i4[2]w)",
+    "viterbi_path": "void(i4[2], i8, i8[1]w)",
+    "two_states": "i8(f8[2], f8[3], f8, i8[1]w)",
+    "banded_solve": "i8(f8[2]w, f8[1]w)",
+    "solve_box": "i8(f8[2], f8[1], f8[1], f8[1], i8, f8[1]w)",
+    "grid_read": "void(f8[2], f8[1], f8, i8[1], i8[1], i8[1], f8[1], i8[1], f8[1]w, i8[1]w, b1[1]w)",
+    "sphere_loop": "i8(f8[2], f8[2], i8[1], i8[1], f8[1], f8[1], f8[1], f8[1], f8[1], f8[1], i8[1], i8,"
+                   " f8[1], f8[1], f8[2], f8[1], i8[2], i8[2], i8[2], i8[1], f8[1], i8[1], f8[2], i4[1],"
+                   " f8[3], f8, f8, i1[1]w, b1[2]w, f8[1]w, i8[2]w)",
+    "hit_pairs": "i8(f8[2], i8[1], i8[1], i8[1], f8[2], f8[2], f8[1], f8[1], f8[1], f8[1], f8[1], f8[1], i8,"
+                 " i4[1], f8[3], f8, i1[1]w, i8[2]w)",
+}
+#: the ahead-of-time module's name (beside this file, built by :func:`build_aot`)
+AOT_MODULE = "_aot_kernels"
+
+
+def _arguments(sig: str) -> tuple:
+    """``(return code, ((code, ndim, written), ...))`` of a :data:`SIGNATURES` entry (ndim 0:
+    a scalar)."""
+    ret, _, rest = sig.partition("(")
+    args = []
+    for tok in rest.rstrip(")").split(","):
+        tok = tok.strip()
+        code, _, dims = tok.partition("[")
+        args.append((code, int(dims[0]) if dims else 0, tok.endswith("w")))
+    return ret, tuple(args)
+
+
+def _processor() -> bytes:
+    """This processor's feature flags (Linux: /proc/cpuinfo's first ``flags`` line, ARM's
+    ``Features``), b"" where they cannot be read."""
+    try:
+        with open("/proc/cpuinfo", "rb") as f:
+            for line in f:
+                if line.startswith((b"flags", b"Features")):
+                    return line.partition(b":")[2].strip()
+    except OSError:
+        pass
+    return b""
+
+
+def build_key() -> int | None:
+    """A hash (60 bits) of the kernels' source (the text of :func:`_define`), their
+    :data:`SIGNATURES` and this processor's feature flags (:func:`_processor`; the module is
+    compiled for them): stored in the ahead-of-time module when it is built, compared when it
+    is loaded. None when this file cannot be read."""
+    import hashlib
+    try:
+        with open(__file__, "rb") as f:
+            text = f.read()
+    except OSError:
+        return None
+    i = text.find(b"\ndef _define(")
+    j = text.find(b"\n\n\n", i)
+    if i < 0 or j < 0:
+        return None
+    h = hashlib.sha256(text[i:j])
+    h.update(repr(sorted(SIGNATURES.items())).encode())
+    h.update(b"\0" + _processor())
+    return int(h.hexdigest()[:15], 16)
+
+
+class _Exported:
+    """A kernel of the ahead-of-time module, called where the arguments have its
+    :data:`SIGNATURES`' types (arrays: dtype, ndim, C order, aligned, writeable where it
+    writes; scalars: float for f8, an integer for i8), else numba's kernel of the same name
+    (the module's wrapper would convert other arguments silently, or misread them)."""
+
+    __slots__ = ("name", "fn", "spec")
+
+    def __init__(self, name: str, fn, sig: str):
+        self.name, self.fn = name, fn
+        self.spec = tuple((np.dtype(code) if nd else code, nd, w) for code, nd, w in _arguments(sig)[1])
+
+    def __call__(self, *args):
+        if len(args) == len(self.spec):
+            for a, (dt, nd, w) in zip(args, self.spec):
+                if nd:
+                    if type(a) is not np.ndarray or a.ndim != nd or a.dtype != dt:
+                        break
+                    f = a.flags
+                    if not (f.c_contiguous and f.aligned and (f.writeable or not w)):
+                        break
+                elif dt == "f8":
+                    if not isinstance(a, float):
+                        break
+                elif isinstance(a, (bool, np.bool_)) or not isinstance(a, (int, np.integer)):
+                    break
+            else:
+                return self.fn(*args)
+        jit = _jit()
+        if jit is None:
+            raise TypeError(f"compiled.{self.name}: arguments not of the types {SIGNATURES[self.name]} "
+                            "of the ahead-of-time module, and numba is not there")
+        return jit[self.name](*args)
+
+
+def _aot():
+    """The ahead-of-time module's kernels (:class:`_Exported`), or None: not built, not
+    importable, or built from another source or for another processor (:func:`build_key`). Importing it loads
+    neither numba nor LLVM."""
+    if "aot" not in _STATE:
+        _STATE["aot"] = None
+        try:
+            from importlib import import_module
+            mod = import_module(f"{__package__}.{AOT_MODULE}")
+            built = mod.build_key()
+        except (ImportError, OSError, AttributeError):
+            return None
+        want = build_key()
+        if want is not None and built == want:
+            _STATE["aot"] = {name: _Exported(name, getattr(mod, name), sig) for name, sig in SIGNATURES.items()}
+    return _STATE["aot"]
+
+
+def build_aot(force: bool = False) -> str | None:
+    """Compile the kernels ahead of time (numba's ``pycc``, with :data:`SIGNATURES`) into the
+    extension module :data:`AOT_MODULE` beside this file; returns its path (None without
+    numba). Left alone when it is there and built from this source for this processor,
+    unless ``force``.
+
+    The module is compiled as numba's JIT compiles: for this processor (numba's host CPU
+    name and feature flags, where pycc's default is the architecture's generic CPU: on
+    x86-64 SSE2 only, a quarter slower in the Viterbi and sphere loops), and without
+    fast-math, so every operation is the JIT kernels', in their order, rounding the same (no
+    sums reordered, no fused multiply-adds). On another processor (other flags) the module
+    is not loaded (:func:`build_key`); where the flags cannot be read it is built for the
+    generic CPU. Written to a temporary name and moved into place, so a process that has
+    the old module loaded keeps it (and its numba kernels): the new one serves the next."""
+    import shutil
+    import tempfile
+    import warnings
+    here = os.path.dirname(os.path.abspath(__file__))
+    if not force and _aot() is not None:
+        return _aot_path()
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")       # pycc is pending deprecation in numba 0.59
+            from numba.core import types
+            from numba.core.codegen import AOTCPUCodegen
+            from numba.pycc import CC
+    except ImportError:
+        return None
+    codes = {"f8": types.float64, "i8": types.int64, "i4": types.int32, "i1": types.int8,
+             "b1": types.boolean, "void": types.void}
+    funcs = _define(lambda f: f)
+    key = build_key()
+    tmp = tempfile.mkdtemp(prefix=".aot-build-", dir=here)
+    features = AOTCPUCodegen._customize_tm_features
+    try:
+        cc = CC(AOT_MODULE)
+        cc.output_dir = tmp
+        if _processor():                          # as the JIT: the host's name and flags
+            cc.target_cpu = "host"
+            AOTCPUCodegen._customize_tm_features = lambda self: self._get_host_cpu_features()
+        for name, sig in SIGNATURES.items():
+            ret, args = _arguments(sig)
+            argtypes = [types.Array(codes[c], nd, "C", readonly=not w) if nd else codes[c] for c, nd, w in args]
+            cc.export(name, codes[ret](*argtypes))(funcs[name])
+        cc.export("build_key", "i8()")(lambda: key)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            cc.compile()
+        out = os.path.join(here, cc.output_file)
+        os.replace(os.path.join(tmp, cc.output_file), out)
+    finally:
+        AOTCPUCodegen._customize_tm_features = features
+        shutil.rmtree(tmp, ignore_errors=True)
+    _STATE.pop("aot", None)
+    return out
+
+
+def _aot_path() -> str:
+    """Where the ahead-of-time module is (or would be) for this Python."""
+    import sysconfig
+    return os.path.join(os.path.dirname(os.path.abspath(__file__)), AOT_MODULE + sysconfig.get_config_var("EXT_SUFFIX"))
+
+
 def kernels(work: float | None = None):
-    """The compiled kernels (a dict of numba functions), or None without numba. ``work``: the
+    """The compiled kernels (a dict of callables by name: the ahead-of-time module's, else
+    numba's), or None without either (see the module doc). ``work``: the
     size of the computation the caller would otherwise do in numpy; with it, the kernels are
     only loaded once the work asked of this process reaches :data:`LOAD_WORK` (None till
     then); without it, now. A set :func:`prepare` loaded ahead is the one given."""
@@ -741,15 +959,19 @@ def loaded():
 
 
 def prepare() -> None:
-    """Load numba's machinery and every kernel's machine code (numba's import, and each
-    kernel's first call: about 0.3-0.45 s and 7-20 ms a kernel) into a set of the kernels
-    kept aside, leaving :func:`kernels`' own choice (numba or numpy, by the work asked)
-    untouched: :func:`kernels` gives that set once it loads. A job does this while it would
-    only wait (``program.CheckerAhead``) and still makes the same bytes (the same kernels)."""
+    """Load the kernels into a set kept aside, leaving :func:`kernels`' own choice (compiled
+    or numpy, by the work asked) untouched: :func:`kernels` gives that set once it loads. A
+    job does this while it would only wait (``program.CheckerAhead``) and still makes the
+    same bytes (the same kernels). The ahead-of-time module loads in about a millisecond;
+    numba's kernels cost numba's import and each kernel's first call (about 0.3-0.45 s and
+    7-20 ms a kernel), taken here."""
     if "k" in _STATE or "spare" in _STATE:
         return
     spare = _build()
     if spare is None:
+        return
+    if spare is _STATE.get("aot"):    # loaded whole, nothing to call first
+        _STATE["spare"] = spare
         return
     _STATE["k"] = spare               # (kernels() gives this set while the calls below run)
     try:
@@ -792,11 +1014,21 @@ def _exercise() -> None:
 
 
 def warm() -> float:
-    """Compile (or load from the cache) every kernel on a tiny input; returns the seconds
-    taken (0 without numba). ``scripts/install.sh`` calls it, so a job does not carry the
-    compilation."""
+    """Compile (or load from numba's cache) every numba kernel on a tiny input; returns the
+    seconds taken (0 without numba, or with ``TSPLCAM_COMPILED=0``). ``scripts/install.sh``
+    calls it (after :func:`build_aot`), so a job that runs numba's kernels (no ahead-of-time
+    module, or a stale one) does not carry their compilation."""
     t0 = time.perf_counter()
-    if kernels() is None:
+    if os.environ.get("TSPLCAM_COMPILED", "1") == "0" or _jit() is None:
         return 0.0
-    _exercise()
+    had = "k" in _STATE
+    k = _STATE.get("k")
+    _STATE["k"] = _jit()              # (the calls below run numba's set, whatever kernels() gives)
+    try:
+        _exercise()
+    finally:
+        if had:
+            _STATE["k"] = k
+        else:
+            del _STATE["k"]
     return time.perf_counter() - t0

@@ -1,0 +1,152 @@
+"""The kernels compiled ahead of time (``orientation.compiled``'s ``_aot_kernels``, built by
+``scripts/install.sh``) against numba's JIT kernels of the same source: every call of a small
+workload (each kernel, on tiny and on random inputs with forbidden states, ties and hits)
+made again in the JIT kernel gives the same return value and leaves the same bytes in every
+array. Also: the signatures fit the kernels, a module of another source is not used, and
+arguments of other types go to numba's kernel."""
+import importlib.util
+import os
+import unittest
+from unittest import mock
+
+import numpy as np
+
+from tsplcam.orientation import compiled
+
+HAVE_NUMBA = importlib.util.find_spec("numba") is not None and os.environ.get("TSPLCAM_COMPILED") != "0"
+
+
+def copy(a):
+    """A copy of an argument, an array read-only where it was (numba's JIT types it so: the
+    types ``compiled.warm`` compiled, nothing compiled here)."""
+    if not isinstance(a, np.ndarray):
+        return a
+    c = a.copy()
+    c.flags.writeable = a.flags.writeable
+    return c
+
+
+def snapshot(args) -> tuple:
+    return tuple(copy(a) for a in args)
+
+
+class Recorder:
+    """A kernel that records each call: (name, arguments before, result, arguments after)."""
+
+    def __init__(self, name, fn, calls):
+        self.name, self.fn, self.calls = name, fn, calls
+
+    def __call__(self, *args):
+        before = snapshot(args)
+        r = self.fn(*args)
+        self.calls.append((self.name, before, r, snapshot(args)))
+        return r
+
+
+def workload(rng) -> None:
+    """Every kernel on small inputs, through the callers (the kernels set in compiled._STATE)."""
+    from scipy.spatial import cKDTree
+
+    from tsplcam.orientation.broadphase import BroadPhase, DistanceGrid, Profile
+    from tsplcam.orientation.smoothing import _Banded
+    from tsplcam.orientation.viterbi import viterbi
+    compiled._exercise()                                   # each kernel, the job's types
+    for S, n in ((12, 120), (2, 80)):                      # viterbi_steps / _path, two_states
+        node = rng.random((n, S))
+        node[rng.random((n, S)) < 0.15] = np.inf
+        trans = np.round(rng.random((n - 1, S, S)) * 4) / 4      # ties
+        trans[rng.random((n - 1, S, S)) < 0.3] = np.inf
+        viterbi(node, trans)
+    N, u = 40, 3                                           # banded_solve, solve_box
+    box = _Banded(N, u)
+    box.ab[:] = rng.normal(size=(u + 1, N)) * 0.1
+    box.ab[u] = 2.0 + rng.random(N)
+    box.g[:] = rng.normal(size=N)
+    compiled.kernels()["banded_solve"](box.ab.copy(), rng.normal(size=N))
+    box.solve_box(-0.3 * np.ones(N), 0.3 * np.ones(N))
+    P = rng.random((50, 3))                                # grid_read
+    DistanceGrid(cKDTree(P), 0.0, P.min(axis=0), P.max(axis=0), 0.1, 0.2, 0.5, 4000)(rng.random((300, 3)) * 1.4 - 0.2)
+    g = np.linspace(0, 4, 9)                               # sphere_loop, hit_pairs: a wavy sheet
+    X, Y = np.meshgrid(g, g, indexing="ij")
+    V = np.column_stack([X.ravel(), Y.ravel(), 0.3 * np.sin(X.ravel()) * np.cos(Y.ravel())])
+    T = np.array([t for i in range(8) for j in range(8)
+                  for t in ([i * 9 + j, i * 9 + j + 9, i * 9 + j + 10], [i * 9 + j, i * 9 + j + 10, i * 9 + j + 1])])
+    two = np.ones(2)
+    prof = lambda grow: Profile(np.array([0.3, 3.0]), np.array([3.0, 9.0]), (0.5 + grow) * two,   # noqa: E731
+                                (np.array([0.5, 1.5]) + grow), (0.55 + grow) * two, np.array([0.55, 1.6]) + grow)
+    broad = BroadPhase(V, T, prof, 0.5)
+    C = np.column_stack([rng.random(400) * 4, rng.random(400) * 4, 0.3 + rng.random(400) * 1.5])
+    th = rng.random(400) * 1.3
+    ph = rng.random(400) * 2 * np.pi
+    A = np.column_stack([np.sin(th) * np.cos(ph), np.sin(th) * np.sin(ph), np.cos(th)])
+    for grow in (0.0, 0.2):
+        broad.decide(C, A, grow)
+
+
+@unittest.skipUnless(HAVE_NUMBA, "numba is not installed (the numpy versions run)")
+class AheadOfTime(unittest.TestCase):
+    def test_same_as_jit(self):
+        """Each call of the workload in the ahead-of-time kernels, made again in numba's JIT
+        kernel on the same arguments: the same result and the same bytes in every array."""
+        aot = compiled._aot()
+        if aot is None:
+            self.skipTest("no ahead-of-time module of this source (scripts/install.sh builds it)")
+        calls = []
+        rec = {name: Recorder(name, f, calls) for name, f in aot.items()}
+        with mock.patch.dict(compiled._STATE, {"k": rec}):
+            workload(np.random.default_rng(5))
+        self.assertEqual({c[0] for c in calls}, set(compiled.SIGNATURES))
+        jit = compiled._jit()
+        for name, before, result, after in calls:
+            args = snapshot(before)
+            self.assertEqual(jit[name](*args), result, name)
+            for a, b in zip(args, after):
+                if isinstance(a, np.ndarray):
+                    self.assertEqual(a.tobytes(), b.tobytes(), name)
+
+    def test_stale_or_other_types(self):
+        """A module built from another source (or for another processor) is not used; arguments of other types than the
+        signature's (here a float32 array, a non-contiguous one, a read-only one written to,
+        an int for a float) go to numba's kernel, not the module's."""
+        if compiled._aot() is None:
+            self.skipTest("no ahead-of-time module of this source (scripts/install.sh builds it)")
+        with mock.patch.dict(compiled._STATE, clear=True), \
+                mock.patch.object(compiled, "build_key", lambda: 1):
+            self.assertIsNone(compiled._aot())
+        f = compiled._aot()["two_states"]
+        node, t, states = np.zeros((3, 2)), np.ones((2, 2, 2)), np.zeros(3, np.int64)
+        ro = states.copy()
+        ro.flags.writeable = False
+        seen = []
+        jit = {"two_states": lambda *a: seen.append(a) or -2}
+        with mock.patch.object(compiled, "_jit", lambda: jit):
+            self.assertEqual(f(node, t, 1e-9, states), -2)
+            self.assertEqual(len(seen), 0)                 # the module's kernel
+            for args in ((node.astype(np.float32), t, 1e-9, states), (node, t[:, :, ::-1], 1e-9, states),
+                         (node, t, 1e-9, ro), (node, t, 1, states), (node, t, 1e-9)):
+                f(*args)
+            self.assertEqual(len(seen), 5)
+
+
+class Signatures(unittest.TestCase):
+    def test_signatures_fit_kernels(self):
+        """Every kernel has a signature with as many arguments as it takes, arrays and
+        scalars named in the codes the build knows."""
+        funcs = compiled._define(lambda f: f)
+        self.assertEqual(set(funcs), set(compiled.SIGNATURES))
+        for name, sig in compiled.SIGNATURES.items():
+            ret, args = compiled._arguments(sig)
+            self.assertEqual(len(args), funcs[name].__code__.co_argcount, name)
+            self.assertIn(ret, ("i8", "void"), name)
+            for code, nd, _ in args:
+                self.assertIn(code, ("f8", "i8", "i4", "i1", "b1"), name)
+                self.assertIn(nd, (0, 1, 2, 3), name)
+
+    def test_compiled_off(self):
+        """``TSPLCAM_COMPILED=0``: no kernels, numpy runs."""
+        with mock.patch.dict(os.environ, {"TSPLCAM_COMPILED": "0"}), mock.patch.dict(compiled._STATE, clear=True):
+            self.assertIsNone(compiled.kernels())
+
+
+if __name__ == "__main__":
+    unittest.main()

@@ -10,6 +10,7 @@ the same settings give the same program bytes wherever they come from.
 from __future__ import annotations
 
 import contextlib
+import functools
 import os
 import time
 from dataclasses import dataclass, field
@@ -203,7 +204,10 @@ def make_program(path, model, settings: JobSettings, stock=None, progress=None, 
                  plist=None, checker=None) -> Program:
     """Tool axes and machine program of ``path`` (a ToolPath of ``model``) by ``settings``
     (its ``tool``, ``orientation``, ``holder_clearance``, ``smoothing_length``,
-    ``rotary_weight``, ``machine`` and ``dialect``).
+    ``rotary_weight``, ``machine`` and ``dialect``). With more than one process the axes are
+    measured (``metrics``) in a forked process while this one posts the program
+    (:class:`~tsplcam.orientation.aside.Aside`): ``seconds["post_s"]`` is the post's wall time,
+    ``seconds["orientation_s"]`` the tool axes' and what the wait for their metrics adds.
 
     ``stock``: (V, T) triangles the tool must clear besides the model (default:
     :func:`load_stock`); ``progress(stage, done, total)`` (tsplcam.progress) follows the
@@ -217,6 +221,7 @@ def make_program(path, model, settings: JobSettings, stock=None, progress=None, 
     one_blas_thread()
     machine = load_machine(settings)
     t = time.perf_counter()
+    pending = None                     # the metrics, measured beside the post
     if settings.orientation != "normal":
         tool = load_tool(settings)
         if tool is None:
@@ -226,27 +231,46 @@ def make_program(path, model, settings: JobSettings, stock=None, progress=None, 
             raise InputError(f"tool {tool.name} has a ball of radius {tool.ball_radius:g} mm, the path was "
                              f"made for {path.tool_radius:g} mm: pick a matching tool or make the path for "
                              "that radius", item="tool")
-        program = _orient(path, model, settings, tool, machine,
-                          load_stock(settings) if stock is None else stock, progress, plist, checker)
+        program, pending = _orient(path, model, settings, tool, machine,
+                                   load_stock(settings) if stock is None else stock, progress, plist, checker,
+                                   beside=post and machine is not None)
         program.seconds["orientation_s"] = time.perf_counter() - t
     else:
         program = Program(path)
-    if post and machine is not None:
-        from .post import post_program
-        t = time.perf_counter()
-        options = {} if settings.axes_form is None else {"orientation": settings.axes_form}
-        if settings.spindle is not None:
-            options["spindle"] = settings.spindle
-        program.posted = post_program(program.path, machine, settings.dialect, progress=progress, **options)
-        program.seconds["post_s"] = time.perf_counter() - t
+    with contextlib.ExitStack() as stack:
+        if pending is not None:
+            stack.enter_context(pending)
+        if post and machine is not None:
+            from .post import post_program
+            t = time.perf_counter()
+            options = {} if settings.axes_form is None else {"orientation": settings.axes_form}
+            if settings.spindle is not None:
+                options["spindle"] = settings.spindle
+            try:
+                program.posted = post_program(program.path, machine, settings.dialect, progress=progress,
+                                              **options)
+            except Exception:
+                if pending is not None:      # one process measures the axes first: its error first
+                    pending.first()
+                raise
+            program.seconds["post_s"] = time.perf_counter() - t
+        if pending is not None:
+            t = time.perf_counter()
+            program.metrics = pending.result()
+            from .progress import report as tick
+            tick(progress, "checking axes", 1, 1)
+            program.seconds["orientation_s"] += time.perf_counter() - t
     return program
 
 
 def _orient(path, model, settings: JobSettings, tool, machine, stock, progress, plist=None,
-            checker=None) -> Program:
+            checker=None, beside: bool = False):
     """Tool axes by the orientation settings (and a processing list's per-step blocks),
-    checked again with the same collision checker."""
+    checked again with the same collision checker: (Program, None), or with ``beside`` and
+    more than one process (Program without its metrics, an :class:`~tsplcam.orientation.aside.Aside`
+    measuring them in a forked process while the caller posts the program)."""
     from .orientation import orient
+    from .orientation.aside import MIN_POINTS, Aside
     from .orientation.controls import step_settings
     from .progress import for_stage
     from .verify.orientation import orientation_metrics
@@ -262,9 +286,15 @@ def _orient(path, model, settings: JobSettings, tool, machine, stock, progress, 
     oriented, report = orient(path, model, tool, settings=base, per_patch=per_patch, checker=checker,
                               machine=machine, progress=for_stage(progress, "tool axes"))
     tick(progress, "checking axes", 0, 1)
-    metrics = orientation_metrics(oriented, checker, machine)
+    # orient refused the path if the ball gouged anywhere (its centres do not move with the
+    # axes): no gouge to count again
+    measure = functools.partial(orientation_metrics, oriented, checker, machine, gouges=0)
+    pending = Aside(measure, beside=len(oriented) >= MIN_POINTS) if beside else None
+    if pending is not None and pending.forked:
+        return Program(oriented, report, None, checker=checker), pending
+    metrics = pending.result() if pending is not None else measure()
     tick(progress, "checking axes", 1, 1)
-    return Program(oriented, report, metrics, checker=checker)
+    return Program(oriented, report, metrics, checker=checker), None
 
 
 def program_file_name(model: str, dialect: str) -> str:

@@ -35,6 +35,7 @@ import numpy as np
 from ..errors import CollisionError, InputError
 from .candidates import (DEG, Z_AXIS, Limits, Reach, admissible, angle, candidate_axes,
                          feed_directions, unit)
+from .aside import MIN_POINTS, Aside
 from .collision import CollisionChecker
 from .controls import limit_halfspaces, point_settings, runs, target_axes
 from .settings import STRATEGIES, OrientationSettings  # noqa: F401 (STRATEGIES: orient.STRATEGIES)
@@ -412,6 +413,55 @@ def orient_target(path, checker, targets, reach, constraints=()):
     return A, {}
 
 
+def _axes(path, s: OrientationSettings, per_patch, checker, machine, reach, limits: Limits, tick):
+    """The tool axes of :func:`orient` run by run of one strategy: (axes, target axes, the
+    strategies' figures summed, the smooth strategy's cost, the forced C travel)."""
+    n = len(path)
+    feed = cutting_directions(path)
+    # per point: strategy, target axis and the largest-tilt cone
+    groups = point_settings(path, s, per_patch)
+    strat = np.empty(n, object)
+    pref = np.zeros((n, 3))
+    lim_h, lim_b = np.tile(Z_AXIS, (n, 1)), np.full(n, -2.0)
+    pole = 0.0
+    for gs, idx in groups:
+        strat[idx] = gs.strategy
+        pref[idx] = target_axes(gs, path.center[idx], path.normal[idx], feed[idx])
+        for h, b in limit_halfspaces(gs, len(idx)):
+            lim_h[idx], lim_b[idx] = h, b
+        pole = max(pole, gs.pole_tilt)
+    limited = bool((lim_b > -2.0).any())
+    axes = np.zeros((n, 3))
+    info: dict = {}
+    cost = None
+    forced = 0.0                       # the C travel the cones force, summed over the runs
+    for a, b in runs(strat):
+        seg = path if (a, b) == (0, n) else _segment(path, a, b)
+        cons = [(lim_h[a:b], lim_b[a:b])] if limited else []
+        kind = strat[a]
+        if kind == "fixed":
+            ax, inf = orient_target(seg, checker, pref[a:b], reach, cons)
+        elif kind == "closest":
+            c2 = smoothing_cost(machine, reach, CLOSEST_LENGTH, s.rotary_weight, path.feed)
+            ax, inf = orient_smooth(seg, checker, pref[a:b], limits, reach, feed[a:b], CLOSEST_LENGTH,
+                                    s.max_step * DEG, cost=c2, constraints=cons, pole_tilt=pole * DEG,
+                                    tick=tick)
+        else:
+            cost = smoothing_cost(machine, reach, s.smoothing_length, s.rotary_weight, path.feed,
+                                  travel=TRAVEL_WEIGHT)
+            ax, inf = orient_smooth(seg, checker, pref[a:b], limits, reach, feed[a:b], s.smoothing_length,
+                                    s.max_step * DEG, cost=cost, constraints=cons, pole_tilt=pole * DEG,
+                                    tick=tick)
+        axes[a:b] = ax
+        # the forced C travel from the smooth strategy's checks only: "closest" checks too few
+        # poses for its lazy figure to be near the grid's
+        f = inf.pop("c_travel_forced_deg", None) if kind == "smooth" else None
+        forced = None if forced is None or f is None else forced + f
+        for k, v in inf.items():
+            info[k] = info.get(k, 0) + v if isinstance(v, (int, float)) else v
+    return axes, pref, info, cost, forced
+
+
 def orient(path, model=None, tool=None, strategy: str | None = None, *, settings: OrientationSettings | None = None,
            per_patch: dict | None = None, checker: CollisionChecker | None = None, stock=None, meshes=(),
            machine=None, preferred=None, fixed_axis=None, lead_max: float | None = None,
@@ -470,57 +520,23 @@ def orient(path, model=None, tool=None, strategy: str | None = None, *, settings
         Reach.max_tilt(s.max_tilt) if s.max_tilt is not None and np.allclose(unit(np.asarray(s.limit_axis)), Z_AXIS)
         else None)
     limits = Limits(s.lead_max * DEG, s.tilt_max * DEG, s.resolution * DEG)
-    checks0 = checker.checks
-    _check_ball(path, checker)
     n = len(path)
-    feed = cutting_directions(path)
-    # per point: strategy, target axis and the largest-tilt cone
-    groups = point_settings(path, s, per_patch)
-    strat = np.empty(n, object)
-    pref = np.zeros((n, 3))
-    lim_h, lim_b = np.tile(Z_AXIS, (n, 1)), np.full(n, -2.0)
-    pole = 0.0
-    for gs, idx in groups:
-        strat[idx] = gs.strategy
-        pref[idx] = target_axes(gs, path.center[idx], path.normal[idx], feed[idx])
-        for h, b in limit_halfspaces(gs, len(idx)):
-            lim_h[idx], lim_b[idx] = h, b
-        pole = max(pole, gs.pole_tilt)
-    limited = bool((lim_b > -2.0).any())
     worst = [n]
 
     def tick(m: int) -> None:
         worst[0] = n * m
         if progress is not None:
             progress(min(checker.checks - checks0, worst[0] - 1), worst[0])
-    axes = np.zeros((n, 3))
-    info: dict = {}
-    cost = None
-    forced = 0.0                       # the C travel the cones force, summed over the runs
-    for a, b in runs(strat):
-        seg = path if (a, b) == (0, n) else _segment(path, a, b)
-        cons = [(lim_h[a:b], lim_b[a:b])] if limited else []
-        kind = strat[a]
-        if kind == "fixed":
-            ax, inf = orient_target(seg, checker, pref[a:b], reach, cons)
-        elif kind == "closest":
-            c2 = smoothing_cost(machine, reach, CLOSEST_LENGTH, s.rotary_weight, path.feed)
-            ax, inf = orient_smooth(seg, checker, pref[a:b], limits, reach, feed[a:b], CLOSEST_LENGTH,
-                                    s.max_step * DEG, cost=c2, constraints=cons, pole_tilt=pole * DEG,
-                                    tick=tick)
-        else:
-            cost = smoothing_cost(machine, reach, s.smoothing_length, s.rotary_weight, path.feed,
-                                  travel=TRAVEL_WEIGHT)
-            ax, inf = orient_smooth(seg, checker, pref[a:b], limits, reach, feed[a:b], s.smoothing_length,
-                                    s.max_step * DEG, cost=cost, constraints=cons, pole_tilt=pole * DEG,
-                                    tick=tick)
-        axes[a:b] = ax
-        # the forced C travel from the smooth strategy's checks only: "closest" checks too few
-        # poses for its lazy figure to be near the grid's
-        f = inf.pop("c_travel_forced_deg", None) if kind == "smooth" else None
-        forced = None if forced is None or f is None else forced + f
-        for k, v in inf.items():
-            info[k] = info.get(k, 0) + v if isinstance(v, (int, float)) else v
+    checks0 = checker.checks
+    # the ball's gouge check (the ball centres do not move with the axes) beside the axes'
+    # search; its error, when it has one, is the one raised (one process meets it first)
+    with Aside(_check_ball, path, checker, beside=n >= MIN_POINTS) as ball:
+        try:
+            axes, pref, info, cost, forced = _axes(path, s, per_patch, checker, machine, reach, limits, tick)
+        except Exception:
+            ball.first()
+            raise
+        ball.result()
     if progress is not None:
         progress(worst[0], worst[0])
     out = path.with_axis(axes)

@@ -42,8 +42,17 @@ def unit(x: np.ndarray) -> np.ndarray:
 
 
 def angle_between(a, b) -> np.ndarray:
-    """Angle (rad) between unit vectors along the last axis, accurate for small angles."""
-    return np.arctan2(np.linalg.norm(np.cross(a, b), axis=-1), np.einsum("...i,...i->...", a, b))
+    """Angle (rad) between unit vectors along the last axis, accurate for small angles. The
+    cross product and its length component by component (np.cross's products and
+    differences, np.linalg.norm's sum in its order: the same bits, without the passes over
+    (..., 3) arrays: half the time on the smoothing's 14.7k x 36 poses)."""
+    a, b = np.asarray(a, float), np.asarray(b, float)
+    a0, a1, a2 = a[..., 0], a[..., 1], a[..., 2]
+    b0, b1, b2 = b[..., 0], b[..., 1], b[..., 2]
+    c0 = a1 * b2 - a2 * b1
+    c1 = a2 * b0 - a0 * b2
+    c2 = a0 * b1 - a1 * b0
+    return np.arctan2(np.sqrt(c0 * c0 + c1 * c1 + c2 * c2), np.einsum("...i,...i->...", a, b))
 
 
 @dataclass
@@ -99,9 +108,16 @@ class Rotary:
         return np.stack([np.cos(phi), np.sin(phi), np.zeros_like(phi)], axis=-1)
 
     def axis(self, theta, phi) -> np.ndarray:
-        """Unit tool axes (…,3) of the poses."""
+        """Unit tool axes (…,3) of the poses: ``cos(theta) z + sin(theta) meridian(phi)``,
+        component by component (the same operations, without passes over (…,3) arrays)."""
         theta = np.asarray(theta, float)
-        return np.cos(theta)[..., None] * np.array([0.0, 0.0, 1.0]) + np.sin(theta)[..., None] * self.meridian(phi)
+        c, s = np.cos(theta), np.sin(theta)
+        m = self.meridian(phi)
+        out = np.empty(np.broadcast_shapes(c.shape, m.shape[:-1]) + (3,))
+        out[..., 0] = c * 0.0 + s * m[..., 0]
+        out[..., 1] = c * 0.0 + s * m[..., 1]
+        out[..., 2] = c * 1.0 + s * m[..., 2]
+        return out
 
     def jacobian(self, theta, phi):
         """dK/dtheta and dK/dphi (…,3) at the poses."""

@@ -266,11 +266,14 @@ def post_program(toolpath: ToolPath, machine, dialect: str | None = None, progre
                                   f"point {i} is outside the travel of machine {machine.name}: {lim}")
         return p, jj
 
-    rows = []                                    # (tip, axis, joints, rapid, feed, source, move)
+    # the program's rows in runs of rows, each field an array: (tip, axis, joints, rapid,
+    # feed, source, move), concatenated at the end (the same rows as one at a time)
+    runs = []
 
     def add(p, jj, i, rap, f, src, code):
-        for k in range(len(p)):
-            rows.append((p[k], cmd_axis[i], jj[k], rap, f, src, code))
+        k = len(p)
+        runs.append((p, np.broadcast_to(cmd_axis[i], (k, 3)), jj, np.full(k, rap, bool), np.full(k, f, float),
+                      np.full(k, src, float), np.full(k, code, int)))
 
     cuts = np.concatenate([[-1], breaks, [n - 1]])
     for seg, (a, b) in enumerate(zip(cuts[:-1] + 1, cuts[1:])):
@@ -278,11 +281,14 @@ def post_program(toolpath: ToolPath, machine, dialect: str | None = None, progre
         dist = [h] + ([d] if h > d + 1e-6 and d > 0 else [])
         p, jj = along(a, dist)
         add(p, jj, a, True, np.nan, -1.0, APPROACH)
-        for i in range(a, b + 1):
-            first = i == a
-            rows.append((cmd_tip[i], cmd_axis[i], joints[i], bool(path_rapid[i]) and not first,
-                         f_app if first else (np.nan if path_rapid[i] else path_feed[i]), float(i),
-                         APPROACH if first else int(path_move[i])))
+        r = slice(a, b + 1)
+        rap = path_rapid[r].copy()
+        rap[0] = False                           # the first row of a run is the approach's end
+        fm = np.where(path_rapid[r], np.nan, path_feed[r])
+        fm[0] = f_app
+        code = path_move[r].astype(int)
+        code[0] = APPROACH
+        runs.append((cmd_tip[r], cmd_axis[r], joints[r], rap, fm, np.arange(a, b + 1, dtype=float), code))
         if d > 0:
             p, jj = along(b, [d])
             add(p, jj, b, False, f_ret, -2.0, RETRACT_OUT)
@@ -292,15 +298,10 @@ def post_program(toolpath: ToolPath, machine, dialect: str | None = None, progre
             if h > d + 1e-6:
                 p, jj = along(b, [h])
                 add(p, jj, b, True, np.nan, -2.0, RETRACT_OUT)
-    tips = np.array([r[0] for r in rows])
-    axes = np.array([r[1] for r in rows])
-    J = np.array([r[2] for r in rows])
-    rapid = np.array([r[3] for r in rows], bool)
-    fmm = np.array([r[4] for r in rows], float)
-    source = np.array([r[5] for r in rows], float)
-    move = np.array([r[6] for r in rows], int)
+    tips, axes, J, rapid, fmm, source, move = (np.concatenate([np.asarray(run[k]) for run in runs])
+                                               for k in range(7))
     # A row that repeats the previous pose is a block that does nothing: leave it out.
-    same = np.zeros(len(rows), bool)
+    same = np.zeros(len(tips), bool)
     same[1:] = ((np.abs(np.diff(tips, axis=0)).max(axis=1) < 1e-9)
                 & (np.abs(np.diff(J, axis=0)).max(axis=1) < 1e-9))
     dropped = int(same.sum())

@@ -401,17 +401,20 @@ def _simple_ac(axis):
 
 
 def orientation_metrics(path: ToolPath, checker=None, machine=None, v_rotary=(5400.0, 9000.0),
-                        clearance: bool = True) -> OrientationMetrics:
+                        clearance: bool = True, gouges: int | None = None) -> OrientationMetrics:
     """Metrics of ``path`` (its axes). ``checker``: the CollisionChecker the path was oriented
     with (None skips collisions and clearance); ``machine``: a tsplcam.post Machine (or name)
-    for joints and time; ``v_rotary``: (A, C) deg/min of the simple model."""
+    for joints and time; ``v_rotary``: (A, C) deg/min of the simple model; ``gouges``: the
+    ball gouges where the caller counted them with this checker already (they depend on the
+    ball centres alone, not on the axes: ``orient`` refuses a path with any)."""
     n = len(path)
     K = path.axis
-    collisions = gouges = 0
+    collisions = 0
+    gouges = 0 if checker is None else gouges
     clr, clr_at = float("nan"), -1
     if checker is not None:
         collisions = int(checker.collides_exact(path.center, K).sum())
-        gouges = int(checker.ball_gouges(path.center).sum())
+        gouges = int(checker.ball_gouges(path.center).sum()) if gouges is None else int(gouges)
         if clearance:
             clr, clr_at = min_clearance(checker, path.center, K)
     step = _angle(K[1:], K[:-1]) / DEG

@@ -93,14 +93,15 @@ def fmt(value: float, decimals: int, plus: bool = False) -> str:
 
 
 def fmt_col(values, decimals: int, plus: bool = False) -> list:
-    """:func:`fmt` over an array (the hot loop of every writer)."""
+    """:func:`fmt` over an array (the hot loop of every writer), in one pass."""
     f = f"{{:.{decimals}f}}".format
     negzero = "-" + f(0.0)
-    out = [f(v) for v in np.asarray(values, float).tolist()]
-    out = [s[1:] if s == negzero else s for s in out]
+    zero = negzero[1:]
+    texts = map(f, np.asarray(values, float).tolist())
     if plus:
-        out = [s if s[0] == "-" else "+" + s for s in out]
-    return out
+        signed = "+" + zero
+        return [signed if t == negzero else t if t[0] == "-" else "+" + t for t in texts]
+    return [zero if t == negzero else t for t in texts]
 
 
 def fmt_feed(value: float, decimals: int = 3) -> str:
@@ -109,6 +110,19 @@ def fmt_feed(value: float, decimals: int = 3) -> str:
     if "." in s:
         s = s.rstrip("0").rstrip(".")
     return s
+
+
+def fmt_feeds(values, floor: float, decimals: int) -> list:
+    """``fmt_feed(max(v, floor), decimals)`` over an array, each distinct value formatted
+    once (a path's feeds are a few values)."""
+    seen: dict = {}
+    out = []
+    for v in np.asarray(values, float).tolist():
+        t = seen.get(v)
+        if t is None:
+            t = seen[v] = fmt_feed(max(v, floor), decimals)
+        out.append(t)
+    return out
 
 
 def spindle_coolant(s: dict) -> tuple[list, str | None]:
@@ -141,17 +155,19 @@ def iso_motion(mo, words, inverse_time: bool, feed_decimals: int, first: str = "
     before the first block's words (e.g. Fanuc's G43.4 H1). Inverse time (G93, F on every
     block, docs/post.md section 3.4) or modal F per minute; G94 restored at the end."""
     out, mode, last_f = [], None, None
+    rapid = mo.rapid.tolist()
+    feeds = fmt_col(mo.inverse_time, feed_decimals) if inverse_time else fmt_feeds(mo.feed, 1.0, 3)
     for i in range(len(mo)):
         lead = first if i == 0 else ""
-        if mo.rapid[i]:
+        if rapid[i]:
             out.append(f"G0 {lead}{words[i]}")
             continue
         if inverse_time:
             pre = "G93 " if mode != "G93" else ""
             mode = "G93"
-            out.append(f"{pre}G1 {lead}{words[i]} F{fmt(mo.inverse_time[i], feed_decimals)}")
+            out.append(f"{pre}G1 {lead}{words[i]} F{feeds[i]}")
         else:
-            f = fmt_feed(max(mo.feed[i], 1.0), 3)
+            f = feeds[i]
             out.append(f"G1 {lead}{words[i]}" + (f" F{f}" if f != last_f else ""))
             last_f = f
     if mode == "G93":

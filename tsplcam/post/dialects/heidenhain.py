@@ -12,7 +12,7 @@ carries its sign.
 from __future__ import annotations
 
 
-from . import Job, ReadMove, clean_comment, fmt, fmt_col, fmt_feed, words
+from . import Job, ReadMove, clean_comment, fmt, fmt_col, fmt_feed, fmt_feeds, words
 
 NAME = "heidenhain"
 # the control computes the tool point's feed itself (FUNCTION TCPM F TCP, M128: F is that
@@ -61,23 +61,21 @@ def write(job: Job) -> str:
     else:
         rot = [fmt_col(mo.joints[:, k], da, True) for k in (3, 4)]
     fd = s["decimals"]["feed"]
+    if s["orientation"] == "vector":
+        blocks = [f"LN X{x} Y{y} Z{z} TX{a} TY{b} TZ{c}" for x, y, z, a, b, c in zip(*xyz, *vec)]
+    else:
+        blocks = [f"L X{x} Y{y} Z{z} {t}{a} {r}{c}" for x, y, z, a, c in zip(*xyz, *rot)]
+    feeds = fmt_feeds(mo.feed, 1.0, fd)
     last_f = None
-    for i in range(len(mo)):
-        pos = f"X{xyz[0][i]} Y{xyz[1][i]} Z{xyz[2][i]}"
-        if s["orientation"] == "vector":
-            block = f"LN {pos} TX{vec[0][i]} TY{vec[1][i]} TZ{vec[2][i]}"
-        else:
-            block = f"L {pos} {t}{rot[0][i]} {r}{rot[1][i]}"
+    for i, (block, rapid, f) in enumerate(zip(blocks, mo.rapid.tolist(), feeds)):
         if i == 0:
             block += " R0"
-        if mo.rapid[i]:
+        if rapid:
             block += " FMAX"
             last_f = None
-        else:
-            f = fmt_feed(max(mo.feed[i], 1.0), fd)
-            if f != last_f:
-                block += f" F{f}"
-                last_f = f
+        elif f != last_f:
+            block += f" F{f}"
+            last_f = f
         if i == 0 and m128:
             block += " M128"
         lines.append(block)

@@ -52,16 +52,20 @@ def write(job: Job) -> str:
     mode = None
     fd = s["decimals"]["feed"]
     dq = np.diff(mo.joints, axis=0, prepend=mo.joints[:1])
+    n0, n1, n2, n3, n4 = names[:5]
+    coords = [f"{n0}{a} {n1}{b} {n2}{c} {n3}{d} {n4}{e}" for a, b, c, d, e in zip(*cols)]
+    rapid = mo.rapid.tolist()
+    inv_f = fmt_col(mo.inverse_time, fd) if inv else None
     for i in range(len(mo)):
-        xyz = " ".join(f"{names[k]}{cols[k][i]}" for k in range(5))
-        if mo.rapid[i]:
+        xyz = coords[i]
+        if rapid[i]:
             out.append(f"G0 {xyz}")
             continue
         if inv:
             if mode != "G93":
                 out.append("G93")
                 mode = "G93"
-            out.append(f"G1 {xyz} F{fmt(mo.inverse_time[i], fd)}")
+            out.append(f"G1 {xyz} F{inv_f[i]}")
         else:
             # G94: F is XYZ length per minute, or rotary degrees per minute when XYZ stay.
             t = 1.0 / mo.inverse_time[i]

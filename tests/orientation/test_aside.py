@@ -1,0 +1,130 @@
+"""Aside: one piece of work in a forked process beside this one, the value the same as here;
+pieces it would share out stay in it; its error raised as one process raises it; with one
+process (or too little work) it runs at once, here."""
+import os
+import unittest
+from unittest import mock
+
+from tsplcam.orientation.aside import Aside
+from tsplcam.toolpath.parallel import worker_count
+
+FORK = worker_count(2, 2) == 2          # forking available (and not inside FreeCAD)
+
+
+def _value(x):
+    return {"square": x * x, "pid": os.getpid(), "workers": worker_count(None, 4)}
+
+
+def _fails(x):
+    raise ValueError(f"no value for {x} in pid {os.getpid()}")
+
+
+class AsideWork(unittest.TestCase):
+
+    def test_forked_value_is_the_same(self):
+        if not FORK:
+            self.skipTest("no forked workers here")
+        with mock.patch.dict(os.environ, {"TSPLCAM_WORKERS": "2"}):
+            with Aside(_value, 7) as a:
+                self.assertTrue(a.forked)
+                got = a.result()
+        self.assertEqual(got["square"], 49)
+        self.assertNotEqual(got["pid"], os.getpid())        # made in the forked process ...
+        self.assertEqual(got["workers"], 1)                 # ... which shares nothing out
+        self.assertIs(a.result(), got)                      # asked again: the same value
+
+    def test_error_raised_here_as_one_process_raises_it(self):
+        if not FORK:
+            self.skipTest("no forked workers here")
+        with mock.patch.dict(os.environ, {"TSPLCAM_WORKERS": "2"}):
+            with Aside(_fails, 3) as a:
+                self.assertTrue(a.forked)
+                # the caller's own work failed too: the piece's error comes first, raised here
+                with self.assertRaisesRegex(ValueError, f"no value for 3 in pid {os.getpid()}$"):
+                    a.first()
+
+    def test_one_process_runs_at_once(self):
+        with mock.patch.dict(os.environ, {"TSPLCAM_WORKERS": "1"}):
+            a = Aside(_value, 5)
+            self.assertFalse(a.forked)
+            self.assertEqual(a.result()["pid"], os.getpid())
+            with self.assertRaisesRegex(ValueError, "no value for 2"):
+                Aside(_fails, 2)                            # where one process meets it
+        small = Aside(_value, 4, beside=False)              # too little work for a fork
+        self.assertFalse(small.forked)
+        self.assertEqual(small.result()["square"], 16)
+
+
+class ProgramBeside(unittest.TestCase):
+    """make_program with the metrics measured beside the post: the same metrics and program
+    bytes as one process; where both fail, the metrics' error (one process meets it first)."""
+
+    @classmethod
+    def setUpClass(cls):
+        from tsplcam.program import (collision_checker, load_model, load_stock, load_tool, make_path,
+                                     processing_list, tool_radius)
+        from tsplcam.settings import JobSettings
+        cls.s = s = JobSettings(scallop=0.2, chord_tol=0.01)
+        cls.model = load_model(s.model)
+        cls.plist = processing_list(cls.model, s)
+        tool, cls.stock = load_tool(s), load_stock(s)
+        with mock.patch.dict(os.environ, {"TSPLCAM_WORKERS": "1"}):
+            cls.path = make_path(cls.model, cls.plist, s, tool_radius(s, tool))
+        cls.checker = collision_checker(cls.model, tool, cls.stock, s.holder_clearance)
+
+    def program(self, workers: str):
+        from tsplcam.program import make_program
+        with mock.patch.dict(os.environ, {"TSPLCAM_WORKERS": workers}), \
+                mock.patch("tsplcam.orientation.aside.MIN_POINTS", 0):       # fork whatever the size
+            return make_program(self.path, self.model, self.s, stock=self.stock, plist=self.plist,
+                                checker=self.checker)
+
+    def test_same_metrics_and_program(self):
+        if not FORK:
+            self.skipTest("no forked workers here")
+        beside, alone = self.program("2"), self.program("1")
+        self.assertEqual(beside.metrics.as_dict(), alone.metrics.as_dict())
+        self.assertEqual(beside.posted.text, alone.posted.text)
+        self.assertEqual(beside.metrics.gouges, 0)
+        self.assertEqual(set(beside.seconds), {"orientation_s", "post_s"})
+
+    def test_metrics_error_first(self):
+        if not FORK:
+            self.skipTest("no forked workers here")
+
+        def fails(*a, **k):
+            raise ValueError(f"the {k.get('what', 'metrics')} failed")
+        with mock.patch("tsplcam.verify.orientation.orientation_metrics", fails), \
+                mock.patch("tsplcam.post.post_program", lambda *a, **k: fails(what="post")):
+            with self.assertRaisesRegex(ValueError, "the metrics failed"):
+                self.program("2")
+
+
+if __name__ == "__main__":
+    unittest.main()
+
+
+class ComponentForms(unittest.TestCase):
+    """Rotary.axis and angle_between component by component give numpy's (..., 3) forms bit
+    for bit (the programs' bytes depend on it), on the smoothing's grid shapes."""
+
+    def test_same_bits(self):
+        import numpy as np
+        from tsplcam.orientation.rotary import Rotary, angle_between
+        rng = np.random.default_rng(5)
+        th = rng.uniform(-3.2, 3.2, (400, 36))
+        th[rng.random(th.shape) < 0.1] = 0.0
+        phi = 2 * np.pi * np.arange(36) / 36
+        pref = rng.normal(size=(400, 3))
+        pref /= np.linalg.norm(pref, axis=1, keepdims=True)
+        pref[:200] = (0.0, 0.0, 1.0)
+        for about in "XY":
+            rot = Rotary(about=about)
+            K = rot.axis(th, phi[None, :])
+            ref = np.cos(th)[..., None] * np.array([0.0, 0.0, 1.0]) + np.sin(th)[..., None] * rot.meridian(phi[None, :])
+            self.assertEqual(K.tobytes(), ref.tobytes())
+            got = angle_between(K, pref[:, None, :])
+            ref = np.arctan2(np.linalg.norm(np.cross(K, pref[:, None, :]), axis=-1),
+                             np.einsum("...i,...i->...", K, pref[:, None, :]))
+            self.assertEqual(got.tobytes(), ref.tobytes())
+            self.assertEqual(rot.axis(0.3, 1.2).shape, (3,))

@@ -9,7 +9,8 @@ import numpy as np
 from tsplcam import load_model
 from tsplcam.model.basis import bernstein_rows
 from tsplcam.model.cells import DERIVS, BezierCells
-from tsplcam.toolpath.lines import LineFrame, Placer, Target, _cross, _norm3, _unit_normal
+from tsplcam.toolpath.lines import (LineFrame, Placer, Target, _capsule_entry, _capsule_segments, _cross, _norm3,
+                                    _sum3, _unit_normal)
 
 
 def same(a, b) -> bool:
@@ -41,6 +42,33 @@ def bezier_run_by_run(cells: BezierCells, idx, a, b):
                 np.multiply(w[j], T[ds][j], out=t)
                 o += t
         out[0, :nc, s0:e0] += cells._origin[idx[s0]][:, None]
+    return out
+
+
+def capsule_entry_before(p, n, a, b, r):
+    """_capsule_entry as it was written before: the segment measured on every call, the two
+    end spheres one after the other."""
+    e = b - a
+    L = np.sqrt(_sum3(e * e))
+    eh = e / np.maximum(L, 1e-300)[..., None]
+    w = p - a
+    dn = _sum3(n * eh)
+    wn = _sum3(w * eh)
+    dp = n - dn[..., None] * eh
+    wp = w - wn[..., None] * eh
+    A = _sum3(dp * dp)
+    B = _sum3(wp * dp)
+    C = _sum3(wp * wp) - r * r
+    disc = B * B - A * C
+    lam = (-B - np.sqrt(np.where(disc >= 0, disc, np.nan))) / A
+    ax = wn + lam * dn
+    out = np.where((disc >= 0) & (A > 1e-14) & (ax >= 0) & (ax <= L), lam, np.inf)
+    for c in (a, b):
+        wc = p - c
+        bb = _sum3(n * wc)
+        cc = _sum3(wc * wc) - r * r
+        d = bb * bb - cc
+        out = np.minimum(out, np.where(d >= 0, -bb - np.sqrt(np.where(d >= 0, d, 0.0)), np.inf))
     return out
 
 
@@ -122,6 +150,35 @@ class SameBytes(unittest.TestCase):
         g = geoms[0]
         self.assertTrue(same(g.E, np.einsum("ij,ij->i", g.Ss, g.Ss)))
         self.assertTrue(same(g.M, np.einsum("ij,ij->i", g.n, g.Sst)))
+
+
+    def test_capsule_entry_segments_once(self):
+        """The end capsules measured with their segments made once, both end spheres in one
+        call: the same entries as before (hits, misses and the end spheres alike)."""
+        G, k, r = 5, 17, 0.5
+        p = self.rng.normal(size=(G, 1, 2, k, 3)) * 0.6
+        n = self.rng.normal(size=(G, 1, 2, k, 3))
+        n /= np.linalg.norm(n, axis=-1, keepdims=True)
+        a = self.rng.normal(size=(G, 2, 2, 1, 3)) * 0.3
+        b = a + 4 * r * self.rng.normal(size=(G, 2, 2, 1, 3))
+        with np.errstate(invalid="ignore", divide="ignore"):
+            want = capsule_entry_before(p, n, a, b, r)
+            got = _capsule_entry(p, n, a, b, r, _capsule_segments(a, b))
+        self.assertTrue(np.isfinite(want).any() and np.isinf(want).any())
+        self.assertTrue(same(got, want))
+
+    def test_batch_first_order_steps(self):
+        """The first-order steps of a batch's predicted lines, made together, are what each
+        line gives on its own (keycap patch 4, next to its extraordinary corners)."""
+        fr = LineFrame(self.model.patches[4], "u", 0)
+        target = Target(0.5, 0.005, 0.0005, 1.0)
+        pl = Placer(fr, target)
+        S, D, _, _, _ = pl._run(0.0, 1.0, target, 8, ([0.0], [pl.first_order_at(0.0, target)]))
+        self.assertGreater(len(D), 2)
+        alone = Placer(fr, target)
+        for x in S[1:len(D)]:
+            batch = pl._first[(float(x), target.h, target.undercut, target.max_step)]
+            self.assertTrue(same(batch, alone.first_order_at(x, target)), x)
 
 
 if __name__ == "__main__":

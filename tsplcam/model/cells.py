@@ -40,6 +40,10 @@ def tensor_basis(bs: np.ndarray, bt: np.ndarray) -> np.ndarray:
 # (order in b, order in a) of DERIVS, to pick them from a 3 x 3 table of both
 _DT = np.array([dt for _, dt in DERIVS])
 _DS = np.array([ds for ds, _ in DERIVS])
+# BezierCells.evaluate multiplies out all six derivatives in one call up to this many points;
+# above, where that product outgrows the caches and costs more than the calls it saves, one
+# derivative at a time (the same products and sums either way)
+_STACKED_POINTS = 256
 
 
 def bicubic_nets(X: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -116,26 +120,38 @@ class BezierCells:
         cuts = np.flatnonzero(idx[1:] != idx[:-1]) + 1
         starts = np.concatenate([[0], cuts]).tolist()
         ends = np.concatenate([cuts, [n]]).tolist()
-        # T[d][j, c, point]: contraction along a for derivative order d
+        # T[d][j, c, point]: contraction along a for derivative order d; the three orders of a
+        # run in one stacked product (numpy makes the same BLAS call per order: gemv for a run
+        # of one point, gemm otherwise), written into T
         T = np.empty((3, q1 * nc, n))
         for s0, e0 in zip(starts, ends):
-            cj = self._cj[idx[s0]]
-            for d in range(3):
-                T[d, :, s0:e0] = cj @ bs[d, :, s0:e0]
+            np.matmul(self._cj[idx[s0]], bs[:, :, s0:e0], out=T[:, :, s0:e0])
         T = T.reshape(3, q1, nc, n)
         out = np.empty((6, 4, n))
         if nc == 3:
             out[0, 3] = 1.0
             out[1:, 3] = 0.0
-        t = np.empty((nc, n))
-        for k, (ds, dt) in enumerate(DERIVS):
-            o = out[k, :nc]
-            w = bt[dt]
-            Td = T[ds]
-            np.multiply(w[0], Td[0], out=o)
-            for j in range(1, q1):
-                np.multiply(w[j], Td[j], out=t)
-                o += t
+        o = out[:, :nc]
+        if n <= _STACKED_POINTS:
+            # all six derivatives at once: the same products, summed in the same order over j
+            prod = bt[_DT][:, :, None, :] * T[_DS]              # (6, q+1, nc, n)
+            if q1 == 1:
+                o[...] = prod[:, 0]
+            else:
+                np.add(prod[:, 0], prod[:, 1], out=o)
+                for j in range(2, q1):
+                    o += prod[:, j]
+        else:
+            # one derivative at a time, its q+1 products in one call
+            prod = np.empty((q1, nc, n))
+            for k, (ds, dt) in enumerate(DERIVS):
+                np.multiply(bt[dt][:, None, :], T[ds], out=prod)
+                if q1 == 1:
+                    o[k] = prod[0]
+                    continue
+                np.add(prod[0], prod[1], out=o[k])
+                for j in range(2, q1):
+                    o[k] += prod[j]
         out[0, :nc] += self._origin[idx].T
         return out, None, None
 

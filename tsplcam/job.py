@@ -19,8 +19,12 @@ at the end, all at once (:mod:`tsplcam.outfile`): a refused or failed run leaves
 The report's figures depend only on the inputs; the run times are kept apart in its
 ``timing`` block. Its ``path_s`` and ``orientation_s`` are the wall times of the two stages;
 while worker processes make the path's points the main process builds the orientation's
-collision checker (and loads numba), so with workers that build counts in ``path_s`` (the
-log's path line says how long it took), with one process in ``orientation_s`` as before.
+collision checker (and loads the compiled kernels), so with workers that build counts in
+``path_s`` (the log's path line says how long it took), with one process in
+``orientation_s`` as before. With workers the tool axes' metrics are checked in a forked
+process while the program is posted: ``post_s`` is the post's own time and
+``orientation_s`` holds the tool axes and whatever wait for their metrics follows the post
+(:func:`tsplcam.program.make_program`).
 """
 from __future__ import annotations
 

@@ -116,8 +116,9 @@ def make_path(model, plist, settings: JobSettings, radius: float | None = None, 
 class CheckerAhead:
     """The orientation stage's collision checker, built ahead: called as ``while_waiting``
     of :func:`make_path`, it builds the checker (the part's tessellation, the stock, the
-    broad phase's distance grids) and loads numba's machinery while the path's workers make
-    the points, in the main process that would otherwise only wait for them.
+    broad phase's distance grids) and loads the compiled kernels (the ahead-of-time module,
+    else numba's machinery) while the path's workers make the points, in the main process
+    that would otherwise only wait for them.
 
     ``checker``: the CollisionChecker once built (None when not called: one process, or
     failed); its time then counts in the path stage's seconds, not the orientation's
@@ -160,9 +161,10 @@ def collision_checker(model, tool, stock, clearance: float):
 
 
 def _load_numba() -> None:
-    """Import numba and load its compiler's machinery through a throwaway set of the
-    orientation's kernels (their first call of a process costs about 0.1 s more than the
-    next kernel's). The kernels the orientation uses are not touched: whether it runs them
+    """Load the orientation's compiled kernels: the ahead-of-time module where it is built
+    and current (about 1 ms), else import numba and load its compiler's machinery through a
+    throwaway set of the kernels (their first call of a process costs about 0.1 s more than
+    the next kernel's; :func:`tsplcam.orientation.compiled.prepare`). The kernels the orientation uses are not touched: whether it runs them
     or numpy stays its own choice (:func:`tsplcam.orientation.compiled.kernels`), so the
     program is the same bytes."""
     from .orientation import compiled

@@ -124,8 +124,11 @@ def _dot(a, b):
 def threads() -> int:
     """Threads the broad phase may use for work that releases the GIL (KD-tree queries, the
     compiled sphere loop): two where this process may run on two cores (``TSPLCAM_WORKERS``,
-    when set, caps it), one while this process's forked workers are busy. Every thread is
-    joined before the call that started it returns, so none is alive when workers fork."""
+    when set, caps it) and the last minute's load average leaves one of them idle, else one
+    (on cores shared with other work two threads only wait for each other: at load 4 on two
+    cores they were slower), and one while this process's forked workers are busy. The answers
+    are the same either way. Every thread is joined before the call that started it returns,
+    so none is alive when workers fork."""
     from ..toolpath import parallel
     if getattr(parallel, "_WAITING", False):
         return 1
@@ -133,7 +136,13 @@ def threads() -> int:
     cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
     if env:
         cores = min(cores, max(1, int(env)))
-    return 2 if cores >= 2 else 1
+    if cores < 2:
+        return 1
+    try:
+        busy = os.getloadavg()[0]
+    except OSError:                                   # pragma: no cover - no load average
+        busy = 0.0
+    return 2 if busy < cores - 0.5 else 1
 
 
 def min_into(out: np.ndarray, idx: np.ndarray, vals: np.ndarray) -> None:

@@ -74,6 +74,17 @@ pose in one kernel (``sphere_loop``: each pose's spheres level by level, its gri
 hit tests), with the same operations per sphere as numpy's level-by-level loop
 (:meth:`BroadPhase._sphere_loop`, the fallback): the same decisions, open parts, free cones
 and hit witnesses, bit for bit (tests/orientation/test_broadphase.py compares them).
+
+**Threads.** The kernel takes the poses one by one, each writing only its own rows, and
+releases the GIL, as scipy's KD-tree queries do: where a core is idle (:func:`threads`) a
+batch's poses go to it in two halves, and KD queries of ``KD_THREADS`` points or more are
+split between two threads (each point's answer is the one a single thread gives). Every
+thread ends before the call returns, so none is alive when the path or fcl workers fork.
+
+**Per centre.** The free cones are kept per ball centre, found by the centre's bytes
+(:class:`CentreTable`): through a 64-bit hash of them, sorted about ten times faster than the
+24-byte keys, each slot checked against its centre's bytes. The witness cells keep the bytes'
+order, which decides what a cell keeps.
 """
 from __future__ import annotations
 
@@ -143,6 +154,27 @@ def threads() -> int:
     except OSError:                                   # pragma: no cover - no load average
         busy = 0.0
     return 2 if busy < cores - 0.5 else 1
+
+
+def any_row(a: np.ndarray) -> np.ndarray:
+    """``a.any(axis=1)`` of a 2-d array, column by column (numpy's reduction over a short row
+    costs about 10 ns a row, or 1.6 ms for the all-candidates batch's 182k poses; the ors of
+    its few columns a tenth of that)."""
+    if a.ndim != 2 or a.shape[1] == 0:
+        return a.any(axis=1)
+    out = a[:, 0] != 0
+    for k in range(1, a.shape[1]):
+        out |= a[:, k] != 0
+    return out
+
+
+def row_bits(a: np.ndarray) -> np.ndarray:
+    """Per row of the 2-d bool array ``a`` the integer with bit k set where ``a[:, k]`` is (the
+    same as ``a @ (1 << arange(K))``, without the matrix product's conversions)."""
+    out = np.zeros(len(a), np.int64)
+    for k in range(a.shape[1]):
+        out |= a[:, k].astype(np.int64) << k
+    return out
 
 
 def min_into(out: np.ndarray, idx: np.ndarray, vals: np.ndarray) -> None:
@@ -375,15 +407,17 @@ class LazyGrid:
             raise ValueError(f"LazyGrid: a point more than {self.OFF * self.h:.0f} mm from the origin")
         o = k + self.OFF
         key = (o[:, 0] << 42) | (o[:, 1] << 21) | o[:, 2]
-        uk, inv = np.unique(key, return_inverse=True)
-        pos = np.searchsorted(self.keys, uk)
-        known = np.zeros(len(uk), bool)
+        # every key looked up in the table (sorted), and only the new ones sorted: most nodes
+        # read are known (the eight around each point, shared with its neighbours)
+        pos = np.searchsorted(self.keys, key)
+        known = np.zeros(len(key), bool)
         if len(self.keys):
-            known = self.keys[np.minimum(pos, len(self.keys) - 1)] == uk
-        new = uk[~known]
+            known = self.keys[np.minimum(pos, len(self.keys) - 1)] == key
+        new = np.unique(key[~known])
         if len(new):
             nk = np.column_stack([new >> 42, (new >> 21) & ((1 << 21) - 1), new & ((1 << 21) - 1)]) - self.OFF
-            d, j = self.tree.query(nk * self.h, distance_upper_bound=self.cap, workers=2)
+            d, j = self.tree.query(nk * self.h, distance_upper_bound=self.cap,
+                                   workers=threads() if len(new) >= KD_THREADS else 1)
             far = ~np.isfinite(d)
             lb = np.where(far, np.sqrt(max(self.cap * self.cap - self.e2, 0.0)), np.sqrt(np.maximum(d * d - self.e2, 0.0)))
             keys = np.concatenate([self.keys, new])
@@ -391,8 +425,8 @@ class LazyGrid:
             self.keys = keys[order]
             self.lb = np.concatenate([self.lb, lb])[order]
             self.idx = np.concatenate([self.idx, np.where(far, -1, j)])[order]
-            pos = np.searchsorted(self.keys, uk)
-        return self.lb[pos][inv], self.idx[pos][inv]
+            pos = np.searchsorted(self.keys, key)
+        return self.lb[pos], self.idx[pos]
 
     def __call__(self, x: np.ndarray):
         """(lower bound, sample index or -1) at points x: as :meth:`DistanceGrid._read`, the best
@@ -449,8 +483,13 @@ class CentreTable:
         hashed = self.keys.dtype == np.uint64
         # runs of equal rows (a batch asks several axes per centre, one after the other) taken
         # once: sorting costs about 0.4 us a row for the bytes, 0.05 us for a hash
-        start = np.flatnonzero(np.concatenate(([True], (bits[1:] != bits[:-1]).any(axis=1)))) \
-            if len(C) > 1 else np.arange(len(C))
+        if len(C) > 1:
+            # (column by column: numpy's any over a row of three is slower than two ors)
+            b0, b1, b2 = bits[:, 0], bits[:, 1], bits[:, 2]
+            step = (b0[1:] != b0[:-1]) | (b1[1:] != b1[:-1]) | (b2[1:] != b2[:-1])
+            start = np.flatnonzero(np.concatenate(([True], step)))
+        else:
+            start = np.arange(len(C))
         runs = bits[start]
         if hashed:
             keys = self._hash(runs)
@@ -771,10 +810,14 @@ class BroadPhase:
         ns = len(self.samples)
         # distinct (cell, sample) pairs, the last few: a handful per call is enough
         key = np.unique(cs * ns + samp)[-4 * WITNESSES:]
-        for c, s in zip((key // ns).tolist(), (key % ns).tolist()):
-            row = self._wit[c]
+        cells = key // ns
+        rows = {c: r for c, r in zip(cells.tolist(), self._wit[cells].tolist())}
+        for c, s in zip(cells.tolist(), (key % ns).tolist()):
+            row = rows[c]
             if s not in row:
-                self._wit[c] = np.concatenate([[s], row[:-1]])
+                rows[c] = [s] + row[:-1]
+        at = list(rows)
+        self._wit[at] = [rows[c] for c in at]
 
     def part_lower_bounds(self, C: np.ndarray, A: np.ndarray, level: int = 3) -> np.ndarray:
         """(poses, parts): lower bounds of each part's distance to the mesh (its spheres at
@@ -806,8 +849,15 @@ class BroadPhase:
         when they decide a pose (``stats["cone_fcl"]``)."""
         cone_a, cone_c, cone_f = self._cone_a[grow], self._cone_c[grow], self._cone_fcl[grow]
         for _ in range(2):                        # a slot may come twice in one batch
-            worst = np.argmax(cone_c[slot], axis=1)
-            better = c < cone_c[slot, worst]
+            # (np.argmax over a row of CONES, column by column: the first largest)
+            cs = cone_c[slot]
+            worst = np.zeros(len(slot), np.int64)
+            most = cs[:, 0]
+            for k in range(1, cs.shape[1]):
+                up = cs[:, k] > most
+                worst[up] = k
+                most = np.where(up, cs[:, k], most)
+            better = c < most
             sel = np.nonzero(better)[0][first_of_each(slot[better])]
             cone_a[slot[sel], worst[sel]] = A[sel]
             cone_c[slot[sel], worst[sel]] = c[sel]
@@ -828,7 +878,7 @@ class BroadPhase:
         the free cones ``phi`` in place."""
         # not next to a wall that stopped poses before (a hit witness in the centre's cell):
         # there most poses collide, and fcl settles them in fewer steps
-        near_wall = (self._wit[cell] >= 0).any(axis=1)
+        near_wall = any_row(self._wit >= 0)[cell]
         pose, part = np.nonzero(unresolved & ((status != HIT) & ~near_wall)[:, None])
         # only while it pays: a pose fcl answers costs about as much as EXACT_COST spheres
         # here; the pass stops while the last calls decided fewer poses per sphere (decayed
@@ -890,7 +940,7 @@ class BroadPhase:
             pose, part = np.repeat(pose[keep], 2), np.repeat(part[keep], 2)
             seg = 2 * np.repeat(seg[keep], 2) + np.tile([0, 1], m)
             level += 1
-        done = members[unresolved[members].any(axis=1) & ~lost[members] & (status[members] != HIT)]
+        done = members[any_row(unresolved[members]) & ~lost[members] & (status[members] != HIT)]
         unresolved[done] = False
         return len(done) + int((status[members] == HIT).sum()) - before, self.stats["exact"] - asked0
 
@@ -1101,14 +1151,14 @@ class BroadPhase:
         old = np.nonzero(self.revisit)[0]
         within = np.einsum("nki,ni->nk", cone_a[slot[old]], A[old]) >= cone_c[slot[old]]
         inc = np.zeros(n, bool)
-        inc[old] = within.any(axis=1)
+        inc[old] = any_row(within)
         status[inc] = FREE
         self.stats["cone"] += int(inc.sum())
         # (those only fcl's swing check's cones decide: what that check is worth later)
         self.stats["cone_fcl"] += int((inc[old] & ~(within & ~self._cone_fcl[grow][slot[old]]).any(axis=1)).sum())
         # witnesses of earlier hits near the same centre (in cells that have any)
         cell = self._witness_cells(C)
-        todo = np.nonzero(~inc & (self._wit >= 0).any(axis=1)[cell])[0]
+        todo = np.nonzero(~inc & any_row(self._wit >= 0)[cell])[0]
         wit = self._wit[cell[todo]]
         r, k = np.nonzero(wit >= 0)
         if len(r):
@@ -1132,12 +1182,13 @@ class BroadPhase:
             self._exact_pass(C, A, cov, status, unresolved, phi, cell, parts)
         free = np.zeros(n, bool)
         free[todo] = True
-        free &= (status != HIT) & ~unresolved.any(axis=1)
+        opened = any_row(unresolved)
+        free &= (status != HIT) & ~opened
         status[free] = FREE
         # what fcl still has to answer for the poses left open: their unresolved parts, and
         # the cone the cleared parts leave free
         self.open_parts = unresolved
-        self.open_phi = np.where(unresolved.any(axis=1), phi, np.inf)
+        self.open_phi = np.where(opened, phi, np.inf)
         # remember the new free cones (replacing each centre's narrower one)
         fi = np.nonzero(free & (phi > 0))[0] if parts == -1 or parts == (1 << K) - 1 else np.zeros(0, int)
         if len(fi):

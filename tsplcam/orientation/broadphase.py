@@ -1018,10 +1018,13 @@ class BroadPhase:
         while True:
             st, un, ph = status.copy(), unresolved.copy(), phi.copy()
             hits = [np.empty((rows, 3), np.int64) for _ in halves]
-            nh = [0] * len(halves)
+            nh: list = [None] * len(halves)
 
             def run(i):
-                nh[i] = kern(C, A, halves[i], *args, st, un, ph, hits[i])
+                try:
+                    nh[i] = kern(C, A, halves[i], *args, st, un, ph, hits[i])
+                except BaseException as exc:          # raised again in the calling thread
+                    nh[i] = exc
             if len(halves) > 1:
                 other = threading.Thread(target=run, args=(1,))
                 other.start()
@@ -1031,6 +1034,9 @@ class BroadPhase:
                     other.join()
             else:
                 run(0)
+            for got in nh:
+                if isinstance(got, BaseException):
+                    raise got
             if min(nh) >= 0:
                 break
             rows *= 4

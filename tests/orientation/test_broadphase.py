@@ -468,6 +468,29 @@ class Geometry(unittest.TestCase):
         np.testing.assert_array_equal(again, [seen[bytes(r)] for r in batches[2]])
         self.assertEqual(tables[1].size, len(seen) + len(first))
 
+    def test_row_helpers_and_threads(self):
+        """The column-by-column forms equal numpy's (any over rows, bit masks, first
+        occurrences); two threads only with two cores allowed and one of them idle."""
+        import os
+        from unittest import mock
+        from tsplcam.orientation import broadphase as bp
+        rng = np.random.default_rng(8)
+        a = rng.random((500, 4)) < 0.2
+        np.testing.assert_array_equal(bp.any_row(a), a.any(axis=1))
+        np.testing.assert_array_equal(bp.row_bits(a), a @ (1 << np.arange(4)))
+        w = rng.integers(-1, 3, (300, 6))
+        np.testing.assert_array_equal(bp.any_row(w >= 0), (w >= 0).any(axis=1))
+        for v in (np.repeat(rng.integers(0, 40, 200), rng.integers(1, 4, 200)), rng.integers(0, 9, 50), np.zeros(0, int)):
+            np.testing.assert_array_equal(bp.first_of_each(v), np.unique(v, return_index=True)[1])
+        with mock.patch.dict(os.environ, {"TSPLCAM_WORKERS": "1"}):
+            self.assertEqual(bp.threads(), 1)
+        with mock.patch.dict(os.environ, {"TSPLCAM_WORKERS": "2"}), \
+                mock.patch.object(os, "sched_getaffinity", lambda pid: {0, 1}, create=True):
+            with mock.patch.object(os, "getloadavg", lambda: (3.9, 4.0, 4.0)):
+                self.assertEqual(bp.threads(), 1)
+            with mock.patch.object(os, "getloadavg", lambda: (1.0, 1.0, 1.0)):
+                self.assertEqual(bp.threads(), 2)
+
     def test_sample_bound(self):
         """Every point of a triangle lies at least sqrt(d^2 - e^2/3) from a point whose
         nearest sample is d away (e the longest sub-triangle edge)."""

@@ -75,11 +75,12 @@ hit tests), with the same operations per sphere as numpy's level-by-level loop
 (:meth:`BroadPhase._sphere_loop`, the fallback): the same decisions, open parts, free cones
 and hit witnesses, bit for bit (tests/orientation/test_broadphase.py compares them).
 
-**Threads.** The kernel takes the poses one by one, each writing only its own rows, and
-releases the GIL, as scipy's KD-tree queries do: where a core is idle (:func:`threads`) a
-batch's poses go to it in two halves, and KD queries of ``KD_THREADS`` points or more are
-split between two threads (each point's answer is the one a single thread gives). Every
-thread ends before the call returns, so none is alive when the path or fcl workers fork.
+**Threads.** The kernel takes the poses one by one, each writing only its own rows; numba's
+JIT kernel releases the GIL (the ahead-of-time module's does not), as scipy's KD-tree queries
+do: where a core is idle (:func:`threads`) a batch's poses go to it in two halves, and KD
+queries of ``KD_THREADS`` points or more are split between two threads (each point's answer
+is the one a single thread gives). Every thread ends before the call returns, so none is
+alive when the path or fcl workers fork.
 
 **Per centre.** The free cones are kept per ball centre, found by the centre's bytes
 (:class:`CentreTable`): through a 64-bit hash of them, sorted about ten times faster than the
@@ -1009,7 +1010,10 @@ class BroadPhase:
         # the kernel takes the poses one by one, each writing only its own rows: two halves of
         # them on two threads (the kernel releases the GIL) give the same rows, and the hits'
         # witnesses, remembered level by level as a set, the same table
-        halves = np.array_split(todo, 2) if len(todo) >= KERNEL_THREADS and threads() > 1 else [todo]
+        # (only numba's JIT kernel, compiled nogil, releases the GIL: the ahead-of-time module's
+        # holds it, and two threads would only take turns)
+        nogil = bool(getattr(kern, "targetoptions", {}).get("nogil", False))
+        halves = np.array_split(todo, 2) if nogil and len(todo) >= KERNEL_THREADS and threads() > 1 else [todo]
         args = (np.ascontiguousarray(asked, np.int64), prof.z0, prof.z1, prof.rout0, prof.rout1, prof.rin0,
                 prof.rin1, np.ascontiguousarray(cov.max_level, np.int64), np.int64(parts),
                 np.ascontiguousarray(lo, float), np.ascontiguousarray(hi, float), *self._grid_arrays(),

@@ -193,26 +193,28 @@ def record_queries(name, scallop, machine_name, stock):
 
 
 def replay(model, meshes, calls, broad: bool):
-    """(seconds in the collision checks, checker) for the recorded queries on a new checker."""
+    """(seconds in the collision checks, checker, CPU-seconds of this process in them: its
+    threads', not its forked fcl workers') for the recorded queries on a new checker."""
     from tsplcam.orientation import CollisionChecker, load_tool
     ch = CollisionChecker(model, load_tool("ball1_keycap"), meshes=meshes, clearance=0.3, broad_phase=broad)
-    t0 = time.perf_counter()
+    t0, c0 = time.perf_counter(), time.process_time()
     for C, A, grow in calls:
         ch.collides(C, A, grow)
-    return time.perf_counter() - t0, ch
+    return time.perf_counter() - t0, ch, time.process_time() - c0
 
 
 def search_figures(name, scallop, machine_name, stock, repeat, fcl_calls=None):
     model, path, meshes, calls = record_queries(name, scallop, machine_name, stock)
     poses = sum(len(c[0]) for c in calls)
     runs = [replay(model, meshes, calls, True) for _ in range(repeat)]
-    t_bp, ch = min(runs, key=lambda r: r[0])
+    t_bp, ch, cpu = min(runs, key=lambda r: r[0])
     ref_calls = calls if fcl_calls is None else calls[:fcl_calls]
     ref_poses = sum(len(c[0]) for c in ref_calls)
     t_fcl = min(replay(model, meshes, ref_calls, False)[0] for _ in range(repeat))
     st = ch.broad.stats
     print(f"  {name}: {poses} poses asked in {len(calls)} batches by the smooth strategy")
-    print(f"    broad phase + fcl   {poses / t_bp:10.0f} poses/s  ({t_bp:.2f} s; decided by the broad phase "
+    print(f"    broad phase + fcl   {poses / t_bp:10.0f} poses/s  ({t_bp:.2f} s, {cpu:.2f} CPU-s in this process, "
+          f"load {os.getloadavg()[0]:.1f}; decided by the broad phase "
           f"{(st['free'] + st['hit']) / poses:.0%}: free cones {st['cone'] / poses:.0%}, hit witnesses "
           f"{st['witness'] / poses:.0%}, {st.get('exact', 0)} spheres of the exact pass; fcl {ch.fcl_checks} "
           f"queries incl. swing cones)")
@@ -236,16 +238,17 @@ def all_candidates(path, model, meshes, repeat, every=10):
         for _ in range(repeat):
             ch = CollisionChecker(model, load_tool("ball1_keycap"), meshes=meshes, clearance=0.3, broad_phase=broad)
             sel = slice(None) if broad else slice(0, min(len(C), 20000))
-            t0 = time.perf_counter()
+            t0, c0 = time.perf_counter(), time.process_time()
             ch.collides(C[sel], Ax[sel])
             rate = len(C[sel]) / (time.perf_counter() - t0)
             if best is None or rate > best[0]:
-                best = (rate, ch)
+                best = (rate, ch, time.process_time() - c0)
         out.append(best)
-    (r_bp, ch), (r_fcl, _) = out
+    (r_bp, ch, cpu), (r_fcl, _, _) = out
     st = ch.broad.stats
     print(f"  every candidate axis of every {every}th point: {len(C)} poses; broad phase + fcl "
-          f"{r_bp:.0f} poses/s (decided by the broad phase {(st['free'] + st['hit']) / len(C):.0%}), "
+          f"{r_bp:.0f} poses/s ({len(C) / r_bp:.2f} s, {cpu:.2f} CPU-s in this process; decided by the broad "
+          f"phase {(st['free'] + st['hit']) / len(C):.0%}), "
           f"fcl alone {r_fcl:.0f} poses/s: ratio {r_bp / r_fcl:.1f}")
 
 

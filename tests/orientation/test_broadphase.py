@@ -52,6 +52,17 @@ def wavy_sheet():
 
 
 @unittest.skipIf(fcl is None, "python-fcl not installed")
+class Nogil:
+    """A kernel taken as one compiled without the GIL (``targetoptions``, as numba's)."""
+    targetoptions = {"nogil": True}
+
+    def __init__(self, kern):
+        self.kern = kern
+
+    def __call__(self, *args):
+        return self.kern(*args)
+
+
 class AgreesWithFcl(unittest.TestCase):
     @classmethod
     def setUpClass(cls):
@@ -170,7 +181,7 @@ class AgreesWithFcl(unittest.TestCase):
         over all poses) decides: the same hits, unresolved parts, free cones (bit for bit) and
         hit witnesses, on random poses around the mold (walls, stock) and the keycap, with and
         without growth and for some parts only."""
-        from tsplcam.orientation import compiled
+        from tsplcam.orientation import broadphase as bp, compiled
         k = compiled.kernels()
         if k is None:
             self.skipTest("numba not available (or TSPLCAM_COMPILED=0)")
@@ -185,6 +196,16 @@ class AgreesWithFcl(unittest.TestCase):
                 got = self._sphere_loop(checker.broad, C, A, grow, parts, k["sphere_loop"])
                 for r, g in zip(ref, got):
                     np.testing.assert_array_equal(g, r)
+                # the poses in two halves on two threads, and all on one: the same bits (the
+                # kernel at hand taken as one that releases the GIL, as numba's JIT one does:
+                # no compilation here)
+                with mock.patch.object(bp, "threads", lambda: 1):
+                    one = self._sphere_loop(checker.broad, C, A, grow, parts, k["sphere_loop"])
+                with mock.patch.object(bp, "threads", lambda: 2), mock.patch.object(bp, "KERNEL_THREADS", 1):
+                    two = self._sphere_loop(checker.broad, C, A, grow, parts, Nogil(k["sphere_loop"]))
+                for r, g, h in zip(ref, one, two):
+                    np.testing.assert_array_equal(g, r)
+                    np.testing.assert_array_equal(h, r)
                 st, un, _, _ = ref
                 kinds += [(st == HIT).sum(), (un.any(axis=1) & (st != HIT)).sum(),
                           ((st != HIT) & ~un.any(axis=1)).sum()]
@@ -423,6 +444,65 @@ class Geometry(unittest.TestCase):
         np.testing.assert_array_equal(lb[ins], wl[ins])
         np.testing.assert_array_equal(near[ins], wn[ins])
         self.assertGreater(ins.mean(), 0.9)
+
+    def test_centre_table(self):
+        """Slots by a centre's exact bytes: the same centre (also -0.0 against 0.0: other
+        bytes, another slot) gets the same slot in every batch, new centres new slots; keyed by
+        a hash, the slots are those of the byte-ordered table up to their numbering, and when
+        two centres share a hash (forced here) the table goes over to the bytes, slots kept."""
+        from unittest import mock
+        from tsplcam.orientation.broadphase import CentreTable
+        rng = np.random.default_rng(5)
+        pool = np.round(rng.normal(size=(300, 3)), 1)
+        pool[0], pool[1] = [0.0, 1.0, 2.0], [-0.0, 1.0, 2.0]
+        batches = [pool[np.repeat(rng.integers(0, m, 400), rng.integers(1, 4, 400))] for m in (100, 200, 300)]
+        tables = [CentreTable(ordered=True), CentreTable(ordered=False)]
+        seen = {}
+        for b, C in enumerate(batches):
+            fresh = {bytes(r) for r in C} - set(seen)
+            got = [t.slots(C) for t in tables]
+            for slot, first in got:                 # the new slots' first rows
+                self.assertEqual(len(slot), len(C))
+                self.assertEqual({bytes(r) for r in C[first]}, fresh)
+                self.assertEqual(len(first), len(fresh))
+            # one slot per distinct byte pattern, in both tables: the partitions agree
+            pairs = {(int(a), int(h)) for a, h in zip(got[0][0], got[1][0])}
+            self.assertEqual(len({a for a, _ in pairs}), len(pairs))
+            self.assertEqual(len({h for _, h in pairs}), len(pairs))
+            for row, s in zip(map(bytes, C), got[1][0]):
+                self.assertEqual(seen.setdefault(row, int(s)), int(s))
+        self.assertEqual(len(seen), tables[1].size)
+        self.assertEqual(len({bytes(pool[0]), bytes(pool[1])} & set(seen)), 2)
+        # every centre one hash: the table takes the bytes, the slots stay
+        with mock.patch.object(CentreTable, "_hash", staticmethod(lambda bits: np.zeros(len(bits), np.uint64))):
+            again, _ = tables[1].slots(batches[2])
+            new, first = tables[1].slots(pool[::-1])
+        self.assertEqual(tables[1].keys.dtype, np.dtype((np.void, 24)))
+        np.testing.assert_array_equal(again, [seen[bytes(r)] for r in batches[2]])
+        self.assertEqual(tables[1].size, len(seen) + len(first))
+
+    def test_row_helpers_and_threads(self):
+        """The column-by-column forms equal numpy's (any over rows, bit masks, first
+        occurrences); two threads only with two cores allowed and one of them idle."""
+        import os
+        from unittest import mock
+        from tsplcam.orientation import broadphase as bp
+        rng = np.random.default_rng(8)
+        a = rng.random((500, 4)) < 0.2
+        np.testing.assert_array_equal(bp.any_row(a), a.any(axis=1))
+        np.testing.assert_array_equal(bp.row_bits(a), a @ (1 << np.arange(4)))
+        w = rng.integers(-1, 3, (300, 6))
+        np.testing.assert_array_equal(bp.any_row(w >= 0), (w >= 0).any(axis=1))
+        for v in (np.repeat(rng.integers(0, 40, 200), rng.integers(1, 4, 200)), rng.integers(0, 9, 50), np.zeros(0, int)):
+            np.testing.assert_array_equal(bp.first_of_each(v), np.unique(v, return_index=True)[1])
+        with mock.patch.dict(os.environ, {"TSPLCAM_WORKERS": "1"}):
+            self.assertEqual(bp.threads(), 1)
+        with mock.patch.dict(os.environ, {"TSPLCAM_WORKERS": "2"}), \
+                mock.patch.object(os, "sched_getaffinity", lambda pid: {0, 1}, create=True):
+            with mock.patch.object(os, "getloadavg", lambda: (3.9, 4.0, 4.0)):
+                self.assertEqual(bp.threads(), 1)
+            with mock.patch.object(os, "getloadavg", lambda: (1.0, 1.0, 1.0)):
+                self.assertEqual(bp.threads(), 2)
 
     def test_sample_bound(self):
         """Every point of a triangle lies at least sqrt(d^2 - e^2/3) from a point whose

@@ -74,9 +74,23 @@ pose in one kernel (``sphere_loop``: each pose's spheres level by level, its gri
 hit tests), with the same operations per sphere as numpy's level-by-level loop
 (:meth:`BroadPhase._sphere_loop`, the fallback): the same decisions, open parts, free cones
 and hit witnesses, bit for bit (tests/orientation/test_broadphase.py compares them).
+
+**Threads.** The kernel takes the poses one by one, each writing only its own rows; numba's
+JIT kernel releases the GIL (the ahead-of-time module's does not), as scipy's KD-tree queries
+do: where a core is idle (:func:`threads`) a batch's poses go to it in two halves, and KD
+queries of ``KD_THREADS`` points or more are split between two threads (each point's answer
+is the one a single thread gives). Every thread ends before the call returns, so none is
+alive when the path or fcl workers fork.
+
+**Per centre.** The free cones are kept per ball centre, found by the centre's bytes
+(:class:`CentreTable`): through a 64-bit hash of them, sorted about ten times faster than the
+24-byte keys, each slot checked against its centre's bytes. The witness cells keep the bytes'
+order, which decides what a cell keeps.
 """
 from __future__ import annotations
 
+import os
+import threading
 from dataclasses import dataclass
 
 import numpy as np
@@ -108,6 +122,8 @@ GRID_ROWS = 16384             # points a distance grid reads at a time
 READ_WORK = 30.0              # a grid read in numpy costs about as much as this many Viterbi elements
 HIT_WORK = 100.0              # a sample tried as a hit in numpy: about this many Viterbi elements
 SPHERE_WORK = 300.0           # a pose's part in the numpy sphere loop: about this many Viterbi elements
+KD_THREADS = 256              # KD-tree queries of at least this many points run on two threads
+KERNEL_THREADS = 1024         # sphere loops of at least this many poses run on two threads
 _CORNERS = np.array([(i, j, k) for i in (0, 1) for j in (0, 1) for k in (0, 1)], np.int64)
 DIRECTIONS = np.array([(i, j, k) for i in (-1, 0, 1) for j in (-1, 0, 1) for k in (-1, 0, 1)
                        if (i, j, k) != (0, 0, 0)], float)
@@ -115,6 +131,51 @@ DIRECTIONS = np.array([(i, j, k) for i in (-1, 0, 1) for j in (-1, 0, 1) for k i
 
 def _dot(a, b):
     return np.einsum("...i,...i->...", a, b)
+
+
+def threads() -> int:
+    """Threads the broad phase may use for work that releases the GIL (KD-tree queries, the
+    compiled sphere loop): two where this process may run on two cores (``TSPLCAM_WORKERS``,
+    when set, caps it) and the last minute's load average leaves one of them idle, else one
+    (on cores shared with other work two threads only wait for each other: at load 4 on two
+    cores they were slower), and one while this process's forked workers are busy. The answers
+    are the same either way. Every thread is joined before the call that started it returns,
+    so none is alive when workers fork."""
+    from ..toolpath import parallel
+    if getattr(parallel, "_WAITING", False):
+        return 1
+    env = os.environ.get("TSPLCAM_WORKERS", "").strip()
+    cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
+    if env:
+        cores = min(cores, max(1, int(env)))
+    if cores < 2:
+        return 1
+    try:
+        busy = os.getloadavg()[0]
+    except OSError:                                   # pragma: no cover - no load average
+        busy = 0.0
+    return 2 if busy < cores - 0.5 else 1
+
+
+def any_row(a: np.ndarray) -> np.ndarray:
+    """``a.any(axis=1)`` of a 2-d array, column by column (numpy's reduction over a short row
+    costs about 10 ns a row, or 1.6 ms for the all-candidates batch's 182k poses; the ors of
+    its few columns a tenth of that)."""
+    if a.ndim != 2 or a.shape[1] == 0:
+        return a.any(axis=1)
+    out = a[:, 0] != 0
+    for k in range(1, a.shape[1]):
+        out |= a[:, k] != 0
+    return out
+
+
+def row_bits(a: np.ndarray) -> np.ndarray:
+    """Per row of the 2-d bool array ``a`` the integer with bit k set where ``a[:, k]`` is (the
+    same as ``a @ (1 << arange(K))``, without the matrix product's conversions)."""
+    out = np.zeros(len(a), np.int64)
+    for k in range(a.shape[1]):
+        out |= a[:, k].astype(np.int64) << k
+    return out
 
 
 def min_into(out: np.ndarray, idx: np.ndarray, vals: np.ndarray) -> None:
@@ -130,6 +191,16 @@ def min_into(out: np.ndarray, idx: np.ndarray, vals: np.ndarray) -> None:
     start = np.flatnonzero(np.concatenate(([True], idx[1:] != idx[:-1])))
     at = idx[start]
     out[at] = np.minimum(out[at], np.minimum.reduceat(vals, start))
+
+
+def first_of_each(v: np.ndarray) -> np.ndarray:
+    """``np.unique(v, return_index=True)[1]``: the index of each value's first occurrence, in
+    the values' order; sorted over the starts of runs of equal values only (a batch asks
+    several axes per centre one after the other: a few runs per hundred rows)."""
+    if len(v) < 2:
+        return np.arange(len(v))
+    start = np.flatnonzero(np.concatenate(([True], v[1:] != v[:-1])))
+    return start[np.unique(v[start], return_index=True)[1]]
 
 
 def closest_on_triangles(P, A, B, C):
@@ -337,15 +408,17 @@ class LazyGrid:
             raise ValueError(f"LazyGrid: a point more than {self.OFF * self.h:.0f} mm from the origin")
         o = k + self.OFF
         key = (o[:, 0] << 42) | (o[:, 1] << 21) | o[:, 2]
-        uk, inv = np.unique(key, return_inverse=True)
-        pos = np.searchsorted(self.keys, uk)
-        known = np.zeros(len(uk), bool)
+        # every key looked up in the table (sorted), and only the new ones sorted: most nodes
+        # read are known (the eight around each point, shared with its neighbours)
+        pos = np.searchsorted(self.keys, key)
+        known = np.zeros(len(key), bool)
         if len(self.keys):
-            known = self.keys[np.minimum(pos, len(self.keys) - 1)] == uk
-        new = uk[~known]
+            known = self.keys[np.minimum(pos, len(self.keys) - 1)] == key
+        new = np.unique(key[~known])
         if len(new):
             nk = np.column_stack([new >> 42, (new >> 21) & ((1 << 21) - 1), new & ((1 << 21) - 1)]) - self.OFF
-            d, j = self.tree.query(nk * self.h, distance_upper_bound=self.cap, workers=2)
+            d, j = self.tree.query(nk * self.h, distance_upper_bound=self.cap,
+                                   workers=threads() if len(new) >= KD_THREADS else 1)
             far = ~np.isfinite(d)
             lb = np.where(far, np.sqrt(max(self.cap * self.cap - self.e2, 0.0)), np.sqrt(np.maximum(d * d - self.e2, 0.0)))
             keys = np.concatenate([self.keys, new])
@@ -353,8 +426,8 @@ class LazyGrid:
             self.keys = keys[order]
             self.lb = np.concatenate([self.lb, lb])[order]
             self.idx = np.concatenate([self.idx, np.where(far, -1, j)])[order]
-            pos = np.searchsorted(self.keys, uk)
-        return self.lb[pos][inv], self.idx[pos][inv]
+            pos = np.searchsorted(self.keys, key)
+        return self.lb[pos], self.idx[pos]
 
     def __call__(self, x: np.ndarray):
         """(lower bound, sample index or -1) at points x: as :meth:`DistanceGrid._read`, the best
@@ -373,23 +446,65 @@ class LazyGrid:
 
 
 class CentreTable:
-    """Per ball centre: slots found by the centre's exact bytes (sorted keys, vectorised)."""
+    """Per ball centre: a slot found by the centre's exact bytes (sorted keys, vectorised).
 
-    def __init__(self):
-        self.keys = np.zeros(0, np.dtype((np.void, 24)))
+    ``ordered``: new slots are numbered in the order of their keys' bytes (the witness cells:
+    which witnesses a cell keeps follows that order); else in the order of a 64-bit hash of
+    the bytes, which sorts about ten times faster than the 24-byte keys (the ball centres:
+    only their identity matters). Every hashed slot is checked against its centre's bytes; the
+    table takes the bytes as keys from the first hash that two centres share (never seen)."""
+
+    def __init__(self, ordered: bool = True):
+        self.ordered = bool(ordered)
+        self.keys = np.zeros(0, np.uint64 if not ordered else np.dtype((np.void, 24)))
         self.slot_of_key = np.zeros(0, np.int64)
+        self.rows = np.zeros((0, 3))            # per slot: its centre (while hashed)
         self.size = 0
+
+    @staticmethod
+    def _hash(bits: np.ndarray) -> np.ndarray:
+        """A 64-bit hash per row of three 64-bit words (multiply, xor, shift: wrapping)."""
+        h = bits[:, 0] * np.uint64(0x9E3779B97F4A7C15)
+        h ^= (h >> np.uint64(29)) ^ bits[:, 1]
+        h *= np.uint64(0xBF58476D1CE4E5B9)
+        h ^= (h >> np.uint64(31)) ^ bits[:, 2]
+        h *= np.uint64(0x94D049BB133111EB)
+        return h ^ (h >> np.uint64(32))
+
+    def _exact_keys(self) -> None:
+        """Key the table by the centres' bytes from now on (two centres shared a hash)."""
+        keys = np.ascontiguousarray(self.rows).view(np.dtype((np.void, 24))).ravel()
+        order = np.argsort(keys, kind="stable")
+        self.keys, self.slot_of_key = keys[order], order.astype(np.int64)
 
     def slots(self, C: np.ndarray):
         """(slot per row of C, the new slots' first rows in C)."""
-        C = np.ascontiguousarray(C, float)
-        keys = C.view(np.dtype((np.void, 24))).ravel()
-        # runs of equal rows (a batch asks several axes per centre, one after the other) taken
-        # once: sorting the void keys costs about 0.4 us a row; the same uk, first and inv
+        C = np.ascontiguousarray(C, float).reshape(-1, 3)
         bits = C.view(np.uint64)
-        start = np.flatnonzero(np.concatenate(([True], (bits[1:] != bits[:-1]).any(axis=1)))) \
-            if len(C) > 1 else np.arange(len(C))
-        uk, first, inv = np.unique(keys[start], return_index=True, return_inverse=True)
+        hashed = self.keys.dtype == np.uint64
+        # runs of equal rows (a batch asks several axes per centre, one after the other) taken
+        # once: sorting costs about 0.4 us a row for the bytes, 0.05 us for a hash
+        if len(C) > 1:
+            # (column by column: numpy's any over a row of three is slower than two ors)
+            b0, b1, b2 = bits[:, 0], bits[:, 1], bits[:, 2]
+            step = (b0[1:] != b0[:-1]) | (b1[1:] != b1[:-1]) | (b2[1:] != b2[:-1])
+            start = np.flatnonzero(np.concatenate(([True], step)))
+        else:
+            start = np.arange(len(C))
+        runs = bits[start]
+        if hashed:
+            keys = self._hash(runs)
+            order = np.argsort(keys)
+            ks = keys[order]
+            flag = np.concatenate(([True], ks[1:] != ks[:-1])) if len(ks) else np.zeros(0, bool)
+            uk, first = ks[flag], order[flag]
+            inv = np.empty(len(keys), np.int64)
+            inv[order] = np.cumsum(flag) - 1
+            # (every run's centre is its key's: else two centres share a hash)
+            same = np.array_equal(runs, runs[first][inv])
+        else:
+            uk, first, inv = np.unique(runs.view(np.dtype((np.void, 24))).ravel(), return_index=True,
+                                       return_inverse=True)
         first = start[first]
         inv = np.repeat(inv, np.diff(np.append(start, len(C))))
         if len(self.keys):
@@ -399,14 +514,29 @@ class CentreTable:
             pos, known = np.zeros(len(uk), np.int64), np.zeros(len(uk), bool)
         slot_u = np.empty(len(uk), np.int64)
         slot_u[known] = self.slot_of_key[pos[known]]
+        if hashed and not (same and np.array_equal(self.rows[slot_u[known]].view(np.uint64), bits[first[known]])):
+            self._exact_keys()                    # two centres share a hash
+            return self.slots(C)
         new = np.nonzero(~known)[0]
         slot_u[new] = self.size + np.arange(len(new))
         if len(new):
             self.size += len(new)
-            keys_all = np.concatenate([self.keys, uk[new]])
-            order = np.argsort(keys_all, kind="stable")
-            self.keys = keys_all[order]
-            self.slot_of_key = np.concatenate([self.slot_of_key, slot_u[new]])[order]
+            if hashed:
+                # uk is sorted: its new keys go in at their positions, the table stays sorted
+                at = pos[new] + np.arange(len(new))
+                old = np.ones(len(self.keys) + len(new), bool)
+                old[at] = False
+                keys_all = np.empty(len(old), np.uint64)
+                keys_all[at], keys_all[old] = uk[new], self.keys
+                slots_all = np.empty(len(old), np.int64)
+                slots_all[at], slots_all[old] = slot_u[new], self.slot_of_key
+                self.keys, self.slot_of_key = keys_all, slots_all
+                self.rows = np.concatenate([self.rows, C[first[new]]])
+            else:
+                keys_all = np.concatenate([self.keys, uk[new]])
+                order = np.argsort(keys_all, kind="stable")
+                self.keys = keys_all[order]
+                self.slot_of_key = np.concatenate([self.slot_of_key, slot_u[new]])[order]
         return slot_u[inv], first[new]
 
 
@@ -470,7 +600,7 @@ class BroadPhase:
         self._covers: dict[float, SphereCover] = {}
         self._side_grid = None                    # LazyGrid, made when the side pass first needs it
         self._stacked = None                      # the grids' arrays for the compiled sphere loop
-        self.centres = CentreTable()
+        self.centres = CentreTable(ordered=False)
         self._gouge = np.zeros(0, np.int8)        # per centre: 1 clear, 0 not proven, -1 not asked yet
         self._cone_a = {}                         # per grow: (slots, CONES, 3) axes
         self._cone_c = {}                         # per grow: (slots, CONES) cos of the cone angle
@@ -512,7 +642,7 @@ class BroadPhase:
         for g in np.unique(grp):
             sel = np.nonzero(grp == g)[0]
             d[sel], j[sel] = self.tree.query(x[sel], k=k, distance_upper_bound=float(ub[sel].max()),
-                                             workers=2 if len(sel) > 4000 else 1)
+                                             workers=threads() if len(sel) >= KD_THREADS else 1)
         return d, j
 
     def exact_bound(self, o: np.ndarray, R: np.ndarray, nearest: bool = False):
@@ -681,10 +811,14 @@ class BroadPhase:
         ns = len(self.samples)
         # distinct (cell, sample) pairs, the last few: a handful per call is enough
         key = np.unique(cs * ns + samp)[-4 * WITNESSES:]
-        for c, s in zip((key // ns).tolist(), (key % ns).tolist()):
-            row = self._wit[c]
+        cells = key // ns
+        rows = {c: r for c, r in zip(cells.tolist(), self._wit[cells].tolist())}
+        for c, s in zip(cells.tolist(), (key % ns).tolist()):
+            row = rows[c]
             if s not in row:
-                self._wit[c] = np.concatenate([[s], row[:-1]])
+                rows[c] = [s] + row[:-1]
+        at = list(rows)
+        self._wit[at] = [rows[c] for c in at]
 
     def part_lower_bounds(self, C: np.ndarray, A: np.ndarray, level: int = 3) -> np.ndarray:
         """(poses, parts): lower bounds of each part's distance to the mesh (its spheres at
@@ -716,10 +850,16 @@ class BroadPhase:
         when they decide a pose (``stats["cone_fcl"]``)."""
         cone_a, cone_c, cone_f = self._cone_a[grow], self._cone_c[grow], self._cone_fcl[grow]
         for _ in range(2):                        # a slot may come twice in one batch
-            worst = np.argmax(cone_c[slot], axis=1)
-            better = c < cone_c[slot, worst]
-            _, first = np.unique(slot[better], return_index=True)
-            sel = np.nonzero(better)[0][first]
+            # (np.argmax over a row of CONES, column by column: the first largest)
+            cs = cone_c[slot]
+            worst = np.zeros(len(slot), np.int64)
+            most = cs[:, 0]
+            for k in range(1, cs.shape[1]):
+                up = cs[:, k] > most
+                worst[up] = k
+                most = np.where(up, cs[:, k], most)
+            better = c < most
+            sel = np.nonzero(better)[0][first_of_each(slot[better])]
             cone_a[slot[sel], worst[sel]] = A[sel]
             cone_c[slot[sel], worst[sel]] = c[sel]
             cone_f[slot[sel], worst[sel]] = from_fcl
@@ -739,7 +879,7 @@ class BroadPhase:
         the free cones ``phi`` in place."""
         # not next to a wall that stopped poses before (a hit witness in the centre's cell):
         # there most poses collide, and fcl settles them in fewer steps
-        near_wall = (self._wit[cell] >= 0).any(axis=1)
+        near_wall = any_row(self._wit >= 0)[cell]
         pose, part = np.nonzero(unresolved & ((status != HIT) & ~near_wall)[:, None])
         # only while it pays: a pose fcl answers costs about as much as EXACT_COST spheres
         # here; the pass stops while the last calls decided fewer poses per sphere (decayed
@@ -748,7 +888,7 @@ class BroadPhase:
         if len(pose) == 0 or (asked > EXACT_PROBE and decided * EXACT_COST < asked):
             self._exact_gain = (0.5 * decided, 0.5 * asked)
             return
-        members = np.unique(pose)
+        members = pose[first_of_each(pose)]        # (np.nonzero's rows: sorted)
         # in groups of doubling size (few, 2 few, 4 few ...), stopped at the first group after
         # which the call's poses decided no longer pay for its spheres: the poses of a batch
         # come in the order the caller made them, and where the pass stops paying it seldom
@@ -762,7 +902,7 @@ class BroadPhase:
             if k and got * EXACT_COST < spent:                 # the poses so far did not pay
                 break
             grp = members[edges[k]:edges[k + 1]]
-            sel = np.isin(pose, grp)
+            sel = slice(np.searchsorted(pose, grp[0]), np.searchsorted(pose, grp[-1], "right"))
             g, a = self._exact_run(C, A, cov, status, unresolved, phi, cell, pose[sel], part[sel], grp, parts)
             got, spent = got + g, spent + a
         self._exact_gain = (0.5 * decided + got, 0.5 * asked + spent)
@@ -801,7 +941,7 @@ class BroadPhase:
             pose, part = np.repeat(pose[keep], 2), np.repeat(part[keep], 2)
             seg = 2 * np.repeat(seg[keep], 2) + np.tile([0, 1], m)
             level += 1
-        done = members[unresolved[members].any(axis=1) & ~lost[members] & (status[members] != HIT)]
+        done = members[any_row(unresolved[members]) & ~lost[members] & (status[members] != HIT)]
         unresolved[done] = False
         return len(done) + int((status[members] == HIT).sum()) - before, self.stats["exact"] - asked0
 
@@ -866,20 +1006,46 @@ class BroadPhase:
         C = np.ascontiguousarray(C, float)
         A = np.ascontiguousarray(A, float)
         lo, hi = self.box
+        todo = np.ascontiguousarray(todo, np.int64)
+        # the kernel takes the poses one by one, each writing only its own rows: two halves of
+        # them on two threads (the kernel releases the GIL) give the same rows, and the hits'
+        # witnesses, remembered level by level as a set, the same table
+        # (only numba's JIT kernel, compiled nogil, releases the GIL: the ahead-of-time module's
+        # holds it, and two threads would only take turns)
+        nogil = bool(getattr(kern, "targetoptions", {}).get("nogil", False))
+        halves = np.array_split(todo, 2) if nogil and len(todo) >= KERNEL_THREADS and threads() > 1 else [todo]
+        args = (np.ascontiguousarray(asked, np.int64), prof.z0, prof.z1, prof.rout0, prof.rout1, prof.rin0,
+                prof.rin1, np.ascontiguousarray(cov.max_level, np.int64), np.int64(parts),
+                np.ascontiguousarray(lo, float), np.ascontiguousarray(hi, float), *self._grid_arrays(),
+                self.samples, self.sample_comp, self.anchors, EPS, CONE_WANT)
         rows = max(16, 2 * len(todo))
         while True:
             st, un, ph = status.copy(), unresolved.copy(), phi.copy()
-            hits = np.empty((rows, 3), np.int64)
-            nh = kern(C, A, np.ascontiguousarray(todo, np.int64), np.ascontiguousarray(asked, np.int64),
-                      prof.z0, prof.z1, prof.rout0, prof.rout1, prof.rin0, prof.rin1,
-                      np.ascontiguousarray(cov.max_level, np.int64), np.int64(parts),
-                      np.ascontiguousarray(lo, float), np.ascontiguousarray(hi, float), *self._grid_arrays(),
-                      self.samples, self.sample_comp, self.anchors, EPS, CONE_WANT, st, un, ph, hits)
-            if nh >= 0:
+            hits = [np.empty((rows, 3), np.int64) for _ in halves]
+            nh: list = [None] * len(halves)
+
+            def run(i):
+                try:
+                    nh[i] = kern(C, A, halves[i], *args, st, un, ph, hits[i])
+                except BaseException as exc:          # raised again in the calling thread
+                    nh[i] = exc
+            if len(halves) > 1:
+                other = threading.Thread(target=run, args=(1,))
+                other.start()
+                try:
+                    run(0)
+                finally:
+                    other.join()
+            else:
+                run(0)
+            for got in nh:
+                if isinstance(got, BaseException):
+                    raise got
+            if min(nh) >= 0:
                 break
             rows *= 4
         status[:], unresolved[:], phi[:] = st, un, ph
-        hits = hits[:nh]
+        hits = np.concatenate([h[:n] for h, n in zip(hits, nh)])
         for lev in np.unique(hits[:, 0]):
             self._remember(cell, hits[hits[:, 0] == lev, 1:])
 
@@ -990,16 +1156,19 @@ class BroadPhase:
         self.revisit = slot < known              # centres asked about in an earlier batch
         self._grow_cones(grow)
         cone_a, cone_c = self._cone_a[grow], self._cone_c[grow]
-        # free cones of earlier free poses at the same centre
-        within = np.einsum("nki,ni->nk", cone_a[slot], A) >= cone_c[slot]
-        inc = within.any(axis=1)
+        # free cones of earlier free poses at the same centre (only centres known before this
+        # call have any)
+        old = np.nonzero(self.revisit)[0]
+        within = np.einsum("nki,ni->nk", cone_a[slot[old]], A[old]) >= cone_c[slot[old]]
+        inc = np.zeros(n, bool)
+        inc[old] = any_row(within)
         status[inc] = FREE
         self.stats["cone"] += int(inc.sum())
         # (those only fcl's swing check's cones decide: what that check is worth later)
-        self.stats["cone_fcl"] += int((inc & ~(within & ~self._cone_fcl[grow][slot]).any(axis=1)).sum())
-        # witnesses of earlier hits near the same centre
+        self.stats["cone_fcl"] += int((inc[old] & ~(within & ~self._cone_fcl[grow][slot[old]]).any(axis=1)).sum())
+        # witnesses of earlier hits near the same centre (in cells that have any)
         cell = self._witness_cells(C)
-        todo = np.nonzero(~inc)[0]
+        todo = np.nonzero(~inc & any_row(self._wit >= 0)[cell])[0]
         wit = self._wit[cell[todo]]
         r, k = np.nonzero(wit >= 0)
         if len(r):
@@ -1023,12 +1192,13 @@ class BroadPhase:
             self._exact_pass(C, A, cov, status, unresolved, phi, cell, parts)
         free = np.zeros(n, bool)
         free[todo] = True
-        free &= (status != HIT) & ~unresolved.any(axis=1)
+        opened = any_row(unresolved)
+        free &= (status != HIT) & ~opened
         status[free] = FREE
         # what fcl still has to answer for the poses left open: their unresolved parts, and
         # the cone the cleared parts leave free
         self.open_parts = unresolved
-        self.open_phi = np.where(unresolved.any(axis=1), phi, np.inf)
+        self.open_phi = np.where(opened, phi, np.inf)
         # remember the new free cones (replacing each centre's narrower one)
         fi = np.nonzero(free & (phi > 0))[0] if parts == -1 or parts == (1 << K) - 1 else np.zeros(0, int)
         if len(fi):

@@ -41,7 +41,7 @@ import numpy as np
 
 from ..errors import GeometryError, InputError
 from ..toolpath.parallel import map_pieces, worker_count
-from .broadphase import FREE, HIT, UNKNOWN, BroadPhase, Profile
+from .broadphase import FREE, HIT, UNKNOWN, BroadPhase, Profile, row_bits
 from .tool import Tool
 
 try:                                   # python-fcl is a dependency of this stage only
@@ -475,8 +475,7 @@ class CollisionChecker:
         st = self.broad.decide(C, A, grow)
         out = st == HIT
         open_ = np.nonzero(st == UNKNOWN)[0]
-        bits = 1 << np.arange(self.broad.open_parts.shape[1])
-        mask = self.broad.open_parts @ bits
+        mask = row_bits(self.broad.open_parts)
         again = open_[self.broad.revisit[open_]]
         if len(again) and grow == 0.0:
             again = self._swing_share(again)
@@ -587,7 +586,7 @@ class CollisionChecker:
             masks = np.full(len(C), only, np.int64)
         else:
             st = self.broad.decide(C, A, grow, only)
-            bits = self.broad.open_parts @ (1 << np.arange(self.broad.open_parts.shape[1]))
+            bits = row_bits(self.broad.open_parts)
             # (a pose proved hit may have parts the broad phase never looked at)
             masks = np.where(st == FREE, 0, np.where(st == UNKNOWN, bits, every)) & only
             # its hit proofs hold for the parts asked: a sample inside one of them whose piece

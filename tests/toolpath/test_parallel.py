@@ -1,9 +1,14 @@
 """map_pieces' ``while_waiting``: other work for the main process while forked workers make
 the pieces, run once after they are started and only when there are workers; pieces asked
-for meanwhile stay in the main process; the pieces are the same; and the job's collision
+for meanwhile stay in the main process; the pieces are the same; the main process takes
+pieces too once it is free, and a piece failing (or lost) in a worker is run again there, the
+lowest failing index raising as in one process; and the job's collision
 checker built that way (``CheckerAhead``) is the one the orientation stage would build, its
 error kept for the orientation stage to raise."""
+import multiprocessing
 import os
+import tempfile
+import time
 import unittest
 from unittest import mock
 
@@ -35,7 +40,6 @@ class WhileWaiting(unittest.TestCase):
         out = map_pieces(_square_pid, (7,), 6, 2, order=[5, 4, 3, 2, 1, 0],
                          tick=lambda done, total: ticks.append((done, total)), while_waiting=meanwhile)
         self.assertEqual([v for v, _ in out], [i * i + 7 for i in range(6)])
-        self.assertTrue(all(pid != os.getpid() for _, pid in out))      # made by the workers
         self.assertEqual(len(seen), 1)
         counts = seen[0]
         self.assertEqual(counts[:2], (1, 1))
@@ -62,6 +66,90 @@ class WhileWaiting(unittest.TestCase):
         with self.assertRaisesRegex(ValueError, "meanwhile"):
             map_pieces(_square_pid, (0,), 4, 2, while_waiting=fails)
         self.assertFalse(parallel._WAITING)
+
+
+MAIN = os.getpid()
+
+
+def _slow_in_workers(seconds, marks, i):
+    """A piece that takes ``seconds`` in a worker (leaving a mark in the folder ``marks``
+    when it starts) and no time in the main process."""
+    if os.getpid() != MAIN:
+        if marks:
+            open(os.path.join(marks, str(i)), "w").close()
+        time.sleep(seconds)
+    return (i + 100, os.getpid())
+
+
+def _until_marked(marks, n):
+    """Wait (at most 10 s) until ``n`` pieces have started in the workers."""
+    end = time.monotonic() + 10.0
+    while len(os.listdir(marks)) < n and time.monotonic() < end:
+        time.sleep(0.005)
+
+
+def _fails(bad, i):
+    if i in bad:
+        raise ValueError(f"piece {i} fails")
+    return i
+
+
+def _fails_in_workers(how, i):
+    if os.getpid() != MAIN and i == 1:
+        if how == "die":
+            os._exit(3)                          # the worker is gone with the piece it took
+        raise RuntimeError("only in a worker")
+    return (i, os.getpid())
+
+
+class SharedHandOut(unittest.TestCase):
+    """Pieces are taken from one counter by the workers and by the main process once free."""
+
+    def setUp(self):
+        if not FORK:
+            self.skipTest("no forked workers here")
+
+    def test_the_main_process_takes_pieces_once_free(self):
+        ticks = []
+        with tempfile.TemporaryDirectory() as marks:
+            # while_waiting ends once both workers have a piece: the main process takes the
+            # rest meanwhile (they take it no time here)
+            out = map_pieces(_slow_in_workers, (0.2, marks), 6, 2, order=[5, 4, 3, 2, 1, 0],
+                             tick=lambda done, total: ticks.append(done),
+                             while_waiting=lambda: _until_marked(marks, 2))
+        self.assertEqual([v for v, _ in out], [i + 100 for i in range(6)])
+        made_here = [i for i, (_, pid) in enumerate(out) if pid == MAIN]
+        self.assertTrue(made_here)
+        self.assertEqual(len(set(p for _, p in out) - {MAIN}), 2)         # each worker made one
+        self.assertEqual(ticks, list(range(1, 7)))
+        # without while_waiting: the main process and one worker from the start
+        out = map_pieces(_slow_in_workers, (0.2, ""), 3, 2, tick=lambda done, total: ticks.append(done))
+        self.assertEqual([v for v, _ in out], [100, 101, 102])
+        self.assertIn(MAIN, [pid for _, pid in out])
+        self.assertEqual(multiprocessing.active_children(), [])
+
+    def test_the_lowest_failing_piece_raises_wherever_it_was_made(self):
+        with self.assertRaisesRegex(ValueError, "piece 2 fails"):
+            map_pieces(_fails, ({2, 4},), 6, 2, order=[5, 4, 3, 2, 1, 0])
+        with self.assertRaisesRegex(ValueError, "piece 2 fails"):
+            map_pieces(_fails, ({2, 4},), 6, 2, order=[5, 4, 3, 2, 1, 0], while_waiting=lambda: None)
+        self.assertFalse(parallel._WAITING)
+
+    def test_a_piece_failing_or_lost_in_a_worker_is_made_again_here(self):
+        for how in ("raise", "die"):
+            out = map_pieces(_fails_in_workers, (how,), 4, 2, while_waiting=lambda: time.sleep(0.05))
+            self.assertEqual([v for v, _ in out], [0, 1, 2, 3])
+            self.assertEqual(out[1][1], MAIN)
+
+    def test_a_tick_raising_stops_the_workers(self):
+        def tick(done, total):
+            raise KeyboardInterrupt("stop")
+
+        with self.assertRaises(KeyboardInterrupt):
+            map_pieces(_slow_in_workers, (0.5, ""), 4, 2, tick=tick)
+        self.assertEqual(multiprocessing.active_children(), [])
+        with self.assertRaisesRegex(ValueError, "not an ordering"):
+            map_pieces(_fails, ((),), 3, 2, order=[0, 0, 1])
 
 
 class CheckerAheadOfTheOrientation(unittest.TestCase):

@@ -7,20 +7,27 @@ fork; inside FreeCAD everything stays in the one process (forking a Qt applicati
 safe) unless ``TSPLCAM_WORKERS`` asks for more. ``TSPLCAM_WORKERS`` (an integer) sets the
 count, 1 turns processes off.
 
-While the workers make the pieces the calling process has nothing to do: ``map_pieces`` can
-be given other work for it (``while_waiting``, e.g. the collision checker the next stage
-needs), run after the workers are forked (so they inherit nothing it starts: threads, numba)
-and before the results are collected. Pieces of work asked for meanwhile
+Every process making pieces (the workers, and the calling process when it is free) takes
+the next one of the order asked from one shared counter, so a core that finishes early takes
+the next piece instead of idling behind one handed out at the start; each worker's results go
+back through a queue whose sending thread lets the worker go on meanwhile.
+
+The calling process can be given other work first (``while_waiting``, e.g. the collision
+checker the next stage needs), run after the workers are forked (so they inherit nothing it
+starts: threads, numba); once it is done the calling process takes pieces too, then collects
+the results. Pieces of work asked for meanwhile and inside the pieces it makes
 (:func:`worker_count`) stay in the one process: the cores are taken by the workers.
 """
 from __future__ import annotations
 
+import contextlib
 import multiprocessing
 import os
+import pickle
+import queue
 import sys
 
-_TASK = None                   # (function, shared arguments) the forked workers inherit
-_WAITING = False               # a while_waiting callable runs beside this process's workers
+_WAITING = False       # this process works (while_waiting, pieces) beside its own workers
 
 
 def worker_count(requested: int | None = None, pieces: int = 2) -> int:
@@ -39,26 +46,25 @@ def worker_count(requested: int | None = None, pieces: int = 2) -> int:
     return max(1, min(int(requested), int(pieces)))
 
 
-def _run(index):
-    fn, shared = _TASK
-    try:
-        return index, fn(*shared, index), None
-    except Exception as exc:                               # re-raised by the caller's own run
-        return index, None, repr(exc)
-
-
 def map_pieces(fn, shared: tuple, count: int, workers: int, order=None, tick=None,
                while_waiting=None) -> list:
     """[fn(*shared, i) for i in range(count)], in forked processes when ``workers`` > 1.
-    ``order``: the indices to hand out first (largest pieces first balances the cores). A
-    piece that fails in a worker is run again here, so its error is raised as it would be
-    without workers. ``tick(done, count)``, when given, is called in this process as each
-    piece is made (for progress; it may raise to stop the work; pieces made while
-    ``while_waiting`` runs are told when it returns). ``while_waiting()``, when given, is
-    called once in this process after the workers are started and before their results are
-    read, and only then: with one process (or one piece) it is not called, and the caller
-    does that work later as it would without it. Its exceptions propagate (the workers are
-    stopped); a caller that wants the pieces' errors first catches its own."""
+    ``order``: the order the pieces are taken in (largest first balances the cores). A
+    piece that fails in a worker (or whose result cannot be sent) is run again here, so its
+    error is raised as it would be without workers; of several failures, the lowest index
+    raises. ``tick(done, count)``, when given, is called in this process as each piece is
+    made (for progress; it may raise to stop the work; pieces made while ``while_waiting``
+    runs are told when it returns). ``while_waiting()``, when given, is called once in this
+    process after the workers are started and before their results are read, and only then:
+    with one process (or one piece) it is not called, and the caller does that work later as
+    it would without it. Its exceptions propagate (the workers are stopped); a caller that
+    wants the pieces' errors first catches its own.
+
+    ``workers`` processes make pieces at once: without ``while_waiting`` this process and
+    ``workers`` - 1 forked ones; with it ``workers`` forked ones, and this process too once
+    ``while_waiting`` has returned. They all take the next piece of ``order`` from one shared
+    counter, so whoever is free takes the next and no one waits at the end for a piece
+    handed out early to a busy process."""
     if workers <= 1 or count <= 1:
         out = []
         for i in range(count):
@@ -66,33 +72,102 @@ def map_pieces(fn, shared: tuple, count: int, workers: int, order=None, tick=Non
             if tick is not None:
                 tick(i + 1, count)
         return out
-    global _TASK
-    _TASK = (fn, shared)
+    order = list(range(count)) if order is None else [int(i) for i in order]
+    if sorted(order) != list(range(count)):
+        raise ValueError(f"map_pieces: order {order} is not an ordering of the {count} pieces")
+    ctx = multiprocessing.get_context("fork")
+    nxt = ctx.Value("q", 0)                                   # the next position in order
+    sent = ctx.Queue()                                        # pickled (index, result, error)
+    forks = min(workers, count) - (while_waiting is None)
+    got = {}                            # index -> (result, None) or (None, error: str | Exception)
+    made, finished = 0, False
+
+    def take():
+        with nxt.get_lock():
+            k = nxt.value
+            if k >= count:
+                return None
+            nxt.value = k + 1
+        return order[k]
+
+    def told(msg) -> None:
+        nonlocal made
+        index, result, error = pickle.loads(msg)
+        got[index] = (result, error)
+        if error is None:
+            made += 1
+            if tick is not None:
+                tick(made, count)
+
+    procs = [ctx.Process(target=_work, args=(fn, shared, take, sent), daemon=True)
+             for _ in range(forks)]
     try:
-        ctx = multiprocessing.get_context("fork")
-        with ctx.Pool(min(workers, count)) as pool:
-            got, made = [], 0
-            results = pool.imap_unordered(_run, list(order) if order is not None else range(count))
-            if while_waiting is not None:
-                _waiting(while_waiting)
-            for g in results:
-                got.append(g)
-                made += g[2] is None
-                if tick is not None and g[2] is None:
+        for p in procs:
+            p.start()
+        if while_waiting is not None:
+            with _busy():
+                while_waiting()
+        while True:                                           # this process's share
+            while True:
+                try:
+                    told(sent.get_nowait())
+                except queue.Empty:
+                    break
+            index = take()
+            if index is None:
+                break
+            try:
+                with _busy():
+                    result = fn(*shared, index)
+            except Exception as exc:                          # raised below, in index order
+                got[index] = (None, exc)
+            else:
+                got[index] = (result, None)
+                made += 1
+                if tick is not None:
                     tick(made, count)
+        while len(got) < count:                               # the workers' last pieces
+            ended = all(p.exitcode is not None for p in procs)
+            try:
+                told(sent.get(timeout=0 if ended else 0.05))
+            except queue.Empty:
+                if ended:
+                    break                     # a worker died: its piece is run again below
+        finished = True
     finally:
-        _TASK = None
+        for p in procs:                    # stopped when the work was: an error, a tick raising
+            if not finished and p.exitcode is None:
+                p.terminate()
+            p.join()
+        sent.close()
     out = [None] * count
-    for index, result, error in sorted(got, key=lambda g: g[0]):      # the first failure raises
+    for index in range(count):                                # the first failure raises
+        result, error = got.get(index, (None, "lost"))
+        if isinstance(error, Exception):
+            raise error
         out[index] = fn(*shared, index) if error is not None else result
     return out
 
 
-def _waiting(work) -> None:
-    """``work()`` with :func:`worker_count` at 1 (nested pieces stay in this process)."""
+def _work(fn, shared: tuple, take, sent) -> None:
+    """A forked worker: pieces from the shared counter until none are left, each result sent
+    pickled (an error as its repr: the caller runs that piece again). The queue's thread
+    sends, so the worker goes on while the caller is busy."""
+    while (index := take()) is not None:
+        try:
+            msg = pickle.dumps((index, fn(*shared, index), None), protocol=pickle.HIGHEST_PROTOCOL)
+        except Exception as exc:
+            msg = pickle.dumps((index, None, repr(exc)))
+        sent.put(msg)
+
+
+@contextlib.contextmanager
+def _busy():
+    """:func:`worker_count` at 1 meanwhile (the cores are this process's workers': nested
+    pieces stay in this process)."""
     global _WAITING
     before, _WAITING = _WAITING, True
     try:
-        work()
+        yield
     finally:
         _WAITING = before

@@ -445,6 +445,29 @@ class Geometry(unittest.TestCase):
         np.testing.assert_array_equal(near[ins], wn[ins])
         self.assertGreater(ins.mean(), 0.9)
 
+    def test_distance_grid_blocks(self):
+        """The distance grid skips blocks of nodes proven beyond the cap: every node's bound and
+        sample are the bits of its own KD query (the whole grid asked at once), with blocks
+        skipped, queried in part and cut by the grid's edge, at caps near a node spacing."""
+        from tsplcam.orientation.broadphase import BroadPhase, DistanceGrid, Profile
+        V, T = wavy_sheet()
+        one = np.ones(1)
+        bp = BroadPhase(V, T, lambda grow: Profile(0 * one, one, one, one, one, one), 0.1, 0.3)
+        lo, hi = bp.box
+        for spacing, pad, cap in ((0.2, 3.1, 0.45), (0.35, 4.0, 1.5), (0.5, 5.0, 3.0)):
+            g = DistanceGrid(bp.tree, bp.e2, lo, hi, spacing, pad, cap, 10 ** 6)
+            axes = [g.origin[i] + g.h * np.arange(g.shape[i]) for i in range(3)]
+            nodes = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, 3)
+            d, j = bp.tree.query(nodes, distance_upper_bound=cap)
+            far = ~np.isfinite(d)
+            lb = np.where(far, np.sqrt(max(cap * cap - bp.e2, 0.0)), np.sqrt(np.maximum(d * d - bp.e2, 0.0)))
+            np.testing.assert_array_equal(g.lb, lb)
+            np.testing.assert_array_equal(g.idx, np.where(far, -1, j))
+            skipped = ~np.repeat(np.repeat(np.repeat(g._near_blocks(bp.tree, axes), g.BLOCK, 0),
+                                           g.BLOCK, 1), g.BLOCK, 2)[:g.shape[0], :g.shape[1], :g.shape[2]]
+            self.assertGreater(skipped.mean(), 0.2)                 # blocks were left out
+            self.assertTrue(np.all(far[skipped.ravel()]))
+
     def test_centre_table(self):
         """Slots by a centre's exact bytes: the same centre (also -0.0 against 0.0: other
         bytes, another slot) gets the same slot in every batch, new centres new slots; keyed by

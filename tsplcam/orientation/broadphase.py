@@ -327,7 +327,18 @@ class SphereCover:
 
 class DistanceGrid:
     """Lower bounds of the distance to the mesh at the nodes of a regular grid (capped), and
-    the nearest sample of each node (-1 beyond the cap)."""
+    the nearest sample of each node (-1 beyond the cap).
+
+    Most nodes lie beyond the cap (on the keycap 73% of the fine grid's, 92% of the coarse
+    one's), and a KD query that finds nothing still costs about half of one that does. So
+    blocks of ``BLOCK``^3 nodes are asked first, at their centres: a block whose centre lies
+    farther than the cap plus its half-diagonal (and ``EPS``, for rounding) from every sample
+    has every node beyond the cap, which is what the node's own query answers; the other
+    blocks' nodes are queried, each point's answer the same bits as in any batch (the
+    keycap's two grids: 53k nodes queried of 230k, 0.12 CPU-s where all on two threads took
+    about 0.15). The queries run on :func:`threads` (one while the path's workers run)."""
+
+    BLOCK = 3
 
     def __init__(self, tree: cKDTree, e2: float, lo: np.ndarray, hi: np.ndarray, spacing: float,
                  pad: float, cap: float, nodes: int):
@@ -336,14 +347,32 @@ class DistanceGrid:
         self.origin = lo - pad
         self.shape = np.ceil((hi - lo + 2 * pad) / self.h).astype(np.int64) + 1
         axes = [self.origin[i] + self.h * np.arange(self.shape[i]) for i in range(3)]
-        nodes = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, 3)
         self.cap = float(cap)
-        d, j = tree.query(nodes, distance_upper_bound=cap, workers=2)
+        b, (n0, n1, n2) = self.BLOCK, self.shape
+        ask = self._near_blocks(tree, axes).repeat(b, 0).repeat(b, 1).repeat(b, 2)[:n0, :n1, :n2]
+        q = np.flatnonzero(ask)
+        i, j, k = np.unravel_index(q, ask.shape)
+        d = np.full(ask.size, np.inf)
+        jn = np.full(ask.size, tree.n, np.int64)
+        d[q], jn[q] = tree.query(np.column_stack([axes[0][i], axes[1][j], axes[2][k]]),
+                                 distance_upper_bound=cap, workers=threads() if len(q) >= KD_THREADS else 1)
         far = ~np.isfinite(d)
         self.lb = np.where(far, np.sqrt(max(cap * cap - e2, 0.0)), np.sqrt(np.maximum(d * d - e2, 0.0)))
-        self.idx = np.where(far, -1, j)
+        self.idx = np.where(far, -1, jn)
         self.stride = np.array([self.shape[1] * self.shape[2], self.shape[2], 1])
         self._offsets = _CORNERS @ self.stride
+
+    def _near_blocks(self, tree: cKDTree, axes) -> np.ndarray:
+        """Per block of ``BLOCK``^3 nodes: False where every node is proven beyond the cap (no
+        sample within cap + the block's half-diagonal + EPS of its centre)."""
+        b = self.BLOCK
+        nb = -(-self.shape // b)
+        half = 0.5 * self.h * (b - 1) * np.sqrt(3.0)
+        cen = [self.origin[a] + self.h * (b * np.arange(nb[a]) + 0.5 * (b - 1)) for a in range(3)]
+        C = np.stack(np.meshgrid(*cen, indexing="ij"), axis=-1).reshape(-1, 3)
+        d, _ = tree.query(C, distance_upper_bound=self.cap + half + EPS,
+                          workers=threads() if len(C) >= KD_THREADS else 1)
+        return np.isfinite(d).reshape(tuple(nb))
 
     def __call__(self, x: np.ndarray):
         """(lower bound, sample index or -1, inside the grid) at points x: the best over the

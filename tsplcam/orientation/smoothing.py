@@ -110,12 +110,14 @@ def meridian_grid(rot: Rotary, pref, normal, constraints, M: int, pole_tilt: flo
     phis = 2 * np.pi * np.arange(M) / M
     PH = np.broadcast_to(phis, (n, M))
     # the meridians of the M rotary values, once (rot.meridian of PH computes the same
-    # elements n times over)
-    m = np.broadcast_to(rot.meridian(phis), (n, M, 3))
-    lo, hi = theta_interval(rot, PH, constraints, rot.best_theta(normal[:, None, :], PH, m), m)
+    # elements n times over); rot.best_theta's arctan2 of the dot products, taken by
+    # _meridian_dots
+    m = rot.meridian(phis)
+    normal, pref = np.asarray(normal, float), np.asarray(pref, float)
+    lo, hi = theta_interval(rot, PH, constraints, np.arctan2(_meridian_dots(normal, m), normal[:, 2:3]), m)
     lo = np.maximum(lo, rot.theta_lo)
     hi = np.minimum(hi, rot.theta_hi)
-    tp = rot.best_theta(pref[:, None, :], PH, m)
+    tp = np.arctan2(_meridian_dots(pref, m), pref[:, 2:3])
     th = np.clip(tp, lo, hi)
     if pole_tilt > 0:
         near = np.abs(th) < pole_tilt
@@ -449,12 +451,26 @@ def cone_halfspaces(normal, feed, lead_max: float, tilt_max: float):
 _HALF_PI = float(np.arccos(np.clip(np.zeros(1), -1.0, 1.0))[0])    # arccos(+0), as theta_interval takes it
 
 
+def _meridian_dots(V: np.ndarray, m: np.ndarray) -> np.ndarray:
+    """``V . m`` (n, M) of vectors V (n, 3) and horizontal meridians m (M, 3): the bits of
+    ``np.einsum("nj,nkj->nk", V, m broadcast to (n, M, 3))`` in half its time. einsum sums
+    the three products in order onto +0; m's z is 0, so its product (+-0) changes a sum only
+    where the sum is zero, and adding +0.0 gives einsum's +0 there."""
+    if m[:, 2].any():
+        return np.einsum("nj,nkj->nk", V, np.broadcast_to(m, (len(V),) + m.shape))
+    r = V[:, 0, None] * m[:, 0]
+    r += V[:, 1, None] * m[:, 1]
+    r += 0.0
+    return r
+
+
 def theta_interval(rot: Rotary, phi, constraints, ref, m=None):
     """Interval [lo, hi] of signed tilt on the meridian at rotary ``phi`` ((n,) or (n, M))
     where every constraint ``(h (n,3), b (n,))``, ``h . a >= b``, holds; arcs are taken on
     the branch nearest ``ref`` (shaped like phi; a point known or expected inside, e.g. the
     normal's tilt on that meridian). Empty where lo > hi. ``m``: ``rot.meridian(phi)`` when
-    the caller has it."""
+    the caller has it, or on a grid (n, M) whose rows share the rotary values, the (M, 3)
+    meridians of one row."""
     phi = np.asarray(phi, float)
     m = rot.meridian(phi) if m is None else m
     grid = phi.ndim == 2
@@ -462,7 +478,12 @@ def theta_interval(rot: Rotary, phi, constraints, ref, m=None):
     hi = np.full(phi.shape, np.inf)
     for h, b in constraints:
         hz = h[:, 2][:, None] if grid else h[:, 2]
-        hm = np.einsum("nj,nkj->nk", h, m) if grid else np.einsum("ij,ij->i", h, m)
+        if not grid:
+            hm = np.einsum("ij,ij->i", h, m)
+        elif m.ndim == 2:
+            hm = _meridian_dots(h, m)
+        else:
+            hm = np.einsum("nj,nkj->nk", h, m)
         bb = np.asarray(b, float)[:, None] if grid else np.asarray(b, float)
         al = np.arctan2(hm, hz)
         al = ref + (np.pi - np.mod(np.pi - (al - ref), 2 * np.pi))          # nearest ref
@@ -813,11 +834,17 @@ def forced_rotary_travel(grid: MeridianGrid, status, ds, air=None):
     node = np.where(grid.ok & (np.asarray(status) != 2), 0.0, np.inf)
     short = (np.asarray(ds) < IN_PLACE[0]) & ~air[1:]
 
+    plain: dict = {}             # blocks without a short block: the same array each time
+
     def block(i0: int, i1: int) -> np.ndarray:
-        t = np.broadcast_to(D, (i1 - i0, M, M)).copy()
         s = short[i0 - 1:i1 - 1]
-        if s.any():
-            np.copyto(t, np.inf, where=s[:, None, None] & swing[None])
+        if not s.any():
+            t = plain.get(i1 - i0)
+            if t is None:
+                t = plain[i1 - i0] = np.broadcast_to(D, (i1 - i0, M, M)).copy()
+            return t
+        t = np.broadcast_to(D, (i1 - i0, M, M)).copy()
+        np.copyto(t, np.inf, where=s[:, None, None] & swing[None])
         return t
     states, _ = viterbi(node, from_blocks(block))
     if states is None:

@@ -420,19 +420,23 @@ def _tilt_table(A, az, M):
 
 def _azimuth_window(A, az, tilt, M):
     """How far (rad, left and right) the azimuth of a pose at ``tilt`` may turn from ``az``
-    through grid azimuths whose free tilt is at most ``tilt``."""
+    through grid azimuths whose free tilt is at most ``tilt``. The cells beside each point's
+    are read as windows of the row twice over (views, no index arrays)."""
     n = len(az)
     d = 2 * np.pi / M
     f = np.mod(az, 2 * np.pi) / d
-    c = np.rint(f).astype(int) % M
-    off = (f - np.rint(f)) * d                      # az minus the centre of cell c
+    rf = np.rint(f)
+    c = rf.astype(int) % M
+    off = (f - rf) * d                              # az minus the centre of cell c
     ok = A <= tilt[:, None] + 1e-12
-    j = np.arange(1, M // 2 + 1)
-    right = np.take_along_axis(ok, (c[:, None] + j[None, :]) % M, 1)
-    left = np.take_along_axis(ok, (c[:, None] - j[None, :]) % M, 1)
-    run_r = np.where(right.all(1), M // 2, np.argmin(right, 1))
-    run_l = np.where(left.all(1), M // 2, np.argmin(left, 1))
-    here = ok[np.arange(n), c]
+    h = M // 2
+    windows = np.lib.stride_tricks.sliding_window_view(np.concatenate([ok, ok], axis=1), h, axis=1)
+    rows = np.arange(n)
+    right = windows[rows, c + 1]                    # cells c + 1 .. c + h
+    left = windows[rows, c + M - h][:, ::-1]        # cells c - 1 .. c - h
+    run_r = np.where(right.all(1), h, np.argmin(right, 1))
+    run_l = np.where(left.all(1), h, np.argmin(left, 1))
+    here = ok[rows, c]
     return (np.where(here, np.maximum(0.0, run_l * d + off), 0.0),
             np.where(here, np.maximum(0.0, run_r * d - off), 0.0))
 

@@ -542,6 +542,15 @@ def phi_interval(rot: Rotary, theta, constraints, ref):
 
 # --- the continuous smoothing ------------------------------------------------------------------
 
+def _add_to(x: np.ndarray, at: np.ndarray, v: np.ndarray) -> None:
+    """``x += np.bincount(at, v, minlength=len(x))`` (x 1-D): in place at ``at`` where its
+    indices rise strictly (no two values meet), else through the bincount."""
+    if len(at) < 2 or bool(np.all(at[1:] > at[:-1])):
+        x[at] += v
+    else:
+        x += np.bincount(at, v, minlength=len(x))
+
+
 class _Banded:
     """A symmetric positive definite banded system (upper form, ``u`` off-diagonals) assembled
     from terms ``W (r + v . x)^2``; :meth:`solve_box` minimises ``x^T H x / 2 + g^T x`` within
@@ -553,17 +562,25 @@ class _Banded:
         self.g = np.zeros(N)
 
     def add(self, W, idx, V, r):
-        """Terms: weights W (T,), variable indices idx (T,k), coefficients V (T,k), residuals r (T,)."""
+        """Terms: weights W (T,), variable indices idx (T,k), coefficients V (T,k), residuals r (T,).
+        Each (a, b) pair of a term's variables is summed per element (np.bincount) and added;
+        where a pair's elements are distinct (as a rule: one term per point) the values are
+        added in place, the same sums (g and ab hold no -0: x + (0 + v) == x + v)."""
         W = np.broadcast_to(np.asarray(W, float), (len(idx),))
         k = idx.shape[1]
+        if not self.ab.flags.c_contiguous:
+            self.ab = np.ascontiguousarray(self.ab)
+        ab = self.ab.reshape(-1)                     # a view of ab
         for a in range(k):
-            self.g += np.bincount(idx[:, a], W * r * V[:, a], minlength=self.N)
+            _add_to(self.g, idx[:, a], W * r * V[:, a])
             for b in range(k):
                 i, j = idx[:, a], idx[:, b]
                 keep = i <= j
-                flat = (self.u + i[keep] - j[keep]) * self.N + j[keep]
-                self.ab += np.bincount(flat, (W * V[:, a] * V[:, b])[keep],
-                                       minlength=(self.u + 1) * self.N).reshape(self.u + 1, self.N)
+                if keep.all():
+                    _add_to(ab, (self.u + i - j) * self.N + j, W * V[:, a] * V[:, b])
+                elif keep.any():
+                    flat = (self.u + i[keep] - j[keep]) * self.N + j[keep]
+                    _add_to(ab, flat, (W * V[:, a] * V[:, b])[keep])
 
     def matvec(self, x):
         u, N, ab = self.u, self.N, self.ab

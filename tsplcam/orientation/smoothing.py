@@ -515,23 +515,34 @@ def theta_interval(rot: Rotary, phi, constraints, ref, m=None):
     return lo, hi
 
 
-def phi_interval(rot: Rotary, theta, constraints, ref):
+def _latitude_terms(rot: Rotary, constraints) -> list:
+    """What :func:`phi_interval` takes of each constraint ``(h, b)`` whatever the tilt:
+    ``h . meridian(phi) = A cos phi + B sin phi`` as its length hypot(A, B) and angle
+    arctan2(B, A), with ``h_z`` and ``b``."""
+    out = []
+    for h, b in constraints:
+        if rot.about == "X":
+            A_, B_ = -h[:, 1], h[:, 0]
+        else:
+            A_, B_ = h[:, 0], h[:, 1]
+        out.append((np.hypot(A_, B_), np.arctan2(B_, A_), h[:, 2], np.asarray(b, float)))
+    return out
+
+
+def phi_interval(rot: Rotary, theta, constraints, ref, terms=None):
     """Interval [lo, hi] of rotary values around ``ref`` (n,) where the tilt ``theta`` (n,)
-    keeps every constraint ``(h, b)``: a circle of latitude meets each half-space in an arc."""
+    keeps every constraint ``(h, b)``: a circle of latitude meets each half-space in an arc.
+    ``terms``: :func:`_latitude_terms` of the constraints when the caller has them."""
     theta = np.asarray(theta, float)
     n = len(theta)
     st, ct = np.sin(theta), np.cos(theta)
     lo = np.full(n, -np.inf)
     hi = np.full(n, np.inf)
-    for h, b in constraints:
-        if rot.about == "X":                       # h . meridian(phi) = A cos phi + B sin phi
-            A_, B_ = -h[:, 1], h[:, 0]
-        else:
-            A_, B_ = h[:, 0], h[:, 1]
-        rho = np.hypot(A_, B_) * np.abs(st)
-        beta = np.arctan2(B_, A_) + np.where(st < 0, np.pi, 0.0)
+    for hyp, ang, hz, b in (_latitude_terms(rot, constraints) if terms is None else terms):
+        rho = hyp * np.abs(st)
+        beta = ang + np.where(st < 0, np.pi, 0.0)
         beta = ref + (np.pi - np.mod(np.pi - (beta - ref), 2 * np.pi))
-        need = np.asarray(b, float) - h[:, 2] * ct
+        need = b - hz * ct
         with np.errstate(divide="ignore", invalid="ignore"):
             c = np.where(rho > 1e-12, need / np.where(rho > 1e-12, rho, 1.0), np.where(need <= 1e-12, -1.0, 2.0))
         half = np.where(c <= -1.0, np.inf, np.where(c >= 1.0, -1.0, np.arccos(np.clip(c, -1.0, 1.0))))
@@ -710,6 +721,7 @@ def smooth_joints(path, rot: Rotary, theta0, phi0, pref, normal, cost: Smoothing
     M = 0 if free_tilt is None else free_tilt.shape[1]
     bw_t = bw_p = None
     hold = (half / L) * np.sin(theta0) ** 2 + 1e-9 * half / L
+    lat = _latitude_terms(rot, constraints)        # the constraints' terms for phi_interval, once
 
     def arcs(ph, th, idx=None):
         cons = constraints if idx is None else [(h[idx], np.asarray(b)[idx]) for h, b in constraints]
@@ -723,12 +735,12 @@ def smooth_joints(path, rot: Rotary, theta0, phi0, pref, normal, cost: Smoothing
         for _ in range(alternations):
             # 1. rotary values: smooth where the tilt stays admissible, held where the tool
             # axis would turn with them (nothing near the pole)
-            plo, phi_hi = phi_interval(rot, th_c, constraints, ph_c)
+            plo, phi_hi = phi_interval(rot, th_c, constraints, ph_c, lat)
             # ... or at a little more tilt away from the preferred axis, which the tilt step
             # may then take (the rotary value held by a tilt on its bound can move)
             away = np.where(th_c >= rot.best_theta(pref, ph_c), 1.0, -1.0)
             th2 = np.clip(th_c + away * lean, rot.theta_lo, rot.theta_hi)
-            l2, h2 = phi_interval(rot, th2, constraints, ph_c)
+            l2, h2 = phi_interval(rot, th2, constraints, ph_c, lat)
             ok2 = (l2 <= ph_c) & (ph_c <= h2)
             plo, phi_hi = np.where(ok2, np.minimum(plo, l2), plo), np.where(ok2, np.maximum(phi_hi, h2), phi_hi)
             if rot.phi_limited:

@@ -9,7 +9,8 @@ from scipy.optimize import minimize
 
 from tsplcam.orientation.candidates import Limits, admissible, feed_directions
 from tsplcam.orientation.rotary import DEG, Rotary
-from tsplcam.orientation.smoothing import (MeridianGrid, SmoothingCost, _Banded, _quadratic, cone_halfspaces,
+from tsplcam.orientation.smoothing import (MeridianGrid, SmoothingCost, _Banded, _azimuth_window, _meridian_dots, _quadratic,
+                                           cone_halfspaces, meridian_grid,
                                            joint_transitions, phi_interval, theta_interval)
 
 
@@ -45,6 +46,48 @@ class AdmissibleArcs(unittest.TestCase):
         self.assertFalse((inside & ~ok).any())
         miss = ok & ~inside
         self.assertFalse(miss.any(), f"{int(miss.sum())} admissible samples outside")
+
+    def test_grid_dots_are_einsums_bits(self):
+        """The grid's dot products with the meridians are np.einsum's bit for bit (signed
+        zeros and tiny products included), and so the grid's arcs and tilts are the same
+        as with the meridians broadcast to (n, M, 3)."""
+        for about in ("X", "Y"):
+            rot = Rotary(about=about)
+            m = rot.meridian(2 * np.pi * np.arange(36) / 36)
+            V = np.concatenate([self.normal, [[0.0, -0.0, -1.0], [-0.0, 0.0, 1.0], [-0.0, -0.0, -0.0],
+                                              [1e-300, -1e-300, -0.0], [-1e-200, 1e-200, 2.0]]])
+            ref = np.einsum("nj,nkj->nk", V, np.broadcast_to(m, (len(V),) + m.shape))
+            self.assertEqual(_meridian_dots(V, m).tobytes(), ref.tobytes())
+            PH = np.broadcast_to(2 * np.pi * np.arange(36) / 36, (self.n, 36))
+            mb = np.broadcast_to(m, (self.n, 36, 3))
+            ref_t = rot.best_theta(self.normal[:, None, :], PH, mb)
+            a = theta_interval(rot, PH, self.cons, ref_t, mb)
+            b = theta_interval(rot, PH, self.cons, ref_t, m)
+            self.assertEqual(a[0].tobytes() + a[1].tobytes(), b[0].tobytes() + b[1].tobytes())
+            g = meridian_grid(rot, self.normal, self.normal, self.cons, 36)
+            self.assertEqual(g.pref.tobytes(), rot.best_theta(self.normal[:, None, :], PH, mb).tobytes())
+
+    def test_azimuth_window_walks_the_free_cells(self):
+        """The window through azimuth cells whose free tilt is at most the pose's: counted
+        cell by cell from the pose's nearest cell, each way (at most half a turn)."""
+        rng = np.random.default_rng(5)
+        for M in (36, 13):
+            n, d = 200, 2 * np.pi / M
+            A = np.where(rng.random((n, M)) < 0.6, 0.0, rng.random((n, M)))
+            A[rng.random((n, M)) < 0.05] = np.inf
+            az, tilt = rng.uniform(-7.0, 7.0, n), rng.random(n)
+            wl, wr = _azimuth_window(A, az, tilt, M)
+            for i in range(n):
+                f = np.mod(az[i], 2 * np.pi) / d
+                c, off = int(np.rint(f)) % M, (f - np.rint(f)) * d
+                ok = A[i] <= tilt[i] + 1e-12
+                if not ok[c]:
+                    self.assertEqual((wl[i], wr[i]), (0.0, 0.0))
+                    continue
+                runs = [next((j - 1 for j in range(1, M // 2 + 1) if not ok[(c + s * j) % M]), M // 2)
+                        for s in (-1, 1)]
+                self.assertAlmostEqual(wl[i], max(0.0, runs[0] * d + off), delta=1e-12)   # rad
+                self.assertAlmostEqual(wr[i], max(0.0, runs[1] * d - off), delta=1e-12)
 
     def test_rotary_interval_on_a_circle_of_latitude(self):
         # start from admissible poses; the arc around them must contain only admissible ones

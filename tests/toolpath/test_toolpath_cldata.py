@@ -69,6 +69,21 @@ class RoundTrip(unittest.TestCase):
         # the approach point lies 5 mm along the first axis
         np.testing.assert_allclose(cl.tip[0], p.tip[0] + 5.0 * p.axis[0], atol=1e-5)
 
+    def test_markers_only_where_things_change(self):
+        """A MOVE marker where the kind changes (the first point is a LINK after the approach),
+        a PATCH marker where the patch or line changes or follows a point without one."""
+        lines = self.text.splitlines()
+        p = self.path
+        kinds = np.asarray(p.move).copy()
+        kinds[0] = Move.LINK
+        moves = [s for s in lines if s.startswith("$$ MOVE/")]
+        self.assertEqual(len(moves), 3 + int(np.count_nonzero(kinds[1:] != kinds[:-1])))
+        ok = (p.patch >= 0) & (p.line >= 0)
+        prev = np.r_[False, ok[:-1]]
+        changed = np.r_[True, (p.patch[1:] != p.patch[:-1]) | (p.line[1:] != p.line[:-1])]
+        marks = [s for s in lines if s.startswith("$$ PATCH/")]
+        self.assertEqual(len(marks), int(np.count_nonzero(ok & (~prev | changed))))
+
     def test_deterministic_file(self):
         with tempfile.TemporaryDirectory() as d:
             a, b = os.path.join(d, "a.cl"), os.path.join(d, "b.cl")

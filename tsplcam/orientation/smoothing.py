@@ -110,12 +110,14 @@ def meridian_grid(rot: Rotary, pref, normal, constraints, M: int, pole_tilt: flo
     phis = 2 * np.pi * np.arange(M) / M
     PH = np.broadcast_to(phis, (n, M))
     # the meridians of the M rotary values, once (rot.meridian of PH computes the same
-    # elements n times over)
-    m = np.broadcast_to(rot.meridian(phis), (n, M, 3))
-    lo, hi = theta_interval(rot, PH, constraints, rot.best_theta(normal[:, None, :], PH, m), m)
+    # elements n times over); rot.best_theta's arctan2 of the dot products, taken by
+    # _meridian_dots
+    m = rot.meridian(phis)
+    normal, pref = np.asarray(normal, float), np.asarray(pref, float)
+    lo, hi = theta_interval(rot, PH, constraints, np.arctan2(_meridian_dots(normal, m), normal[:, 2:3]), m)
     lo = np.maximum(lo, rot.theta_lo)
     hi = np.minimum(hi, rot.theta_hi)
-    tp = rot.best_theta(pref[:, None, :], PH, m)
+    tp = np.arctan2(_meridian_dots(pref, m), pref[:, 2:3])
     th = np.clip(tp, lo, hi)
     if pole_tilt > 0:
         near = np.abs(th) < pole_tilt
@@ -418,19 +420,23 @@ def _tilt_table(A, az, M):
 
 def _azimuth_window(A, az, tilt, M):
     """How far (rad, left and right) the azimuth of a pose at ``tilt`` may turn from ``az``
-    through grid azimuths whose free tilt is at most ``tilt``."""
+    through grid azimuths whose free tilt is at most ``tilt``. The cells beside each point's
+    are read as windows of the row twice over (views, no index arrays)."""
     n = len(az)
     d = 2 * np.pi / M
     f = np.mod(az, 2 * np.pi) / d
-    c = np.rint(f).astype(int) % M
-    off = (f - np.rint(f)) * d                      # az minus the centre of cell c
+    rf = np.rint(f)
+    c = rf.astype(int) % M
+    off = (f - rf) * d                              # az minus the centre of cell c
     ok = A <= tilt[:, None] + 1e-12
-    j = np.arange(1, M // 2 + 1)
-    right = np.take_along_axis(ok, (c[:, None] + j[None, :]) % M, 1)
-    left = np.take_along_axis(ok, (c[:, None] - j[None, :]) % M, 1)
-    run_r = np.where(right.all(1), M // 2, np.argmin(right, 1))
-    run_l = np.where(left.all(1), M // 2, np.argmin(left, 1))
-    here = ok[np.arange(n), c]
+    h = M // 2
+    windows = np.lib.stride_tricks.sliding_window_view(np.concatenate([ok, ok], axis=1), h, axis=1)
+    rows = np.arange(n)
+    right = windows[rows, c + 1]                    # cells c + 1 .. c + h
+    left = windows[rows, c + M - h][:, ::-1]        # cells c - 1 .. c - h
+    run_r = np.where(right.all(1), h, np.argmin(right, 1))
+    run_l = np.where(left.all(1), h, np.argmin(left, 1))
+    here = ok[rows, c]
     return (np.where(here, np.maximum(0.0, run_l * d + off), 0.0),
             np.where(here, np.maximum(0.0, run_r * d - off), 0.0))
 
@@ -449,12 +455,26 @@ def cone_halfspaces(normal, feed, lead_max: float, tilt_max: float):
 _HALF_PI = float(np.arccos(np.clip(np.zeros(1), -1.0, 1.0))[0])    # arccos(+0), as theta_interval takes it
 
 
+def _meridian_dots(V: np.ndarray, m: np.ndarray) -> np.ndarray:
+    """``V . m`` (n, M) of vectors V (n, 3) and horizontal meridians m (M, 3): the bits of
+    ``np.einsum("nj,nkj->nk", V, m broadcast to (n, M, 3))`` in half its time. einsum sums
+    the three products in order onto +0; m's z is 0, so its product (+-0) changes a sum only
+    where the sum is zero, and adding +0.0 gives einsum's +0 there."""
+    if m[:, 2].any():
+        return np.einsum("nj,nkj->nk", V, np.broadcast_to(m, (len(V),) + m.shape))
+    r = V[:, 0, None] * m[:, 0]
+    r += V[:, 1, None] * m[:, 1]
+    r += 0.0
+    return r
+
+
 def theta_interval(rot: Rotary, phi, constraints, ref, m=None):
     """Interval [lo, hi] of signed tilt on the meridian at rotary ``phi`` ((n,) or (n, M))
     where every constraint ``(h (n,3), b (n,))``, ``h . a >= b``, holds; arcs are taken on
     the branch nearest ``ref`` (shaped like phi; a point known or expected inside, e.g. the
     normal's tilt on that meridian). Empty where lo > hi. ``m``: ``rot.meridian(phi)`` when
-    the caller has it."""
+    the caller has it, or on a grid (n, M) whose rows share the rotary values, the (M, 3)
+    meridians of one row."""
     phi = np.asarray(phi, float)
     m = rot.meridian(phi) if m is None else m
     grid = phi.ndim == 2
@@ -462,7 +482,12 @@ def theta_interval(rot: Rotary, phi, constraints, ref, m=None):
     hi = np.full(phi.shape, np.inf)
     for h, b in constraints:
         hz = h[:, 2][:, None] if grid else h[:, 2]
-        hm = np.einsum("nj,nkj->nk", h, m) if grid else np.einsum("ij,ij->i", h, m)
+        if not grid:
+            hm = np.einsum("ij,ij->i", h, m)
+        elif m.ndim == 2:
+            hm = _meridian_dots(h, m)
+        else:
+            hm = np.einsum("nj,nkj->nk", h, m)
         bb = np.asarray(b, float)[:, None] if grid else np.asarray(b, float)
         al = np.arctan2(hm, hz)
         al = ref + (np.pi - np.mod(np.pi - (al - ref), 2 * np.pi))          # nearest ref
@@ -490,23 +515,34 @@ def theta_interval(rot: Rotary, phi, constraints, ref, m=None):
     return lo, hi
 
 
-def phi_interval(rot: Rotary, theta, constraints, ref):
+def _latitude_terms(rot: Rotary, constraints) -> list:
+    """What :func:`phi_interval` takes of each constraint ``(h, b)`` whatever the tilt:
+    ``h . meridian(phi) = A cos phi + B sin phi`` as its length hypot(A, B) and angle
+    arctan2(B, A), with ``h_z`` and ``b``."""
+    out = []
+    for h, b in constraints:
+        if rot.about == "X":
+            A_, B_ = -h[:, 1], h[:, 0]
+        else:
+            A_, B_ = h[:, 0], h[:, 1]
+        out.append((np.hypot(A_, B_), np.arctan2(B_, A_), h[:, 2], np.asarray(b, float)))
+    return out
+
+
+def phi_interval(rot: Rotary, theta, constraints, ref, terms=None):
     """Interval [lo, hi] of rotary values around ``ref`` (n,) where the tilt ``theta`` (n,)
-    keeps every constraint ``(h, b)``: a circle of latitude meets each half-space in an arc."""
+    keeps every constraint ``(h, b)``: a circle of latitude meets each half-space in an arc.
+    ``terms``: :func:`_latitude_terms` of the constraints when the caller has them."""
     theta = np.asarray(theta, float)
     n = len(theta)
     st, ct = np.sin(theta), np.cos(theta)
     lo = np.full(n, -np.inf)
     hi = np.full(n, np.inf)
-    for h, b in constraints:
-        if rot.about == "X":                       # h . meridian(phi) = A cos phi + B sin phi
-            A_, B_ = -h[:, 1], h[:, 0]
-        else:
-            A_, B_ = h[:, 0], h[:, 1]
-        rho = np.hypot(A_, B_) * np.abs(st)
-        beta = np.arctan2(B_, A_) + np.where(st < 0, np.pi, 0.0)
+    for hyp, ang, hz, b in (_latitude_terms(rot, constraints) if terms is None else terms):
+        rho = hyp * np.abs(st)
+        beta = ang + np.where(st < 0, np.pi, 0.0)
         beta = ref + (np.pi - np.mod(np.pi - (beta - ref), 2 * np.pi))
-        need = np.asarray(b, float) - h[:, 2] * ct
+        need = b - hz * ct
         with np.errstate(divide="ignore", invalid="ignore"):
             c = np.where(rho > 1e-12, need / np.where(rho > 1e-12, rho, 1.0), np.where(need <= 1e-12, -1.0, 2.0))
         half = np.where(c <= -1.0, np.inf, np.where(c >= 1.0, -1.0, np.arccos(np.clip(c, -1.0, 1.0))))
@@ -516,6 +552,15 @@ def phi_interval(rot: Rotary, theta, constraints, ref):
 
 
 # --- the continuous smoothing ------------------------------------------------------------------
+
+def _add_to(x: np.ndarray, at: np.ndarray, v: np.ndarray) -> None:
+    """``x += np.bincount(at, v, minlength=len(x))`` (x 1-D): in place at ``at`` where its
+    indices rise strictly (no two values meet), else through the bincount."""
+    if len(at) < 2 or bool(np.all(at[1:] > at[:-1])):
+        x[at] += v
+    else:
+        x += np.bincount(at, v, minlength=len(x))
+
 
 class _Banded:
     """A symmetric positive definite banded system (upper form, ``u`` off-diagonals) assembled
@@ -528,17 +573,25 @@ class _Banded:
         self.g = np.zeros(N)
 
     def add(self, W, idx, V, r):
-        """Terms: weights W (T,), variable indices idx (T,k), coefficients V (T,k), residuals r (T,)."""
+        """Terms: weights W (T,), variable indices idx (T,k), coefficients V (T,k), residuals r (T,).
+        Each (a, b) pair of a term's variables is summed per element (np.bincount) and added;
+        where a pair's elements are distinct (as a rule: one term per point) the values are
+        added in place, the same sums (g and ab hold no -0: x + (0 + v) == x + v)."""
         W = np.broadcast_to(np.asarray(W, float), (len(idx),))
         k = idx.shape[1]
+        if not self.ab.flags.c_contiguous:
+            self.ab = np.ascontiguousarray(self.ab)
+        ab = self.ab.reshape(-1)                     # a view of ab
         for a in range(k):
-            self.g += np.bincount(idx[:, a], W * r * V[:, a], minlength=self.N)
+            _add_to(self.g, idx[:, a], W * r * V[:, a])
             for b in range(k):
                 i, j = idx[:, a], idx[:, b]
                 keep = i <= j
-                flat = (self.u + i[keep] - j[keep]) * self.N + j[keep]
-                self.ab += np.bincount(flat, (W * V[:, a] * V[:, b])[keep],
-                                       minlength=(self.u + 1) * self.N).reshape(self.u + 1, self.N)
+                if keep.all():
+                    _add_to(ab, (self.u + i - j) * self.N + j, W * V[:, a] * V[:, b])
+                elif keep.any():
+                    flat = (self.u + i[keep] - j[keep]) * self.N + j[keep]
+                    _add_to(ab, flat, (W * V[:, a] * V[:, b])[keep])
 
     def matvec(self, x):
         u, N, ab = self.u, self.N, self.ab
@@ -668,6 +721,7 @@ def smooth_joints(path, rot: Rotary, theta0, phi0, pref, normal, cost: Smoothing
     M = 0 if free_tilt is None else free_tilt.shape[1]
     bw_t = bw_p = None
     hold = (half / L) * np.sin(theta0) ** 2 + 1e-9 * half / L
+    lat = _latitude_terms(rot, constraints)        # the constraints' terms for phi_interval, once
 
     def arcs(ph, th, idx=None):
         cons = constraints if idx is None else [(h[idx], np.asarray(b)[idx]) for h, b in constraints]
@@ -681,12 +735,12 @@ def smooth_joints(path, rot: Rotary, theta0, phi0, pref, normal, cost: Smoothing
         for _ in range(alternations):
             # 1. rotary values: smooth where the tilt stays admissible, held where the tool
             # axis would turn with them (nothing near the pole)
-            plo, phi_hi = phi_interval(rot, th_c, constraints, ph_c)
+            plo, phi_hi = phi_interval(rot, th_c, constraints, ph_c, lat)
             # ... or at a little more tilt away from the preferred axis, which the tilt step
             # may then take (the rotary value held by a tilt on its bound can move)
             away = np.where(th_c >= rot.best_theta(pref, ph_c), 1.0, -1.0)
             th2 = np.clip(th_c + away * lean, rot.theta_lo, rot.theta_hi)
-            l2, h2 = phi_interval(rot, th2, constraints, ph_c)
+            l2, h2 = phi_interval(rot, th2, constraints, ph_c, lat)
             ok2 = (l2 <= ph_c) & (ph_c <= h2)
             plo, phi_hi = np.where(ok2, np.minimum(plo, l2), plo), np.where(ok2, np.maximum(phi_hi, h2), phi_hi)
             if rot.phi_limited:
@@ -813,11 +867,17 @@ def forced_rotary_travel(grid: MeridianGrid, status, ds, air=None):
     node = np.where(grid.ok & (np.asarray(status) != 2), 0.0, np.inf)
     short = (np.asarray(ds) < IN_PLACE[0]) & ~air[1:]
 
+    plain: dict = {}             # blocks without a short block: the same array each time
+
     def block(i0: int, i1: int) -> np.ndarray:
-        t = np.broadcast_to(D, (i1 - i0, M, M)).copy()
         s = short[i0 - 1:i1 - 1]
-        if s.any():
-            np.copyto(t, np.inf, where=s[:, None, None] & swing[None])
+        if not s.any():
+            t = plain.get(i1 - i0)
+            if t is None:
+                t = plain[i1 - i0] = np.broadcast_to(D, (i1 - i0, M, M)).copy()
+            return t
+        t = np.broadcast_to(D, (i1 - i0, M, M)).copy()
+        np.copyto(t, np.inf, where=s[:, None, None] & swing[None])
         return t
     states, _ = viterbi(node, from_blocks(block))
     if states is None:

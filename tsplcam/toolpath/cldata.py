@@ -13,6 +13,7 @@ import numpy as np
 
 from .. import __version__
 from ..errors import InputError
+from ..numtext import fmt_col
 from .path import Move, ToolPath
 
 FORMAT_VERSION = 1
@@ -25,25 +26,20 @@ _KIND_NAMES = {Move.CUT: "CUT", Move.LINK: "LINK", Move.RETRACT: "RETRACT", Move
 _NAME_KINDS = {v: k for k, v in _KIND_NAMES.items()}
 
 
-# a minus sign before a number that prints as zero ("-0.00000"), at a field's start
-_NEGATIVE_ZERO = re.compile(r"(?<=[/,])-(?=0\.0+(?:,|$))")
-
-
 def _num(v: float, decimals: int) -> str:
     s = f"{v:.{decimals}f}"
     return s[1:] if s.startswith("-") and float(s) == 0.0 else s
 
 
-def _gotos(tip: np.ndarray, axis: np.ndarray) -> list[list[str]]:
-    """The GOTO records (wrapped lines) of tips and axes: one format per row, numbers as
-    :func:`_num` writes them (a minus before a number that prints as zero dropped)."""
-    template = "GOTO/" + ",".join([f"%.{XYZ_DECIMALS}f"] * 3 + [f"%.{IJK_DECIMALS}f"] * 3)
-    out = []
-    for row in np.column_stack([tip, axis]).tolist():
-        text = template % tuple(row)
-        if "-0." in text:
-            text = _NEGATIVE_ZERO.sub("", text)
-        out.append(_wrap(text))
+def _gotos(tip: np.ndarray, axis: np.ndarray) -> list[str]:
+    """The GOTO records of tips and axes, each as its lines (wrapped at COLUMNS) joined by
+    newlines; numbers as :func:`_num` writes them, formatted a column at a time."""
+    cols = [fmt_col(tip[:, c], XYZ_DECIMALS) for c in range(3)] + \
+           [fmt_col(axis[:, c], IJK_DECIMALS) for c in range(3)]
+    out = [f"GOTO/{x},{y},{z},{i},{j},{k}" for x, y, z, i, j, k in zip(*cols)]
+    for n, text in enumerate(out):
+        if len(text) > COLUMNS:
+            out[n] = "\n".join(_wrap(text))
     return out
 
 
@@ -102,27 +98,31 @@ def cl_text(path: ToolPath, partno: str | None = None, approach: float = 5.0,
     gotos = _gotos(tip, axis)
     fed = f"FEDRAT/MMPM,{_num(float(path.feed), 4)}"
     if approach and approach > 0:
-        lines += ["$$ MOVE/APPROACH", "RAPID", *_gotos(tip[:1] + approach * axis[:1], axis[:1])[0]]
+        lines += ["$$ MOVE/APPROACH", "RAPID", _gotos(tip[:1] + approach * axis[:1], axis[:1])[0]]
     lines.append(fed)
-    kind = None
-    mark = (None, None)
-    move = np.asarray(path.move)
-    for i in range(n):
-        k = int(move[i]) if i > 0 else int(Move.LINK if approach and approach > 0 else move[0])
-        if k != kind:
-            lines.append(f"$$ MOVE/{_KIND_NAMES.get(k, str(k))}")
-            kind = k
-        pl = (int(path.patch[i]), int(path.line[i]))
-        if pl != mark and pl[0] >= 0 and pl[1] >= 0:
-            lines.append(f"$$ PATCH/{pl[0]},LINE/{pl[1]}")
-            mark = pl
-        elif pl[0] < 0 or pl[1] < 0:
-            mark = (None, None)
-        if k == Move.RAPID:
-            lines.append("RAPID")
-        lines += gotos[i]
+    # the markers before each point: its move kind where it changes, its patch and line where
+    # they change (or follow a point with none), RAPID before a rapid move
+    move = np.array(path.move, dtype=np.int64)
     if approach and approach > 0:
-        lines += ["$$ MOVE/RETREAT", *_gotos(tip[-1:] + approach * axis[-1:], axis[-1:])[0]]
+        move[0] = int(Move.LINK)
+    patch, line = np.asarray(path.patch, np.int64), np.asarray(path.line, np.int64)
+    valid = (patch >= 0) & (line >= 0)
+    new_kind = np.ones(n, bool)
+    new_kind[1:] = move[1:] != move[:-1]
+    new_mark = valid.copy()
+    new_mark[1:] &= ~valid[:-1] | (patch[1:] != patch[:-1]) | (line[1:] != line[:-1])
+    rapid = move == int(Move.RAPID)
+    for i in np.flatnonzero(new_kind | new_mark | rapid).tolist():
+        k = int(move[i])
+        head = [f"$$ MOVE/{_KIND_NAMES.get(k, str(k))}"] if new_kind[i] else []
+        if new_mark[i]:
+            head.append(f"$$ PATCH/{int(patch[i])},LINE/{int(line[i])}")
+        if rapid[i]:
+            head.append("RAPID")
+        gotos[i] = "\n".join(head + [gotos[i]])
+    lines += gotos
+    if approach and approach > 0:
+        lines += ["$$ MOVE/RETREAT", _gotos(tip[-1:] + approach * axis[-1:], axis[-1:])[0]]
     lines.append("FINI")
     return "\n".join(lines) + "\n"
 

@@ -16,6 +16,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ...errors import InputError
+from ...numtext import fmt_col  # noqa: F401 (the writers' column formatter, shared with the CL data)
 
 NAMES = ("heidenhain", "sinumerik", "fanuc", "linuxcnc")
 # the file name extension each control expects for a program
@@ -90,18 +91,6 @@ def fmt(value: float, decimals: int, plus: bool = False) -> str:
     if plus and not s.startswith("-"):
         s = "+" + s
     return s
-
-
-def fmt_col(values, decimals: int, plus: bool = False) -> list:
-    """:func:`fmt` over an array (the hot loop of every writer), in one pass."""
-    f = f"{{:.{decimals}f}}".format
-    negzero = "-" + f(0.0)
-    zero = negzero[1:]
-    texts = map(f, np.asarray(values, float).tolist())
-    if plus:
-        signed = "+" + zero
-        return [signed if t == negzero else t if t[0] == "-" else "+" + t for t in texts]
-    return [zero if t == negzero else t for t in texts]
 
 
 def fmt_feed(value: float, decimals: int = 3) -> str:

@@ -857,8 +857,8 @@ class _Exported:
 
 def _aot():
     """The ahead-of-time module's kernels (:class:`_Exported`), or None: not built, not
-    importable, or built from another source or for another processor (:func:`build_key`). Importing it loads
-    neither numba nor LLVM."""
+    importable, or built from another source or for another processor (:func:`build_key`).
+    Importing it loads neither numba nor LLVM."""
     if "aot" not in _STATE:
         _STATE["aot"] = None
         try:

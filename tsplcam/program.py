@@ -265,17 +265,45 @@ def make_program(path, model, settings: JobSettings, stock=None, progress=None, 
     return program
 
 
+class _Metrics:
+    """The orientation's metrics with their smallest clearance measured in a forked process
+    (``aside``, an :class:`~tsplcam.orientation.aside.Aside`): :meth:`result` measures the rest
+    here (``measure``: :func:`~tsplcam.verify.orientation.orientation_metrics` of the path)
+    and takes the clearance from the fork; errors come as in one process (collisions,
+    clearance, joints). A context manager like the Aside it holds."""
+
+    def __init__(self, measure, aside):
+        self.measure, self.aside = measure, aside
+        self._value = None
+
+    def result(self):
+        if self._value is None:
+            self._value = self.measure(measured=self.aside.result)
+        return self._value
+
+    def first(self) -> None:
+        """Raise the metrics' error, if they have one (the post failed: one process would
+        have measured the axes first)."""
+        self.result()
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.aside.__exit__(*exc)
+
+
 def _orient(path, model, settings: JobSettings, tool, machine, stock, progress, plist=None,
             checker=None, beside: bool = False):
     """Tool axes by the orientation settings (and a processing list's per-step blocks),
     checked again with the same collision checker: (Program, None), or with ``beside`` and
-    more than one process (Program without its metrics, an :class:`~tsplcam.orientation.aside.Aside`
-    measuring them in a forked process while the caller posts the program)."""
+    more than one process (Program without its metrics, a :class:`_Metrics` whose smallest
+    clearance is measured in a forked process while the caller posts the program)."""
     from .orientation import orient
     from .orientation.aside import MIN_POINTS, Aside
     from .orientation.controls import step_settings
     from .progress import for_stage
-    from .verify.orientation import orientation_metrics
+    from .verify.orientation import min_clearance, orientation_metrics
     base = settings.orientation_settings()
     per_patch = None
     if plist is not None:
@@ -291,10 +319,15 @@ def _orient(path, model, settings: JobSettings, tool, machine, stock, progress, 
     # orient refused the path if the ball gouged anywhere (its centres do not move with the
     # axes): no gouge to count again
     measure = functools.partial(orientation_metrics, oriented, checker, machine, gouges=0)
-    pending = Aside(measure, beside=len(oriented) >= MIN_POINTS) if beside else None
-    if pending is not None and pending.forked:
-        return Program(oriented, report, None, checker=checker), pending
-    metrics = pending.result() if pending is not None else measure()
+    if beside and len(oriented) >= MIN_POINTS and Aside.can_fork():
+        # the smallest clearance (most of the metrics' time) in a forked process; the rest
+        # here, after the post
+        aside = Aside(min_clearance, checker, oriented.center, oriented.axis)
+        if aside.forked:
+            return Program(oriented, report, None, checker=checker), _Metrics(measure, aside)
+        metrics = measure(measured=aside.result)
+    else:
+        metrics = measure()
     tick(progress, "checking axes", 1, 1)
     return Program(oriented, report, metrics, checker=checker), None
 

@@ -99,6 +99,20 @@ class ProgramBeside(unittest.TestCase):
             with self.assertRaisesRegex(ValueError, "the metrics failed"):
                 self.program("2")
 
+    def test_clearance_error_before_the_post_and_joints(self):
+        """The smallest clearance is measured in the fork; its error comes before the post's
+        and the joints' (one process measures the clearance before them)."""
+        if not FORK:
+            self.skipTest("no forked workers here")
+
+        def fails(*a, **k):
+            raise ValueError(f"the {k.get('what', 'clearance')} failed")
+        with mock.patch("tsplcam.verify.orientation.min_clearance", fails), \
+                mock.patch("tsplcam.verify.orientation._motion_metrics", lambda *a: fails(what="joints")), \
+                mock.patch("tsplcam.post.post_program", lambda *a, **k: fails(what="post")):
+            with self.assertRaisesRegex(ValueError, "the clearance failed"):
+                self.program("2")
+
 
 if __name__ == "__main__":
     unittest.main()

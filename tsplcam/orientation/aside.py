@@ -43,9 +43,7 @@ class Aside:
         self.fn, self.args = fn, args
         self._proc = self._conn = None
         self._done, self._value = False, None
-        # (a daemonic process, e.g. a pool's worker, may not have children)
-        self.forked = (bool(beside) and worker_count(None, 2) > 1
-                       and not multiprocessing.current_process().daemon)
+        self.forked = bool(beside) and self.can_fork()
         if self.forked:
             ctx = multiprocessing.get_context("fork")
             recv, send = ctx.Pipe(duplex=False)
@@ -59,6 +57,12 @@ class Aside:
             self._conn = recv if self.forked else None
         if not self.forked:
             self._value, self._done = fn(*args), True
+
+    @staticmethod
+    def can_fork() -> bool:
+        """Whether an Aside would fork now (more than one process allowed; a daemonic
+        process, e.g. a pool's worker, may not have children)."""
+        return worker_count(None, 2) > 1 and not multiprocessing.current_process().daemon
 
     def result(self):
         """``fn(*args)``: the forked process's value, or ``fn`` run here when it failed there

@@ -401,22 +401,44 @@ def _simple_ac(axis):
 
 
 def orientation_metrics(path: ToolPath, checker=None, machine=None, v_rotary=(5400.0, 9000.0),
-                        clearance: bool = True, gouges: int | None = None) -> OrientationMetrics:
+                        clearance: bool = True, gouges: int | None = None,
+                        measured=None) -> OrientationMetrics:
     """Metrics of ``path`` (its axes). ``checker``: the CollisionChecker the path was oriented
     with (None skips collisions and clearance); ``machine``: a tsplcam.post Machine (or name)
     for joints and time; ``v_rotary``: (A, C) deg/min of the simple model; ``gouges``: the
     ball gouges where the caller counted them with this checker already (they depend on the
-    ball centres alone, not on the axes: ``orient`` refuses a path with any)."""
+    ball centres alone, not on the axes: ``orient`` refuses a path with any);
+    ``measured``: a callable giving :func:`min_clearance` of the path's poses measured
+    elsewhere (the job's forked process), asked after the joints and time, which it overlaps;
+    errors come in the order of the measurements here (collisions, clearance, joints)."""
     n = len(path)
     K = path.axis
     collisions = 0
     gouges = 0 if checker is None else gouges
     clr, clr_at = float("nan"), -1
+    clear = checker is not None and clearance
     if checker is not None:
         collisions = int(checker.collides_exact(path.center, K).sum())
         gouges = int(checker.ball_gouges(path.center).sum()) if gouges is None else int(gouges)
-        if clearance:
+        if clear and measured is None:
             clr, clr_at = min_clearance(checker, path.center, K)
+    if clear and measured is not None:
+        try:
+            out = _motion_metrics(path, machine, v_rotary)
+        except Exception:
+            measured()                   # the clearance's error, if any, comes first
+            raise
+        clr, clr_at = measured()
+    else:
+        out = _motion_metrics(path, machine, v_rotary)
+    return OrientationMetrics(points=n, collisions=collisions, gouges=gouges, min_clearance=clr,
+                              min_clearance_point=clr_at, **out)
+
+
+def _motion_metrics(path: ToolPath, machine, v_rotary) -> dict:
+    """The axes' steps, travels, time and speeds of :func:`orientation_metrics` (the fields of
+    :class:`OrientationMetrics` after the collisions and the clearance)."""
+    K = path.axis
     step = _angle(K[1:], K[:-1]) / DEG
     cut = path.move[1:] == Move.CUT
     ds = np.linalg.norm(np.diff(path.contact, axis=0), axis=1)
@@ -459,8 +481,7 @@ def orientation_metrics(path: ToolPath, checker=None, machine=None, v_rotary=(54
         lin = float(np.abs(np.diff(tip, axis=0)).sum(axis=0).mean() / time_s * 60.0) if time_s > 0 else 0.0
         rot = float((At + Ct) / 2 / time_s * 60.0) if time_s > 0 else 0.0
         name = "simple A/C model"
-    return OrientationMetrics(
-        points=n, collisions=collisions, gouges=gouges, min_clearance=clr, min_clearance_point=clr_at,
+    return dict(
         max_step_deg=float(sc.max()) if len(sc) else 0.0, mean_step_deg=float(sc.mean()) if len(sc) else 0.0,
         total_variation_deg=float(step.sum()), max_step_per_mm=float(per_mm.max()) if len(per_mm) else 0.0,
         rotary_travel_deg=float(At + Ct), tilt_travel_deg=float(At), c_travel_deg=float(Ct),

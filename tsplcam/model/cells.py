@@ -46,13 +46,16 @@ _DS = np.array([ds for ds, _ in DERIVS])
 _STACKED_POINTS = 256
 
 
-def bicubic_nets(X: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+def bicubic_nets(X: np.ndarray, a: np.ndarray, b: np.ndarray, B: np.ndarray | None = None) -> np.ndarray:
     """Bicubic Bezier pieces, one per point: nets X (n, C, 4 [j along b], 4 [i along a]) at
     (a, b) -> the six derivatives (6, C, n). Two batched 4 x 4 products per point (along a
     for all three orders, then along b), whatever the pieces: for points spread over many
-    small pieces (sub-cells next to extraordinary points), where runs of one piece are short."""
+    small pieces (sub-cells next to extraordinary points), where runs of one piece are short.
+    ``B``: ``bernstein_rows(3, [a, b])`` when the caller made it (a view of a wider array
+    does: the products' operands are strided either way, the same loop, the same sums)."""
     n = len(a)
-    B = bernstein_rows(3, np.concatenate([a, b]))           # (3 [order], 4, 2n)
+    if B is None:
+        B = bernstein_rows(3, np.concatenate([a, b]))       # (3 [order], 4, 2n)
     bs = B[:, :, :n].transpose(2, 1, 0)[:, None]            # (n, 1, 4 [i], 3 [order in a])
     bt = B[:, :, n:].transpose(2, 0, 1)[:, None]            # (n, 1, 3 [order in b], 4 [j])
     R = np.matmul(bt, np.matmul(X, bs))                     # (n, C, 3 [b], 3 [a])
@@ -104,14 +107,21 @@ class BezierCells:
     def __len__(self) -> int:
         return len(self.ctrl)
 
-    def evaluate(self, idx: np.ndarray, a: np.ndarray, b: np.ndarray):
+    def evaluate(self, idx: np.ndarray, a: np.ndarray, b: np.ndarray, out: np.ndarray | None = None,
+                 bases=None):
         """The contraction along a is one BLAS product per run of equal cell index and
         derivative order; the one along b a short sum over contiguous rows, for all runs and
         derivatives at once (the same products and sums, in the same order, as run by run:
-        the same values, with a few array calls per run instead of some fifty)."""
+        the same values, with a few array calls per run instead of some fifty).
+
+        ``out``: a (6, 4, n) view to write into (a block of the patch's array); ``bases``:
+        (bernstein_rows(p, a), bernstein_rows(q, b)) when the caller made them together with
+        other points' (the values are point by point)."""
         n = len(a)
         q1, nc = self.q + 1, self.nc
-        if self.p == self.q:                            # one call for both (values point by point)
+        if bases is not None:
+            bs, bt = bases
+        elif self.p == self.q:                          # one call for both (values point by point)
             B = bernstein_rows(self.p, np.concatenate([a, b]))
             bs, bt = B[:, :, :n], B[:, :, n:]           # (3, p+1, n), (3, q+1, n)
         else:
@@ -127,7 +137,8 @@ class BezierCells:
         for s0, e0 in zip(starts, ends):
             np.matmul(self._cj[idx[s0]], bs[:, :, s0:e0], out=T[:, :, s0:e0])
         T = T.reshape(3, q1, nc, n)
-        out = np.empty((6, 4, n))
+        if out is None:
+            out = np.empty((6, 4, n))
         if nc == 3:
             out[0, 3] = 1.0
             out[1:, 3] = 0.0
@@ -380,10 +391,17 @@ class LevelCells:
             H[0][:, at_vertex] = self.limit[idx[at_vertex]].T
         return H, at_vertex, level
 
-    def _evaluate_nets(self, idx, a, b):
+    def _evaluate_nets(self, idx, a, b, out=None, B=None):
         """As ``_evaluate`` from the cached nets (``_cache_nets``); ``deep`` marks the points
-        below level NET_LEVELS, which it leaves unset. Both parameters as one (2, n) array:
-        half the array calls (batches are often a hundred points)."""
+        below level NET_LEVELS, which it leaves unset. ``out``, ``B``: as for
+        :meth:`_net_values`."""
+        return self._net_values(idx, self._net_params(idx, a, b), out, B)
+
+    def _net_params(self, idx, a, b):
+        """The first half of :meth:`_evaluate_nets`: where the points fall among the cached
+        nets, (E, key, scale, at_vertex, deep) with E (2, n) the sub-cells' own (a, b). Both
+        parameters as one (2, n) array: half the array calls (batches are often a hundred
+        points)."""
         n = len(a)
         corner = self._corner[:, idx]                   # (2, n)
         E = np.empty((2, n))
@@ -412,16 +430,38 @@ class LevelCells:
         E -= corner                                     # the sub-cell's own (a, b): |corner - E|
         np.abs(E, out=E)
         key = (idx * self.NET_LEVELS + np.minimum(level, self.NET_LEVELS) - 1) * 3 + pq[0] + 2 * pq[1] - 1
-        H = scale_derivatives(bicubic_nets(self.nets[key], E[0], E[1]), scale, scale)
+        return E, key, scale, at_vertex, deep
+
+    def _net_values(self, idx, params, out=None, B=None):
+        """The second half of :meth:`_evaluate_nets`: (H, at_vertex, deep) from the
+        parameters of :meth:`_net_params`. ``out``: a (6, 4, n) view to write H into;
+        ``B``: ``bernstein_rows(3, [E[0], E[1]])`` made by the caller (with other points')."""
+        E, key, scale, at_vertex, deep = params
+        R = bicubic_nets(self.nets[key], E[0], E[1], B)
+        if out is None:
+            H = R
+        else:
+            out[...] = R
+            H = out
+        scale_derivatives(H, scale, scale)
         H[0] += self.limit[idx].T
         if at_vertex.any():
             H[:, :, at_vertex] = self._vertex[:, :, idx[at_vertex]]
         return H, at_vertex, deep
 
-    def evaluate(self, idx: np.ndarray, a: np.ndarray, b: np.ndarray):
+    def evaluate(self, idx: np.ndarray, a: np.ndarray, b: np.ndarray, out=None):
         """From the cached nets; the few points below level NET_LEVELS through the
-        configuration of their level."""
-        H, at_vertex, deep = self._evaluate_nets(idx, a, b)
+        configuration of their level. ``out``: a (6, 4, n) view to write into."""
+        return self.finish(self.prepare(idx, a, b), out)
+
+    def prepare(self, idx, a, b):
+        """:meth:`evaluate` in two halves, so that a patch makes the Bernstein values of the
+        sub-cells' parameters together with its Bezier cells' (``finish`` takes them)."""
+        return idx, a, b, LevelCells._net_params(self, idx, a, b)
+
+    def finish(self, prepared, out=None, B=None):
+        idx, a, b, params = prepared
+        H, at_vertex, deep = LevelCells._net_values(self, idx, params, out, B)
         if deep.any():
             H[:, :, deep] = self._evaluate(idx[deep], a[deep], b[deep])[0]
         return H, at_vertex, self._ep_normal(idx, at_vertex)

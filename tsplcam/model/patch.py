@@ -21,7 +21,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import InputError
-from .basis import bernstein
+from .basis import bernstein, bernstein_rows
 from .cells import SQUARE_MAPS, BezierCells, LevelCells
 from .diffgeom import SurfacePoints, rational_from_homogeneous
 
@@ -300,13 +300,20 @@ class Patch:
     def _evaluate_h(self, u, v):
         """Homogeneous derivatives (6, 4, m) of the points sorted by cell, the sorting order
         (None when they come sorted), and (rows in sorted order, exact normals) of points at
-        irregular vertices."""
+        irregular vertices.
+
+        With several groups the points are sorted by group call first (``_sort_keys``), then
+        by cell: each call's points are one block, which it writes in place, and every group
+        sees its points in the same order as sorted by cell alone (the same runs, the same
+        values). A Bezier group of cubic cells and the extraordinary cells' nets (the common
+        patch) share one Bernstein evaluation (``_bezier_and_nets``)."""
         nu, nv = self.shape
         # a point on a cell break (or rounded off it) goes to either cell: the surface is
         # continuous there, both give the same point up to rounding
         iu = _clip(np.searchsorted(self.ubreaks, u, side="right") - 1, 0, nu - 1)
         iv = _clip(np.searchsorted(self.vbreaks, v, side="right") - 1, 0, nv - 1)
-        key = iu * nv + iv
+        single = len(self.groups) == 1
+        key = iu * nv + iv if single else self._sort_keys()[iu, iv]
         if len(key) < 2 or bool(np.all(key[1:] >= key[:-1])):
             order = None                                   # sorted already: the stable order
         else:
@@ -319,33 +326,43 @@ class Patch:
         local = self.cell_local[iu, iv]
         H = np.empty((6, 4, len(u)))
         ep = None
-        if len(self.groups) == 1:
+        if single:
             H[:], at_vertex, ep_normal = self.groups[0].evaluate(local, a, b)
             if at_vertex is not None and at_vertex.any():
                 ep = (np.nonzero(at_vertex)[0], ep_normal[at_vertex])
         else:
             group = self.cell_group[iu, iv]
-            present = np.flatnonzero(np.bincount(group, minlength=len(self.groups)))
+            counts = np.bincount(group, minlength=len(self.groups))
+            present = np.flatnonzero(counts)
             levels = self._level_set()
             calls = present.tolist()
             if levels is not None and np.count_nonzero(levels.member[present]) >= 2:
                 # the extraordinary cells' groups in one call (the same values point by point)
                 calls = [g for g in calls if not levels.member[g]] + [levels]
+            # the calls in the order their points are sorted in, each with its block
+            rank = self._call_rank()
+            calls.sort(key=lambda g: rank[-1] if g is levels else rank[g])
+            counts = counts.tolist()
+            blocks, start = [], 0
             for g in calls:
-                if len(calls) == 1 and g is not levels:    # every point in one group
-                    sel = np.arange(len(u))
-                    Hg, at_vertex, ep_normal = self.groups[g].evaluate(local, a, b)
-                    H[:] = Hg
-                elif g is levels:
-                    sel = np.nonzero(levels.member[group])[0]
-                    Hg, at_vertex, ep_normal = levels.evaluate(group[sel], local[sel], a[sel], b[sel])
+                m = sum(counts[k] for k in levels.members) if g is levels else counts[g]
+                blocks.append(slice(start, start + m))
+                start += m
+            results = None
+            if len(calls) == 2:
+                results = self._bezier_and_nets(calls, blocks, levels, group, local, a, b, H)
+            if results is None:
+                results = []
+                for g, sel in zip(calls, blocks):
+                    if g is levels:
+                        Hg, at_vertex, ep_normal = levels.evaluate(group[sel], local[sel], a[sel], b[sel])
+                    else:
+                        Hg, at_vertex, ep_normal = self.groups[g].evaluate(local[sel], a[sel], b[sel])
                     H[:, :, sel] = Hg
-                else:
-                    sel = np.nonzero(group == g)[0]
-                    Hg, at_vertex, ep_normal = self.groups[g].evaluate(local[sel], a[sel], b[sel])
-                    H[:, :, sel] = Hg
+                    results.append((sel, at_vertex, ep_normal))
+            for sel, at_vertex, ep_normal in results:
                 if at_vertex is not None and at_vertex.any():
-                    rows = sel[at_vertex]
+                    rows = np.arange(sel.start, sel.stop)[at_vertex]
                     ep = (rows, ep_normal[at_vertex]) if ep is None else (
                         np.concatenate([ep[0], rows]), np.concatenate([ep[1], ep_normal[at_vertex]]))
         # from cell (a, b) to patch (u, v)
@@ -355,6 +372,57 @@ class Patch:
         H[4] /= wu * wv
         H[5] /= wv * wv
         return order, H, ep
+
+    def _bezier_and_nets(self, calls, blocks, levels, group, local, a, b, H):
+        """Two calls, cubic Bezier cells and extraordinary cells' nets (LevelCells alone or
+        a _LevelSet), written into their blocks of H with the Bernstein values of both made
+        in one call (they are made point by point: the same values); None for other pairs.
+        Returns [(block, at_vertex, exact normals)] per call."""
+        g0, g1 = calls
+        bez = self.groups[g0] if not (g0 is levels) else None
+        if g1 is levels:
+            lv, lidx = levels, levels.offset[group[blocks[1]]] + local[blocks[1]]
+        else:
+            lv, lidx = self.groups[g1], local[blocks[1]]
+            if type(lv) is not LevelCells:
+                return None
+        if type(bez) is not BezierCells or bez.p != 3 or bez.q != 3:
+            return None
+        sb, sl = blocks
+        nb = sb.stop - sb.start
+        prepared = LevelCells.prepare(lv, lidx, a[sl], b[sl])
+        E = prepared[3][0]
+        B = bernstein_rows(3, np.concatenate([a[sb], b[sb], E[0], E[1]]))
+        bez.evaluate(local[sb], a[sb], b[sb], out=H[:, :, sb], bases=(B[:, :, :nb], B[:, :, nb:2 * nb]))
+        if lv is levels:
+            _, at_vertex, ep_normal = levels.finish(group[sl], prepared, H[:, :, sl], B[:, :, 2 * nb:])
+        else:
+            _, at_vertex, ep_normal = lv.finish(prepared, H[:, :, sl], B[:, :, 2 * nb:])
+        return [(sb, None, None), (sl, at_vertex, ep_normal)]
+
+    def _sort_keys(self):
+        """Per cell (nu, nv), the key points are sorted by: the rank of the cell's group call
+        (``_call_rank``), then the cell."""
+        self._call_rank()
+        return self._calls[2]
+
+    def _call_rank(self):
+        """Per group, the rank of its call in the order points are sorted in: the groups in
+        their order, the extraordinary cells' groups last when they are called together
+        (``_level_set``); the last entry is that call's rank. Made again with the level set."""
+        levels = self._level_set()
+        key = (tuple(id(g) for g in self.groups), id(levels))
+        cached = getattr(self, "_calls", None)
+        if cached is None or cached[0] != key:
+            ng = len(self.groups)
+            rank = np.arange(ng + 1)
+            if levels is not None:
+                rank[:ng][levels.member] = ng
+            nu, nv = self.shape
+            table = rank[self.cell_group] * (nu * nv) + np.arange(nu * nv).reshape(nu, nv)
+            cached = (key, rank.tolist(), table)
+            self._calls = cached
+        return cached[1]
 
     def _level_set(self):
         """The patch's LevelCells groups as one :class:`_LevelSet` (None when it has fewer than
@@ -393,6 +461,7 @@ class _LevelSet:
         self.groups = groups
         self.member = np.zeros(len(groups), bool)
         self.member[members] = True
+        self.members = list(members)
         self.offset = np.zeros(len(groups), int)          # first cell of each member
         self.offset[members] = np.cumsum([0] + [len(g) for g in gs])[:-1]
         self.NET_LEVELS, self.MAX_LEVEL = gs[0].NET_LEVELS, gs[0].MAX_LEVEL
@@ -406,8 +475,15 @@ class _LevelSet:
     def evaluate(self, gid: np.ndarray, local: np.ndarray, a: np.ndarray, b: np.ndarray):
         """As the members' ``evaluate`` for points of groups ``gid`` and their cells ``local``."""
         idx = self.offset[gid] + local
-        H, at_vertex, deep = LevelCells._evaluate_nets(self, idx, a, b)
+        return self.finish(gid, LevelCells.prepare(self, idx, a, b))
+
+    def finish(self, gid: np.ndarray, prepared, out=None, B=None):
+        """:meth:`evaluate` from ``LevelCells.prepare`` of the set's cell indices (``out``,
+        ``B``: as for ``LevelCells._net_values``)."""
+        idx, a, b, params = prepared
+        H, at_vertex, deep = LevelCells._net_values(self, idx, params, out, B)
         if deep.any():
+            local = idx - self.offset[gid]
             for g in np.unique(gid[deep]).tolist():
                 rows = np.nonzero(deep & (gid == g))[0]
                 H[:, :, rows] = self.groups[g]._evaluate(local[rows], a[rows], b[rows])[0]

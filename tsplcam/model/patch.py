@@ -106,7 +106,10 @@ class Patch:
                 inverse = np.empty_like(order)
                 inverse[order] = np.arange(n)
                 H = H.take(inverse, axis=2)
-            out = rational_from_homogeneous(H)               # six (3, n), point by point
+            if self._polynomial():                           # its test would pass: skipped
+                out = tuple(H[k, :3] for k in range(6))
+            else:
+                out = rational_from_homogeneous(H)           # six (3, n), point by point
             if ep is not None:
                 ep_rows.append(ep[0] if order is None else order[ep[0]])
                 ep_normals.append(ep[1])
@@ -424,6 +427,19 @@ class Patch:
             self._calls = cached
         return cached[1]
 
+    def _polynomial(self) -> bool:
+        """Whether every group gives the weight exactly 1 and its derivatives exactly 0 (each
+        a sum of zero terms), so that ``rational_from_homogeneous``'s exact test passes for
+        any points: polynomial Bezier cells (which write them so) and extraordinary cells
+        whose nets, levels, limits and vertex values all have weight 1 and weight
+        differences 0 (a polynomial cage's). Made again when the groups change."""
+        key = tuple(id(g) for g in self.groups)
+        cached = getattr(self, "_poly", None)
+        if cached is None or cached[0] != key:
+            cached = (key, all(_exact_polynomial(g) for g in self.groups))
+            self._poly = cached
+        return cached[1]
+
     def _level_set(self):
         """The patch's LevelCells groups as one :class:`_LevelSet` (None when it has fewer than
         two), made again when the groups change (readers may add groups after construction)."""
@@ -492,6 +508,18 @@ class _LevelSet:
             ep_normal = np.zeros((len(idx), 3))
             ep_normal[at_vertex] = self.limit_normal[idx[at_vertex]]
         return H, at_vertex, ep_normal
+
+
+def _exact_polynomial(group) -> bool:
+    """See :meth:`Patch._polynomial`."""
+    if type(group) is BezierCells:
+        return not group.rational and group.nc == 3
+    if type(group) is LevelCells:
+        return bool(group.nets.shape[1] == 4 and np.all(group.nets[:, 3] == 0.0)
+                    and np.all(group.d[..., 3] == 0.0) and np.all(group.limit[:, 3] == 1.0)
+                    and np.all(group._vertex[0, 3] == 1.0) and np.all(group._vertex[1:, 3] == 0.0)
+                    and np.all(np.isfinite(group.nets)) and np.all(np.isfinite(group.d)))
+    return False
 
 
 def _index_or_slice(idx: np.ndarray):

@@ -193,12 +193,12 @@ class Patch:
         us = np.asarray(us, float).reshape(-1)
         vs = np.asarray(vs, float).reshape(-1)
         for name, x in (("u", us), ("v", vs)):
-            if not np.all(np.isfinite(x)) or x.min(initial=0.0) < -1e-9 or x.max(initial=0.0) > 1 + 1e-9:
+            if not np.isfinite(x).all() or x.min(initial=0.0) < -1e-9 or x.max(initial=0.0) > 1 + 1e-9:
                 raise InputError(f"grid {name} values must lie in [0, 1]", item=self.name)
-        us, vs = np.clip(us, 0.0, 1.0), np.clip(vs, 0.0, 1.0)
+        us, vs = _clip(us, 0.0, 1.0), _clip(vs, 0.0, 1.0)
         nu, nv = self.shape
-        iu = np.clip(np.searchsorted(self.ubreaks, us, side="right") - 1, 0, nu - 1)
-        iv = np.clip(np.searchsorted(self.vbreaks, vs, side="right") - 1, 0, nv - 1)
+        iu = _clip(np.searchsorted(self.ubreaks, us, side="right") - 1, 0, nu - 1)
+        iv = _clip(np.searchsorted(self.vbreaks, vs, side="right") - 1, 0, nv - 1)
         return us, vs, iu, iv
 
     def grid_points(self, us, vs) -> np.ndarray:

@@ -101,12 +101,15 @@ class Patch:
         n = len(u)
         ep_rows, ep_normals = [], []
         if n <= CHUNK:
+            # a polynomial patch: the weight rows are 1 and 0 (rational_from_homogeneous's test
+            # would pass), not gathered back
+            poly = self._polynomial()
             order, H, ep = self._evaluate_h(u, v)
             if order is not None:                            # back from cell order: one gather
                 inverse = np.empty_like(order)
                 inverse[order] = np.arange(n)
-                H = H.take(inverse, axis=2)
-            if self._polynomial():                           # its test would pass: skipped
+                H = (H[:, :3] if poly else H).take(inverse, axis=2)
+            if poly:
                 out = tuple(H[k, :3] for k in range(6))
             else:
                 out = rational_from_homogeneous(H)           # six (3, n), point by point

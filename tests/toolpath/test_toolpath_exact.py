@@ -183,3 +183,35 @@ class SameBytes(unittest.TestCase):
 
 if __name__ == "__main__":
     unittest.main()
+
+
+class SameBytesAsNumpy(unittest.TestCase):
+    """The path's own forms of numpy calls (made for many curves or rows at once) give numpy's
+    bytes."""
+
+    def test_sum3_is_the_reduction(self):
+        vals = [0.0, -0.0, 1.0, -1.0, 1e-300, -1e300, 3.0, 2.0 ** -60, np.inf]
+        x = np.array(np.meshgrid(vals, vals, vals)).reshape(3, -1).T        # every triple
+        self.assertTrue(same(_sum3(x), np.add.reduce(x, axis=-1)))
+        y = np.random.default_rng(3).standard_normal((7, 2, 2, 17, 3))
+        self.assertTrue(same(_sum3(y), np.add.reduce(y, axis=-1)))
+        self.assertTrue(same(_norm3(y), np.linalg.norm(y, axis=-1, keepdims=True)))
+
+    def test_linspaces_and_interp_many(self):
+        from tsplcam.toolpath.chord import _interp_many, _linspaces
+        rng = np.random.default_rng(7)
+        k = 40
+        lo = rng.random(k)
+        hi = lo + rng.random(k) * 0.5
+        hi[3] = lo[3]                                            # a zero step
+        num = rng.integers(3, 70, k)
+        y, cid, first = _linspaces(lo, hi, num)
+        for j in range(k):
+            self.assertTrue(same(y[first[j]:first[j] + num[j]], np.linspace(lo[j], hi[j], num[j])), j)
+        xs = [np.cumsum(rng.random(n)) * (rng.random() < 0.9) for n in num]   # some all zero
+        fps = [rng.standard_normal(n) for n in num]
+        q = [np.concatenate([rng.random(15) * x[-1] * 1.2 - 0.05, x[:4]]) for x in xs]
+        qc = np.repeat(np.arange(k), [len(a) for a in q])
+        got = _interp_many(np.concatenate(q), qc, np.concatenate(xs), np.concatenate(fps), first, num)
+        for j in range(k):
+            self.assertTrue(same(got[qc == j], np.interp(q[j], xs[j], fps[j])), j)

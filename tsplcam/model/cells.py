@@ -131,7 +131,7 @@ class BezierCells:
         else:
             bs = bernstein_rows(self.p, a)
             bt = bernstein_rows(self.q, b)
-        cuts = np.flatnonzero(idx[1:] != idx[:-1]) + 1
+        cuts = (idx[1:] != idx[:-1]).nonzero()[0] + 1
         starts = _concatenate([[0], cuts]).tolist()
         ends = _concatenate([cuts, [n]]).tolist()
         # T[d][j, c, point]: contraction along a for derivative order d; the three orders of a

@@ -23,6 +23,7 @@ import numpy as np
 # numpy's C functions without their Python dispatch wrappers: the same calls, a few
 # microseconds less each on the many small arrays here
 from numpy.core._multiarray_umath import where as _where, c_einsum as _einsum, concatenate as _concatenate
+from numpy.core._multiarray_umath import bincount as _bincount
 
 from ..errors import InputError
 from .basis import bernstein, bernstein_rows
@@ -88,8 +89,8 @@ class Patch:
     def evaluate(self, u, v) -> SurfacePoints:
         """Position, first and second partial derivatives and everything derived from them,
         at parameters u, v (arrays of equal length, or scalars) in [0, 1]."""
-        u = np.atleast_1d(np.asarray(u, dtype=float)).reshape(-1)
-        v = np.atleast_1d(np.asarray(v, dtype=float)).reshape(-1)
+        u = np.asarray(u, dtype=float).reshape(-1)       # (a scalar: one point)
+        v = np.asarray(v, dtype=float).reshape(-1)
         if u.shape != v.shape:
             u, v = np.broadcast_arrays(u, v)
             u, v = u.copy(), v.copy()
@@ -320,14 +321,14 @@ class Patch:
         nu, nv = self.shape
         # a point on a cell break (or rounded off it) goes to either cell: the surface is
         # continuous there, both give the same point up to rounding
-        iu = _clip(np.searchsorted(self.ubreaks, u, side="right") - 1, 0, nu - 1)
-        iv = _clip(np.searchsorted(self.vbreaks, v, side="right") - 1, 0, nv - 1)
+        iu = _clip(self.ubreaks.searchsorted(u, side="right") - 1, 0, nu - 1)
+        iv = _clip(self.vbreaks.searchsorted(v, side="right") - 1, 0, nv - 1)
         single = len(self.groups) == 1
         key = iu * nv + iv if single else self._sort_keys()[iu, iv]
-        if len(key) < 2 or bool(np.all(key[1:] >= key[:-1])):
+        if len(key) < 2 or bool((key[1:] >= key[:-1]).all()):
             order = None                                   # sorted already: the stable order
         else:
-            order = np.argsort(key, kind="stable")
+            order = key.argsort(kind="stable")
             iu, iv, u, v = iu[order], iv[order], u[order], v[order]
         wu = self.ubreaks[iu + 1] - self.ubreaks[iu]
         wv = self.vbreaks[iv + 1] - self.vbreaks[iv]
@@ -342,8 +343,8 @@ class Patch:
                 ep = (np.nonzero(at_vertex)[0], ep_normal[at_vertex])
         else:
             group = self.cell_group[iu, iv]
-            counts = np.bincount(group, minlength=len(self.groups))
-            present = np.flatnonzero(counts)
+            counts = _bincount(group, minlength=len(self.groups))
+            present = counts.nonzero()[0]
             levels = self._level_set()
             calls = present.tolist()
             if levels is not None and np.count_nonzero(levels.member[present]) >= 2:

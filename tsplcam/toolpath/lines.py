@@ -189,7 +189,10 @@ class LineFrame:
         return (a, t) if self.crossfeed == "u" else (t, a)
 
     def evaluate(self, s, t) -> FrameGeom:
-        s, t = np.broadcast_arrays(np.atleast_1d(np.asarray(s, float)), np.atleast_1d(np.asarray(t, float)))
+        s = np.asarray(s, float)
+        t = np.asarray(t, float)
+        if s.shape != t.shape or s.ndim == 0:           # (equal shapes: broadcast_arrays' views)
+            s, t = np.broadcast_arrays(np.atleast_1d(s), np.atleast_1d(t))
         s = np.minimum(np.maximum(s, 0.0), 1.0)
         t = np.minimum(np.maximum(t, 0.0), 1.0)
         u, v = self.uv(s, t)

@@ -105,6 +105,7 @@ class BezierCells:
         if not self.rational:
             self._origin = self.ctrl[:, 0, 0, :3].copy()
             rel -= self._origin[:, None, None, :]
+        self._origin_t = np.ascontiguousarray(self._origin.T)        # (nc, cell): gathered per point
         # per cell, the ((q+1)*nc) x (p+1) matrix of the contraction along a: [j*nc + c, i]
         self._cj = np.ascontiguousarray(rel.transpose(0, 1, 3, 2).reshape(len(self.ctrl), -1, self.p + 1))
 
@@ -132,8 +133,8 @@ class BezierCells:
             bs = bernstein_rows(self.p, a)
             bt = bernstein_rows(self.q, b)
         cuts = (idx[1:] != idx[:-1]).nonzero()[0] + 1
-        starts = _concatenate([[0], cuts]).tolist()
-        ends = _concatenate([cuts, [n]]).tolist()
+        cuts = cuts.tolist()
+        starts, ends = [0] + cuts, cuts + [n]
         # T[d][j, c, point]: contraction along a for derivative order d; the three orders of a
         # run in one stacked product (numpy makes the same BLAS call per order: gemv for a run
         # of one point, gemm otherwise), written into T
@@ -167,7 +168,7 @@ class BezierCells:
                 np.add(prod[0], prod[1], out=o[k])
                 for j in range(2, q1):
                     o[k] += prod[j]
-        out[0, :nc] += self._origin[idx].T
+        out[0, :nc] += self._origin_t.take(idx, axis=1)
         return out, None, None
 
     def evaluate_tensor(self, cell: int, a: np.ndarray, b: np.ndarray, wa: float = 1.0,

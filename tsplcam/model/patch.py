@@ -37,6 +37,7 @@ EDGE_NAMES = ("bottom", "right", "top", "left")
 
 CHUNK = 1 << 17
 _clip = np.core.umath.clip             # np.clip's ufunc, without its Python wrapper
+_min, _max = np.minimum.reduce, np.maximum.reduce    # ndarray.min / max without theirs
 
 
 def rotation_map(rotation: int) -> int:
@@ -95,8 +96,8 @@ class Patch:
             u, v = np.broadcast_arrays(u, v)
             u, v = u.copy(), v.copy()
         # four reductions decide the common case (NaN fails both comparisons)
-        if not (u.min(initial=0.0) >= -1e-9 and v.min(initial=0.0) >= -1e-9
-                and u.max(initial=1.0) <= 1 + 1e-9 and v.max(initial=1.0) <= 1 + 1e-9):
+        if not (_min(u, initial=0.0) >= -1e-9 and _min(v, initial=0.0) >= -1e-9
+                and _max(u, initial=1.0) <= 1 + 1e-9 and _max(v, initial=1.0) <= 1 + 1e-9):
             bad = ~(np.isfinite(u) & np.isfinite(v)) | (u < -1e-9) | (u > 1 + 1e-9) | (v < -1e-9) | (v > 1 + 1e-9)
             i = int(np.nonzero(bad)[0][0])
             raise InputError(f"parameter (u, v) = ({u[i]:g}, {v[i]:g}) is outside the unit square "
@@ -330,10 +331,10 @@ class Patch:
         else:
             order = key.argsort(kind="stable")
             iu, iv, u, v = iu[order], iv[order], u[order], v[order]
-        wu = self.ubreaks[iu + 1] - self.ubreaks[iu]
-        wv = self.vbreaks[iv + 1] - self.vbreaks[iv]
-        a = (u - self.ubreaks[iu]) / wu
-        b = (v - self.vbreaks[iv]) / wv
+        wu = self._widths(0).take(iu)                      # ubreaks[iu + 1] - ubreaks[iu]
+        wv = self._widths(1).take(iv)
+        a = (u - self.ubreaks.take(iu)) / wu
+        b = (v - self.vbreaks.take(iv)) / wv
         local = self.cell_local[iu, iv]
         H = np.empty((6, 4, len(u)))
         ep = None
@@ -410,6 +411,16 @@ class Patch:
         else:
             _, at_vertex, ep_normal = lv.finish(prepared, H[:, :, sl], B[:, :, 2 * nb:])
         return [(sb, None, None), (sl, at_vertex, ep_normal)]
+
+    def _widths(self, axis: int) -> np.ndarray:
+        """The cells' widths along u (axis 0) or v: the differences of consecutive breaks,
+        per cell once (the same differences as per point), made again if the breaks change."""
+        cached = getattr(self, "_cell_widths", None)
+        if cached is None or cached[0] is not self.ubreaks or cached[1] is not self.vbreaks:
+            cached = (self.ubreaks, self.vbreaks, (self.ubreaks[1:] - self.ubreaks[:-1],
+                                                   self.vbreaks[1:] - self.vbreaks[:-1]))
+            self._cell_widths = cached
+        return cached[2][axis]
 
     def _sort_keys(self):
         """Per cell (nu, nv), the key points are sorted by: the rank of the cell's group call

@@ -23,7 +23,7 @@ import numpy as np
 # numpy's C functions without their Python dispatch wrappers: the same calls, a few
 # microseconds less each on the many small arrays here
 from numpy.core._multiarray_umath import where as _where, c_einsum as _einsum, concatenate as _concatenate
-from numpy.core._multiarray_umath import bincount as _bincount
+from numpy.core._multiarray_umath import bincount as _bincount, count_nonzero as _count_nonzero
 
 from ..errors import InputError
 from .basis import bernstein, bernstein_rows
@@ -109,8 +109,9 @@ class Patch:
         if n <= CHUNK:
             # a polynomial patch: the weight rows are 1 and 0 (rational_from_homogeneous's test
             # would pass), not gathered back
-            poly = self._polynomial()
-            order, H, ep = self._evaluate_h(u, v)
+            tables = self._tables()
+            poly = tables[4]
+            order, H, ep = self._evaluate_h(u, v, tables)
             if order is not None:                            # back from cell order: one gather
                 inverse = np.empty_like(order)
                 inverse[order] = np.arange(n)
@@ -309,12 +310,12 @@ class Patch:
                 out[(slice(None),) + tuple(rows)] = P.reshape(3, ni, nj)
         return out, level_blocks
 
-    def _evaluate_h(self, u, v):
+    def _evaluate_h(self, u, v, tables=None):
         """Homogeneous derivatives (6, 4, m) of the points sorted by cell, the sorting order
         (None when they come sorted), and (rows in sorted order, exact normals) of points at
-        irregular vertices.
+        irregular vertices. ``tables``: :meth:`_tables`, when the caller has them.
 
-        With several groups the points are sorted by group call first (``_sort_keys``), then
+        With several groups the points are sorted by group call first (``_tables``), then
         by cell: each call's points are one block, which it writes in place, and every group
         sees its points in the same order as sorted by cell alone (the same runs, the same
         values). A Bezier group of cubic cells and the extraordinary cells' nets (the common
@@ -325,7 +326,9 @@ class Patch:
         iu = _clip(self.ubreaks.searchsorted(u, side="right") - 1, 0, nu - 1)
         iv = _clip(self.vbreaks.searchsorted(v, side="right") - 1, 0, nv - 1)
         single = len(self.groups) == 1
-        key = iu * nv + iv if single else self._sort_keys()[iu, iv]
+        if not single:
+            tables = tables or self._tables()
+        key = iu * nv + iv if single else tables[3][iu, iv]
         if len(key) < 2 or bool((key[1:] >= key[:-1]).all()):
             order = None                                   # sorted already: the stable order
         else:
@@ -346,13 +349,13 @@ class Patch:
             group = self.cell_group[iu, iv]
             counts = _bincount(group, minlength=len(self.groups))
             present = counts.nonzero()[0]
-            levels = self._level_set()
+            levels = tables[1]
             calls = present.tolist()
-            if levels is not None and np.count_nonzero(levels.member[present]) >= 2:
+            if levels is not None and _count_nonzero(levels.member[present]) >= 2:
                 # the extraordinary cells' groups in one call (the same values point by point)
                 calls = [g for g in calls if not levels.member[g]] + [levels]
             # the calls in the order their points are sorted in, each with its block
-            rank = self._call_rank()
+            rank = tables[2]
             calls.sort(key=lambda g: rank[-1] if g is levels else rank[g])
             counts = counts.tolist()
             blocks, start = [], 0
@@ -422,47 +425,42 @@ class Patch:
             self._cell_widths = cached
         return cached[2][axis]
 
-    def _sort_keys(self):
-        """Per cell (nu, nv), the key points are sorted by: the rank of the cell's group call
-        (``_call_rank``), then the cell."""
-        self._call_rank()
-        return self._calls[2]
-
-    def _call_rank(self):
-        """Per group, the rank of its call in the order points are sorted in: the groups in
-        their order, the extraordinary cells' groups last when they are called together
-        (``_level_set``); the last entry is that call's rank. Made again with the level set."""
-        levels = self._level_set()
-        key = (tuple(id(g) for g in self.groups), id(levels))
+    def _tables(self):
+        """What the evaluation reads of the patch's groups, made again when the groups or
+        the level set change (one check per evaluation): (groups' ids, the level set
+        (``_level_set``), per group the rank of its call in the order points are sorted in
+        (the groups in their order, the extraordinary cells' groups last when they are called
+        together; the last entry that call's rank), per cell (nu, nv) the key points are
+        sorted by (the rank of the cell's call, then the cell), and whether the patch is
+        polynomial (``_polynomial``))."""
+        gkey = tuple(map(id, self.groups))
+        levels = self._level_set(gkey)
         cached = getattr(self, "_calls", None)
-        if cached is None or cached[0] != key:
+        if cached is None or cached[0] != gkey or cached[1] is not levels:
             ng = len(self.groups)
             rank = np.arange(ng + 1)
             if levels is not None:
                 rank[:ng][levels.member] = ng
             nu, nv = self.shape
             table = rank[self.cell_group] * (nu * nv) + np.arange(nu * nv).reshape(nu, nv)
-            cached = (key, rank.tolist(), table)
+            poly = all(_exact_polynomial(g) for g in self.groups)
+            cached = (gkey, levels, rank.tolist(), table, poly)
             self._calls = cached
-        return cached[1]
+        return cached
 
     def _polynomial(self) -> bool:
         """Whether every group gives the weight exactly 1 and its derivatives exactly 0 (each
         a sum of zero terms), so that ``rational_from_homogeneous``'s exact test passes for
         any points: polynomial Bezier cells (which write them so) and extraordinary cells
         whose nets, levels, limits and vertex values all have weight 1 and weight
-        differences 0 (a polynomial cage's). Made again when the groups change."""
-        key = tuple(id(g) for g in self.groups)
-        cached = getattr(self, "_poly", None)
-        if cached is None or cached[0] != key:
-            cached = (key, all(_exact_polynomial(g) for g in self.groups))
-            self._poly = cached
-        return cached[1]
+        differences 0 (a polynomial cage's)."""
+        return self._tables()[4]
 
-    def _level_set(self):
+    def _level_set(self, key: tuple | None = None):
         """The patch's LevelCells groups as one :class:`_LevelSet` (None when it has fewer than
-        two), made again when the groups change (readers may add groups after construction)."""
-        key = tuple(id(g) for g in self.groups)
+        two), made again when the groups change (readers may add groups after construction;
+        ``key``: the groups' ids, when the caller has them)."""
+        key = tuple(map(id, self.groups)) if key is None else key
         cached = getattr(self, "_levels", None)
         if cached is None or cached[0] != key:
             members = [g for g, grp in enumerate(self.groups) if type(grp) is LevelCells]

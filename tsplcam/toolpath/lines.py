@@ -131,10 +131,19 @@ class FrameGeom:
         """(normal, geodesic) curvature of the iso-curve running along ``along`` ('t' or 's')."""
         d1, d2 = (self.St, self.Stt) if along == "t" else (self.Ss, self.Sss)
         sp2 = _einsum("ij,ij->i", d1, d1)
+        kf = self._normal_curvature(d2, sp2)
         with np.errstate(divide="ignore", invalid="ignore"):
-            kf = _where(sp2 > 0, _einsum("ij,ij->i", self.n, d2) / sp2, 0.0)
             ktot = _where(sp2 > 0, _norm3(_cross(d1, d2))[:, 0] / sp2 ** 1.5, 0.0)
         return kf, np.sqrt(np.maximum(ktot * ktot - kf * kf, 0.0))
+
+    def normal_curvature(self, along: str) -> np.ndarray:
+        """The normal curvature alone of :meth:`curve_curvature` (the same values)."""
+        d1, d2 = (self.St, self.Stt) if along == "t" else (self.Ss, self.Sss)
+        return self._normal_curvature(d2, _einsum("ij,ij->i", d1, d1))
+
+    def _normal_curvature(self, d2, sp2):
+        with np.errstate(divide="ignore", invalid="ignore"):
+            return _where(sp2 > 0, _einsum("ij,ij->i", self.n, d2) / sp2, 0.0)
 
     def principal_max(self) -> np.ndarray:
         """Largest normal curvature (concave positive)."""
@@ -263,7 +272,7 @@ class Target:
     max_step: float
 
     def at(self, geom: FrameGeom) -> np.ndarray:
-        kf, _ = geom.curve_curvature("t")
+        kf = geom.normal_curvature("t")
         shrink = np.maximum(1.0 - self.r * kf, 1e-12)          # centre path / contact path
         kc = np.maximum(kf, 0.0) / shrink
         sag = np.minimum(self.undercut, kc * (self.max_step * shrink) ** 2 / 8.0)

@@ -126,6 +126,23 @@ class SameBytes(unittest.TestCase):
         for name in ("P", "Pu", "Pv", "Puu", "Puv", "Pvv", "normal"):
             self.assertTrue(same(getattr(together, name), getattr(alone, name)), name)
 
+    def test_bezier_and_nets_together(self):
+        """Points of Bezier and extraordinary cells in one call (one Bernstein evaluation for
+        both, each group writing its block) give what each kind gives in a call of its own."""
+        p = self.model.patches[4]
+        n = 600
+        uv = self.rng.random((n, 2))
+        uv[:20] = self.rng.integers(0, 2, (20, 2))              # irregular corners among them
+        both = p.evaluate(uv[:, 0], uv[:, 1])
+        iu = np.clip(np.searchsorted(p.ubreaks, uv[:, 0], side="right") - 1, 0, p.shape[0] - 1)
+        iv = np.clip(np.searchsorted(p.vbreaks, uv[:, 1], side="right") - 1, 0, p.shape[1] - 1)
+        bez = isinstance(p.groups[0], BezierCells) & (p.cell_group[iu, iv] == 0)
+        self.assertTrue(0 < bez.sum() < n)
+        for sel in (bez, ~bez):
+            alone = p.evaluate(uv[sel, 0], uv[sel, 1])
+            for name in ("P", "Pu", "Pv", "Puu", "Puv", "Pvv", "normal"):
+                self.assertTrue(same(getattr(alone, name), getattr(both, name)[sel]), name)
+
     def test_frame_normal_and_cross(self):
         p = self.model.patches[0]
         sp = p.evaluate(self.rng.random(300), self.rng.random(300))

@@ -2,9 +2,11 @@
 
 The domain is cut by ``ubreaks`` x ``vbreaks`` into a grid of cells; every cell belongs to
 one cell evaluator group (Bezier or extraordinary, see ``cells.py``). Evaluation of any
-number of points is a handful of array calls: locate cells with ``searchsorted``, evaluate
-each group's points at once (a patch's extraordinary groups, one per corner configuration,
-together), convert homogeneous to Euclidean derivatives. Every shortcut gives each point the
+number of points is a handful of array calls: locate cells with ``searchsorted``, sort the
+points by group call and cell, evaluate each group's points at once into their block (a
+patch's extraordinary groups, one per corner configuration, together; their Bernstein values
+and the Bezier cells' in one call), convert homogeneous to Euclidean derivatives (nothing to
+convert on a polynomial patch). Every shortcut gives each point the
 same arithmetic as the others would (the path's programs stay the same bytes when it gets
 faster): the only value that depends on the other points of a call is a Bezier cell's BLAS
 product, which is made run by run of the cell's points as before.

@@ -126,6 +126,23 @@ class SameBytes(unittest.TestCase):
         for name in ("P", "Pu", "Pv", "Puu", "Puv", "Pvv", "normal"):
             self.assertTrue(same(getattr(together, name), getattr(alone, name)), name)
 
+    def test_bezier_and_nets_together(self):
+        """Points of Bezier and extraordinary cells in one call (one Bernstein evaluation for
+        both, each group writing its block) give what each kind gives in a call of its own."""
+        p = self.model.patches[4]
+        n = 600
+        uv = self.rng.random((n, 2))
+        uv[:20] = self.rng.integers(0, 2, (20, 2))              # irregular corners among them
+        both = p.evaluate(uv[:, 0], uv[:, 1])
+        iu = np.clip(np.searchsorted(p.ubreaks, uv[:, 0], side="right") - 1, 0, p.shape[0] - 1)
+        iv = np.clip(np.searchsorted(p.vbreaks, uv[:, 1], side="right") - 1, 0, p.shape[1] - 1)
+        bez = isinstance(p.groups[0], BezierCells) & (p.cell_group[iu, iv] == 0)
+        self.assertTrue(0 < bez.sum() < n)
+        for sel in (bez, ~bez):
+            alone = p.evaluate(uv[sel, 0], uv[sel, 1])
+            for name in ("P", "Pu", "Pv", "Puu", "Puv", "Pvv", "normal"):
+                self.assertTrue(same(getattr(alone, name), getattr(both, name)[sel]), name)
+
     def test_frame_normal_and_cross(self):
         p = self.model.patches[0]
         sp = p.evaluate(self.rng.random(300), self.rng.random(300))
@@ -183,3 +200,35 @@ class SameBytes(unittest.TestCase):
 
 if __name__ == "__main__":
     unittest.main()
+
+
+class SameBytesAsNumpy(unittest.TestCase):
+    """The path's own forms of numpy calls (made for many curves or rows at once) give numpy's
+    bytes."""
+
+    def test_sum3_is_the_reduction(self):
+        vals = [0.0, -0.0, 1.0, -1.0, 1e-300, -1e300, 3.0, 2.0 ** -60, np.inf]
+        x = np.array(np.meshgrid(vals, vals, vals)).reshape(3, -1).T        # every triple
+        self.assertTrue(same(_sum3(x), np.add.reduce(x, axis=-1)))
+        y = np.random.default_rng(3).standard_normal((7, 2, 2, 17, 3))
+        self.assertTrue(same(_sum3(y), np.add.reduce(y, axis=-1)))
+        self.assertTrue(same(_norm3(y), np.linalg.norm(y, axis=-1, keepdims=True)))
+
+    def test_linspaces_and_interp_many(self):
+        from tsplcam.toolpath.chord import _interp_many, _linspaces
+        rng = np.random.default_rng(7)
+        k = 40
+        lo = rng.random(k)
+        hi = lo + rng.random(k) * 0.5
+        hi[3] = lo[3]                                            # a zero step
+        num = rng.integers(3, 70, k)
+        y, cid, first = _linspaces(lo, hi, num)
+        for j in range(k):
+            self.assertTrue(same(y[first[j]:first[j] + num[j]], np.linspace(lo[j], hi[j], num[j])), j)
+        xs = [np.cumsum(rng.random(n)) * (rng.random() < 0.9) for n in num]   # some all zero
+        fps = [rng.standard_normal(n) for n in num]
+        q = [np.concatenate([rng.random(15) * x[-1] * 1.2 - 0.05, x[:4]]) for x in xs]
+        qc = np.repeat(np.arange(k), [len(a) for a in q])
+        got = _interp_many(np.concatenate(q), qc, np.concatenate(xs), np.concatenate(fps), first, num)
+        for j in range(k):
+            self.assertTrue(same(got[qc == j], np.interp(q[j], xs[j], fps[j])), j)

@@ -50,21 +50,29 @@ def bernstein_rows(p: int, t: np.ndarray) -> np.ndarray:
 
 def _bernstein3(t: np.ndarray) -> np.ndarray:
     """Cubic Bernstein basis with first and second derivatives, written out (the hot case),
-    (3, 4, n)."""
+    (3, 4, n). Every value is one fixed expression of t (the products 3 t^2, 3 s^2, 6 t s and
+    18 t made once and used where the formulas repeat them; negating is exact): the same
+    values point by point whatever else is in the call."""
+    n = len(t)
     s = 1.0 - t
     t2, s2, ts = t * t, s * s, t * s
-    out = np.empty((3, 4, len(t)))
+    out = np.empty((3, 4, n))
+    tmp = np.empty(n)
     np.multiply(s2, s, out=out[0, 0])
-    np.multiply(3.0 * t, s2, out=out[0, 1])
-    np.multiply(3.0 * t2, s, out=out[0, 2])
+    np.multiply(3.0, t, out=tmp)
+    np.multiply(tmp, s2, out=out[0, 1])
+    np.multiply(3.0, t2, out=out[1, 3])                 # 3 t^2
+    np.multiply(out[1, 3], s, out=out[0, 2])
     np.multiply(t2, t, out=out[0, 3])
-    np.multiply(-3.0, s2, out=out[1, 0])
-    out[1, 1] = 3.0 * s2 - 6.0 * ts
-    out[1, 2] = 6.0 * ts - 3.0 * t2
-    np.multiply(3.0, t2, out=out[1, 3])
+    np.multiply(3.0, s2, out=tmp)                       # 3 s^2
+    np.negative(tmp, out=out[1, 0])                     # -3 s^2, exactly
+    np.multiply(6.0, ts, out=ts)                        # 6 t s
+    np.subtract(tmp, ts, out=out[1, 1])
+    np.subtract(ts, out[1, 3], out=out[1, 2])
     np.multiply(6.0, s, out=out[2, 0])
-    out[2, 1] = 18.0 * t - 12.0
-    out[2, 2] = 6.0 - 18.0 * t
+    np.multiply(18.0, t, out=tmp)                       # 18 t
+    np.subtract(tmp, 12.0, out=out[2, 1])
+    np.subtract(6.0, tmp, out=out[2, 2])
     np.multiply(6.0, t, out=out[2, 3])
     return out
 

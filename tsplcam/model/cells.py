@@ -17,6 +17,10 @@ from __future__ import annotations
 
 import numpy as np
 
+# numpy's C functions without their Python dispatch wrappers: the same calls, a few
+# microseconds less each on the many small arrays here
+from numpy.core._multiarray_umath import where as _where, c_einsum as _einsum, concatenate as _concatenate
+
 from .basis import BSPLINE_TO_BEZIER, bernstein, bernstein_rows, uniform_cubic
 
 # derivative combinations in output order: (order in first variable, order in second)
@@ -46,13 +50,16 @@ _DS = np.array([ds for ds, _ in DERIVS])
 _STACKED_POINTS = 256
 
 
-def bicubic_nets(X: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+def bicubic_nets(X: np.ndarray, a: np.ndarray, b: np.ndarray, B: np.ndarray | None = None) -> np.ndarray:
     """Bicubic Bezier pieces, one per point: nets X (n, C, 4 [j along b], 4 [i along a]) at
     (a, b) -> the six derivatives (6, C, n). Two batched 4 x 4 products per point (along a
     for all three orders, then along b), whatever the pieces: for points spread over many
-    small pieces (sub-cells next to extraordinary points), where runs of one piece are short."""
+    small pieces (sub-cells next to extraordinary points), where runs of one piece are short.
+    ``B``: ``bernstein_rows(3, [a, b])`` when the caller made it (a view of a wider array
+    does: the products' operands are strided either way, the same loop, the same sums)."""
     n = len(a)
-    B = bernstein_rows(3, np.concatenate([a, b]))           # (3 [order], 4, 2n)
+    if B is None:
+        B = bernstein_rows(3, _concatenate([a, b]))       # (3 [order], 4, 2n)
     bs = B[:, :, :n].transpose(2, 1, 0)[:, None]            # (n, 1, 4 [i], 3 [order in a])
     bt = B[:, :, n:].transpose(2, 0, 1)[:, None]            # (n, 1, 3 [order in b], 4 [j])
     R = np.matmul(bt, np.matmul(X, bs))                     # (n, C, 3 [b], 3 [a])
@@ -98,28 +105,36 @@ class BezierCells:
         if not self.rational:
             self._origin = self.ctrl[:, 0, 0, :3].copy()
             rel -= self._origin[:, None, None, :]
+        self._origin_t = np.ascontiguousarray(self._origin.T)        # (nc, cell): gathered per point
         # per cell, the ((q+1)*nc) x (p+1) matrix of the contraction along a: [j*nc + c, i]
         self._cj = np.ascontiguousarray(rel.transpose(0, 1, 3, 2).reshape(len(self.ctrl), -1, self.p + 1))
 
     def __len__(self) -> int:
         return len(self.ctrl)
 
-    def evaluate(self, idx: np.ndarray, a: np.ndarray, b: np.ndarray):
+    def evaluate(self, idx: np.ndarray, a: np.ndarray, b: np.ndarray, out: np.ndarray | None = None,
+                 bases=None):
         """The contraction along a is one BLAS product per run of equal cell index and
         derivative order; the one along b a short sum over contiguous rows, for all runs and
         derivatives at once (the same products and sums, in the same order, as run by run:
-        the same values, with a few array calls per run instead of some fifty)."""
+        the same values, with a few array calls per run instead of some fifty).
+
+        ``out``: a (6, 4, n) view to write into (a block of the patch's array); ``bases``:
+        (bernstein_rows(p, a), bernstein_rows(q, b)) when the caller made them together with
+        other points' (the values are point by point)."""
         n = len(a)
         q1, nc = self.q + 1, self.nc
-        if self.p == self.q:                            # one call for both (values point by point)
-            B = bernstein_rows(self.p, np.concatenate([a, b]))
+        if bases is not None:
+            bs, bt = bases
+        elif self.p == self.q:                          # one call for both (values point by point)
+            B = bernstein_rows(self.p, _concatenate([a, b]))
             bs, bt = B[:, :, :n], B[:, :, n:]           # (3, p+1, n), (3, q+1, n)
         else:
             bs = bernstein_rows(self.p, a)
             bt = bernstein_rows(self.q, b)
-        cuts = np.flatnonzero(idx[1:] != idx[:-1]) + 1
-        starts = np.concatenate([[0], cuts]).tolist()
-        ends = np.concatenate([cuts, [n]]).tolist()
+        cuts = (idx[1:] != idx[:-1]).nonzero()[0] + 1
+        cuts = cuts.tolist()
+        starts, ends = [0] + cuts, cuts + [n]
         # T[d][j, c, point]: contraction along a for derivative order d; the three orders of a
         # run in one stacked product (numpy makes the same BLAS call per order: gemv for a run
         # of one point, gemm otherwise), written into T
@@ -127,7 +142,8 @@ class BezierCells:
         for s0, e0 in zip(starts, ends):
             np.matmul(self._cj[idx[s0]], bs[:, :, s0:e0], out=T[:, :, s0:e0])
         T = T.reshape(3, q1, nc, n)
-        out = np.empty((6, 4, n))
+        if out is None:
+            out = np.empty((6, 4, n))
         if nc == 3:
             out[0, 3] = 1.0
             out[1:, 3] = 0.0
@@ -152,7 +168,7 @@ class BezierCells:
                 np.add(prod[0], prod[1], out=o[k])
                 for j in range(2, q1):
                     o[k] += prod[j]
-        out[0, :nc] += self._origin[idx].T
+        out[0, :nc] += self._origin_t.take(idx, axis=1)
         return out, None, None
 
     def evaluate_tensor(self, cell: int, a: np.ndarray, b: np.ndarray, wa: float = 1.0,
@@ -253,15 +269,15 @@ def _ring_coordinates(maps: np.ndarray, a: np.ndarray, b: np.ndarray, eps_level:
     t = np.clip(A[:, 1, 0] * a + A[:, 1, 1] * b + o[:, 1], 0.0, 1.0)
     at_vertex = (s <= 0.0) & (t <= 0.0)
     eps = 2.0 ** -eps_level
-    s = np.where(at_vertex, eps, s)
-    t = np.where(at_vertex, eps, t)
+    s = _where(at_vertex, eps, s)
+    t = _where(at_vertex, eps, t)
     _, e = np.frexp(np.maximum(s, t))
     level = np.clip(1 - e, 1, max_level)
     scale = np.ldexp(1.0, level - 1)
     s1, t1 = np.minimum(s * scale, 1.0), np.minimum(t * scale, 1.0)
-    k = np.where(t1 < 0.5, 0, np.where(s1 >= 0.5, 1, 2))
-    sh = np.clip(np.where(k == 2, 2 * s1, 2 * s1 - 1), 0.0, 1.0)
-    th = np.clip(np.where(k == 0, 2 * t1, 2 * t1 - 1), 0.0, 1.0)
+    k = _where(t1 < 0.5, 0, _where(s1 >= 0.5, 1, 2))
+    sh = np.clip(_where(k == 2, 2 * s1, 2 * s1 - 1), 0.0, 1.0)
+    th = np.clip(_where(k == 0, 2 * t1, 2 * t1 - 1), 0.0, 1.0)
     return A, at_vertex, level, k, sh, th
 
 
@@ -290,7 +306,7 @@ def _per_cell_product(coeff: np.ndarray, key: np.ndarray, mats: np.ndarray) -> n
     skey = key[order]
     cuts = np.flatnonzero(skey[1:] != skey[:-1]) + 1
     out = np.empty((n, nd, mats.shape[2]))
-    for s0, e0 in zip(np.concatenate([[0], cuts]).tolist(), np.concatenate([cuts, [n]]).tolist()):
+    for s0, e0 in zip(_concatenate([[0], cuts]).tolist(), _concatenate([cuts, [n]]).tolist()):
         rows = order[s0:e0]
         out[rows] = (coeff[rows].reshape(-1, K) @ mats[skey[s0]]).reshape(e0 - s0, nd, -1)
     return out.transpose(1, 2, 0)
@@ -346,8 +362,8 @@ class LevelCells:
         ncell = len(self.d)
         ncoord = self.d.shape[-1]
         # B-spline sub-patch stencils -> Bezier nets of the same sub-patches: (3, 16, K)
-        Sb = np.einsum("ab,kbK->kaK", np.kron(BSPLINE_TO_BEZIER, BSPLINE_TO_BEZIER), self.scheme.S)
-        face = np.einsum("kaK,cmKx->cmkxa", Sb, self.d[:, :self.NET_LEVELS])   # (cell, level, k, x, 16)
+        Sb = _einsum("ab,kbK->kaK", np.kron(BSPLINE_TO_BEZIER, BSPLINE_TO_BEZIER), self.scheme.S)
+        face = _einsum("kaK,cmKx->cmkxa", Sb, self.d[:, :self.NET_LEVELS])   # (cell, level, k, x, 16)
         face = face.reshape(ncell, -1, 3, ncoord, 4, 4)                  # [.., t index, s index]
         nets = np.empty((ncell, face.shape[1], 3, ncoord, 4, 4))
         frame = np.zeros((ncell, 3), dtype=int)
@@ -380,10 +396,17 @@ class LevelCells:
             H[0][:, at_vertex] = self.limit[idx[at_vertex]].T
         return H, at_vertex, level
 
-    def _evaluate_nets(self, idx, a, b):
+    def _evaluate_nets(self, idx, a, b, out=None, B=None):
         """As ``_evaluate`` from the cached nets (``_cache_nets``); ``deep`` marks the points
-        below level NET_LEVELS, which it leaves unset. Both parameters as one (2, n) array:
-        half the array calls (batches are often a hundred points)."""
+        below level NET_LEVELS, which it leaves unset. ``out``, ``B``: as for
+        :meth:`_net_values`."""
+        return self._net_values(idx, self._net_params(idx, a, b), out, B)
+
+    def _net_params(self, idx, a, b):
+        """The first half of :meth:`_evaluate_nets`: where the points fall among the cached
+        nets, (E, key, scale, at_vertex, deep) with E (2, n) the sub-cells' own (a, b). Both
+        parameters as one (2, n) array: half the array calls (batches are often a hundred
+        points)."""
         n = len(a)
         corner = self._corner[:, idx]                   # (2, n)
         E = np.empty((2, n))
@@ -412,16 +435,45 @@ class LevelCells:
         E -= corner                                     # the sub-cell's own (a, b): |corner - E|
         np.abs(E, out=E)
         key = (idx * self.NET_LEVELS + np.minimum(level, self.NET_LEVELS) - 1) * 3 + pq[0] + 2 * pq[1] - 1
-        H = scale_derivatives(bicubic_nets(self.nets[key], E[0], E[1]), scale, scale)
-        H[0] += self.limit[idx].T
+        return E, key, scale, at_vertex, deep
+
+    def _net_values(self, idx, params, out=None, B=None):
+        """The second half of :meth:`_evaluate_nets`: (H, at_vertex, deep) from the
+        parameters of :meth:`_net_params`. ``out``: a (6, 4, n) view to write H into;
+        ``B``: ``bernstein_rows(3, [E[0], E[1]])`` made by the caller (with other points')."""
+        E, key, scale, at_vertex, deep = params
+        R = bicubic_nets(self.nets[key], E[0], E[1], B)
+        if out is None:
+            H = scale_derivatives(R, scale, scale)
+            H[0] += self.limit[idx].T
+        else:
+            # scale_derivatives and the limit's sum written into out as they read R (the same
+            # products and sums, one pass instead of a copy and six)
+            H = out
+            np.add(R[0], self.limit[idx].T, out=H[0])
+            np.multiply(R[1], scale, out=H[1])
+            np.multiply(R[2], scale, out=H[2])
+            ss = scale * scale
+            np.multiply(R[3], ss, out=H[3])
+            np.multiply(R[4], ss, out=H[4])
+            np.multiply(R[5], ss, out=H[5])
         if at_vertex.any():
             H[:, :, at_vertex] = self._vertex[:, :, idx[at_vertex]]
         return H, at_vertex, deep
 
-    def evaluate(self, idx: np.ndarray, a: np.ndarray, b: np.ndarray):
+    def evaluate(self, idx: np.ndarray, a: np.ndarray, b: np.ndarray, out=None):
         """From the cached nets; the few points below level NET_LEVELS through the
-        configuration of their level."""
-        H, at_vertex, deep = self._evaluate_nets(idx, a, b)
+        configuration of their level. ``out``: a (6, 4, n) view to write into."""
+        return self.finish(self.prepare(idx, a, b), out)
+
+    def prepare(self, idx, a, b):
+        """:meth:`evaluate` in two halves, so that a patch makes the Bernstein values of the
+        sub-cells' parameters together with its Bezier cells' (``finish`` takes them)."""
+        return idx, a, b, LevelCells._net_params(self, idx, a, b)
+
+    def finish(self, prepared, out=None, B=None):
+        idx, a, b, params = prepared
+        H, at_vertex, deep = LevelCells._net_values(self, idx, params, out, B)
         if deep.any():
             H[:, :, deep] = self._evaluate(idx[deep], a[deep], b[deep])[0]
         return H, at_vertex, self._ep_normal(idx, at_vertex)

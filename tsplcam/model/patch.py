@@ -2,9 +2,11 @@
 
 The domain is cut by ``ubreaks`` x ``vbreaks`` into a grid of cells; every cell belongs to
 one cell evaluator group (Bezier or extraordinary, see ``cells.py``). Evaluation of any
-number of points is a handful of array calls: locate cells with ``searchsorted``, evaluate
-each group's points at once (a patch's extraordinary groups, one per corner configuration,
-together), convert homogeneous to Euclidean derivatives. Every shortcut gives each point the
+number of points is a handful of array calls: locate cells with ``searchsorted``, sort the
+points by group call and cell, evaluate each group's points at once into their block (a
+patch's extraordinary groups, one per corner configuration, together; their Bernstein values
+and the Bezier cells' in one call), convert homogeneous to Euclidean derivatives (nothing to
+convert on a polynomial patch). Every shortcut gives each point the
 same arithmetic as the others would (the path's programs stay the same bytes when it gets
 faster): the only value that depends on the other points of a call is a Bezier cell's BLAS
 product, which is made run by run of the cell's points as before.
@@ -20,8 +22,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
+# numpy's C functions without their Python dispatch wrappers: the same calls, a few
+# microseconds less each on the many small arrays here
+from numpy.core._multiarray_umath import where as _where, c_einsum as _einsum, concatenate as _concatenate
+from numpy.core._multiarray_umath import bincount as _bincount, count_nonzero as _count_nonzero
+
 from ..errors import InputError
-from .basis import bernstein
+from .basis import bernstein, bernstein_rows
 from .cells import SQUARE_MAPS, BezierCells, LevelCells
 from .diffgeom import SurfacePoints, rational_from_homogeneous
 
@@ -32,6 +39,7 @@ EDGE_NAMES = ("bottom", "right", "top", "left")
 
 CHUNK = 1 << 17
 _clip = np.core.umath.clip             # np.clip's ufunc, without its Python wrapper
+_min, _max = np.minimum.reduce, np.maximum.reduce    # ndarray.min / max without theirs
 
 
 def rotation_map(rotation: int) -> int:
@@ -84,14 +92,14 @@ class Patch:
     def evaluate(self, u, v) -> SurfacePoints:
         """Position, first and second partial derivatives and everything derived from them,
         at parameters u, v (arrays of equal length, or scalars) in [0, 1]."""
-        u = np.atleast_1d(np.asarray(u, dtype=float)).reshape(-1)
-        v = np.atleast_1d(np.asarray(v, dtype=float)).reshape(-1)
+        u = np.asarray(u, dtype=float).reshape(-1)       # (a scalar: one point)
+        v = np.asarray(v, dtype=float).reshape(-1)
         if u.shape != v.shape:
             u, v = np.broadcast_arrays(u, v)
             u, v = u.copy(), v.copy()
         # four reductions decide the common case (NaN fails both comparisons)
-        if not (u.min(initial=0.0) >= -1e-9 and v.min(initial=0.0) >= -1e-9
-                and u.max(initial=1.0) <= 1 + 1e-9 and v.max(initial=1.0) <= 1 + 1e-9):
+        if not (_min(u, initial=0.0) >= -1e-9 and _min(v, initial=0.0) >= -1e-9
+                and _max(u, initial=1.0) <= 1 + 1e-9 and _max(v, initial=1.0) <= 1 + 1e-9):
             bad = ~(np.isfinite(u) & np.isfinite(v)) | (u < -1e-9) | (u > 1 + 1e-9) | (v < -1e-9) | (v > 1 + 1e-9)
             i = int(np.nonzero(bad)[0][0])
             raise InputError(f"parameter (u, v) = ({u[i]:g}, {v[i]:g}) is outside the unit square "
@@ -101,12 +109,19 @@ class Patch:
         n = len(u)
         ep_rows, ep_normals = [], []
         if n <= CHUNK:
-            order, H, ep = self._evaluate_h(u, v)
+            # a polynomial patch: the weight rows are 1 and 0 (rational_from_homogeneous's test
+            # would pass), not gathered back
+            tables = self._tables()
+            poly = tables[4]
+            order, H, ep = self._evaluate_h(u, v, tables)
             if order is not None:                            # back from cell order: one gather
                 inverse = np.empty_like(order)
                 inverse[order] = np.arange(n)
-                H = H.take(inverse, axis=2)
-            out = rational_from_homogeneous(H)               # six (3, n), point by point
+                H = (H[:, :3] if poly else H).take(inverse, axis=2)
+            if poly:
+                out = tuple(H[k, :3] for k in range(6))
+            else:
+                out = rational_from_homogeneous(H)           # six (3, n), point by point
             if ep is not None:
                 ep_rows.append(ep[0] if order is None else order[ep[0]])
                 ep_normals.append(ep[1])
@@ -126,11 +141,11 @@ class Patch:
         P, Pu, Pv, Puu, Puv, Pvv = (x.T for x in out)
         normal_override = None
         if ep_rows:
-            rows = np.concatenate(ep_rows)
-            nrm = np.concatenate(ep_normals)
+            rows = _concatenate(ep_rows)
+            nrm = _concatenate(ep_normals)
             normal_override = _unit(np.cross(Pu, Pv))
-            sign = np.sign(np.einsum("ij,ij->i", nrm, normal_override[rows]))
-            normal_override[rows] = nrm * np.where(sign == 0, 1.0, sign)[:, None]
+            sign = np.sign(_einsum("ij,ij->i", nrm, normal_override[rows]))
+            normal_override[rows] = nrm * _where(sign == 0, 1.0, sign)[:, None]
         return SurfacePoints(P, Pu, Pv, Puu, Puv, Pvv, u, v, self.index, normal_override)
 
     def evaluate_grid(self, us, vs) -> SurfacePoints:
@@ -190,12 +205,12 @@ class Patch:
         us = np.asarray(us, float).reshape(-1)
         vs = np.asarray(vs, float).reshape(-1)
         for name, x in (("u", us), ("v", vs)):
-            if not np.all(np.isfinite(x)) or x.min(initial=0.0) < -1e-9 or x.max(initial=0.0) > 1 + 1e-9:
+            if not np.isfinite(x).all() or x.min(initial=0.0) < -1e-9 or x.max(initial=0.0) > 1 + 1e-9:
                 raise InputError(f"grid {name} values must lie in [0, 1]", item=self.name)
-        us, vs = np.clip(us, 0.0, 1.0), np.clip(vs, 0.0, 1.0)
+        us, vs = _clip(us, 0.0, 1.0), _clip(vs, 0.0, 1.0)
         nu, nv = self.shape
-        iu = np.clip(np.searchsorted(self.ubreaks, us, side="right") - 1, 0, nu - 1)
-        iv = np.clip(np.searchsorted(self.vbreaks, vs, side="right") - 1, 0, nv - 1)
+        iu = _clip(np.searchsorted(self.ubreaks, us, side="right") - 1, 0, nu - 1)
+        iv = _clip(np.searchsorted(self.vbreaks, vs, side="right") - 1, 0, nv - 1)
         return us, vs, iu, iv
 
     def grid_points(self, us, vs) -> np.ndarray:
@@ -220,16 +235,16 @@ class Patch:
             pending.append(blocks)
         if any(pending):
             together = len(pending) == 1 or not self._near_corners(
-                np.concatenate([b[3] for bs in pending for b in bs]),
-                np.concatenate([b[4] for bs in pending for b in bs]))
+                _concatenate([b[3] for bs in pending for b in bs]),
+                _concatenate([b[4] for bs in pending for b in bs]))
             for ks in ([range(len(pending))] if together else [[k] for k in range(len(pending))]):
                 blocks = [(k, b) for k in ks for b in pending[k]]
                 if not blocks:
                     continue
                 # their points are evaluated point by point (LevelCells' nets, _LevelSet), the
                 # few below the nets' deepest level per cell and level: the same values together
-                P = self.evaluate(np.concatenate([b[3] for _, b in blocks]),
-                                  np.concatenate([b[4] for _, b in blocks])).P.T
+                P = self.evaluate(_concatenate([b[3] for _, b in blocks]),
+                                  _concatenate([b[4] for _, b in blocks])).P.T
                 start = 0
                 for k, (rows, ni, nj, _, _) in blocks:
                     outs[k][(slice(None),) + tuple(rows)] = P[:, start:start + ni * nj].reshape(3, ni, nj)
@@ -297,57 +312,76 @@ class Patch:
                 out[(slice(None),) + tuple(rows)] = P.reshape(3, ni, nj)
         return out, level_blocks
 
-    def _evaluate_h(self, u, v):
+    def _evaluate_h(self, u, v, tables=None):
         """Homogeneous derivatives (6, 4, m) of the points sorted by cell, the sorting order
         (None when they come sorted), and (rows in sorted order, exact normals) of points at
-        irregular vertices."""
+        irregular vertices. ``tables``: :meth:`_tables`, when the caller has them.
+
+        With several groups the points are sorted by group call first (``_tables``), then
+        by cell: each call's points are one block, which it writes in place, and every group
+        sees its points in the same order as sorted by cell alone (the same runs, the same
+        values). A Bezier group of cubic cells and the extraordinary cells' nets (the common
+        patch) share one Bernstein evaluation (``_bezier_and_nets``)."""
         nu, nv = self.shape
         # a point on a cell break (or rounded off it) goes to either cell: the surface is
         # continuous there, both give the same point up to rounding
-        iu = _clip(np.searchsorted(self.ubreaks, u, side="right") - 1, 0, nu - 1)
-        iv = _clip(np.searchsorted(self.vbreaks, v, side="right") - 1, 0, nv - 1)
-        key = iu * nv + iv
-        if len(key) < 2 or bool(np.all(key[1:] >= key[:-1])):
+        iu = _clip(self.ubreaks.searchsorted(u, side="right") - 1, 0, nu - 1)
+        iv = _clip(self.vbreaks.searchsorted(v, side="right") - 1, 0, nv - 1)
+        single = len(self.groups) == 1
+        if not single:
+            tables = tables or self._tables()
+        key = iu * nv + iv if single else tables[3][iu, iv]
+        if len(key) < 2 or bool((key[1:] >= key[:-1]).all()):
             order = None                                   # sorted already: the stable order
         else:
-            order = np.argsort(key, kind="stable")
+            order = key.argsort(kind="stable")
             iu, iv, u, v = iu[order], iv[order], u[order], v[order]
-        wu = self.ubreaks[iu + 1] - self.ubreaks[iu]
-        wv = self.vbreaks[iv + 1] - self.vbreaks[iv]
-        a = (u - self.ubreaks[iu]) / wu
-        b = (v - self.vbreaks[iv]) / wv
+        wu = self._widths(0).take(iu)                      # ubreaks[iu + 1] - ubreaks[iu]
+        wv = self._widths(1).take(iv)
+        a = (u - self.ubreaks.take(iu)) / wu
+        b = (v - self.vbreaks.take(iv)) / wv
         local = self.cell_local[iu, iv]
         H = np.empty((6, 4, len(u)))
         ep = None
-        if len(self.groups) == 1:
+        if single:
             H[:], at_vertex, ep_normal = self.groups[0].evaluate(local, a, b)
             if at_vertex is not None and at_vertex.any():
                 ep = (np.nonzero(at_vertex)[0], ep_normal[at_vertex])
         else:
             group = self.cell_group[iu, iv]
-            present = np.flatnonzero(np.bincount(group, minlength=len(self.groups)))
-            levels = self._level_set()
+            counts = _bincount(group, minlength=len(self.groups))
+            present = counts.nonzero()[0]
+            levels = tables[1]
             calls = present.tolist()
-            if levels is not None and np.count_nonzero(levels.member[present]) >= 2:
+            if levels is not None and _count_nonzero(levels.member[present]) >= 2:
                 # the extraordinary cells' groups in one call (the same values point by point)
                 calls = [g for g in calls if not levels.member[g]] + [levels]
+            # the calls in the order their points are sorted in, each with its block
+            rank = tables[2]
+            calls.sort(key=lambda g: rank[-1] if g is levels else rank[g])
+            counts = counts.tolist()
+            blocks, start = [], 0
             for g in calls:
-                if len(calls) == 1 and g is not levels:    # every point in one group
-                    sel = np.arange(len(u))
-                    Hg, at_vertex, ep_normal = self.groups[g].evaluate(local, a, b)
-                    H[:] = Hg
-                elif g is levels:
-                    sel = np.nonzero(levels.member[group])[0]
-                    Hg, at_vertex, ep_normal = levels.evaluate(group[sel], local[sel], a[sel], b[sel])
+                m = sum(counts[k] for k in levels.members) if g is levels else counts[g]
+                blocks.append(slice(start, start + m))
+                start += m
+            results = None
+            if len(calls) == 2:
+                results = self._bezier_and_nets(calls, blocks, levels, group, local, a, b, H)
+            if results is None:
+                results = []
+                for g, sel in zip(calls, blocks):
+                    if g is levels:
+                        Hg, at_vertex, ep_normal = levels.evaluate(group[sel], local[sel], a[sel], b[sel])
+                    else:
+                        Hg, at_vertex, ep_normal = self.groups[g].evaluate(local[sel], a[sel], b[sel])
                     H[:, :, sel] = Hg
-                else:
-                    sel = np.nonzero(group == g)[0]
-                    Hg, at_vertex, ep_normal = self.groups[g].evaluate(local[sel], a[sel], b[sel])
-                    H[:, :, sel] = Hg
+                    results.append((sel, at_vertex, ep_normal))
+            for sel, at_vertex, ep_normal in results:
                 if at_vertex is not None and at_vertex.any():
-                    rows = sel[at_vertex]
+                    rows = np.arange(sel.start, sel.stop)[at_vertex]
                     ep = (rows, ep_normal[at_vertex]) if ep is None else (
-                        np.concatenate([ep[0], rows]), np.concatenate([ep[1], ep_normal[at_vertex]]))
+                        _concatenate([ep[0], rows]), _concatenate([ep[1], ep_normal[at_vertex]]))
         # from cell (a, b) to patch (u, v)
         H[1] /= wu
         H[2] /= wv
@@ -356,10 +390,79 @@ class Patch:
         H[5] /= wv * wv
         return order, H, ep
 
-    def _level_set(self):
+    def _bezier_and_nets(self, calls, blocks, levels, group, local, a, b, H):
+        """Two calls, cubic Bezier cells and extraordinary cells' nets (LevelCells alone or
+        a _LevelSet), written into their blocks of H with the Bernstein values of both made
+        in one call (they are made point by point: the same values); None for other pairs.
+        Returns [(block, at_vertex, exact normals)] per call."""
+        g0, g1 = calls
+        bez = self.groups[g0] if not (g0 is levels) else None
+        if g1 is levels:
+            lv, lidx = levels, levels.offset[group[blocks[1]]] + local[blocks[1]]
+        else:
+            lv, lidx = self.groups[g1], local[blocks[1]]
+            if type(lv) is not LevelCells:
+                return None
+        if type(bez) is not BezierCells or bez.p != 3 or bez.q != 3:
+            return None
+        sb, sl = blocks
+        nb = sb.stop - sb.start
+        prepared = LevelCells.prepare(lv, lidx, a[sl], b[sl])
+        E = prepared[3][0]
+        B = bernstein_rows(3, _concatenate([a[sb], b[sb], E[0], E[1]]))
+        bez.evaluate(local[sb], a[sb], b[sb], out=H[:, :, sb], bases=(B[:, :, :nb], B[:, :, nb:2 * nb]))
+        if lv is levels:
+            _, at_vertex, ep_normal = levels.finish(group[sl], prepared, H[:, :, sl], B[:, :, 2 * nb:])
+        else:
+            _, at_vertex, ep_normal = lv.finish(prepared, H[:, :, sl], B[:, :, 2 * nb:])
+        return [(sb, None, None), (sl, at_vertex, ep_normal)]
+
+    def _widths(self, axis: int) -> np.ndarray:
+        """The cells' widths along u (axis 0) or v: the differences of consecutive breaks,
+        per cell once (the same differences as per point), made again if the breaks change."""
+        cached = getattr(self, "_cell_widths", None)
+        if cached is None or cached[0] is not self.ubreaks or cached[1] is not self.vbreaks:
+            cached = (self.ubreaks, self.vbreaks, (self.ubreaks[1:] - self.ubreaks[:-1],
+                                                   self.vbreaks[1:] - self.vbreaks[:-1]))
+            self._cell_widths = cached
+        return cached[2][axis]
+
+    def _tables(self):
+        """What the evaluation reads of the patch's groups, made again when the groups or
+        the level set change (one check per evaluation): (groups' ids, the level set
+        (``_level_set``), per group the rank of its call in the order points are sorted in
+        (the groups in their order, the extraordinary cells' groups last when they are called
+        together; the last entry that call's rank), per cell (nu, nv) the key points are
+        sorted by (the rank of the cell's call, then the cell), and whether the patch is
+        polynomial (``_polynomial``))."""
+        gkey = tuple(map(id, self.groups))
+        levels = self._level_set(gkey)
+        cached = getattr(self, "_calls", None)
+        if cached is None or cached[0] != gkey or cached[1] is not levels:
+            ng = len(self.groups)
+            rank = np.arange(ng + 1)
+            if levels is not None:
+                rank[:ng][levels.member] = ng
+            nu, nv = self.shape
+            table = rank[self.cell_group] * (nu * nv) + np.arange(nu * nv).reshape(nu, nv)
+            poly = all(_exact_polynomial(g) for g in self.groups)
+            cached = (gkey, levels, rank.tolist(), table, poly)
+            self._calls = cached
+        return cached
+
+    def _polynomial(self) -> bool:
+        """Whether every group gives the weight exactly 1 and its derivatives exactly 0 (each
+        a sum of zero terms), so that ``rational_from_homogeneous``'s exact test passes for
+        any points: polynomial Bezier cells (which write them so) and extraordinary cells
+        whose nets, levels, limits and vertex values all have weight 1 and weight
+        differences 0 (a polynomial cage's)."""
+        return self._tables()[4]
+
+    def _level_set(self, key: tuple | None = None):
         """The patch's LevelCells groups as one :class:`_LevelSet` (None when it has fewer than
-        two), made again when the groups change (readers may add groups after construction)."""
-        key = tuple(id(g) for g in self.groups)
+        two), made again when the groups change (readers may add groups after construction;
+        ``key``: the groups' ids, when the caller has them)."""
+        key = tuple(map(id, self.groups)) if key is None else key
         cached = getattr(self, "_levels", None)
         if cached is None or cached[0] != key:
             members = [g for g, grp in enumerate(self.groups) if type(grp) is LevelCells]
@@ -393,21 +496,29 @@ class _LevelSet:
         self.groups = groups
         self.member = np.zeros(len(groups), bool)
         self.member[members] = True
+        self.members = list(members)
         self.offset = np.zeros(len(groups), int)          # first cell of each member
         self.offset[members] = np.cumsum([0] + [len(g) for g in gs])[:-1]
         self.NET_LEVELS, self.MAX_LEVEL = gs[0].NET_LEVELS, gs[0].MAX_LEVEL
-        self.nets = np.concatenate([g.nets for g in gs])
-        self._corner = np.concatenate([g._corner for g in gs], axis=1)
-        self._swap = np.concatenate([g._swap for g in gs])
-        self.limit = np.concatenate([g.limit for g in gs])
-        self.limit_normal = np.concatenate([g.limit_normal for g in gs])
-        self._vertex = np.concatenate([g._vertex for g in gs], axis=2)
+        self.nets = _concatenate([g.nets for g in gs])
+        self._corner = _concatenate([g._corner for g in gs], axis=1)
+        self._swap = _concatenate([g._swap for g in gs])
+        self.limit = _concatenate([g.limit for g in gs])
+        self.limit_normal = _concatenate([g.limit_normal for g in gs])
+        self._vertex = _concatenate([g._vertex for g in gs], axis=2)
 
     def evaluate(self, gid: np.ndarray, local: np.ndarray, a: np.ndarray, b: np.ndarray):
         """As the members' ``evaluate`` for points of groups ``gid`` and their cells ``local``."""
         idx = self.offset[gid] + local
-        H, at_vertex, deep = LevelCells._evaluate_nets(self, idx, a, b)
+        return self.finish(gid, LevelCells.prepare(self, idx, a, b))
+
+    def finish(self, gid: np.ndarray, prepared, out=None, B=None):
+        """:meth:`evaluate` from ``LevelCells.prepare`` of the set's cell indices (``out``,
+        ``B``: as for ``LevelCells._net_values``)."""
+        idx, a, b, params = prepared
+        H, at_vertex, deep = LevelCells._net_values(self, idx, params, out, B)
         if deep.any():
+            local = idx - self.offset[gid]
             for g in np.unique(gid[deep]).tolist():
                 rows = np.nonzero(deep & (gid == g))[0]
                 H[:, :, rows] = self.groups[g]._evaluate(local[rows], a[rows], b[rows])[0]
@@ -416,6 +527,18 @@ class _LevelSet:
             ep_normal = np.zeros((len(idx), 3))
             ep_normal[at_vertex] = self.limit_normal[idx[at_vertex]]
         return H, at_vertex, ep_normal
+
+
+def _exact_polynomial(group) -> bool:
+    """See :meth:`Patch._polynomial`."""
+    if type(group) is BezierCells:
+        return not group.rational and group.nc == 3
+    if type(group) is LevelCells:
+        return bool(group.nets.shape[1] == 4 and np.all(group.nets[:, 3] == 0.0)
+                    and np.all(group.d[..., 3] == 0.0) and np.all(group.limit[:, 3] == 1.0)
+                    and np.all(group._vertex[0, 3] == 1.0) and np.all(group._vertex[1:, 3] == 0.0)
+                    and np.all(np.isfinite(group.nets)) and np.all(np.isfinite(group.d)))
+    return False
 
 
 def _index_or_slice(idx: np.ndarray):
@@ -427,4 +550,4 @@ def _index_or_slice(idx: np.ndarray):
 
 def _unit(x: np.ndarray) -> np.ndarray:
     n = np.linalg.norm(x, axis=1, keepdims=True)
-    return x / np.where(n > 0, n, 1.0)
+    return x / _where(n > 0, n, 1.0)

@@ -26,6 +26,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
+# numpy's C functions without their Python dispatch wrappers: the same calls, a few
+# microseconds less each on the many small arrays here
+from numpy.core._multiarray_umath import where as _where, c_einsum as _einsum, concatenate as _concatenate
+
 from .sidestep import forward_step
 
 SAFETY = 0.85            # first placement at this fraction of the formula's step
@@ -47,16 +51,18 @@ class Curve:
 
 def _evaluate(frame, along: np.ndarray, fixed: np.ndarray, x: np.ndarray):
     """Frame geometry at parameter x of curves with these ``along`` flags (True: 't')."""
-    return frame.evaluate(np.where(along, fixed, x), np.where(along, x, fixed))
+    return frame.evaluate(_where(along, fixed, x), _where(along, x, fixed))
 
 
 def _first_points(frame, curves: list[Curve], r, tol_in, tol_out, max_step):
-    """First parameters per curve from the integrated density (module doc)."""
+    """First parameters per curve from the integrated density (module doc). Every curve's
+    samples, integral and inversion are made for all curves at once (:func:`_linspaces`,
+    :func:`_interp_many`): the same arithmetic per curve as ``np.linspace``, ``np.cumsum``
+    and ``np.interp`` of the curve alone, without some ten array calls per curve."""
     lo = np.array([min(c.x0, c.x1) for c in curves])
     hi = np.array([max(c.x0, c.x1) for c in curves])
-    xs = [np.linspace(lo[k], hi[k], max(int(c.dense), 3)) for k, c in enumerate(curves)]
-    cid = np.repeat(np.arange(len(curves)), [len(a) for a in xs])
-    xa = np.concatenate(xs)
+    num = np.array([max(int(c.dense), 3) for c in curves])
+    xa, cid, bounds = _linspaces(lo, hi, num)
     along = np.array([c.along == "t" for c in curves])
     fixed = np.array([c.fixed for c in curves])
     span = (hi - lo)[cid]
@@ -66,32 +72,123 @@ def _first_points(frame, curves: list[Curve], r, tol_in, tol_out, max_step):
         inner = lo[cid] + span * (END_EPS + (1 - 2 * END_EPS) * (xa - lo[cid]) / span)
     g = _evaluate(frame, along[cid], fixed[cid], inner)
     at = along[cid]
-    speed = np.linalg.norm(np.where(at[:, None], g.St, g.Ss), axis=1)
+    speed = _norm(_where(at[:, None], g.St, g.Ss))
     kft, kgt = g.curve_curvature("t")
     kfs, kgs = g.curve_curvature("s")
-    kf, kg = np.where(at, kft, kfs), np.where(at, kgt, kgs)
-    kf = np.where(np.isfinite(kf), kf, 0.0)
-    kg = np.where(np.isfinite(kg), np.minimum(kg, 1e6), 1e6)
-    tol = np.where(kf > 0, tol_out, tol_in)
+    kf, kg = _where(at, kft, kfs), _where(at, kgt, kgs)
+    kf = _where(np.isfinite(kf), kf, 0.0)
+    kg = _where(np.isfinite(kg), np.minimum(kg, 1e6), 1e6)
+    tol = _where(kf > 0, tol_out, tol_in)
     step = np.minimum(forward_step(r, tol, kf, kg), max_step)
     step = np.minimum(step, forward_step(r, tol_in, 0.0, kg))
     dens = speed / np.maximum(step, 1e-12)
-    bounds = np.concatenate([[0], np.cumsum([len(a) for a in xs])])
-    out = []
-    for k in range(len(curves)):
+    # the trapezoids of every curve's integral (pairs across two curves dropped), and the
+    # running sums per curve: one row per curve, the curves of one length at a time
+    trap = 0.5 * (dens[1:] + dens[:-1]) * (xa[1:] - xa[:-1])
+    cum = np.zeros(len(xa))
+    for m in np.unique(num).tolist():
+        rows = np.flatnonzero(num == m)
+        first = bounds[rows]
+        sel = (first[:, None] + np.arange(m - 1)[None, :]).ravel()
+        cum[(first[:, None] + np.arange(1, m)[None, :]).ravel()] = np.cumsum(
+            trap[sel].reshape(len(rows), m - 1), axis=1).ravel()
+    total = cum[bounds + num - 1]
+    ok = (hi - lo > 0) & (total > 0) & np.isfinite(total)
+    out = [None] * len(curves)
+    if ok.any():
+        kk = np.flatnonzero(ok)
+        nseg = np.maximum(1, np.ceil(total[kk] / SAFETY).astype(int))
+        q, qcid, qfirst = _linspaces(np.zeros(len(kk)), total[kk], nseg + 1)
+        pts = _interp_many(q, kk[qcid], cum, xa, bounds, num)
+        pts[qfirst] = lo[kk]
+        pts[qfirst + nseg] = hi[kk]
+        # np.unique per curve: sorted, repeats dropped
+        order = np.lexsort((pts, qcid))
+        pts, qc = pts[order], qcid[order]
+        keep = np.ones(len(pts), bool)
+        keep[1:] = (pts[1:] != pts[:-1]) | (qc[1:] != qc[:-1])
+        pts, qc = pts[keep], qc[keep]
+        cuts = np.flatnonzero(qc[1:] != qc[:-1]) + 1
+        for k, part in zip(kk.tolist(), np.split(pts, cuts)):
+            out[k] = part
+    for k in np.flatnonzero(~ok).tolist():               # as one curve alone (rare)
         if hi[k] - lo[k] <= 0:
-            out.append(np.array([curves[k].x0]))
+            out[k] = np.array([curves[k].x0])
             continue
-        d, x = dens[bounds[k]:bounds[k + 1]], xs[k]
-        cum = np.concatenate([[0.0], np.cumsum(0.5 * (d[1:] + d[:-1]) * np.diff(x))])
-        nseg = max(1, int(np.ceil(cum[-1] / SAFETY)))
-        if cum[-1] > 0:
-            p = np.interp(np.linspace(0.0, cum[-1], nseg + 1), cum, x)
+        x = xa[bounds[k]:bounds[k] + num[k]]
+        c = cum[bounds[k]:bounds[k] + num[k]]
+        nseg = max(1, int(np.ceil(c[-1] / SAFETY)))
+        if c[-1] > 0:
+            p = np.interp(np.linspace(0.0, c[-1], nseg + 1), c, x)
         else:
             p = np.linspace(lo[k], hi[k], nseg + 1)
         p[0], p[-1] = lo[k], hi[k]
-        out.append(np.unique(p))
+        out[k] = np.unique(p)
     return out, lo, hi, along, fixed
+
+
+def _norm(x: np.ndarray) -> np.ndarray:
+    """np.linalg.norm(x, axis=1) of real 3-vectors: the same squares and sums (a reduction
+    along a row of three adds them in order, from 0; squares are never -0.0)."""
+    q = x * x
+    out = q[:, 0] + q[:, 1]
+    out += q[:, 2]
+    return np.sqrt(out)
+
+
+def _linspaces(lo: np.ndarray, hi: np.ndarray, num: np.ndarray):
+    """``np.linspace(lo[k], hi[k], num[k])`` (num >= 2) of every k one after the other, with
+    its arithmetic (i * step + start; (i / div) * delta + start where the step is 0; the last
+    value the stop itself): (values, curve of each, first index of each curve)."""
+    num = np.asarray(num)
+    first = np.cumsum(num) - num
+    cid = np.repeat(np.arange(len(num)), num)
+    i = (np.arange(len(cid)) - first[cid]).astype(float)
+    div = (num - 1).astype(float)
+    delta = hi - lo
+    step = delta / div
+    y = i * step[cid]
+    zero = step == 0
+    if zero.any():
+        z = zero[cid]
+        y[z] = (i[z] / div[cid][z]) * delta[cid][z]
+    y += lo[cid]
+    y[first + num - 1] = hi
+    return y, cid, first
+
+
+def _interp_many(x: np.ndarray, xcid: np.ndarray, xp: np.ndarray, fp: np.ndarray, first: np.ndarray,
+                 num: np.ndarray) -> np.ndarray:
+    """``np.interp(x, xp_k, fp_k)`` with xp_k, fp_k the rows first[k] .. first[k] + num[k] of
+    xp, fp (xp_k increasing), for points x of curves xcid: numpy's arithmetic (the interval
+    with xp[j] <= x < xp[j + 1]; fp[j] where x is xp[j] or the last; else slope (x - xp[j]) +
+    fp[j], from the right end where that is NaN), for all curves at once."""
+    # j: how many of the curve's xp are <= x, less one (queries sorted in after equal xp)
+    pcid = np.repeat(np.arange(len(num)), num)
+    allc = _concatenate([pcid, xcid])
+    allv = _concatenate([xp[:len(pcid)], x])
+    kind = _concatenate([np.zeros(len(pcid), np.int8), np.ones(len(x), np.int8)])
+    order = np.lexsort((kind, allv, allc))
+    before = np.cumsum(kind[order] == 0)                 # xp rows at or before each position
+    jq = np.empty(len(x), int)
+    isq = kind[order] == 1
+    jq[order[isq] - len(pcid)] = before[isq]
+    j = jq - first[xcid] - 1                             # local index, -1 .. num
+    n = num[xcid]
+    jc = np.minimum(np.maximum(j, 0), n - 2)
+    g0 = first[xcid] + jc
+    x0, x1, f0, f1 = xp[g0], xp[g0 + 1], fp[g0], fp[g0 + 1]
+    with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
+        slope = (f1 - f0) / (x1 - x0)
+        res = slope * (x - x0) + f0
+        nan = np.isnan(res)
+        if nan.any():
+            res2 = slope * (x - x1) + f1
+            res = _where(nan, _where(np.isnan(res2) & (f0 == f1), f0, res2), res)
+    res = _where((j == n - 1) | (x0 == x), fp[first[xcid] + np.minimum(np.maximum(j, 0), n - 1)], res)
+    res = _where(j < 0, fp[first[xcid]], res)
+    res = _where(j >= n, fp[first[xcid] + n - 1], res)
+    return res
 
 
 def place_curves(frame, curves: list[Curve], r: float, tol_in: float, tol_out: float, max_step: float):
@@ -101,7 +198,7 @@ def place_curves(frame, curves: list[Curve], r: float, tol_in: float, tol_out: f
         return []
     first, lo, hi, along, fixed = _first_points(frame, curves, r, tol_in, tol_out, max_step)
     cid = np.repeat(np.arange(len(curves)), [len(a) for a in first])
-    x = np.concatenate(first)
+    x = _concatenate(first)
     g = _evaluate(frame, along[cid], fixed[cid], x)
     P, n, u, v = g.P, g.n, g.u, g.v
     same = cid[1:] == cid[:-1]
@@ -116,25 +213,25 @@ def place_curves(frame, curves: list[Curve], r: float, tol_in: float, tol_out: f
         cm = gm.P + r * gm.n
         chord = 0.5 * ((P[idx] + r * n[idx]) + (P[idx + 1] + r * n[idx + 1]))
         dev = cm - chord
-        dn = np.einsum("ij,ij->i", dev, gm.n)        # > 0: chord below the centre curve
+        dn = _einsum("ij,ij->i", dev, gm.n)        # > 0: chord below the centre curve
         lat = np.linalg.norm(dev - dn[:, None] * gm.n, axis=1)
         ok = (dn <= tol_in) & (-dn <= tol_out) & (lat <= tol_in)
         ok |= (x[idx + 1] - x[idx]) < tiny[cid[idx]]                 # cannot split further
         bad = ~ok
         if not bad.any():
             break
-        x = np.concatenate([x, xm[bad]])
-        cid = np.concatenate([cid, cid[idx[bad]]])
-        P = np.concatenate([P, gm.P[bad]])
-        n = np.concatenate([n, gm.n[bad]])
-        u = np.concatenate([u, gm.u[bad]])
-        v = np.concatenate([v, gm.v[bad]])
-        new = np.concatenate([np.zeros(len(x) - bad.sum(), bool), np.ones(bad.sum(), bool)])
+        x = _concatenate([x, xm[bad]])
+        cid = _concatenate([cid, cid[idx[bad]]])
+        P = _concatenate([P, gm.P[bad]])
+        n = _concatenate([n, gm.n[bad]])
+        u = _concatenate([u, gm.u[bad]])
+        v = _concatenate([v, gm.v[bad]])
+        new = _concatenate([np.zeros(len(x) - bad.sum(), bool), np.ones(bad.sum(), bool)])
         order = np.lexsort((x, cid))
         x, cid, P, n, u, v, new = x[order], cid[order], P[order], n[order], u[order], v[order], new[order]
         same = cid[1:] == cid[:-1]
         pending = same & (new[1:] | new[:-1])
-    bounds = np.concatenate([[0], np.cumsum(np.bincount(cid, minlength=len(curves)))])
+    bounds = _concatenate([[0], np.cumsum(np.bincount(cid, minlength=len(curves)))])
     out = []
     for k, c in enumerate(curves):
         sl = slice(bounds[k], bounds[k + 1])

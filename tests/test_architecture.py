@@ -4,8 +4,9 @@ Package imports flow down the pipeline model -> layout -> plan -> toolpath -> or
 post: a stage imports its own package and the stages before it. ``verify`` measures the
 stages' results, so it may import all of them, and no stage imports it. ``tsplcam`` itself
 (the package's ``load``, ``data_dir``), ``tsplcam.errors`` and the file helpers
-``tsplcam.outfile`` (atomic writes), ``tsplcam.inputfile`` (reading text and JSON) and
-``tsplcam.numtext`` (numbers as text for the CL data and the programs) are below everything. The settings, the program builder, the job, job files, batch runs and the command line
+``tsplcam.outfile`` (atomic writes), ``tsplcam.inputfile`` (reading text and JSON),
+``tsplcam.numtext`` (numbers as text for the CL data and the programs) and ``tsplcam.npfast``
+(numpy's C functions for hot small calls) are below everything. The settings, the program builder, the job, job files, batch runs and the command line
 (``settings``, ``program``, ``job``, ``jobfile``, ``batch``, ``cli``, ``__main__``,
 ``run_in_freecad``) and the FreeCAD workbench sit on top. FreeCAD and its GUI modules are imported under ``tsplcam/workbench`` only.
 
@@ -21,7 +22,7 @@ REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 PACKAGE = "tsplcam"
 STAGES = ("model", "layout", "plan", "toolpath", "orientation", "post")
 BASE = {PACKAGE, f"{PACKAGE}.errors", f"{PACKAGE}.outfile", f"{PACKAGE}.inputfile", f"{PACKAGE}.progress",
-        f"{PACKAGE}.numerics", f"{PACKAGE}.numtext"}  # importable from anywhere
+        f"{PACKAGE}.numerics", f"{PACKAGE}.numtext", f"{PACKAGE}.npfast"}  # importable from anywhere
 TOP = ("settings", "program", "job", "jobfile", "batch", "report", "cli", "__main__", "run_in_freecad",
        "workbench")  # may import anything
 FREECAD_MODULES = {"FreeCAD", "FreeCADGui", "Part", "Path", "CAM", "Mesh", "MeshPart", "Draft",

@@ -24,8 +24,8 @@ import numpy as np
 
 # numpy's C functions without their Python dispatch wrappers: the same calls, a few
 # microseconds less each on the many small arrays here
-from numpy.core._multiarray_umath import where as _where, c_einsum as _einsum, concatenate as _concatenate
-from numpy.core._multiarray_umath import bincount as _bincount, count_nonzero as _count_nonzero
+from ..npfast import where as _where, c_einsum as _einsum, concatenate as _concatenate
+from ..npfast import bincount as _bincount, count_nonzero as _count_nonzero
 
 from ..errors import InputError
 from .basis import bernstein, bernstein_rows

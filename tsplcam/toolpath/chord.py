@@ -28,7 +28,7 @@ import numpy as np
 
 # numpy's C functions without their Python dispatch wrappers: the same calls, a few
 # microseconds less each on the many small arrays here
-from numpy.core._multiarray_umath import where as _where, c_einsum as _einsum, concatenate as _concatenate
+from ..npfast import where as _where, c_einsum as _einsum, concatenate as _concatenate
 
 from .sidestep import forward_step
 

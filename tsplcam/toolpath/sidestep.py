@@ -26,7 +26,7 @@ import numpy as np
 
 # numpy's C functions without their Python dispatch wrappers: the same calls, a few
 # microseconds less each on the many small arrays here
-from numpy.core._multiarray_umath import where as _where
+from ..npfast import where as _where
 
 
 def side_step(r: float, h, k) -> np.ndarray:

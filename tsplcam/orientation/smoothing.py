@@ -105,20 +105,26 @@ class MeridianGrid:
     raised: np.ndarray = None   # the checks moved the tilt away from the preferred axis
 
 
-def meridian_grid(rot: Rotary, pref, normal, constraints, M: int, pole_tilt: float = 0.0) -> MeridianGrid:
+def meridian_grid(rot: Rotary, pref, normal, constraints, M: int, pole_tilt: float = 0.0,
+                  rows: int = 1024) -> MeridianGrid:
     n = len(pref)
     phis = 2 * np.pi * np.arange(M) / M
-    PH = np.broadcast_to(phis, (n, M))
-    # the meridians of the M rotary values, once (rot.meridian of PH computes the same
-    # elements n times over); rot.best_theta's arctan2 of the dot products, taken by
-    # _meridian_dots
+    # the meridians of the M rotary values, once (rot.meridian of the (n, M) grid computes
+    # the same elements n times over); rot.best_theta's arctan2 of the dot products, taken by
+    # _meridian_dots. ``rows`` points at a time: every step is element by element, and the
+    # temporaries of (rows, M) stay in the cache (keycap: 14.7k x 36, 4 MB an array)
     m = rot.meridian(phis)
     normal, pref = np.asarray(normal, float), np.asarray(pref, float)
-    lo, hi = theta_interval(rot, PH, constraints, np.arctan2(_meridian_dots(normal, m), normal[:, 2:3]), m)
-    lo = np.maximum(lo, rot.theta_lo)
-    hi = np.minimum(hi, rot.theta_hi)
-    tp = np.arctan2(_meridian_dots(pref, m), pref[:, 2:3])
-    th = np.clip(tp, lo, hi)
+    th, lo, hi, tp = (np.empty((n, M)) for _ in range(4))
+    for a in range(0, n, rows):
+        s = slice(a, min(a + rows, n))
+        nr, pr = normal[s], pref[s]
+        cons = [(h[s], np.asarray(b, float)[s]) for h, b in constraints]
+        l, u = theta_interval(rot, np.broadcast_to(phis, (len(nr), M)), cons,
+                              np.arctan2(_meridian_dots(nr, m), nr[:, 2:3]), m)
+        l = np.maximum(l, rot.theta_lo, out=lo[s])
+        u = np.minimum(u, rot.theta_hi, out=hi[s])
+        np.clip(np.arctan2(_meridian_dots(pr, m), pr[:, 2:3], out=tp[s]), l, u, out=th[s])
     if pole_tilt > 0:
         near = np.abs(th) < pole_tilt
         up = np.where(hi >= pole_tilt, np.maximum(lo, pole_tilt), np.inf)
@@ -311,7 +317,7 @@ def joint_programme(checker, C, grid: MeridianGrid, cost: SmoothingCost, pref, d
         rounds += 1
         tick()
         if dev is None:
-            dev = angle_between(rot.axis(grid.theta, grid.phi[None, :]), pref[:, None, :])
+            dev = _deviation(rot, grid.theta, grid.phi, pref)
         else:
             # each pose's deviation from the preferred axis again where its tilt changed (the
             # same element-wise operations on those elements: the same bits)
@@ -380,6 +386,42 @@ def joint_programme(checker, C, grid: MeridianGrid, cost: SmoothingCost, pref, d
             checks += resolve(key // M, key % M)
         if rounds >= max_rounds:                                  # pragma: no cover
             raise NoPath(0, "rounds")
+
+
+def _deviation(rot: Rotary, theta: np.ndarray, phis: np.ndarray, pref: np.ndarray, rows: int = 1024) -> np.ndarray:
+    """``angle_between(rot.axis(theta, phis[None, :]), pref[:, None, :])`` (n, M): each
+    pose's angle to the point's preferred axis. Where every preferred axis lies along the C
+    axis (x = y = 0) the same operations component by component, ``rows`` points at a time
+    (no (n, M, 3) arrays: half the time on the keycap's 14.7k x 36): einsum's dot product
+    sums its three products in an order of its own, but with two of them +-0 every order
+    gives the same bits, here ``((p0 + p1) + p2) + 0.0`` (einsum starts from +0, never -0)."""
+    pref = np.asarray(pref, float)
+    if pref[:, :2].any():
+        return angle_between(rot.axis(theta, phis[None, :]), pref[:, None, :])
+    n = len(theta)
+    m = rot.meridian(phis)
+    out = np.empty(theta.shape)
+    for a in range(0, n, rows):
+        s = slice(a, min(a + rows, n))
+        t = theta[s]
+        c, sn = np.cos(t), np.sin(t)
+        c0 = c * 0.0                                    # rot.axis's components
+        k0 = c0 + sn * m[:, 0]
+        k1 = c0 + sn * m[:, 1]
+        k2 = c * 1.0 + sn * m[:, 2]
+        b0, b1, b2 = pref[s, 0:1], pref[s, 1:2], pref[s, 2:3]
+        x = k1 * b2 - k2 * b1                           # angle_between's cross product
+        y = k2 * b0 - k0 * b2
+        z = k0 * b1 - k1 * b0
+        d = k0 * b0                                     # ... and dot product
+        d += k1 * b1
+        d += k2 * b2
+        d += 0.0
+        x *= x
+        x += y * y
+        x += z * z
+        np.arctan2(np.sqrt(x, out=x), d, out=out[s])
+    return out
 
 
 def free_tilts(grid: MeridianGrid, status) -> np.ndarray | None:
@@ -867,19 +909,20 @@ def forced_rotary_travel(grid: MeridianGrid, status, ds, air=None):
     air = np.zeros(n, bool) if air is None else np.asarray(air, bool)
     node = np.where(grid.ok & (np.asarray(status) != 2), 0.0, np.inf)
     short = (np.asarray(ds) < IN_PLACE[0]) & ~air[1:]
+    # the two transitions there are: D, and D with the swings forbidden (into a short block)
+    both = np.stack([D, np.where(swing, np.inf, D)])
+    kind = short.astype(np.intp)
 
     plain: dict = {}             # blocks without a short block: the same array each time
 
     def block(i0: int, i1: int) -> np.ndarray:
-        s = short[i0 - 1:i1 - 1]
+        s = kind[i0 - 1:i1 - 1]
         if not s.any():
             t = plain.get(i1 - i0)
             if t is None:
                 t = plain[i1 - i0] = np.broadcast_to(D, (i1 - i0, M, M)).copy()
             return t
-        t = np.broadcast_to(D, (i1 - i0, M, M)).copy()
-        np.copyto(t, np.inf, where=s[:, None, None] & swing[None])
-        return t
+        return np.take(both, s, axis=0)         # (one gather; keycap: 4954 short blocks)
     states, _ = viterbi(node, from_blocks(block))
     if states is None:
         return np.nan, None

@@ -300,7 +300,7 @@ def joint_programme(checker, C, grid: MeridianGrid, cost: SmoothingCost, pref, d
     rot = cost.rotary
     tick = tick or (lambda: None)
     trans = joint_transitions(grid, cost, ds, max_step, free_step, air)
-    status = np.where(grid.ok, -1, 2).astype(np.int8)   # -1 unknown, 0 free, 2 excluded, 3 likely excluded
+    status = np.where(grid.ok, np.int8(-1), np.int8(2))   # -1 unknown, 0 free, 2 excluded, 3 likely excluded
     theta_init = grid.theta.copy()
     anchored = np.zeros(n, bool)
     rounds = checks = 0
@@ -771,17 +771,30 @@ def smooth_joints(path, rot: Rotary, theta0, phi0, pref, normal, cost: Smoothing
         lo, hi = theta_interval(rot, ph, cons, th)
         return np.maximum(lo, rot.theta_lo), np.minimum(hi, rot.theta_hi)
 
+    built = {}
+
+    def quadratic(Q: _Banded, bw, w_vel: float, l_acc: float) -> np.ndarray:
+        """The band of ``_quadratic(..., bw)``: Q's where every block weight is 1 (the same
+        products: x * 1.0 is x), the last one built for the same weights, else built."""
+        if bw is None or not (bw != 1.0).any():
+            return Q.ab
+        last = built.get(id(Q))
+        if last is None or not np.array_equal(last[0], bw):
+            last = built[id(Q)] = (bw.copy(), _quadratic(n, ds, couple, L, w_vel, l_acc, bw).ab)
+        return last[1]
+
     for r in range(rounds):
         info["joint_rounds"] = r + 1
         th_c = np.where(held, theta, theta0)           # every round starts from the programme
         ph_c = np.where(held, phi, phi0)
+        tp = None                                      # best_theta(pref, ph_c) once known
         for _ in range(alternations):
             # 1. rotary values: smooth where the tilt stays admissible, held where the tool
             # axis would turn with them (nothing near the pole)
             plo, phi_hi = phi_interval(rot, th_c, constraints, ph_c, lat)
             # ... or at a little more tilt away from the preferred axis, which the tilt step
             # may then take (the rotary value held by a tilt on its bound can move)
-            away = np.where(th_c >= rot.best_theta(pref, ph_c), 1.0, -1.0)
+            away = np.where(th_c >= (rot.best_theta(pref, ph_c) if tp is None else tp), 1.0, -1.0)
             th2 = np.clip(th_c + away * lean, rot.theta_lo, rot.theta_hi)
             l2, h2 = phi_interval(rot, th2, constraints, ph_c, lat)
             ok2 = (l2 <= ph_c) & (ph_c <= h2)
@@ -795,7 +808,7 @@ def smooth_joints(path, rot: Rotary, theta0, phi0, pref, normal, cost: Smoothing
             plo = np.where(held, ph_c, np.minimum(plo, ph_c))   # the current value is admissible
             phi_hi = np.where(held, ph_c, np.maximum(phi_hi, ph_c))
             B = _Banded(n, 2)
-            B.ab[:] = Qphi.ab if bw_p is None else _quadratic(n, ds, couple, L, alpha * cost.w, cost.l_phi, bw_p).ab
+            B.ab[:] = quadratic(Qphi, bw_p, alpha * cost.w, cost.l_phi)
             B.add(hold, np.arange(n)[:, None], np.ones((n, 1)), -phi0)
             ph_c = B.solve_box(plo, phi_hi)
             # 2. tilts: the convex problem on the admissible arcs at the new rotary values
@@ -817,7 +830,7 @@ def smooth_joints(path, rot: Rotary, theta0, phi0, pref, normal, cost: Smoothing
             lo, hi = np.minimum(lo, th_c), np.maximum(hi, th_c)
             lo, hi = np.where(held, th_c, lo), np.where(held, th_c, hi)
             B = _Banded(n, 2)
-            B.ab[:] = Qth.ab if bw_t is None else _quadratic(n, ds, couple, L, alpha + cost.beta, cost.l_theta, bw_t).ab
+            B.ab[:] = quadratic(Qth, bw_t, alpha + cost.beta, cost.l_theta)
             B.add(half / L, np.arange(n)[:, None], np.ones((n, 1)), -tp)
             th_c = B.solve_box(lo, hi)
             if cost.feed > 0 and cost.over > 0:

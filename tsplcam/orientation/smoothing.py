@@ -325,7 +325,9 @@ def joint_programme(checker, C, grid: MeridianGrid, cost: SmoothingCost, pref, d
             if len(i):
                 dev[i, k] = angle_between(rot.axis(grid.theta[i, k], grid.phi[k]), pref[i])
         seen = grid.theta.copy()
-        node = np.where((status == -1) | (status == 0), dev ** 2 * half[:, None], np.inf)
+        node = np.square(dev)                   # (dev ** 2: numpy squares)
+        node *= half[:, None]
+        node[status > 0] = np.inf               # excluded or likely excluded (statuses -1, 0, 2, 3)
         states, broke = viterbi(node, trans)
         if states is None:
             i = max(broke, 0)
@@ -390,11 +392,14 @@ def joint_programme(checker, C, grid: MeridianGrid, cost: SmoothingCost, pref, d
 
 def _deviation(rot: Rotary, theta: np.ndarray, phis: np.ndarray, pref: np.ndarray, rows: int = 1024) -> np.ndarray:
     """``angle_between(rot.axis(theta, phis[None, :]), pref[:, None, :])`` (n, M): each
-    pose's angle to the point's preferred axis. Where every preferred axis lies along the C
-    axis (x = y = 0) the same operations component by component, ``rows`` points at a time
-    (no (n, M, 3) arrays: half the time on the keycap's 14.7k x 36): einsum's dot product
-    sums its three products in an order of its own, but with two of them +-0 every order
-    gives the same bits, here ``((p0 + p1) + p2) + 0.0`` (einsum starts from +0, never -0)."""
+    pose's angle to the point's preferred axis, with the same bits. Where every preferred
+    axis lies along the C axis (x = y = 0), ``rows`` points at a time without (n, M, 3)
+    arrays and without the terms that are +-0: the axis is ``(s m_x, s m_y, c)`` up to the
+    sign of a zero (``c * 0.0 + s m`` adds +-0; the meridians' z is 0), the cross product's
+    components are ``(s m_y) b_z``, ``-(s m_x) b_z`` and +-0, so its squared length is
+    ``((s m_y) b_z)^2 + ((s m_x) b_z)^2`` exactly (a zero's sign squares away), and einsum's
+    dot product is ``c b_z + 0.0`` whatever order it sums in (it starts from +0, never -0).
+    A third of the passes over the grid (keycap 14.7k x 36)."""
     pref = np.asarray(pref, float)
     if pref[:, :2].any():
         return angle_between(rot.axis(theta, phis[None, :]), pref[:, None, :])
@@ -405,22 +410,17 @@ def _deviation(rot: Rotary, theta: np.ndarray, phis: np.ndarray, pref: np.ndarra
         s = slice(a, min(a + rows, n))
         t = theta[s]
         c, sn = np.cos(t), np.sin(t)
-        c0 = c * 0.0                                    # rot.axis's components
-        k0 = c0 + sn * m[:, 0]
-        k1 = c0 + sn * m[:, 1]
-        k2 = c * 1.0 + sn * m[:, 2]
-        b0, b1, b2 = pref[s, 0:1], pref[s, 1:2], pref[s, 2:3]
-        x = k1 * b2 - k2 * b1                           # angle_between's cross product
-        y = k2 * b0 - k0 * b2
-        z = k0 * b1 - k1 * b0
-        d = k0 * b0                                     # ... and dot product
-        d += k1 * b1
-        d += k2 * b2
-        d += 0.0
+        bz = pref[s, 2:3]
+        x = sn * m[:, 1]                                # the cross product's x: (s m_y) b_z
+        x *= bz
         x *= x
-        x += y * y
-        x += z * z
-        np.arctan2(np.sqrt(x, out=x), d, out=out[s])
+        y = sn * m[:, 0]                                # ... and y: -(s m_x) b_z
+        y *= bz
+        y *= y
+        x += y
+        c *= bz                                         # the dot product
+        c += 0.0
+        np.arctan2(np.sqrt(x, out=x), c, out=out[s])
     return out
 
 

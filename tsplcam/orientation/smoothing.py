@@ -55,7 +55,7 @@ from scipy.linalg import solveh_banded
 
 from . import compiled
 from .rotary import DEG, Rotary, angle_between
-from .viterbi import from_blocks, viterbi
+from .viterbi import BLOCK, from_blocks, viterbi
 
 
 @dataclass
@@ -936,7 +936,28 @@ def forced_rotary_travel(grid: MeridianGrid, status, ds, air=None):
                 t = plain[i1 - i0] = np.broadcast_to(D, (i1 - i0, M, M)).copy()
             return t
         return np.take(both, s, axis=0)         # (one gather; keycap: 4954 short blocks)
-    states, _ = viterbi(node, from_blocks(block))
+
+    # with the kernels: the points into which the moves are of one kind run by run, each
+    # read from the first rows of one array of that kind's matrix repeated (no block made;
+    # the same transitions, so the same states: keycap 1100 runs)
+    edges = np.flatnonzero(np.diff(kind)) + 1
+    starts = (np.concatenate([[0], edges]) + 1).tolist()
+    ends = (np.concatenate([edges, [n - 1]]) + 1).tolist()
+    repeated: dict = {}
+
+    def steps(k, acc, node_, i0: int, i1: int, tie: float, back) -> int:
+        for a, b in zip(starts, ends):
+            a, b = max(a, i0), min(b, i1)
+            c = int(kind[a - 1]) if a < b else 0
+            T = repeated.get(c)
+            if T is None:
+                T = repeated[c] = np.ascontiguousarray(np.broadcast_to(both[c], (BLOCK, M, M)))
+            for j in range(a, b, BLOCK):
+                broke = k["viterbi_steps"](acc, node_, T[:min(BLOCK, b - j)], j, tie, back)
+                if broke >= 0:
+                    return broke
+        return -1
+    states, _ = viterbi(node, from_blocks(block, steps if n > 1 else None))
     if states is None:
         return np.nan, None
     return float(D[states[:-1], states[1:]].sum()), states

@@ -316,6 +316,28 @@ class CompiledJointTransitions(unittest.TestCase):
                     self.assertEqual(len(k[name].signatures), 1, name)
             self.assertIs(compiled.loaded(), k)
 
+    def test_programme_takes_the_set_aside(self):
+        """A Viterbi programme whose work is below the load threshold runs in the set
+        ``prepare()`` put aside, where there is one (the same states as numpy's loop), and
+        leaves the process's choice alone: nothing loaded, the work still counted."""
+        rng = np.random.default_rng(23)
+        grid, tr = random_programme(rng, 60, 12)
+        node = rng.random((60, 12))
+        node[rng.random((60, 12)) < 0.2] = np.inf
+        want = viterbi(node, tr, kernel=False)
+        with mock.patch.dict(compiled._STATE, {"work": 0.0}, clear=True):
+            compiled.prepare()
+            calls = []
+            spare = {name: (lambda f, name: lambda *a: calls.append(name) or f(*a))(f, name)
+                     for name, f in compiled._STATE["spare"].items()}
+            compiled._STATE["spare"] = spare
+            got = viterbi(node, tr)
+            self.assertIn("joint_steps", calls)
+            self.assertIsNone(compiled.loaded())
+            self.assertGreater(compiled._STATE["work"], 0.0)
+        self.assertEqual(want[1], got[1])
+        np.testing.assert_array_equal(want[0], got[0])
+
     def test_warm_compiles_it(self):
         """``warm()`` (the install script's) compiles numba's kernel for the types the job uses."""
         compiled.warm()

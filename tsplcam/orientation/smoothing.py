@@ -132,7 +132,7 @@ def meridian_grid(rot: Rotary, pref, normal, constraints, M: int, pole_tilt: flo
         pick = np.where(np.abs(up - th) <= np.abs(dn - th), up, dn)
         th = np.where(near, pick, th)
     ok = (lo <= hi) & np.isfinite(th)
-    th = np.where(ok, th, 0.0)
+    th[~ok] = 0.0
     return MeridianGrid(phis, th, lo, hi, tp, ok, th.copy(), np.zeros(th.shape, bool))
 
 

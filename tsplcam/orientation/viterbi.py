@@ -120,6 +120,12 @@ def viterbi(node: np.ndarray, transition, kernel: bool = True) -> tuple:
     acc = node[0].copy()
     back = np.zeros((n, S), np.int32)
     k = compiled.kernels(work=float(n) * S * S) if kernel else None
+    if k is None and kernel:
+        # a set compiled.prepare loaded aside (the job does, while its path is computed):
+        # the same states as the numpy loop, without loading it for the process (whose
+        # other callers, e.g. the banded solves, keep to the work it asked for; keycap_mold:
+        # its first programmes, 0.16 s in numpy)
+        k = compiled._STATE.get("spare")
     if k is not None:
         return _compiled(k, node, acc, back, block, getattr(transition, "steps", None))
     cols = np.arange(S)

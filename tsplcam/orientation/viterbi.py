@@ -17,6 +17,9 @@ The recurrence runs in a compiled kernel (:mod:`tsplcam.orientation.compiled`, n
 numba is installed: the same arithmetic, so the same states and costs bit for bit; this
 module's numpy loop is the reference and the fallback. A transition function may bring its
 own compiled steps (:func:`from_blocks`), which compute the transitions inside the kernel.
+Where the work is below that at which a process loads the kernels (``compiled.kernels``) but
+a set was put aside for it (``compiled.prepare``: the job's), that set runs the recurrence:
+the same states, and the process's choice for its other callers is left as it was.
 """
 from __future__ import annotations
 

@@ -1,10 +1,15 @@
 """The C travel the cones force (smoothing.forced_rotary_travel) against independent answers:
 every state sequence of small random grids enumerated, and walls whose cones leave no tilt
 within the other branch's range, where every side change is a C half-turn."""
+import importlib.util
 import itertools
+import os
 import unittest
+from unittest import mock
 
 import numpy as np
+
+from tsplcam.orientation import compiled
 
 from tsplcam.orientation.rotary import DEG, Rotary
 from tsplcam.orientation.smoothing import (IN_PLACE, MeridianGrid, cone_halfspaces, forced_rotary_travel,
@@ -45,6 +50,37 @@ class AgainstEnumeration(unittest.TestCase):
             best = steps[legal].sum(axis=1).min()
             self.assertAlmostEqual(travel, best, delta=1e-9, msg=f"case {case}")
             self.assertTrue(allowed[np.arange(n), states].all())
+
+
+@unittest.skipUnless(importlib.util.find_spec("numba") is not None and os.environ.get("TSPLCAM_COMPILED") != "0",
+                     "numba is not installed (the numpy version runs)")
+class CompiledRuns(unittest.TestCase):
+    def test_runs_in_the_kernel_same_as_blocks(self):
+        """With the kernels loaded the programme runs run by run of one move kind through
+        viterbi_steps (runs of short blocks and of others, longer and shorter than a block,
+        air points, states excluded, chains that break): the same travel and states as the
+        numpy loop over the gathered blocks."""
+        self.assertIsNotNone(compiled.kernels())
+        rng = np.random.default_rng(9)
+        broke = 0
+        for case in range(25):
+            n, M = int(rng.integers(2, 200)), int(rng.choice([8, 36]))
+            ok = rng.random((n, M)) < rng.uniform(0.3, 1.0)
+            status = np.where(rng.random((n, M)) < 0.1, 2, -1)
+            runs = np.repeat(rng.random(n) < 0.5, rng.integers(1, 70, n))[:n - 1]
+            ds = np.where(runs, 0.05, 1.0)
+            air = rng.random(n) < 0.05
+            got = forced_rotary_travel(grid_of(ok, M), status, ds, air=air)
+            with mock.patch.dict(compiled._STATE, {"k": None}):
+                want = forced_rotary_travel(grid_of(ok, M), status, ds, air=air)
+            if want[1] is None:
+                broke += 1
+                self.assertTrue(np.isnan(got[0]) and got[1] is None, case)
+                continue
+            self.assertEqual(got[0], want[0], case)
+            np.testing.assert_array_equal(got[1], want[1])
+        self.assertGreater(broke, 0)
+        self.assertLess(broke, 25)
 
 
 class Walls(unittest.TestCase):

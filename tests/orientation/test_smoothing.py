@@ -9,8 +9,9 @@ from scipy.optimize import minimize
 
 from tsplcam.orientation.candidates import Limits, admissible, feed_directions
 from tsplcam.orientation.rotary import DEG, Rotary
-from tsplcam.orientation.smoothing import (MeridianGrid, SmoothingCost, _Banded, _azimuth_window, _meridian_dots, _quadratic,
-                                           cone_halfspaces, meridian_grid,
+from tsplcam.orientation.rotary import angle_between
+from tsplcam.orientation.smoothing import (MeridianGrid, SmoothingCost, _Banded, _azimuth_window, _deviation, _meridian_dots,
+                                           _quadratic, cone_halfspaces, meridian_grid,
                                            joint_transitions, phi_interval, theta_interval)
 
 
@@ -66,6 +67,29 @@ class AdmissibleArcs(unittest.TestCase):
             self.assertEqual(a[0].tobytes() + a[1].tobytes(), b[0].tobytes() + b[1].tobytes())
             g = meridian_grid(rot, self.normal, self.normal, self.cons, 36)
             self.assertEqual(g.pref.tobytes(), rot.best_theta(self.normal[:, None, :], PH, mb).tobytes())
+
+    def test_grid_in_chunks_and_deviation_bits(self):
+        """meridian_grid a few points at a time is the grid in one piece bit for bit; the
+        poses' angles to preferred axes along +-z (_deviation: no (n, M, 3) arrays) are
+        angle_between's of rot.axis bit for bit, zero and right-angle tilts, signed zeros
+        and tiny axes included; other preferred axes take angle_between itself."""
+        th = self.rng.uniform(-3.5, 3.5, (self.n, 36))
+        th[::7] = 0.0
+        th[::11, ::3] = -0.0
+        th[::17, ::5] = np.pi / 2
+        for about in ("X", "Y"):
+            rot = Rotary(about=about)
+            whole = meridian_grid(rot, self.normal, self.normal, self.cons, 36)
+            parts = meridian_grid(rot, self.normal, self.normal, self.cons, 36, rows=7)
+            for f in ("theta", "lo", "hi", "pref", "ok"):
+                self.assertEqual(getattr(whole, f).tobytes(), getattr(parts, f).tobytes(), f)
+            phis = np.concatenate([2 * np.pi * np.arange(32) / 32, [np.pi / 2, -np.pi, 7.0, -0.0]])
+            pz = np.zeros((self.n, 3))
+            pz[:, 2] = self.rng.choice([1.0, -1.0, 0.5, -0.0, 1e-300], self.n)
+            pz[::13, 1] = -0.0
+            for pref in (pz, self.normal):
+                want = angle_between(rot.axis(th, phis[None, :]), pref[:, None, :])
+                self.assertEqual(_deviation(rot, th, phis, pref, rows=50).tobytes(), want.tobytes())
 
     def test_azimuth_window_walks_the_free_cells(self):
         """The window through azimuth cells whose free tilt is at most the pose's: counted

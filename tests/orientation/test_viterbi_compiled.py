@@ -214,6 +214,25 @@ class CompiledBandedSolve(unittest.TestCase):
             self.assertLess(np.abs(grad[free]).max(initial=0.0), 1e-8 * np.abs(B.g).max())
             self.assertTrue((grad[x <= lo + 1e-9] >= -1e-8).all() and (grad[x >= hi - 1e-9] <= 1e-8).all())
 
+    def test_solve_box_steps_again_only_where_changed(self):
+        """The solve_box kernel takes again only the steps of the factor and substitutions
+        whose inputs changed: on small systems whose active sets change many times (tight and
+        some empty-width boxes, 1 to 40 iterations, sizes from 1 row), the same bits as the
+        loop that solves every iteration whole with banded_solve."""
+        self.assertIsNotNone(compiled.kernels())            # loaded: B.solve_box runs the kernel
+        rng = np.random.default_rng(7)
+        for trial in range(60):
+            N = int(rng.integers(1, 50)) if trial else 300
+            B = _Banded(N, 2)
+            B.ab[:] = random_band(rng, N, 2, fixed=0.0)
+            B.g[:] = rng.standard_normal(N) * 10.0 ** rng.uniform(-1, 2)
+            lo = rng.uniform(-1.0, 0.0, N)
+            hi = lo + rng.uniform(0.0, 1.0, N) * (rng.random(N) > 0.1)
+            for iterations in (1, 2, 40):
+                x = B.solve_box(lo, hi, iterations)
+                with mock.patch.object(compiled, "loaded", lambda: None):
+                    np.testing.assert_array_equal(B.solve_box(lo, hi, iterations), x, (trial, iterations))
+
 
 def random_programme(rng, n, M):
     """A joint programme's transition function on random tilts (some at the pole, some
@@ -296,6 +315,28 @@ class CompiledJointTransitions(unittest.TestCase):
                 if not isinstance(k[name], compiled._Exported):     # (ahead of time: one type only)
                     self.assertEqual(len(k[name].signatures), 1, name)
             self.assertIs(compiled.loaded(), k)
+
+    def test_programme_takes_the_set_aside(self):
+        """A Viterbi programme whose work is below the load threshold runs in the set
+        ``prepare()`` put aside, where there is one (the same states as numpy's loop), and
+        leaves the process's choice alone: nothing loaded, the work still counted."""
+        rng = np.random.default_rng(23)
+        grid, tr = random_programme(rng, 60, 12)
+        node = rng.random((60, 12))
+        node[rng.random((60, 12)) < 0.2] = np.inf
+        want = viterbi(node, tr, kernel=False)
+        with mock.patch.dict(compiled._STATE, {"work": 0.0}, clear=True):
+            compiled.prepare()
+            calls = []
+            spare = {name: (lambda f, name: lambda *a: calls.append(name) or f(*a))(f, name)
+                     for name, f in compiled._STATE["spare"].items()}
+            compiled._STATE["spare"] = spare
+            got = viterbi(node, tr)
+            self.assertIn("joint_steps", calls)
+            self.assertIsNone(compiled.loaded())
+            self.assertGreater(compiled._STATE["work"], 0.0)
+        self.assertEqual(want[1], got[1])
+        np.testing.assert_array_equal(want[0], got[0])
 
     def test_warm_compiles_it(self):
         """``warm()`` (the install script's) compiles numba's kernel for the types the job uses."""

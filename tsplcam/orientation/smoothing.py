@@ -55,7 +55,7 @@ from scipy.linalg import solveh_banded
 
 from . import compiled
 from .rotary import DEG, Rotary, angle_between
-from .viterbi import from_blocks, viterbi
+from .viterbi import BLOCK, from_blocks, viterbi
 
 
 @dataclass
@@ -105,20 +105,26 @@ class MeridianGrid:
     raised: np.ndarray = None   # the checks moved the tilt away from the preferred axis
 
 
-def meridian_grid(rot: Rotary, pref, normal, constraints, M: int, pole_tilt: float = 0.0) -> MeridianGrid:
+def meridian_grid(rot: Rotary, pref, normal, constraints, M: int, pole_tilt: float = 0.0,
+                  rows: int = 1024) -> MeridianGrid:
     n = len(pref)
     phis = 2 * np.pi * np.arange(M) / M
-    PH = np.broadcast_to(phis, (n, M))
-    # the meridians of the M rotary values, once (rot.meridian of PH computes the same
-    # elements n times over); rot.best_theta's arctan2 of the dot products, taken by
-    # _meridian_dots
+    # the meridians of the M rotary values, once (rot.meridian of the (n, M) grid computes
+    # the same elements n times over); rot.best_theta's arctan2 of the dot products, taken by
+    # _meridian_dots. ``rows`` points at a time: every step is element by element, and the
+    # temporaries of (rows, M) stay in the cache (keycap: 14.7k x 36, 4 MB an array)
     m = rot.meridian(phis)
     normal, pref = np.asarray(normal, float), np.asarray(pref, float)
-    lo, hi = theta_interval(rot, PH, constraints, np.arctan2(_meridian_dots(normal, m), normal[:, 2:3]), m)
-    lo = np.maximum(lo, rot.theta_lo)
-    hi = np.minimum(hi, rot.theta_hi)
-    tp = np.arctan2(_meridian_dots(pref, m), pref[:, 2:3])
-    th = np.clip(tp, lo, hi)
+    th, lo, hi, tp = (np.empty((n, M)) for _ in range(4))
+    for a in range(0, n, rows):
+        s = slice(a, min(a + rows, n))
+        nr, pr = normal[s], pref[s]
+        cons = [(h[s], np.asarray(b, float)[s]) for h, b in constraints]
+        l, u = theta_interval(rot, np.broadcast_to(phis, (len(nr), M)), cons,
+                              np.arctan2(_meridian_dots(nr, m), nr[:, 2:3]), m)
+        l = np.maximum(l, rot.theta_lo, out=lo[s])
+        u = np.minimum(u, rot.theta_hi, out=hi[s])
+        np.clip(np.arctan2(_meridian_dots(pr, m), pr[:, 2:3], out=tp[s]), l, u, out=th[s])
     if pole_tilt > 0:
         near = np.abs(th) < pole_tilt
         up = np.where(hi >= pole_tilt, np.maximum(lo, pole_tilt), np.inf)
@@ -126,7 +132,7 @@ def meridian_grid(rot: Rotary, pref, normal, constraints, M: int, pole_tilt: flo
         pick = np.where(np.abs(up - th) <= np.abs(dn - th), up, dn)
         th = np.where(near, pick, th)
     ok = (lo <= hi) & np.isfinite(th)
-    th = np.where(ok, th, 0.0)
+    th[~ok] = 0.0
     return MeridianGrid(phis, th, lo, hi, tp, ok, th.copy(), np.zeros(th.shape, bool))
 
 
@@ -294,7 +300,7 @@ def joint_programme(checker, C, grid: MeridianGrid, cost: SmoothingCost, pref, d
     rot = cost.rotary
     tick = tick or (lambda: None)
     trans = joint_transitions(grid, cost, ds, max_step, free_step, air)
-    status = np.where(grid.ok, -1, 2).astype(np.int8)   # -1 unknown, 0 free, 2 excluded, 3 likely excluded
+    status = np.where(grid.ok, np.int8(-1), np.int8(2))   # -1 unknown, 0 free, 2 excluded, 3 likely excluded
     theta_init = grid.theta.copy()
     anchored = np.zeros(n, bool)
     rounds = checks = 0
@@ -311,7 +317,7 @@ def joint_programme(checker, C, grid: MeridianGrid, cost: SmoothingCost, pref, d
         rounds += 1
         tick()
         if dev is None:
-            dev = angle_between(rot.axis(grid.theta, grid.phi[None, :]), pref[:, None, :])
+            dev = _deviation(rot, grid.theta, grid.phi, pref)
         else:
             # each pose's deviation from the preferred axis again where its tilt changed (the
             # same element-wise operations on those elements: the same bits)
@@ -319,7 +325,9 @@ def joint_programme(checker, C, grid: MeridianGrid, cost: SmoothingCost, pref, d
             if len(i):
                 dev[i, k] = angle_between(rot.axis(grid.theta[i, k], grid.phi[k]), pref[i])
         seen = grid.theta.copy()
-        node = np.where((status == -1) | (status == 0), dev ** 2 * half[:, None], np.inf)
+        node = np.square(dev)                   # (dev ** 2: numpy squares)
+        node *= half[:, None]
+        node[status > 0] = np.inf               # excluded or likely excluded (statuses -1, 0, 2, 3)
         states, broke = viterbi(node, trans)
         if states is None:
             i = max(broke, 0)
@@ -380,6 +388,40 @@ def joint_programme(checker, C, grid: MeridianGrid, cost: SmoothingCost, pref, d
             checks += resolve(key // M, key % M)
         if rounds >= max_rounds:                                  # pragma: no cover
             raise NoPath(0, "rounds")
+
+
+def _deviation(rot: Rotary, theta: np.ndarray, phis: np.ndarray, pref: np.ndarray, rows: int = 1024) -> np.ndarray:
+    """``angle_between(rot.axis(theta, phis[None, :]), pref[:, None, :])`` (n, M): each
+    pose's angle to the point's preferred axis, with the same bits. Where every preferred
+    axis lies along the C axis (x = y = 0), ``rows`` points at a time without (n, M, 3)
+    arrays and without the terms that are +-0: the axis is ``(s m_x, s m_y, c)`` up to the
+    sign of a zero (``c * 0.0 + s m`` adds +-0; the meridians' z is 0), the cross product's
+    components are ``(s m_y) b_z``, ``-(s m_x) b_z`` and +-0, so its squared length is
+    ``((s m_y) b_z)^2 + ((s m_x) b_z)^2`` exactly (a zero's sign squares away), and einsum's
+    dot product is ``c b_z + 0.0`` whatever order it sums in (it starts from +0, never -0).
+    A third of the passes over the grid (keycap 14.7k x 36)."""
+    pref = np.asarray(pref, float)
+    if pref[:, :2].any():
+        return angle_between(rot.axis(theta, phis[None, :]), pref[:, None, :])
+    n = len(theta)
+    m = rot.meridian(phis)
+    out = np.empty(theta.shape)
+    for a in range(0, n, rows):
+        s = slice(a, min(a + rows, n))
+        t = theta[s]
+        c, sn = np.cos(t), np.sin(t)
+        bz = pref[s, 2:3]
+        x = sn * m[:, 1]                                # the cross product's x: (s m_y) b_z
+        x *= bz
+        x *= x
+        y = sn * m[:, 0]                                # ... and y: -(s m_x) b_z
+        y *= bz
+        y *= y
+        x += y
+        c *= bz                                         # the dot product
+        c += 0.0
+        np.arctan2(np.sqrt(x, out=x), c, out=out[s])
+    return out
 
 
 def free_tilts(grid: MeridianGrid, status) -> np.ndarray | None:
@@ -607,10 +649,11 @@ class _Banded:
         already (then every solve below would run in ``banded_solve``) the whole loop runs in
         the ``solve_box`` kernel: the same operations in the same order, so the same x,
         without the numpy calls' overhead per iteration (215 iterations of 14.7k rows on the
-        keycap)."""
+        keycap), and each iteration takes again only the steps of the factor and the
+        substitutions whose inputs changed (u = 2; the same bits)."""
         N, u = self.N, self.u
         k = compiled.loaded()
-        if k is not None and u >= 2:
+        if k is not None and u == 2:
             x = np.empty(N)
             lo_c = np.require(np.broadcast_to(lo, (N,)), np.float64, "C")
             hi_c = np.require(np.broadcast_to(hi, (N,)), np.float64, "C")
@@ -728,17 +771,30 @@ def smooth_joints(path, rot: Rotary, theta0, phi0, pref, normal, cost: Smoothing
         lo, hi = theta_interval(rot, ph, cons, th)
         return np.maximum(lo, rot.theta_lo), np.minimum(hi, rot.theta_hi)
 
+    built = {}
+
+    def quadratic(Q: _Banded, bw, w_vel: float, l_acc: float) -> np.ndarray:
+        """The band of ``_quadratic(..., bw)``: Q's where every block weight is 1 (the same
+        products: x * 1.0 is x), the last one built for the same weights, else built."""
+        if bw is None or not (bw != 1.0).any():
+            return Q.ab
+        last = built.get(id(Q))
+        if last is None or not np.array_equal(last[0], bw):
+            last = built[id(Q)] = (bw.copy(), _quadratic(n, ds, couple, L, w_vel, l_acc, bw).ab)
+        return last[1]
+
     for r in range(rounds):
         info["joint_rounds"] = r + 1
         th_c = np.where(held, theta, theta0)           # every round starts from the programme
         ph_c = np.where(held, phi, phi0)
+        tp = None                                      # best_theta(pref, ph_c) once known
         for _ in range(alternations):
             # 1. rotary values: smooth where the tilt stays admissible, held where the tool
             # axis would turn with them (nothing near the pole)
             plo, phi_hi = phi_interval(rot, th_c, constraints, ph_c, lat)
             # ... or at a little more tilt away from the preferred axis, which the tilt step
             # may then take (the rotary value held by a tilt on its bound can move)
-            away = np.where(th_c >= rot.best_theta(pref, ph_c), 1.0, -1.0)
+            away = np.where(th_c >= (rot.best_theta(pref, ph_c) if tp is None else tp), 1.0, -1.0)
             th2 = np.clip(th_c + away * lean, rot.theta_lo, rot.theta_hi)
             l2, h2 = phi_interval(rot, th2, constraints, ph_c, lat)
             ok2 = (l2 <= ph_c) & (ph_c <= h2)
@@ -752,7 +808,7 @@ def smooth_joints(path, rot: Rotary, theta0, phi0, pref, normal, cost: Smoothing
             plo = np.where(held, ph_c, np.minimum(plo, ph_c))   # the current value is admissible
             phi_hi = np.where(held, ph_c, np.maximum(phi_hi, ph_c))
             B = _Banded(n, 2)
-            B.ab[:] = Qphi.ab if bw_p is None else _quadratic(n, ds, couple, L, alpha * cost.w, cost.l_phi, bw_p).ab
+            B.ab[:] = quadratic(Qphi, bw_p, alpha * cost.w, cost.l_phi)
             B.add(hold, np.arange(n)[:, None], np.ones((n, 1)), -phi0)
             ph_c = B.solve_box(plo, phi_hi)
             # 2. tilts: the convex problem on the admissible arcs at the new rotary values
@@ -774,7 +830,7 @@ def smooth_joints(path, rot: Rotary, theta0, phi0, pref, normal, cost: Smoothing
             lo, hi = np.minimum(lo, th_c), np.maximum(hi, th_c)
             lo, hi = np.where(held, th_c, lo), np.where(held, th_c, hi)
             B = _Banded(n, 2)
-            B.ab[:] = Qth.ab if bw_t is None else _quadratic(n, ds, couple, L, alpha + cost.beta, cost.l_theta, bw_t).ab
+            B.ab[:] = quadratic(Qth, bw_t, alpha + cost.beta, cost.l_theta)
             B.add(half / L, np.arange(n)[:, None], np.ones((n, 1)), -tp)
             th_c = B.solve_box(lo, hi)
             if cost.feed > 0 and cost.over > 0:
@@ -866,20 +922,42 @@ def forced_rotary_travel(grid: MeridianGrid, status, ds, air=None):
     air = np.zeros(n, bool) if air is None else np.asarray(air, bool)
     node = np.where(grid.ok & (np.asarray(status) != 2), 0.0, np.inf)
     short = (np.asarray(ds) < IN_PLACE[0]) & ~air[1:]
+    # the two transitions there are: D, and D with the swings forbidden (into a short block)
+    both = np.stack([D, np.where(swing, np.inf, D)])
+    kind = short.astype(np.intp)
 
     plain: dict = {}             # blocks without a short block: the same array each time
 
     def block(i0: int, i1: int) -> np.ndarray:
-        s = short[i0 - 1:i1 - 1]
+        s = kind[i0 - 1:i1 - 1]
         if not s.any():
             t = plain.get(i1 - i0)
             if t is None:
                 t = plain[i1 - i0] = np.broadcast_to(D, (i1 - i0, M, M)).copy()
             return t
-        t = np.broadcast_to(D, (i1 - i0, M, M)).copy()
-        np.copyto(t, np.inf, where=s[:, None, None] & swing[None])
-        return t
-    states, _ = viterbi(node, from_blocks(block))
+        return np.take(both, s, axis=0)         # (one gather; keycap: 4954 short blocks)
+
+    # with the kernels: the points into which the moves are of one kind run by run, each
+    # read from the first rows of one array of that kind's matrix repeated (no block made;
+    # the same transitions, so the same states: keycap 1100 runs)
+    edges = np.flatnonzero(np.diff(kind)) + 1
+    starts = (np.concatenate([[0], edges]) + 1).tolist()
+    ends = (np.concatenate([edges, [n - 1]]) + 1).tolist()
+    repeated: dict = {}
+
+    def steps(k, acc, node_, i0: int, i1: int, tie: float, back) -> int:
+        for a, b in zip(starts, ends):
+            a, b = max(a, i0), min(b, i1)
+            c = int(kind[a - 1]) if a < b else 0
+            T = repeated.get(c)
+            if T is None:
+                T = repeated[c] = np.ascontiguousarray(np.broadcast_to(both[c], (BLOCK, M, M)))
+            for j in range(a, b, BLOCK):
+                broke = k["viterbi_steps"](acc, node_, T[:min(BLOCK, b - j)], j, tie, back)
+                if broke >= 0:
+                    return broke
+        return -1
+    states, _ = viterbi(node, from_blocks(block, steps if n > 1 else None))
     if states is None:
         return np.nan, None
     return float(D[states[:-1], states[1:]].sum()), states

@@ -17,6 +17,9 @@ The recurrence runs in a compiled kernel (:mod:`tsplcam.orientation.compiled`, n
 numba is installed: the same arithmetic, so the same states and costs bit for bit; this
 module's numpy loop is the reference and the fallback. A transition function may bring its
 own compiled steps (:func:`from_blocks`), which compute the transitions inside the kernel.
+Where the work is below that at which a process loads the kernels (``compiled.kernels``) but
+a set was put aside for it (``compiled.prepare``: the job's), that set runs the recurrence:
+the same states, and the process's choice for its other callers is left as it was.
 """
 from __future__ import annotations
 
@@ -120,6 +123,12 @@ def viterbi(node: np.ndarray, transition, kernel: bool = True) -> tuple:
     acc = node[0].copy()
     back = np.zeros((n, S), np.int32)
     k = compiled.kernels(work=float(n) * S * S) if kernel else None
+    if k is None and kernel:
+        # a set compiled.prepare loaded aside (the job does, while its path is computed):
+        # the same states as the numpy loop, without loading it for the process (whose
+        # other callers, e.g. the banded solves, keep to the work it asked for; keycap_mold:
+        # its first programmes, 0.16 s in numpy)
+        k = compiled._STATE.get("spare")
     if k is not None:
         return _compiled(k, node, acc, back, block, getattr(transition, "steps", None))
     cols = np.arange(S)

@@ -1088,6 +1088,12 @@ def loaded():
     return _STATE.get("k")
 
 
+def prepared():
+    """The set :func:`prepare` put aside, if any (not loaded for the process: :func:`kernels`'
+    choice by the work asked stays as it was), else None."""
+    return _STATE.get("spare")
+
+
 def prepare() -> None:
     """Load the kernels into a set kept aside, leaving :func:`kernels`' own choice (compiled
     or numpy, by the work asked) untouched: :func:`kernels` gives that set once it loads. A

@@ -128,7 +128,7 @@ def viterbi(node: np.ndarray, transition, kernel: bool = True) -> tuple:
         # the same states as the numpy loop, without loading it for the process (whose
         # other callers, e.g. the banded solves, keep to the work it asked for; keycap_mold:
         # its first programmes, 0.16 s in numpy)
-        k = compiled._STATE.get("spare")
+        k = compiled.prepared()
     if k is not None:
         return _compiled(k, node, acc, back, block, getattr(transition, "steps", None))
     cols = np.arange(S)

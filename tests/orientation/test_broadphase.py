@@ -518,10 +518,18 @@ class Geometry(unittest.TestCase):
             lb = np.where(far, np.sqrt(max(cap * cap - bp.e2, 0.0)), np.sqrt(np.maximum(d * d - bp.e2, 0.0)))
             np.testing.assert_array_equal(g.lb, lb)
             np.testing.assert_array_equal(g.idx, np.where(far, -1, j))
-            skipped = ~np.repeat(np.repeat(np.repeat(g._near_blocks(bp.tree, axes), g.BLOCK, 0),
+            skipped = ~np.repeat(np.repeat(np.repeat(g._near_blocks(bp.tree), g.BLOCK, 0),
                                            g.BLOCK, 1), g.BLOCK, 2)[:g.shape[0], :g.shape[1], :g.shape[2]]
             self.assertGreater(skipped.mean(), 0.2)                 # blocks were left out
             self.assertTrue(np.all(far[skipped.ravel()]))
+            # nodes of the other blocks left out by their distance from the block centre's
+            # nearest sample (beyond the cap by the triangle inequality): some, all far
+            D, cen = g._block_distances(bp.tree)
+            blk = [a // g.BLOCK for a in np.unravel_index(np.arange(len(nodes)), tuple(g.shape))]
+            centre = np.column_stack([cen[a][blk[a]] for a in range(3)])
+            alone = ~skipped.ravel() & (D[tuple(blk)] - np.linalg.norm(nodes - centre, axis=1) > cap + 1e-6)
+            self.assertGreater(int(alone.sum()), 10)
+            self.assertTrue(np.all(far[alone]))
 
     def test_centre_table(self):
         """Slots by a centre's exact bytes: the same centre (also -0.0 against 0.0: other

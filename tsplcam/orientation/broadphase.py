@@ -339,10 +339,12 @@ class DistanceGrid:
     one's), and a KD query that finds nothing still costs about half of one that does. So
     blocks of ``BLOCK``^3 nodes are asked first, at their centres: a block whose centre lies
     farther than the cap plus its half-diagonal (and ``EPS``, for rounding) from every sample
-    has every node beyond the cap, which is what the node's own query answers; the other
-    blocks' nodes are queried, each point's answer the same bits as in any batch (the
-    keycap's fine grid: 38k nodes queried of 92k, 0.06 CPU-s). The queries run on
-    :func:`threads` (one while the path's workers run).
+    has every node beyond the cap, which is what the node's own query answers; so has a node
+    of another block farther than the cap (and ``EPS``) from the sample nearest to the
+    block's centre, less its distance from the centre; the other nodes are queried, each
+    point's answer the same bits as in any batch (the keycap's fine grid: 36k nodes queried
+    of 92k, 0.06 CPU-s). The queries run on :func:`threads` (one while the path's workers
+    run).
 
     ``lazy``: no node is queried when the grid is made; a node holds ``UNMADE`` (+inf, its
     sample -1) until a read meets it (:meth:`fill`): a read that meets one gives +inf, which
@@ -371,13 +373,21 @@ class DistanceGrid:
             return
         axes = [self.origin[i] + self.h * np.arange(self.shape[i]) for i in range(3)]
         b, (n0, n1, n2) = self.BLOCK, self.shape
-        ask = self._near_blocks(tree, axes).repeat(b, 0).repeat(b, 1).repeat(b, 2)[:n0, :n1, :n2]
+        D, cen = self._block_distances(tree)
+        ask = np.isfinite(D).repeat(b, 0).repeat(b, 1).repeat(b, 2)[:n0, :n1, :n2]
         q = np.flatnonzero(ask)
         i, j, k = np.unravel_index(q, ask.shape)
+        X = np.column_stack([axes[0][i], axes[1][j], axes[2][k]])
+        # a node farther from its block centre's nearest sample than the cap, by the distance
+        # between them (the distance to the samples is 1-Lipschitz) and EPS, is beyond the cap
+        # too: what its own query answers
+        w = X - np.column_stack([cen[0][i // b], cen[1][j // b], cen[2][k // b]])
+        r = np.sqrt(w[:, 0] * w[:, 0] + w[:, 1] * w[:, 1] + w[:, 2] * w[:, 2])
+        near = D[i // b, j // b, k // b] - r <= self.cap + EPS
+        q, X = q[near], X[near]
         d = np.full(ask.size, np.inf)
         jn = np.full(ask.size, tree.n, np.int64)
-        d[q], jn[q] = tree.query(np.column_stack([axes[0][i], axes[1][j], axes[2][k]]),
-                                 distance_upper_bound=cap, workers=threads() if len(q) >= KD_THREADS else 1)
+        d[q], jn[q] = tree.query(X, distance_upper_bound=cap, workers=threads() if len(q) >= KD_THREADS else 1)
         self.lb, self.idx = self._values(d, jn)
 
     def _values(self, d: np.ndarray, j: np.ndarray):
@@ -413,9 +423,15 @@ class DistanceGrid:
         k0 = np.floor((x - self.origin) / self.h).astype(np.int64)
         return np.minimum(np.maximum(k0, 0), self.shape - 2) @ self.stride
 
-    def _near_blocks(self, tree: cKDTree, axes) -> np.ndarray:
+    def _near_blocks(self, tree: cKDTree) -> np.ndarray:
         """Per block of ``BLOCK``^3 nodes: False where every node is proven beyond the cap (no
         sample within cap + the block's half-diagonal + EPS of its centre)."""
+        return np.isfinite(self._block_distances(tree)[0])
+
+    def _block_distances(self, tree: cKDTree):
+        """(per block of ``BLOCK``^3 nodes the distance from its centre to the nearest sample,
+        inf beyond the cap + the block's half-diagonal + EPS; the centres' coordinates per
+        axis)."""
         b = self.BLOCK
         nb = -(-self.shape // b)
         half = 0.5 * self.h * (b - 1) * np.sqrt(3.0)
@@ -423,7 +439,7 @@ class DistanceGrid:
         C = np.stack(np.meshgrid(*cen, indexing="ij"), axis=-1).reshape(-1, 3)
         d, _ = tree.query(C, distance_upper_bound=self.cap + half + EPS,
                           workers=threads() if len(C) >= KD_THREADS else 1)
-        return np.isfinite(d).reshape(tuple(nb))
+        return d.reshape(tuple(nb)), cen
 
     def __call__(self, x: np.ndarray):
         """(lower bound, sample index or -1, inside the grid) at points x: the best over the

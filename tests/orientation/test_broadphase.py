@@ -468,6 +468,20 @@ class Geometry(unittest.TestCase):
         np.testing.assert_array_equal(near[ins], wn[ins])
         self.assertGreater(ins.mean(), 0.9)
 
+    def test_longest_edges(self):
+        """The longest edge per triangle, coordinate by coordinate: the bits of the (n, 3, 3)
+        norm it replaces, on random triangles of coordinates from 1e-3 to 1e3 mm, with
+        repeated corners (degenerate triangles), and none."""
+        from tsplcam.orientation.broadphase import longest_edges
+        rng = np.random.default_rng(6)
+        for scale in (1e-3, 1.0, 1e3):
+            V = rng.normal(size=(500, 3)) * scale
+            T = rng.integers(0, 500, (2000, 3))
+            T[:100, 1] = T[:100, 0]
+            want = np.linalg.norm(V[T[:, [1, 2, 0]]] - V[T], axis=2).max(axis=1)
+            self.assertEqual(longest_edges(V, T).tobytes(), want.tobytes())
+        self.assertEqual(longest_edges(V, T[:0]).shape, (0,))
+
     def test_lazy_distance_grid(self):
         """A lazy distance grid reads the bits of the whole one (numpy's read and the compiled
         one, points inside, on nodes and outside), with only the nodes around the points read

@@ -242,6 +242,21 @@ def closest_on_triangles(P, A, B, C):
     return out
 
 
+def longest_edges(V: np.ndarray, T: np.ndarray) -> np.ndarray:
+    """Length of every triangle's longest edge: ``|V[T[:, [1, 2, 0]]] - V[T]|`` per row's
+    largest, the same operations coordinate by coordinate (the squares summed x, y, z as
+    ``np.linalg.norm`` sums them, so the same bits) without the (n, 3, 3) temporaries: a
+    fifth of the time on the keycap's 38k triangles."""
+    V = np.asarray(V, float)
+    T = np.asarray(T)
+    X, Y, Z = (np.ascontiguousarray(V[:, a]) for a in range(3))
+    t0, t1, t2 = (np.ascontiguousarray(T[:, a]) for a in range(3))
+    def length(a, b):
+        dx, dy, dz = X[a] - X[b], Y[a] - Y[b], Z[a] - Z[b]
+        return np.sqrt(dx * dx + dy * dy + dz * dz)
+    return np.maximum(np.maximum(length(t1, t0), length(t2, t1)), length(t0, t2))
+
+
 def mesh_samples(V: np.ndarray, T: np.ndarray, e_cap: float):
     """Points on the triangles: the vertices, and for every triangle longer than ``e_cap``
     the inner vertices of its uniform barycentric subdivision into k^2 triangles
@@ -251,7 +266,7 @@ def mesh_samples(V: np.ndarray, T: np.ndarray, e_cap: float):
     T = np.asarray(T, np.int64)
     if len(T) == 0:
         return V.copy(), np.full(len(V), -1), 0.0
-    edge = np.linalg.norm(V[T[:, [1, 2, 0]]] - V[T], axis=2).max(axis=1)
+    edge = longest_edges(V, T)
     k = np.maximum(1, np.ceil(edge / e_cap - 1e-9)).astype(int)
     pts, tri_of = [V], [np.full(len(V), -1)]
     e = float((edge / k).max())
@@ -661,7 +676,7 @@ class BroadPhase:
         T = np.asarray(triangles, np.int64)
         self.V, self.T = V, T
         if e_cap is None:
-            edge = np.linalg.norm(V[T[:, [1, 2, 0]]] - V[T], axis=2).max(axis=1) if len(T) else np.ones(1)
+            edge = longest_edges(V, T) if len(T) else np.ones(1)
             e_cap = max(0.1, float(np.quantile(edge, 0.5)))
         self.samples, tri_of, self.e = mesh_samples(V, T, e_cap)
         self.e2 = self.e * self.e / 3.0

@@ -234,6 +234,30 @@ class AgreesWithFcl(unittest.TestCase):
         self.assertTrue(np.all(kinds > 100), kinds)         # hits, open poses and cleared ones
         self.assertGreater(len(fills), 3)                   # poses met unmade nodes, ran again
 
+    def test_compiled_short_hit_table(self):
+        """The compiled sphere loop given a hit table of one row: each run too short is run
+        again with a longer one from the poses' rows as they were (an unmade coarse grid, so
+        poses also run again for its nodes): the bits of a run with a table long enough."""
+        from unittest import mock
+        from tsplcam.orientation import broadphase as bp, compiled
+        k = compiled.kernels()
+        if k is None:
+            self.skipTest("numba not available (or TSPLCAM_COMPILED=0)")
+        rng = np.random.default_rng(23)
+        C, A = random_poses(self.mold_path, 800, rng, spread=0.1, tilt=np.radians(75))
+        want = self._sphere_loop(unmade(self.mold.broad), C, A, 0.0, -1, k["sphere_loop"])
+        run, calls = bp.BroadPhase._kernel_run, []
+
+        def one_row(*args):
+            calls.append(args[-1])
+            return run(*args[:-1], 1)
+        with mock.patch.object(bp.BroadPhase, "_kernel_run", staticmethod(one_row)):
+            got = self._sphere_loop(unmade(self.mold.broad), C, A, 0.0, -1, k["sphere_loop"])
+        for g, w in zip(got, want):
+            np.testing.assert_array_equal(g, w)
+        self.assertGreater(len(calls), 1)
+        self.assertGreater(int((want[0] == HIT).sum()), 10)              # hits were recorded
+
     def test_compiled_hits(self):
         """The compiled hit test (``hit_pairs``) marks the poses numpy's ``_hits`` marks and
         gives the same witnesses: the samples nearest to points on the axes of random mold

@@ -1172,15 +1172,17 @@ class BroadPhase:
     def _kernel_run(kern, C, A, halves, args, status, unresolved, phi, rows: int) -> np.ndarray:
         """One run of the sphere loop kernel over the poses ``halves`` (two on two threads),
         with a longer hit table until it is long enough: updates ``status``, ``unresolved``,
-        ``phi``; returns the hit rows (level, pose, sample)."""
+        ``phi``; returns the hit rows (level, pose, sample). The kernel writes only the rows of
+        the poses it is given: those are kept, and put back before a run with a longer table."""
+        poses = np.concatenate(halves)
+        kept = status[poses], unresolved[poses], phi[poses]
         while True:
-            st, un, ph = status.copy(), unresolved.copy(), phi.copy()
             hits = [np.empty((rows, 3), np.int64) for _ in halves]
             nh: list = [None] * len(halves)
 
             def run(i):
                 try:
-                    nh[i] = kern(C, A, halves[i], *args, st, un, ph, hits[i])
+                    nh[i] = kern(C, A, halves[i], *args, status, unresolved, phi, hits[i])
                 except BaseException as exc:          # raised again in the calling thread
                     nh[i] = exc
             if len(halves) > 1:
@@ -1197,8 +1199,8 @@ class BroadPhase:
                     raise got
             if min(nh) >= 0:
                 break
+            status[poses], unresolved[poses], phi[poses] = kept
             rows *= 4
-        status[:], unresolved[:], phi[:] = st, un, ph
         return np.concatenate([h[:n] for h, n in zip(hits, nh)])
 
     @staticmethod

@@ -506,6 +506,20 @@ class Geometry(unittest.TestCase):
             self.assertEqual(longest_edges(V, T).tobytes(), want.tobytes())
         self.assertEqual(longest_edges(V, T[:0]).shape, (0,))
 
+    def test_plane_distance(self):
+        """The tessellation's distance from triangle planes, its normal written out: the bits
+        of ``np.cross`` and ``np.linalg.norm``, also for degenerate triangles (distance 0 /
+        1 there: the plane is not defined)."""
+        from tsplcam.orientation.collision import _plane_distance
+        rng = np.random.default_rng(7)
+        for scale in (1e-3, 1.0, 1e3):
+            P, A, B, C = (rng.normal(size=(3000, 3)) * scale for _ in range(4))
+            C[:50] = A[:50]
+            nrm = np.cross(B - A, C - A)
+            ln = np.linalg.norm(nrm, axis=1)
+            want = np.abs(np.einsum("ij,ij->i", P - A, nrm)) / np.where(ln > 0, ln, 1.0)
+            self.assertEqual(_plane_distance(P, A, B, C).tobytes(), want.tobytes())
+
     def test_lazy_distance_grid(self):
         """A lazy distance grid reads the bits of the whole one (numpy's read and the compiled
         one, points inside, on nodes and outside), with only the nodes around the points read

@@ -87,9 +87,18 @@ def _grid_triangles(nu: int, nv: int) -> np.ndarray:
 
 
 def _plane_distance(P, A, B, C):
-    """Distance of points P from the planes of triangles ABC (all (n,3))."""
-    nrm = np.cross(B - A, C - A)
-    ln = np.linalg.norm(nrm, axis=1)
+    """Distance of points P from the planes of triangles ABC (all (n,3)). The normal's
+    components and length are ``np.cross``'s and ``np.linalg.norm``'s operations written out
+    (the same bits, in half the time)."""
+    u, v = B - A, C - A
+    u0, u1, u2 = u[:, 0], u[:, 1], u[:, 2]
+    v0, v1, v2 = v[:, 0], v[:, 1], v[:, 2]
+    nrm = np.empty_like(u)
+    np.subtract(u1 * v2, u2 * v1, out=nrm[:, 0])
+    np.subtract(u2 * v0, u0 * v2, out=nrm[:, 1])
+    np.subtract(u0 * v1, u1 * v0, out=nrm[:, 2])
+    n0, n1, n2 = nrm[:, 0], nrm[:, 1], nrm[:, 2]
+    ln = np.sqrt(n0 * n0 + n1 * n1 + n2 * n2)
     return np.abs(np.einsum("ij,ij->i", P - A, nrm)) / np.where(ln > 0, ln, 1.0)
 
 

@@ -507,9 +507,10 @@ class Geometry(unittest.TestCase):
         self.assertEqual(longest_edges(V, T[:0]).shape, (0,))
 
     def test_plane_distance(self):
-        """The tessellation's distance from triangle planes, its normal written out: the bits
-        of ``np.cross`` and ``np.linalg.norm``, also for degenerate triangles (distance 0 /
-        1 there: the plane is not defined)."""
+        """The tessellation's distance from triangle planes and the rows' cross products and
+        lengths written out: the bits of ``np.cross`` and ``np.linalg.norm``, also for
+        degenerate triangles (distance 0 / 1 there: the plane is not defined)."""
+        from tsplcam.orientation.broadphase import cross_rows, row_norms
         from tsplcam.orientation.collision import _plane_distance
         rng = np.random.default_rng(7)
         for scale in (1e-3, 1.0, 1e3):
@@ -519,6 +520,8 @@ class Geometry(unittest.TestCase):
             ln = np.linalg.norm(nrm, axis=1)
             want = np.abs(np.einsum("ij,ij->i", P - A, nrm)) / np.where(ln > 0, ln, 1.0)
             self.assertEqual(_plane_distance(P, A, B, C).tobytes(), want.tobytes())
+            self.assertEqual(cross_rows(B - A, C - A).tobytes(), nrm.tobytes())
+            self.assertEqual(row_norms(nrm).tobytes(), ln.tobytes())
 
     def test_lazy_distance_grid(self):
         """A lazy distance grid reads the bits of the whole one (numpy's read and the compiled

@@ -242,6 +242,22 @@ def closest_on_triangles(P, A, B, C):
     return out
 
 
+def cross_rows(u: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """``np.cross`` of (n, 3) rows, its operations written out (the same bits, without its
+    axis handling: about half the time on 38k rows)."""
+    out = np.empty(np.broadcast(u, v).shape)
+    np.subtract(u[:, 1] * v[:, 2], u[:, 2] * v[:, 1], out=out[:, 0])
+    np.subtract(u[:, 2] * v[:, 0], u[:, 0] * v[:, 2], out=out[:, 1])
+    np.subtract(u[:, 0] * v[:, 1], u[:, 1] * v[:, 0], out=out[:, 2])
+    return out
+
+
+def row_norms(x: np.ndarray) -> np.ndarray:
+    """``np.linalg.norm(x, axis=1)`` of (n, 3) rows, the squares summed x, y, z as it sums
+    them (the same bits)."""
+    return np.sqrt(x[:, 0] * x[:, 0] + x[:, 1] * x[:, 1] + x[:, 2] * x[:, 2])
+
+
 def longest_edges(V: np.ndarray, T: np.ndarray) -> np.ndarray:
     """Length of every triangle's longest edge: ``|V[T[:, [1, 2, 0]]] - V[T]|`` per row's
     largest, the same operations coordinate by coordinate (the squares summed x, y, z as
@@ -686,15 +702,17 @@ class BroadPhase:
         inc_n = np.bincount(T.ravel(), minlength=nv) if len(T) else np.zeros(nv, int)
         self.sample_tris = np.full((len(self.samples), max(1, int(inc_n.max()) if nv else 1)), -1, np.int64)
         if len(T):
+            # each vertex's corners in the order of the flat index (triangle * 3 + corner), in
+            # the rows' slots from 0: the sorted corners less where the vertex's run starts
             flat_v = T.ravel()
             order = np.argsort(flat_v, kind="stable")
-            fv, ft = flat_v[order], np.repeat(np.arange(len(T)), 3)[order]
-            self.sample_tris[fv, np.arange(len(fv)) - np.searchsorted(fv, fv)] = ft
+            fv = flat_v[order]
+            self.sample_tris[fv, np.arange(len(fv)) - (np.cumsum(inc_n) - inc_n)[fv]] = order // 3
         extra = tri_of >= 0
         self.sample_tris[extra, 0] = tri_of[extra]
         # unit normals of the triangles (0 for a degenerate one: its plane test never skips it)
-        nrm = np.cross(V[T[:, 1]] - V[T[:, 0]], V[T[:, 2]] - V[T[:, 0]]) if len(T) else np.zeros((0, 3))
-        ln = np.linalg.norm(nrm, axis=1)
+        nrm = cross_rows(V[T[:, 1]] - V[T[:, 0]], V[T[:, 2]] - V[T[:, 0]]) if len(T) else np.zeros((0, 3))
+        ln = row_norms(nrm)
         self.tri_normal = np.where((ln > 1e-300)[:, None], nrm / np.where(ln > 1e-300, ln, 1.0)[:, None], 0.0)
         comp = mesh_components(nv, T)
         first_corner = T[np.maximum(tri_of, 0), 0] if len(T) else np.zeros(len(tri_of), int)

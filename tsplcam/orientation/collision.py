@@ -41,7 +41,7 @@ import numpy as np
 
 from ..errors import GeometryError, InputError
 from ..toolpath.parallel import map_pieces, worker_count
-from .broadphase import FREE, HIT, UNKNOWN, BroadPhase, Profile, longest_edges, row_bits
+from .broadphase import FREE, HIT, UNKNOWN, BroadPhase, Profile, cross_rows, longest_edges, row_bits, row_norms
 from .tool import Tool
 
 try:                                   # python-fcl is a dependency of this stage only
@@ -90,15 +90,8 @@ def _plane_distance(P, A, B, C):
     """Distance of points P from the planes of triangles ABC (all (n,3)). The normal's
     components and length are ``np.cross``'s and ``np.linalg.norm``'s operations written out
     (the same bits, in half the time)."""
-    u, v = B - A, C - A
-    u0, u1, u2 = u[:, 0], u[:, 1], u[:, 2]
-    v0, v1, v2 = v[:, 0], v[:, 1], v[:, 2]
-    nrm = np.empty_like(u)
-    np.subtract(u1 * v2, u2 * v1, out=nrm[:, 0])
-    np.subtract(u2 * v0, u0 * v2, out=nrm[:, 1])
-    np.subtract(u0 * v1, u1 * v0, out=nrm[:, 2])
-    n0, n1, n2 = nrm[:, 0], nrm[:, 1], nrm[:, 2]
-    ln = np.sqrt(n0 * n0 + n1 * n1 + n2 * n2)
+    nrm = cross_rows(B - A, C - A)
+    ln = row_norms(nrm)
     return np.abs(np.einsum("ij,ij->i", P - A, nrm)) / np.where(ln > 0, ln, 1.0)
 
 

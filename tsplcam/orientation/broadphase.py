@@ -111,7 +111,7 @@ MAX_LEVEL = 7                 # finest sphere cover: 2^7 slabs per part
 SLAB_EXCESS = 0.005           # mm: a part's finest cover sticks out at most this much
 BAND = 8                      # samples examined exactly around a gouge-check ball
 LEAFSIZE = 32
-UNMADE = np.inf                # a lazy grid's node not made yet (no made node holds +inf)
+UNMADE = np.inf               # a lazy grid's node not made yet (no made node holds +inf)
 FINE = (0.4, 250_000)         # fine grid: finest spacing (mm), most nodes
 COARSE = (2.0, 150_000)       # coarse grid, over the tool's reach around the mesh
 CONES = 2                     # free cones kept per ball centre
@@ -267,6 +267,7 @@ def longest_edges(V: np.ndarray, T: np.ndarray) -> np.ndarray:
     T = np.asarray(T)
     X, Y, Z = (np.ascontiguousarray(V[:, a]) for a in range(3))
     t0, t1, t2 = (np.ascontiguousarray(T[:, a]) for a in range(3))
+
     def length(a, b):
         dx, dy, dz = X[a] - X[b], Y[a] - Y[b], Z[a] - Z[b]
         return np.sqrt(dx * dx + dy * dy + dz * dz)

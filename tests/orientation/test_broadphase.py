@@ -51,24 +51,6 @@ def wavy_sheet():
     return V, T
 
 
-def unmade(b):
-    """The broad phase ``b`` with its lazy coarse grid back to no node made (in place: the
-    compiled loop reads views of the same nodes)."""
-    from tsplcam.orientation.broadphase import UNMADE
-    g = b.grids[1]
-    g.lb[...] = UNMADE
-    g.idx[...] = -1
-    return b
-
-
-def counted(fn, calls: list):
-    """``fn`` recording each call's arguments in ``calls``."""
-    def wrapper(*args, **kw):
-        calls.append(args)
-        return fn(*args, **kw)
-    return wrapper
-
-
 @unittest.skipIf(fcl is None, "python-fcl not installed")
 class Nogil:
     """A kernel taken as one compiled without the GIL (``targetoptions``, as numba's)."""
@@ -206,25 +188,21 @@ class AgreesWithFcl(unittest.TestCase):
         from unittest import mock
         rng = np.random.default_rng(21)
         kinds = np.zeros(3, int)
-        fills = []
         for checker, path, tilt in ((self.mold, self.mold_path, 75), (self.keycap, self.keycap_path, 80)):
             for grow, parts in ((0.0, -1), (0.2, -1), (0.2, 0b1110)):
                 C, A = random_poses(path, 2000, rng, spread=0.1, tilt=np.radians(tilt))
-                # each run from a coarse grid with no node made (lazy: the kernel's poses that
-                # meet an unmade node run again once it is made)
                 with mock.patch.object(compiled, "kernels", lambda work=None: None):    # all numpy
-                    ref = self._sphere_loop(unmade(checker.broad), C, A, grow, parts, None)
-                got = self._sphere_loop(unmade(checker.broad), C, A, grow, parts, k["sphere_loop"])
+                    ref = self._sphere_loop(checker.broad, C, A, grow, parts, None)
+                got = self._sphere_loop(checker.broad, C, A, grow, parts, k["sphere_loop"])
                 for r, g in zip(ref, got):
                     np.testing.assert_array_equal(g, r)
                 # the poses in two halves on two threads, and all on one: the same bits (the
                 # kernel at hand taken as one that releases the GIL, as numba's JIT one does:
                 # no compilation here)
-                with mock.patch.object(bp, "threads", lambda: 1), \
-                        mock.patch.object(bp.BroadPhase, "_fill_nodes", counted(bp.BroadPhase._fill_nodes, fills)):
-                    one = self._sphere_loop(unmade(checker.broad), C, A, grow, parts, k["sphere_loop"])
+                with mock.patch.object(bp, "threads", lambda: 1):
+                    one = self._sphere_loop(checker.broad, C, A, grow, parts, k["sphere_loop"])
                 with mock.patch.object(bp, "threads", lambda: 2), mock.patch.object(bp, "KERNEL_THREADS", 1):
-                    two = self._sphere_loop(unmade(checker.broad), C, A, grow, parts, Nogil(k["sphere_loop"]))
+                    two = self._sphere_loop(checker.broad, C, A, grow, parts, Nogil(k["sphere_loop"]))
                 for r, g, h in zip(ref, one, two):
                     np.testing.assert_array_equal(g, r)
                     np.testing.assert_array_equal(h, r)
@@ -232,31 +210,6 @@ class AgreesWithFcl(unittest.TestCase):
                 kinds += [(st == HIT).sum(), (un.any(axis=1) & (st != HIT)).sum(),
                           ((st != HIT) & ~un.any(axis=1)).sum()]
         self.assertTrue(np.all(kinds > 100), kinds)         # hits, open poses and cleared ones
-        self.assertGreater(len(fills), 3)                   # poses met unmade nodes, ran again
-
-    def test_compiled_short_hit_table(self):
-        """The compiled sphere loop given a hit table of one row: each run too short is run
-        again with a longer one from the poses' rows as they were (an unmade coarse grid, so
-        poses also run again for its nodes): the bits of a run with a table long enough."""
-        from unittest import mock
-        from tsplcam.orientation import broadphase as bp, compiled
-        k = compiled.kernels()
-        if k is None:
-            self.skipTest("numba not available (or TSPLCAM_COMPILED=0)")
-        rng = np.random.default_rng(23)
-        C, A = random_poses(self.mold_path, 800, rng, spread=0.1, tilt=np.radians(75))
-        want = self._sphere_loop(unmade(self.mold.broad), C, A, 0.0, -1, k["sphere_loop"])
-        run, calls = bp.BroadPhase._kernel_run, []
-
-        def one_row(*args):
-            calls.append(args[-1])
-            return run(*args[:-1], 1)
-        with mock.patch.object(bp.BroadPhase, "_kernel_run", staticmethod(one_row)):
-            got = self._sphere_loop(unmade(self.mold.broad), C, A, 0.0, -1, k["sphere_loop"])
-        for g, w in zip(got, want):
-            np.testing.assert_array_equal(g, w)
-        self.assertGreater(len(calls), 1)
-        self.assertGreater(int((want[0] == HIT).sum()), 10)              # hits were recorded
 
     def test_compiled_hits(self):
         """The compiled hit test (``hit_pairs``) marks the poses numpy's ``_hits`` marks and
@@ -522,38 +475,6 @@ class Geometry(unittest.TestCase):
             self.assertEqual(_plane_distance(P, A, B, C).tobytes(), want.tobytes())
             self.assertEqual(cross_rows(B - A, C - A).tobytes(), nrm.tobytes())
             self.assertEqual(row_norms(nrm).tobytes(), ln.tobytes())
-
-    def test_lazy_distance_grid(self):
-        """A lazy distance grid reads the bits of the whole one (numpy's read and the compiled
-        one, points inside, on nodes and outside), with only the nodes around the points read
-        made, each node's value the whole grid's."""
-        from unittest import mock
-        from tsplcam.orientation import compiled
-        from tsplcam.orientation.broadphase import UNMADE, BroadPhase, DistanceGrid, Profile
-        rng = np.random.default_rng(5)
-        V, T = wavy_sheet()
-        one = np.ones(1)
-        bp = BroadPhase(V, T, lambda grow: Profile(0 * one, one, one, one, one, one), 0.1, 0.3)
-        lo, hi = bp.box
-        whole = DistanceGrid(bp.tree, bp.e2, lo, hi, 0.3, 3.0, 2.0, 10 ** 6)
-        for kernels in (None, compiled.kernels):
-            lazy = DistanceGrid(bp.tree, bp.e2, lo, hi, 0.3, 3.0, 2.0, 10 ** 6, lazy=True)
-            self.assertEqual(lazy.made, 0)
-            x = lo - 4.0 + rng.random((3000, 3)) * (hi - lo + 8.0)
-            x[:300] = whole.origin + whole.h * rng.integers(0, whole.shape, (300, 3))     # on nodes
-            x[300:1300] = lo + rng.random((1000, 3)) * (hi - lo)                          # near the mesh
-            with mock.patch.object(compiled, "kernels", kernels or (lambda work=None: None)):
-                got, want = lazy(x), whole(x)
-            for g, w in zip(got, want):
-                np.testing.assert_array_equal(g, w)
-            made = lazy.lb != UNMADE
-            self.assertTrue(0 < made.mean() < 0.5, made.mean())
-            np.testing.assert_array_equal(lazy.lb[made], whole.lb[made])
-            np.testing.assert_array_equal(lazy.idx[made], whole.idx[made])
-            n = lazy.made
-            lazy(x[:50])
-            self.assertEqual(lazy.made, n)                       # read again: nothing new
-        self.assertFalse(np.any(whole.lb == UNMADE))
 
     def test_distance_grid_blocks(self):
         """The distance grid skips blocks of nodes proven beyond the cap: every node's bound and

@@ -18,10 +18,7 @@ at least sqrt(d^2 - e^2/3) from x, e the longest edge of the (sub)triangles the 
 is kept at the nodes of two grids (fine near the mesh, coarse over the tool's reach) and
 read at the eight nodes around x, less the distance to each (the distance to a set is
 1-Lipschitz). That read loses up to half a cell's diagonal, too much next to the surface
-(the flutes sit a ball radius from it at the contact) and under a wide holder. The coarse
-grid's nodes are made where first read (:class:`DistanceGrid`'s ``lazy``: the keycap's
-poses read a tenth of the nodes its eager form queried), each the bits of its own KD
-query, so the reads are those of the whole grid.
+(the flutes sit a ball radius from it at the contact) and under a wide holder.
 
 **Exact pass.** The parts the grids leave open are asked again (:meth:`BroadPhase.exact_bound`):
 the samples in the band sqrt(R^2 + e^2/3) around each sphere centre from the KD-tree, and
@@ -76,9 +73,7 @@ compare the decisions with fcl on random poses (tests/orientation).
 pose in one kernel (``sphere_loop``: each pose's spheres level by level, its grid reads and
 hit tests), with the same operations per sphere as numpy's level-by-level loop
 (:meth:`BroadPhase._sphere_loop`, the fallback): the same decisions, open parts, free cones
-and hit witnesses, bit for bit (tests/orientation/test_broadphase.py compares them). A pose
-whose read meets a coarse node not made yet leaves its rows as they were and names the
-cell; those cells' nodes are made and those poses run again.
+and hit witnesses, bit for bit (tests/orientation/test_broadphase.py compares them).
 
 **Threads.** The kernel takes the poses one by one, each writing only its own rows; numba's
 JIT kernel releases the GIL (the ahead-of-time module's does not), as scipy's KD-tree queries
@@ -111,7 +106,6 @@ MAX_LEVEL = 7                 # finest sphere cover: 2^7 slabs per part
 SLAB_EXCESS = 0.005           # mm: a part's finest cover sticks out at most this much
 BAND = 8                      # samples examined exactly around a gouge-check ball
 LEAFSIZE = 32
-UNMADE = np.inf               # a lazy grid's node not made yet (no made node holds +inf)
 FINE = (0.4, 250_000)         # fine grid: finest spacing (mm), most nodes
 COARSE = (2.0, 150_000)       # coarse grid, over the tool's reach around the mesh
 CONES = 2                     # free cones kept per ball centre
@@ -374,36 +368,20 @@ class DistanceGrid:
     has every node beyond the cap, which is what the node's own query answers; so has a node
     of another block farther than the cap (and ``EPS``) from the sample nearest to the
     block's centre, less its distance from the centre; the other nodes are queried, each
-    point's answer the same bits as in any batch (the keycap's fine grid: 36k nodes queried
-    of 92k, 0.06 CPU-s). The queries run on :func:`threads` (one while the path's workers
-    run).
-
-    ``lazy``: no node is queried when the grid is made; a node holds ``UNMADE`` (+inf, its
-    sample -1) until a read meets it (:meth:`fill`): a read that meets one gives +inf, which
-    no made node gives, and is read again once the nodes around it are made. Each node then
-    holds the bits of its own query, so every read is the one of the whole grid. For the
-    coarse grid: the keycap's poses read about 2k of its 138k nodes, where the blocks' test
-    still left 15k to query (0.05 CPU-s at 3 us a node, a few mm to 20 mm from the mesh)."""
+    point's answer the same bits as in any batch (the keycap's two grids: 50k nodes queried of
+    230k, 0.11 CPU-s; 53k before the nodes' own test). The queries run on :func:`threads`
+    (one while the path's workers run)."""
 
     BLOCK = 3
 
     def __init__(self, tree: cKDTree, e2: float, lo: np.ndarray, hi: np.ndarray, spacing: float,
-                 pad: float, cap: float, nodes: int, lazy: bool = False):
+                 pad: float, cap: float, nodes: int):
         ext = hi - lo + 2 * pad
         self.h = max(float(spacing), float(np.prod(ext) / nodes) ** (1 / 3))
         self.origin = lo - pad
         self.shape = np.ceil((hi - lo + 2 * pad) / self.h).astype(np.int64) + 1
-        self.cap = float(cap)
-        self.tree, self.e2 = tree, float(e2)
-        self.stride = np.array([self.shape[1] * self.shape[2], self.shape[2], 1])
-        self._offsets = _CORNERS @ self.stride
-        self.lazy = bool(lazy)
-        size = int(np.prod(self.shape))
-        if self.lazy:
-            self.lb = np.full(size, UNMADE)
-            self.idx = np.full(size, -1, np.int64)
-            return
         axes = [self.origin[i] + self.h * np.arange(self.shape[i]) for i in range(3)]
+        self.cap = float(cap)
         b, (n0, n1, n2) = self.BLOCK, self.shape
         D, cen = self._block_distances(tree)
         ask = np.isfinite(D).repeat(b, 0).repeat(b, 1).repeat(b, 2)[:n0, :n1, :n2]
@@ -420,40 +398,11 @@ class DistanceGrid:
         d = np.full(ask.size, np.inf)
         jn = np.full(ask.size, tree.n, np.int64)
         d[q], jn[q] = tree.query(X, distance_upper_bound=cap, workers=threads() if len(q) >= KD_THREADS else 1)
-        self.lb, self.idx = self._values(d, jn)
-
-    def _values(self, d: np.ndarray, j: np.ndarray):
-        """(bound, sample or -1) of nodes whose nearest sample is ``j`` at ``d`` (inf, n beyond
-        the cap)."""
         far = ~np.isfinite(d)
-        cap, e2 = self.cap, self.e2
-        return (np.where(far, np.sqrt(max(cap * cap - e2, 0.0)), np.sqrt(np.maximum(d * d - e2, 0.0))),
-                np.where(far, -1, j))
-
-    @property
-    def made(self) -> int:
-        """Nodes holding their value (all but the unmade ones of a lazy grid)."""
-        return int(np.count_nonzero(self.lb != UNMADE))
-
-    def fill(self, base: np.ndarray) -> None:
-        """Make the unmade nodes of the cells whose lowest node is ``base`` (flat node indices),
-        each node's own KD query (the grid's cap): the bits the eager grid holds there."""
-        nodes = np.unique((np.asarray(base, np.int64)[:, None] + self._offsets).ravel())
-        nodes = nodes[self.lb[nodes] == UNMADE]
-        if len(nodes) == 0:
-            return
-        ijk = np.column_stack(np.unravel_index(nodes, tuple(self.shape)))
-        # the node's position as the eager grid computes it (origin + h * index, per axis)
-        x = np.column_stack([self.origin[a] + self.h * ijk[:, a].astype(float) for a in range(3)])
-        d, j = self.tree.query(x, distance_upper_bound=self.cap,
-                               workers=threads() if len(x) >= KD_THREADS else 1)
-        self.lb[nodes], self.idx[nodes] = self._values(d, j)
-
-    def cells(self, x: np.ndarray) -> np.ndarray:
-        """The flat index of the lowest node of the cell each point of x reads (as :meth:`_read`:
-        clamped into the grid)."""
-        k0 = np.floor((x - self.origin) / self.h).astype(np.int64)
-        return np.minimum(np.maximum(k0, 0), self.shape - 2) @ self.stride
+        self.lb = np.where(far, np.sqrt(max(cap * cap - e2, 0.0)), np.sqrt(np.maximum(d * d - e2, 0.0)))
+        self.idx = np.where(far, -1, jn)
+        self.stride = np.array([self.shape[1] * self.shape[2], self.shape[2], 1])
+        self._offsets = _CORNERS @ self.stride
 
     def _near_blocks(self, tree: cKDTree) -> np.ndarray:
         """Per block of ``BLOCK``^3 nodes: False where every node is proven beyond the cap (no
@@ -478,18 +427,7 @@ class DistanceGrid:
         eight nodes around x of the node's bound less the distance to it; the sample is the
         nearest node's. With the compiled kernel (:mod:`~tsplcam.orientation.compiled`, the
         same bits) point by point, else ``GRID_ROWS`` points at a time (the (rows, 8)
-        temporaries then stay in the processor's cache). A lazy grid makes the nodes the
-        points meet unmade, and reads those points again."""
-        got = self._reads(x)
-        if self.lazy:
-            miss = np.nonzero(got[0] == UNMADE)[0]
-            if len(miss):
-                self.fill(self.cells(x[miss]))
-                for a, b in zip(got, self._reads(x[miss])):
-                    a[miss] = b
-        return got
-
-    def _reads(self, x: np.ndarray):
+        temporaries then stay in the processor's cache)."""
         k = compiled.kernels(work=READ_WORK * len(x))
         if k is not None:
             x = np.ascontiguousarray(x, float)
@@ -737,7 +675,7 @@ class BroadPhase:
         if fine.h > FINE[0]:                       # a large part: pad and cap with the spacing
             fine = DistanceGrid(self.tree, self.e2, lo, hi, fine.h, 8 * fine.h, 4 * fine.h, FINE[1])
         self.grids = [fine, DistanceGrid(self.tree, self.e2, lo, hi, COARSE[0], reach + COARSE[0],
-                                         10 * COARSE[0], COARSE[1], lazy=True)]
+                                         10 * COARSE[0], COARSE[1])]
         self._covers: dict[float, SphereCover] = {}
         self._side_grid = None                    # LazyGrid, made when the side pass first needs it
         self._stacked = None                      # the grids' arrays for the compiled sphere loop
@@ -1132,25 +1070,12 @@ class BroadPhase:
         compiled sphere loop."""
         if self._stacked is None:
             g = self.grids
-            lb = np.concatenate([x.lb for x in g])
-            idx = np.concatenate([x.idx for x in g]).astype(np.int64)
-            # the grids keep views of the concatenated nodes: what a lazy grid makes later is
-            # what the kernel reads
-            g[0].lb, g[1].lb = lb[:len(g[0].lb)], lb[len(g[0].lb):]
-            g[0].idx, g[1].idx = idx[:len(g[0].idx)], idx[len(g[0].idx):]
             self._stacked = (np.array([x.origin for x in g], float), np.array([x.h for x in g], float),
                              np.array([x.shape for x in g], np.int64), np.array([x.stride for x in g], np.int64),
                              np.array([x._offsets for x in g], np.int64),
-                             np.array([0, len(g[0].lb)], np.int64), lb, idx)
+                             np.array([0, len(g[0].lb)], np.int64), np.concatenate([x.lb for x in g]),
+                             np.concatenate([x.idx for x in g]).astype(np.int64))
         return self._stacked
-
-    def _fill_nodes(self, base: np.ndarray) -> None:
-        """Make the nodes of the cells the compiled sphere loop met unmade (``base``: the
-        cells' lowest nodes, indices into the concatenated grids)."""
-        start = len(self.grids[0].lb)
-        for g, sel in ((self.grids[0], base < start), (self.grids[1], base >= start)):
-            if sel.any():
-                g.fill(base[sel] - (0 if g is self.grids[0] else start))
 
     def _sphere_kernel(self, kern, C, A, cov: SphereCover, todo, asked, parts, status, unresolved, phi, cell):
         """:meth:`_sphere_loop` by the compiled kernel (``compiled.sphere_loop``: pose by pose,
@@ -1172,36 +1097,15 @@ class BroadPhase:
                 prof.rin1, np.ascontiguousarray(cov.max_level, np.int64), np.int64(parts),
                 np.ascontiguousarray(lo, float), np.ascontiguousarray(hi, float), *self._grid_arrays(),
                 self.samples, self.sample_comp, self.anchors, EPS, CONE_WANT)
-        found = [np.zeros((0, 3), np.int64)]
-        while len(todo):
-            hits = self._kernel_run(kern, C, A, halves, args, status, unresolved, phi, max(16, 2 * len(todo)))
-            # a pose that met an unmade node of a lazy grid left its rows as they were and
-            # named the cell (level -1): the cells' nodes are made, and those poses run again
-            miss = hits[:, 0] < 0
-            found.append(hits[~miss])
-            todo = hits[miss, 1]
-            if len(todo):
-                self._fill_nodes(hits[miss, 2])
-                halves = [todo]
-        hits = np.concatenate(found)
-        for lev in np.unique(hits[:, 0]):
-            self._remember(cell, hits[hits[:, 0] == lev, 1:])
-
-    @staticmethod
-    def _kernel_run(kern, C, A, halves, args, status, unresolved, phi, rows: int) -> np.ndarray:
-        """One run of the sphere loop kernel over the poses ``halves`` (two on two threads),
-        with a longer hit table until it is long enough: updates ``status``, ``unresolved``,
-        ``phi``; returns the hit rows (level, pose, sample). The kernel writes only the rows of
-        the poses it is given: those are kept, and put back before a run with a longer table."""
-        poses = np.concatenate(halves)
-        kept = status[poses], unresolved[poses], phi[poses]
+        rows = max(16, 2 * len(todo))
         while True:
+            st, un, ph = status.copy(), unresolved.copy(), phi.copy()
             hits = [np.empty((rows, 3), np.int64) for _ in halves]
             nh: list = [None] * len(halves)
 
             def run(i):
                 try:
-                    nh[i] = kern(C, A, halves[i], *args, status, unresolved, phi, hits[i])
+                    nh[i] = kern(C, A, halves[i], *args, st, un, ph, hits[i])
                 except BaseException as exc:          # raised again in the calling thread
                     nh[i] = exc
             if len(halves) > 1:
@@ -1218,9 +1122,11 @@ class BroadPhase:
                     raise got
             if min(nh) >= 0:
                 break
-            status[poses], unresolved[poses], phi[poses] = kept
             rows *= 4
-        return np.concatenate([h[:n] for h, n in zip(hits, nh)])
+        status[:], unresolved[:], phi[:] = st, un, ph
+        hits = np.concatenate([h[:n] for h, n in zip(hits, nh)])
+        for lev in np.unique(hits[:, 0]):
+            self._remember(cell, hits[hits[:, 0] == lev, 1:])
 
     @staticmethod
     def side_balls(prof: Profile, part: np.ndarray, level: int, seg: np.ndarray):

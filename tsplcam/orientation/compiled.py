@@ -478,10 +478,7 @@ def _define(jit):
         (a kernel calling another misses numba's cache). Updates ``status``, ``unresolved``,
         ``phi``; ``hits`` (rows level, pose, sample: what ``_hits`` returns per level) is
         filled from row 0; returns the rows used, or -1 when ``hits`` is too short (the
-        caller asks again with a longer one). A pose whose read meets a node not made yet (a
-        lazy grid's +inf) leaves its rows of ``unresolved``, ``phi`` and ``hits`` as they were
-        and adds the row (-1, pose, the cell's lowest node in ``g_lb``): the caller makes those
-        nodes and runs such poses again."""
+        caller asks again with a longer one)."""
         K = z0.shape[0]
         width = 0
         for k in range(K):
@@ -503,15 +500,9 @@ def _define(jit):
         kk = np.empty(3, np.int64)
         sq = np.empty((3, 2))
         nd = anchors.shape[1]
-        un0 = np.empty(K, np.bool_)
         nh = 0
         for t in range(todo.shape[0]):
             p = todo[t]
-            phi0 = phi[p]
-            for k in range(K):
-                un0[k] = unresolved[p, k]
-            nh0 = nh
-            missed = -1
             n = asked.shape[0]
             for i in range(n):
                 a_part[i] = asked[i]
@@ -573,9 +564,6 @@ def _define(jit):
                                             best = v
                                         c += 1
                             near = g_idx[g_base[g] + base + nb]
-                            if best == np.inf:                  # a node not made yet
-                                missed = g_base[g] + base
-                                break
                         else:
                             best = 0.0
                             near = -1
@@ -583,8 +571,6 @@ def _define(jit):
                             bound = best
                         if g == 0 or jg < 0:
                             jg = near
-                    if missed >= 0:
-                        break
                     split[i] = False
                     if bound >= s + eps:
                         v = (bound - s - eps) / zc
@@ -598,18 +584,6 @@ def _define(jit):
                             unresolved[p, k] = True
                         else:
                             split[i] = True
-                if missed >= 0:
-                    phi[p] = phi0
-                    for k in range(K):
-                        unresolved[p, k] = un0[k]
-                    nh = nh0
-                    if nh >= hits.shape[0]:
-                        return -1
-                    hits[nh, 0] = -1
-                    hits[nh, 1] = p
-                    hits[nh, 2] = missed
-                    nh += 1
-                    break
                 if nc > 0:
                     # _hits: the candidates inside a part asked, the least sample per piece
                     ncomp = 0

@@ -445,6 +445,37 @@ class Geometry(unittest.TestCase):
         np.testing.assert_array_equal(near[ins], wn[ins])
         self.assertGreater(ins.mean(), 0.9)
 
+    def test_longest_edges(self):
+        """The longest edge per triangle, coordinate by coordinate: the bits of the (n, 3, 3)
+        norm it replaces, on random triangles of coordinates from 1e-3 to 1e3 mm, with
+        repeated corners (degenerate triangles), and none."""
+        from tsplcam.orientation.broadphase import longest_edges
+        rng = np.random.default_rng(6)
+        for scale in (1e-3, 1.0, 1e3):
+            V = rng.normal(size=(500, 3)) * scale
+            T = rng.integers(0, 500, (2000, 3))
+            T[:100, 1] = T[:100, 0]
+            want = np.linalg.norm(V[T[:, [1, 2, 0]]] - V[T], axis=2).max(axis=1)
+            self.assertEqual(longest_edges(V, T).tobytes(), want.tobytes())
+        self.assertEqual(longest_edges(V, T[:0]).shape, (0,))
+
+    def test_plane_distance(self):
+        """The tessellation's distance from triangle planes and the rows' cross products and
+        lengths written out: the bits of ``np.cross`` and ``np.linalg.norm``, also for
+        degenerate triangles (distance 0 / 1 there: the plane is not defined)."""
+        from tsplcam.orientation.broadphase import cross_rows, row_norms
+        from tsplcam.orientation.collision import _plane_distance
+        rng = np.random.default_rng(7)
+        for scale in (1e-3, 1.0, 1e3):
+            P, A, B, C = (rng.normal(size=(3000, 3)) * scale for _ in range(4))
+            C[:50] = A[:50]
+            nrm = np.cross(B - A, C - A)
+            ln = np.linalg.norm(nrm, axis=1)
+            want = np.abs(np.einsum("ij,ij->i", P - A, nrm)) / np.where(ln > 0, ln, 1.0)
+            self.assertEqual(_plane_distance(P, A, B, C).tobytes(), want.tobytes())
+            self.assertEqual(cross_rows(B - A, C - A).tobytes(), nrm.tobytes())
+            self.assertEqual(row_norms(nrm).tobytes(), ln.tobytes())
+
     def test_distance_grid_blocks(self):
         """The distance grid skips blocks of nodes proven beyond the cap: every node's bound and
         sample are the bits of its own KD query (the whole grid asked at once), with blocks
@@ -463,10 +494,18 @@ class Geometry(unittest.TestCase):
             lb = np.where(far, np.sqrt(max(cap * cap - bp.e2, 0.0)), np.sqrt(np.maximum(d * d - bp.e2, 0.0)))
             np.testing.assert_array_equal(g.lb, lb)
             np.testing.assert_array_equal(g.idx, np.where(far, -1, j))
-            skipped = ~np.repeat(np.repeat(np.repeat(g._near_blocks(bp.tree, axes), g.BLOCK, 0),
+            skipped = ~np.repeat(np.repeat(np.repeat(g._near_blocks(bp.tree), g.BLOCK, 0),
                                            g.BLOCK, 1), g.BLOCK, 2)[:g.shape[0], :g.shape[1], :g.shape[2]]
             self.assertGreater(skipped.mean(), 0.2)                 # blocks were left out
             self.assertTrue(np.all(far[skipped.ravel()]))
+            # nodes of the other blocks left out by their distance from the block centre's
+            # nearest sample (beyond the cap by the triangle inequality): some, all far
+            D, cen = g._block_distances(bp.tree)
+            blk = [a // g.BLOCK for a in np.unravel_index(np.arange(len(nodes)), tuple(g.shape))]
+            centre = np.column_stack([cen[a][blk[a]] for a in range(3)])
+            alone = ~skipped.ravel() & (D[tuple(blk)] - np.linalg.norm(nodes - centre, axis=1) > cap + 1e-6)
+            self.assertGreater(int(alone.sum()), 10)
+            self.assertTrue(np.all(far[alone]))
 
     def test_centre_table(self):
         """Slots by a centre's exact bytes: the same centre (also -0.0 against 0.0: other

@@ -41,7 +41,7 @@ import numpy as np
 
 from ..errors import GeometryError, InputError
 from ..toolpath.parallel import map_pieces, worker_count
-from .broadphase import FREE, HIT, UNKNOWN, BroadPhase, Profile, row_bits
+from .broadphase import FREE, HIT, UNKNOWN, BroadPhase, Profile, cross_rows, longest_edges, row_bits, row_norms
 from .tool import Tool
 
 try:                                   # python-fcl is a dependency of this stage only
@@ -87,9 +87,11 @@ def _grid_triangles(nu: int, nv: int) -> np.ndarray:
 
 
 def _plane_distance(P, A, B, C):
-    """Distance of points P from the planes of triangles ABC (all (n,3))."""
-    nrm = np.cross(B - A, C - A)
-    ln = np.linalg.norm(nrm, axis=1)
+    """Distance of points P from the planes of triangles ABC (all (n,3)). The normal's
+    components and length are ``np.cross``'s and ``np.linalg.norm``'s operations written out
+    (the same bits, in half the time)."""
+    nrm = cross_rows(B - A, C - A)
+    ln = row_norms(nrm)
     return np.abs(np.einsum("ij,ij->i", P - A, nrm)) / np.where(ln > 0, ln, 1.0)
 
 
@@ -190,7 +192,7 @@ def split_long_triangles(mesh: TriangleMesh, e_max: float) -> TriangleMesh:
     V, T = mesh.vertices, mesh.triangles
     if len(T) == 0:
         return mesh
-    edge = np.linalg.norm(V[T[:, [1, 2, 0]]] - V[T], axis=2).max(axis=1)
+    edge = longest_edges(V, T)
     k = np.maximum(1, np.ceil(edge / e_max - 1e-9)).astype(int)
     if k.max() == 1:
         return mesh
@@ -385,7 +387,7 @@ class CollisionChecker:
         e_max, e_cap = 2.0, None
         if parts:                    # the tessellation's own spacing sets the samples' and the splits'
             V0, T0 = parts[0].vertices, parts[0].triangles
-            edge = np.linalg.norm(V0[T0[:, [1, 2, 0]]] - V0[T0], axis=2).max(axis=1)
+            edge = longest_edges(V0, T0)
             e_cap = max(0.1, float(np.quantile(edge, 0.99)))
             e_max = max(e_max, 4.0 * float(np.median(edge)))
         for item in meshes:

@@ -298,9 +298,11 @@ def _orient(path, model, settings: JobSettings, tool, machine, stock, progress, 
     """Tool axes by the orientation settings (and a processing list's per-step blocks),
     checked again with the same collision checker: (Program, None), or with ``beside`` and
     more than one process (Program without its metrics, a :class:`_Metrics` whose smallest
-    clearance is measured in a forked process while the caller posts the program)."""
+    clearance is measured in a forked process while the caller posts the program: the one
+    that checked the ball gouges while the axes were searched)."""
     from .orientation import orient
     from .orientation.aside import MIN_POINTS, Aside
+    from .orientation.orient import ball_check
     from .orientation.controls import step_settings
     from .progress import for_stage
     from .verify.orientation import min_clearance, orientation_metrics
@@ -313,19 +315,29 @@ def _orient(path, model, settings: JobSettings, tool, machine, stock, progress, 
     if checker is None:
         checker = collision_checker(model, tool, stock, settings.holder_clearance)
     from .progress import report as tick
-    oriented, report = orient(path, model, tool, settings=base, per_patch=per_patch, checker=checker,
-                              machine=machine, progress=for_stage(progress, "tool axes"))
+    # with the program posted here after the axes: the ball gouge check in a forked process
+    # that then measures the axes' smallest clearance (most of the metrics' time) while this
+    # one posts; it builds the checker's BVH for both (the broad phase answers this process's
+    # questions without it on most parts)
+    companion = None
+    if beside and len(path) >= MIN_POINTS and Aside.can_fork():
+        companion = ball_check(path, checker, then=(min_clearance, checker))
+    try:
+        oriented, report = orient(path, model, tool, settings=base, per_patch=per_patch, checker=checker,
+                                  machine=machine, progress=for_stage(progress, "tool axes"), ball=companion)
+    except BaseException:
+        if companion is not None:
+            companion.close()
+        raise
     tick(progress, "checking axes", 0, 1)
     # orient refused the path if the ball gouged anywhere (its centres do not move with the
     # axes): no gouge to count again
     measure = functools.partial(orientation_metrics, oriented, checker, machine, gouges=0)
-    if beside and len(oriented) >= MIN_POINTS and Aside.can_fork():
-        # the smallest clearance (most of the metrics' time) in a forked process; the rest
-        # here, after the post
-        aside = Aside(min_clearance, checker, oriented.center, oriented.axis)
-        if aside.forked:
-            return Program(oriented, report, None, checker=checker), _Metrics(measure, aside)
-        metrics = measure(measured=aside.result)
+    if companion is not None:
+        clear = companion.follow(oriented.center, oriented.axis)
+        if clear.forked:
+            return Program(oriented, report, None, checker=checker), _Metrics(measure, clear)
+        metrics = measure(measured=clear.result)
     else:
         metrics = measure()
     tick(progress, "checking axes", 1, 1)

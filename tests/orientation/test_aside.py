@@ -55,6 +55,83 @@ class AsideWork(unittest.TestCase):
         self.assertEqual(small.result()["square"], 16)
 
 
+_KEPT = {}
+
+
+def _build(x):
+    _KEPT["built"] = (x, os.getpid())          # what the first piece leaves in its process
+    return os.getpid()
+
+
+def _build_here_only(main):
+    if os.getpid() != main:
+        raise RuntimeError("only in the forked process")
+    return _build(main)
+
+
+def _then(label, extra):
+    if extra == "fail":
+        raise ValueError(f"second piece failed in pid {os.getpid()}")
+    return label, extra, _KEPT.get("built"), os.getpid()
+
+
+class SecondPiece(unittest.TestCase):
+    """Aside(then=...).follow(...): the second piece in the process the first ran in, on
+    arguments given after; where that process is gone, failed or was never forked, here."""
+
+    def setUp(self):
+        _KEPT.clear()
+
+    def test_same_process_keeps_what_the_first_built(self):
+        if not FORK:
+            self.skipTest("no forked workers here")
+        with mock.patch.dict(os.environ, {"TSPLCAM_WORKERS": "2"}):
+            with Aside(_build, 3, then=(_then, "b")) as a:
+                pid = a.result()
+                self.assertNotEqual(pid, os.getpid())
+                with a.follow(11) as b:
+                    self.assertTrue(b.forked)
+                    self.assertEqual(b.result(), ("b", 11, (3, pid), pid))
+        self.assertEqual(_KEPT, {})                          # nothing of it here
+
+    def test_second_piece_error_raised_here(self):
+        if not FORK:
+            self.skipTest("no forked workers here")
+        with mock.patch.dict(os.environ, {"TSPLCAM_WORKERS": "2"}):
+            with Aside(_build, 3, then=(_then, "b")) as a:
+                a.result()
+                b = a.follow("fail")
+                with self.assertRaisesRegex(ValueError, f"failed in pid {os.getpid()}$"):
+                    b.result()
+
+    def test_first_failed_there_second_runs_here(self):
+        if not FORK:
+            self.skipTest("no forked workers here")
+        with mock.patch.dict(os.environ, {"TSPLCAM_WORKERS": "2"}):
+            a = Aside(_build_here_only, os.getpid(), then=(_then, "b"))
+            self.assertEqual(a.result(), os.getpid())        # run again here
+            b = a.follow(5)
+            self.assertFalse(b.forked)
+            self.assertEqual(b.result()[3], os.getpid())
+
+    def test_closed_without_second_piece_leaves_no_process(self):
+        if not FORK:
+            self.skipTest("no forked workers here")
+        import multiprocessing
+        before = set(multiprocessing.active_children())
+        with mock.patch.dict(os.environ, {"TSPLCAM_WORKERS": "2"}):
+            with Aside(_build, 3, then=(_then, "b")) as a:
+                a.result()                                   # its process now waits
+        self.assertEqual(set(multiprocessing.active_children()) - before, set())
+
+    def test_one_process(self):
+        with mock.patch.dict(os.environ, {"TSPLCAM_WORKERS": "1"}):
+            a = Aside(_build, 3, then=(_then, "b"))
+            self.assertFalse(a.forked)
+            b = a.follow(7)
+            self.assertEqual(b.result(), ("b", 7, (3, os.getpid()), os.getpid()))
+
+
 class ProgramBeside(unittest.TestCase):
     """make_program with the metrics measured beside the post: the same metrics and program
     bytes as one process; where both fail, the metrics' error (one process meets it first)."""
@@ -71,6 +148,12 @@ class ProgramBeside(unittest.TestCase):
         with mock.patch.dict(os.environ, {"TSPLCAM_WORKERS": "1"}):
             cls.path = make_path(cls.model, cls.plist, s, tool_radius(s, tool))
         cls.checker = collision_checker(cls.model, tool, cls.stock, s.holder_clearance)
+        # the kernels loaded from the start, as a job has them (program.CheckerAhead): a
+        # process that has not asked enough work of them yet smooths this small path in
+        # numpy, whose banded solves (LAPACK's) differ from the kernels' in the last bits,
+        # which the active set carries to the 8th digit of a few axes
+        from tsplcam.orientation import compiled
+        compiled.kernels()
 
     def program(self, workers: str):
         from tsplcam.program import make_program

@@ -127,6 +127,20 @@ class CollisionGeometry(unittest.TestCase):
         C = np.array([[0, 0, 1.0], [0, 0, 1.0 - 0.5 * ch.gouge_tolerance], [0, 0, 1.0 - 0.01]])
         np.testing.assert_array_equal(ch.ball_gouges(C), [False, False, True])
 
+    def test_workpiece_bvh_built_when_fcl_is_first_asked(self):
+        """The workpiece's BVH is built at fcl's first question, not before: balls the broad
+        phase proves clear build nothing; one it cannot prove builds it once."""
+        tool = Tool("t", 1.0, 2.0, 2.0, 10.0, [])
+        ch = CollisionChecker(None, tool, meshes=[plane_mesh()], tolerance=0.001)
+        self.assertIsNone(ch._wp_object)
+        np.testing.assert_array_equal(ch.ball_gouges(np.array([[0, 0, 5.0]])), [False])
+        self.assertIsNone(ch._wp_object)
+        np.testing.assert_array_equal(ch.ball_gouges(np.array([[0, 0, 1.0 - 0.01]])), [True])
+        built = ch._wp_object
+        self.assertIsNotNone(built)
+        ch.ball_gouges(np.array([[0, 0, 0.5]]))
+        self.assertIs(ch._wp_object, built)
+
     def test_mesh_tool_agrees_with_primitives(self):
         """The circumscribed tool mesh finds every collision the fcl primitives find, and
         its extra hits are within the polygon tolerance of touching."""

@@ -39,22 +39,29 @@ class Aside:
     whether it runs in another process. Use as a context manager: leaving it stops a process
     still running."""
 
-    def __init__(self, fn, *args, beside: bool = True):
+    def __init__(self, fn, *args, beside: bool = True, then=None):
         self.fn, self.args = fn, args
-        self._proc = self._conn = None
-        self._done, self._value = False, None
+        self.then = then
+        self._proc = self._conn = self._ask = None
+        self._done, self._value, self._ok = False, None, False
         self.forked = bool(beside) and self.can_fork()
         if self.forked:
             ctx = multiprocessing.get_context("fork")
             recv, send = ctx.Pipe(duplex=False)
+            ask_r, ask_w = ctx.Pipe(duplex=False) if then is not None else (None, None)
             try:
-                self._proc = ctx.Process(target=_child, args=(send, fn, args), daemon=True)
+                self._proc = ctx.Process(target=_child, args=(send, fn, args, then, ask_r), daemon=True)
                 self._proc.start()
             except OSError:                      # no process to be had: here, at once
                 self._proc, self.forked = None, False
                 recv.close()
+                if ask_w is not None:
+                    ask_w.close()
             send.close()
+            if ask_r is not None:
+                ask_r.close()
             self._conn = recv if self.forked else None
+            self._ask = ask_w if self.forked else None
         if not self.forked:
             self._value, self._done = fn(*args), True
 
@@ -69,22 +76,53 @@ class Aside:
         (raising its error as without the fork)."""
         if self._done:
             return self._value
-        try:
-            got = pickle.loads(self._conn.recv_bytes())
-        except (EOFError, OSError, pickle.PickleError):   # (the process died: run it here)
-            got = None
-        self._conn.close()
-        self._conn = None
+        got = None
+        if self._conn is not None:
+            try:
+                got = pickle.loads(self._conn.recv_bytes())
+            except (EOFError, OSError, pickle.PickleError):   # (the process died: run it here)
+                got = None
+        ok = got is not None and got[0]
         if got is None:
             self.close()
-        else:                  # it exits by itself; multiprocessing reaps it at its next start
-            self._proc = None
-        if got is not None and got[0]:
-            self._value = got[1]
+        elif not (ok and self._ask is not None):    # else it waits for its second piece
+            # it exits by itself; multiprocessing reaps it at its next start
+            self._conn.close()
+            self._conn = self._proc = None
+            if self._ask is not None:
+                self._ask.close()
+                self._ask = None
+        value = got[1] if ok else self.fn(*self.args)
+        self._value, self._ok, self._done = value, ok, True
+        return value
+
+    def follow(self, *extra) -> "Aside":
+        """The second piece, ``then[0](*then[1:], *extra)``, in the same forked process (which
+        keeps what the first built, e.g. the checker's BVH), after :meth:`result`: an Aside
+        whose :meth:`result` gives its value (run here where the forked process is gone or
+        failed, and with one process)."""
+        if self.then is None:
+            raise ValueError("this Aside has no second piece (then=)")
+        self.result()
+        fn, args = self.then[0], tuple(self.then[1:]) + extra
+        nxt = object.__new__(Aside)
+        nxt.fn, nxt.args, nxt.then = fn, args, None
+        nxt._ask = None
+        nxt._done, nxt._value, nxt._ok = False, None, False
+        nxt.forked = self._ok and self._ask is not None
+        nxt._proc, nxt._conn = None, None
+        if nxt.forked:
+            try:
+                self._ask.send_bytes(pickle.dumps(extra, protocol=pickle.HIGHEST_PROTOCOL))
+            except (OSError, pickle.PickleError):
+                nxt.forked = False
+        if nxt.forked:                            # the process and its pipe go to the second piece
+            nxt._proc, nxt._conn = self._proc, self._conn
+            self._ask.close()
+            self._proc = self._conn = self._ask = None
         else:
-            self._value = self.fn(*self.args)
-        self._done = True
-        return self._value
+            self.close()
+        return nxt
 
     def first(self) -> None:
         """Raise the piece's error, if it has one (call where this process's own work failed:
@@ -92,11 +130,14 @@ class Aside:
         self.result()
 
     def close(self) -> None:
-        """Stop the forked process if it still runs, and reap it."""
+        """Stop the forked process if it still runs (or waits for its second piece), and
+        reap it."""
         proc, self._proc = self._proc, None
         conn, self._conn = self._conn, None
-        if conn is not None:
-            conn.close()
+        ask, self._ask = self._ask, None
+        for c in (conn, ask):
+            if c is not None:
+                c.close()
         if proc is not None:
             if proc.is_alive():
                 proc.terminate()
@@ -106,13 +147,29 @@ class Aside:
         return self
 
     def __exit__(self, *exc) -> None:
-        if not self._done:
+        if not self._done or self._ask is not None:
             self.close()
 
 
-def _child(conn, fn, args) -> None:
-    """The forked process: ``fn(*args)`` with one process, (True, value) or (False, None) back."""
+def _child(conn, fn, args, then=None, ask=None) -> None:
+    """The forked process: ``fn(*args)`` with one process, (True, value) or (False, None) back;
+    with ``then``, once that went well, the second piece on the arguments read from ``ask``
+    (none: the caller closed it, nothing more to do)."""
     os.environ["TSPLCAM_WORKERS"] = "1"
+    ok = _send(conn, fn, args)
+    if then is not None and ok:
+        try:
+            extra = pickle.loads(ask.recv_bytes())
+        except (EOFError, OSError, pickle.PickleError):
+            extra = None
+        if extra is not None:
+            _send(conn, then[0], tuple(then[1:]) + tuple(extra))
+    conn.close()
+
+
+def _send(conn, fn, args) -> bool:
+    """``fn(*args)`` sent on ``conn`` as (True, value), or (False, None) where it failed or its
+    value does not pickle (the caller runs it again and raises its error); whether it went."""
     try:
         out = (True, fn(*args))
     except BaseException:                        # run again by the caller, which raises it
@@ -120,6 +177,9 @@ def _child(conn, fn, args) -> None:
     try:
         data = pickle.dumps(out, protocol=pickle.HIGHEST_PROTOCOL)
     except Exception:                            # a value that does not pickle: run it there
-        data = pickle.dumps((False, None))
-    conn.send_bytes(data)
-    conn.close()
+        out, data = (False, None), pickle.dumps((False, None))
+    try:
+        conn.send_bytes(data)
+    except OSError:                              # the caller is gone
+        return False
+    return out[0]

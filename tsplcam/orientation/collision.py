@@ -401,7 +401,7 @@ class CollisionChecker:
         self.mesh = TriangleMesh.concat(parts)
         self.margin = self.mesh.chordal_error + self.clearance
         self.polygon_tolerance = float(polygon_tolerance)
-        self._wp = fcl.CollisionObject(_bvh(self.mesh.vertices, self.mesh.triangles), fcl.Transform())
+        self._wp_object = None             # the workpiece's fcl BVH, built when first asked
         self.cutting_margin = self.mesh.chordal_error
         TV, TT, self._tool_owner, self.part_names = tool_mesh(tool, self.margin, polygon_tolerance,
                                                               self.cutting_margin)
@@ -417,6 +417,18 @@ class CollisionChecker:
         self._swing_gain = (0.0, 0.0, 0)   # swing check: poses decided, asked, cone_fcl seen
         self.broad = BroadPhase(self.mesh.vertices, self.mesh.triangles, self.profile,
                                 tool.ball_radius - self.gouge_tolerance, e_cap) if broad_phase else None
+
+    @property
+    def _wp(self):
+        """The workpiece as an fcl object (a BVH over the mesh's triangles), built when fcl is
+        first asked: the broad phase answers most questions without it (the keycap job's
+        search, none of whose poses go to fcl), and its build (about 0.1 CPU-s on the
+        keycap's 38k triangles, in C++ holding the GIL) is then done by the process that
+        needs it (the job's forked one measuring the ball gouges and the clearance) rather
+        than while the path's workers need the cores."""
+        if self._wp_object is None:
+            self._wp_object = fcl.CollisionObject(_bvh(self.mesh.vertices, self.mesh.triangles), fcl.Transform())
+        return self._wp_object
 
     def profile(self, grow: float = 0.0) -> Profile:
         """The tool above the ball centre as the fcl checks see it, grown by ``grow`` mm more
@@ -537,6 +549,7 @@ class CollisionChecker:
         if pool is None:
             global _POOL_CHECKER
             _POOL_CHECKER = self
+            self._wp                                 # (built once, inherited by the workers)
             pool = self._workers = multiprocessing.get_context("fork").Pool(workers)
             weakref.finalize(self, pool.terminate)
         return pool
@@ -544,6 +557,8 @@ class CollisionChecker:
     def _fcl_here(self, C, A, tool, grow, parts) -> np.ndarray:
         Q = axis_quaternions(A).tolist()
         out = np.zeros(len(Q), bool)
+        if len(Q) == 0:
+            return out
         wp, req, collide, Res = self._wp, self._req, fcl.collide, fcl.CollisionResult
         for m in np.unique(parts):
             obj = self._tool_object(tool, float(grow), int(m))
@@ -665,8 +680,11 @@ class CollisionChecker:
         C = np.asarray(centers, float).reshape(-1, 3)
         out = np.zeros(len(C), bool)
         ask = np.ones(len(C), bool) if self.broad is None else ~self.broad.ball_free(C)
+        todo = np.nonzero(ask)[0]
+        if len(todo) == 0:
+            return out
         obj, wp, req = self._ball, self._wp, self._req
-        for k in np.nonzero(ask)[0]:
+        for k in todo:
             obj.setTranslation(C[k])
             out[k] = fcl.collide(obj, wp, req, fcl.CollisionResult()) > 0
         return out

@@ -28,6 +28,7 @@ point, patch, (u, v) and what the tool hits.
 """
 from __future__ import annotations
 
+import contextlib
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -111,6 +112,15 @@ def _no_axis_error(path, checker: CollisionChecker, i: int, tried: np.ndarray, w
     what = f"; e.g. with axis ({tried[0][0]:.4f}, {tried[0][1]:.4f}, {tried[0][2]:.4f}) {hit}" \
         if hit is not None else ""
     return CollisionError(f"{_where(path, i)}: {why}{what}")
+
+
+def ball_check(path, checker: CollisionChecker, then=None) -> Aside:
+    """The ball gouge check of ``path`` (its ball centres, which do not move with the axes:
+    :func:`orient` raises its error) beside this process where the path is long enough to
+    pay for a fork (:class:`~tsplcam.orientation.aside.Aside`); ``then``: a second piece the
+    same process runs after it on arguments given later (:meth:`Aside.follow`: it keeps the
+    checker's BVH that the check built there)."""
+    return Aside(_check_ball, path, checker, beside=len(path) >= MIN_POINTS, then=then)
 
 
 def _check_ball(path, checker: CollisionChecker) -> None:
@@ -468,7 +478,7 @@ def orient(path, model=None, tool=None, strategy: str | None = None, *, settings
            tilt_max: float | None = None, resolution: float | None = None, max_step: float | None = None,
            smoothing_length: float | None = None, tolerance: float = 0.005, clearance: float = 0.0,
            max_tilt: float | None = None, rotary_weight: float | None = None, pole_tilt: float | None = None,
-           progress=None):
+           progress=None, ball: Aside | None = None):
     """Tool axes for ``path`` (a ToolPath). Angles in degrees at this interface.
 
     ``settings``: an :class:`OrientationSettings` (strategy, target, limits, smoothing; see
@@ -483,6 +493,8 @@ def orient(path, model=None, tool=None, strategy: str | None = None, *, settings
     the axes and whose joint space the smoothing works in.
     ``progress(done, total)``, when given, is called as collision checks accumulate: poses
     checked so far against the most there can be; the last call has done == total.
+    ``ball``: the caller's :func:`ball_check` of this path and checker, started already (the
+    caller keeps it, e.g. for a second piece in its process); by default orient starts its own.
     Returns ``(path_with_axes, OrientationReport)``; raises CollisionError where no
     admissible collision-free axis exists (naming point, patch, (u, v) and the obstacle), or
     where a fixed target collides.
@@ -530,7 +542,9 @@ def orient(path, model=None, tool=None, strategy: str | None = None, *, settings
     checks0 = checker.checks
     # the ball's gouge check (the ball centres do not move with the axes) beside the axes'
     # search; its error, when it has one, is the one raised (one process meets it first)
-    with Aside(_check_ball, path, checker, beside=n >= MIN_POINTS) as ball:
+    with contextlib.ExitStack() as own:
+        if ball is None:
+            ball = own.enter_context(ball_check(path, checker))
         try:
             axes, pref, info, cost, forced = _axes(path, s, per_patch, checker, machine, reach, limits, tick)
         except Exception:

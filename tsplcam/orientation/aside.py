@@ -1,6 +1,6 @@
 """One piece of work beside this process: ``fn(*args)`` in a forked process while this one goes
-on with other work (the orientation's metrics while the program is posted, the ball gouge
-check while the axes are searched), the result the same as computed here (the same code on
+on with other work (the ball gouge check while the axes are searched, then the axes'
+smallest clearance while the program is posted), the result the same as computed here (the same code on
 the same data, inherited by the fork).
 
 :class:`Aside` forks only where :func:`tsplcam.toolpath.parallel.worker_count` allows more
@@ -12,6 +12,13 @@ result, pickled. A piece that fails there is run again here by :meth:`Aside.resu
 error is raised as without the fork. A caller that meets an error of its own while the piece
 is out asks for the result first (:meth:`Aside.first`): the piece's error, when there is one,
 is the one a single process would have met first.
+
+An Aside may have a second piece (``then``) that its forked process runs after the first,
+on arguments given later (:meth:`Aside.follow`), keeping what the first built there: the
+ball gouge check builds the checker's BVH in it while the axes are searched here, and the
+same process then measures the axes' smallest clearance while this one posts the program
+(the main process, whose questions the broad phase answers alone on most parts, never builds
+it).
 
 A fork of the job's process costs it about 5 ms, and its pages, shared with the child until
 written, cost its next work more (the keycap's post: 0.091 -> 0.109 s beside an idle

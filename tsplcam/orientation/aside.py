@@ -1,7 +1,7 @@
 """One piece of work beside this process: ``fn(*args)`` in a forked process while this one goes
 on with other work (the ball gouge check while the axes are searched, then the axes'
-smallest clearance while the program is posted), the result the same as computed here (the same code on
-the same data, inherited by the fork).
+smallest clearance while the program is posted), the result the same as computed here (the
+same code on the same data, inherited by the fork).
 
 :class:`Aside` forks only where :func:`tsplcam.toolpath.parallel.worker_count` allows more
 than one process (not inside FreeCAD, not with ``TSPLCAM_WORKERS=1``, not while that

@@ -143,6 +143,27 @@ class SameBytes(unittest.TestCase):
             for name in ("P", "Pu", "Pv", "Puu", "Puv", "Pvv", "normal"):
                 self.assertTrue(same(getattr(alone, name), getattr(both, name)[sel]), name)
 
+    def test_first_derivatives_alone(self):
+        """``second=False`` (the cusps' edge pass, the chord placement): the position, first
+        derivatives and normal of the full evaluation, on Bezier and extraordinary points
+        together and apart, at small and large batches (both sums of BezierCells), and in
+        the line frame with its s flipped."""
+        p = self.model.patches[4]
+        for n in (40, 600):
+            uv = self.rng.random((n, 2))
+            uv[:6] = self.rng.integers(0, 2, (6, 2))             # irregular corners among them
+            for sel in (slice(None), uv[:, 0] > 0.5):
+                full = p.evaluate(uv[sel, 0], uv[sel, 1])
+                first = p.evaluate(uv[sel, 0], uv[sel, 1], second=False)
+                self.assertIsNone(first.Puu)
+                for name in ("P", "Pu", "Pv", "normal"):
+                    self.assertTrue(same(getattr(first, name), getattr(full, name)), (n, name))
+        frame = LineFrame(self.model.patches[0], "v", 2)          # s = 1 - v
+        s, t = self.rng.random(300), self.rng.random(300)
+        full, first = frame.evaluate(s, t), frame.evaluate(s, t, second=False)
+        for name in ("P", "n", "Ss", "St", "u", "v"):
+            self.assertTrue(same(getattr(first, name), getattr(full, name)), name)
+
     def test_frame_normal_and_cross(self):
         p = self.model.patches[0]
         sp = p.evaluate(self.rng.random(300), self.rng.random(300))

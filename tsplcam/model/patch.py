@@ -89,9 +89,13 @@ class Patch:
     def shape(self) -> tuple[int, int]:
         return len(self.ubreaks) - 1, len(self.vbreaks) - 1
 
-    def evaluate(self, u, v) -> SurfacePoints:
+    def evaluate(self, u, v, second: bool = True) -> SurfacePoints:
         """Position, first and second partial derivatives and everything derived from them,
-        at parameters u, v (arrays of equal length, or scalars) in [0, 1]."""
+        at parameters u, v (arrays of equal length, or scalars) in [0, 1].
+
+        ``second`` False: the caller reads no second derivatives; a polynomial patch then
+        leaves them out (Puu, Puv, Pvv None; the position and first derivatives are the
+        same values, made by the same products), any other gives them all."""
         u = np.asarray(u, dtype=float).reshape(-1)       # (a scalar: one point)
         v = np.asarray(v, dtype=float).reshape(-1)
         if u.shape != v.shape:
@@ -113,13 +117,14 @@ class Patch:
             # would pass), not gathered back
             tables = self._tables()
             poly = tables[4]
-            order, H, ep = self._evaluate_h(u, v, tables)
+            nd = 6 if second or not poly else 3
+            order, H, ep = self._evaluate_h(u, v, tables, nd)
             if order is not None:                            # back from cell order: one gather
                 inverse = np.empty_like(order)
                 inverse[order] = np.arange(n)
                 H = (H[:, :3] if poly else H).take(inverse, axis=2)
             if poly:
-                out = tuple(H[k, :3] for k in range(6))
+                out = tuple(H[k, :3] for k in range(nd)) + (None,) * (6 - nd)
             else:
                 out = rational_from_homogeneous(H)           # six (3, n), point by point
             if ep is not None:
@@ -138,7 +143,7 @@ class Patch:
                     ep_rows.append(rows[ep[0]])
                     ep_normals.append(ep[1])
         # (n, 3) views of the coordinate-major rows: no copy
-        P, Pu, Pv, Puu, Puv, Pvv = (x.T for x in out)
+        P, Pu, Pv, Puu, Puv, Pvv = (None if x is None else x.T for x in out)
         normal_override = None
         if ep_rows:
             rows = _concatenate(ep_rows)
@@ -312,10 +317,12 @@ class Patch:
                 out[(slice(None),) + tuple(rows)] = P.reshape(3, ni, nj)
         return out, level_blocks
 
-    def _evaluate_h(self, u, v, tables=None):
-        """Homogeneous derivatives (6, 4, m) of the points sorted by cell, the sorting order
+    def _evaluate_h(self, u, v, tables=None, nd: int = 6):
+        """Homogeneous derivatives (nd, 4, m) of the points sorted by cell, the sorting order
         (None when they come sorted), and (rows in sorted order, exact normals) of points at
-        irregular vertices. ``tables``: :meth:`_tables`, when the caller has them.
+        irregular vertices. ``tables``: :meth:`_tables`, when the caller has them. ``nd`` 3:
+        the position and first derivatives alone (polynomial patches only: their groups are
+        Bezier and extraordinary cells, which make them so).
 
         With several groups the points are sorted by group call first (``_tables``), then
         by cell: each call's points are one block, which it writes in place, and every group
@@ -341,10 +348,13 @@ class Patch:
         a = (u - self.ubreaks.take(iu)) / wu
         b = (v - self.vbreaks.take(iv)) / wv
         local = self.cell_local[iu, iv]
-        H = np.empty((6, 4, len(u)))
+        H = np.empty((nd, 4, len(u)))
         ep = None
         if single:
-            H[:], at_vertex, ep_normal = self.groups[0].evaluate(local, a, b)
+            if nd == 6:
+                H[:], at_vertex, ep_normal = self.groups[0].evaluate(local, a, b)
+            else:
+                H[:], at_vertex, ep_normal = self.groups[0].evaluate(local, a, b, nd=nd)
             if at_vertex is not None and at_vertex.any():
                 ep = (np.nonzero(at_vertex)[0], ep_normal[at_vertex])
         else:
@@ -367,14 +377,16 @@ class Patch:
                 start += m
             results = None
             if len(calls) == 2:
-                results = self._bezier_and_nets(calls, blocks, levels, group, local, a, b, H)
+                results = self._bezier_and_nets(calls, blocks, levels, group, local, a, b, H, nd)
             if results is None:
                 results = []
                 for g, sel in zip(calls, blocks):
                     if g is levels:
-                        Hg, at_vertex, ep_normal = levels.evaluate(group[sel], local[sel], a[sel], b[sel])
-                    else:
+                        Hg, at_vertex, ep_normal = levels.evaluate(group[sel], local[sel], a[sel], b[sel], nd)
+                    elif nd == 6:
                         Hg, at_vertex, ep_normal = self.groups[g].evaluate(local[sel], a[sel], b[sel])
+                    else:
+                        Hg, at_vertex, ep_normal = self.groups[g].evaluate(local[sel], a[sel], b[sel], nd=nd)
                     H[:, :, sel] = Hg
                     results.append((sel, at_vertex, ep_normal))
             for sel, at_vertex, ep_normal in results:
@@ -385,12 +397,13 @@ class Patch:
         # from cell (a, b) to patch (u, v)
         H[1] /= wu
         H[2] /= wv
-        H[3] /= wu * wu
-        H[4] /= wu * wv
-        H[5] /= wv * wv
+        if nd > 3:
+            H[3] /= wu * wu
+            H[4] /= wu * wv
+            H[5] /= wv * wv
         return order, H, ep
 
-    def _bezier_and_nets(self, calls, blocks, levels, group, local, a, b, H):
+    def _bezier_and_nets(self, calls, blocks, levels, group, local, a, b, H, nd: int = 6):
         """Two calls, cubic Bezier cells and extraordinary cells' nets (LevelCells alone or
         a _LevelSet), written into their blocks of H with the Bernstein values of both made
         in one call (they are made point by point: the same values); None for other pairs.
@@ -410,11 +423,11 @@ class Patch:
         prepared = LevelCells.prepare(lv, lidx, a[sl], b[sl])
         E = prepared[3][0]
         B = bernstein_rows(3, _concatenate([a[sb], b[sb], E[0], E[1]]))
-        bez.evaluate(local[sb], a[sb], b[sb], out=H[:, :, sb], bases=(B[:, :, :nb], B[:, :, nb:2 * nb]))
+        bez.evaluate(local[sb], a[sb], b[sb], out=H[:, :, sb], bases=(B[:, :, :nb], B[:, :, nb:2 * nb]), nd=nd)
         if lv is levels:
-            _, at_vertex, ep_normal = levels.finish(group[sl], prepared, H[:, :, sl], B[:, :, 2 * nb:])
+            _, at_vertex, ep_normal = levels.finish(group[sl], prepared, H[:, :, sl], B[:, :, 2 * nb:], nd)
         else:
-            _, at_vertex, ep_normal = lv.finish(prepared, H[:, :, sl], B[:, :, 2 * nb:])
+            _, at_vertex, ep_normal = lv.finish(prepared, H[:, :, sl], B[:, :, 2 * nb:], nd)
         return [(sb, None, None), (sl, at_vertex, ep_normal)]
 
     def _widths(self, axis: int) -> np.ndarray:
@@ -507,21 +520,21 @@ class _LevelSet:
         self.limit_normal = _concatenate([g.limit_normal for g in gs])
         self._vertex = _concatenate([g._vertex for g in gs], axis=2)
 
-    def evaluate(self, gid: np.ndarray, local: np.ndarray, a: np.ndarray, b: np.ndarray):
+    def evaluate(self, gid: np.ndarray, local: np.ndarray, a: np.ndarray, b: np.ndarray, nd: int = 6):
         """As the members' ``evaluate`` for points of groups ``gid`` and their cells ``local``."""
         idx = self.offset[gid] + local
-        return self.finish(gid, LevelCells.prepare(self, idx, a, b))
+        return self.finish(gid, LevelCells.prepare(self, idx, a, b), nd=nd)
 
-    def finish(self, gid: np.ndarray, prepared, out=None, B=None):
+    def finish(self, gid: np.ndarray, prepared, out=None, B=None, nd: int = 6):
         """:meth:`evaluate` from ``LevelCells.prepare`` of the set's cell indices (``out``,
-        ``B``: as for ``LevelCells._net_values``)."""
+        ``B``, ``nd``: as for ``LevelCells._net_values``)."""
         idx, a, b, params = prepared
-        H, at_vertex, deep = LevelCells._net_values(self, idx, params, out, B)
+        H, at_vertex, deep = LevelCells._net_values(self, idx, params, out, B, nd)
         if deep.any():
             local = idx - self.offset[gid]
             for g in np.unique(gid[deep]).tolist():
                 rows = np.nonzero(deep & (gid == g))[0]
-                H[:, :, rows] = self.groups[g]._evaluate(local[rows], a[rows], b[rows])[0]
+                H[:, :, rows] = self.groups[g]._evaluate(local[rows], a[rows], b[rows])[0][:nd]
         ep_normal = None
         if at_vertex.any():
             ep_normal = np.zeros((len(idx), 3))

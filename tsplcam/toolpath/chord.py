@@ -49,9 +49,10 @@ class Curve:
     dense: int
 
 
-def _evaluate(frame, along: np.ndarray, fixed: np.ndarray, x: np.ndarray):
-    """Frame geometry at parameter x of curves with these ``along`` flags (True: 't')."""
-    return frame.evaluate(_where(along, fixed, x), _where(along, x, fixed))
+def _evaluate(frame, along: np.ndarray, fixed: np.ndarray, x: np.ndarray, second: bool = True):
+    """Frame geometry at parameter x of curves with these ``along`` flags (True: 't');
+    ``second`` as for ``LineFrame.evaluate``."""
+    return frame.evaluate(_where(along, fixed, x), _where(along, x, fixed), second)
 
 
 def _first_points(frame, curves: list[Curve], r, tol_in, tol_out, max_step):
@@ -199,7 +200,7 @@ def place_curves(frame, curves: list[Curve], r: float, tol_in: float, tol_out: f
     first, lo, hi, along, fixed = _first_points(frame, curves, r, tol_in, tol_out, max_step)
     cid = np.repeat(np.arange(len(curves)), [len(a) for a in first])
     x = _concatenate(first)
-    g = _evaluate(frame, along[cid], fixed[cid], x)
+    g = _evaluate(frame, along[cid], fixed[cid], x, second=False)
     P, n, u, v = g.P, g.n, g.u, g.v
     same = cid[1:] == cid[:-1]
     pending = same.copy()
@@ -209,7 +210,7 @@ def place_curves(frame, curves: list[Curve], r: float, tol_in: float, tol_out: f
         if len(idx) == 0:
             break
         xm = 0.5 * (x[idx] + x[idx + 1])
-        gm = _evaluate(frame, along[cid[idx]], fixed[cid[idx]], xm)
+        gm = _evaluate(frame, along[cid[idx]], fixed[cid[idx]], xm, second=False)
         cm = gm.P + r * gm.n
         chord = 0.5 * ((P[idx] + r * n[idx]) + (P[idx + 1] + r * n[idx + 1]))
         dev = cm - chord

@@ -197,7 +197,10 @@ class LineFrame:
         a = 1.0 - s if self.s_flip else s
         return (a, t) if self.crossfeed == "u" else (t, a)
 
-    def evaluate(self, s, t) -> FrameGeom:
+    def evaluate(self, s, t, second: bool = True) -> FrameGeom:
+        """The geometry at (s, t); ``second`` False: for readers of the points, normals and
+        first derivatives alone (the patch may leave Sss, Sst, Stt None: ``Patch.evaluate``;
+        the rest are the same values)."""
         s = np.asarray(s, float)
         t = np.asarray(t, float)
         if s.shape != t.shape or s.ndim == 0:           # (equal shapes: broadcast_arrays' views)
@@ -205,8 +208,8 @@ class LineFrame:
         s = np.minimum(np.maximum(s, 0.0), 1.0)
         t = np.minimum(np.maximum(t, 0.0), 1.0)
         u, v = self.uv(s, t)
-        sp = self.patch.evaluate(u, v)
-        flip = (lambda x: -1.0 * x) if self.s_flip else (lambda x: x)   # noqa: E731
+        sp = self.patch.evaluate(u, v) if second else self.patch.evaluate(u, v, second=False)
+        flip = (lambda x: x if x is None else -1.0 * x) if self.s_flip else (lambda x: x)   # noqa: E731
         if self.crossfeed == "u":
             Ss, St, Sss, Sst, Stt = flip(sp.Pu), sp.Pv, sp.Puu, flip(sp.Puv), sp.Pvv
         else:
@@ -454,7 +457,7 @@ def _cusp_heights(frame, g1, ds, r):
         if rnd == 1:
             ff = lo[..., None] + width[..., None] * f                  # (G, 2, k)
             ge = frame.evaluate((s1[:, None] + np.minimum(np.maximum(ff, 0), 1).reshape(G, -1)
-                                 * (s2 - s1)[:, None]).ravel(), np.tile(_END_T, G))
+                                 * (s2 - s1)[:, None]).ravel(), np.tile(_END_T, G), second=False)
             eP, en = rs(ge.P), rs(ge.n)
         h = _capsule_entry(eP.reshape(G, 1, 2, -1, 3), en.reshape(G, 1, 2, -1, 3), ca, cb, r, seg)
         h1, h2 = h[:, 0], h[:, 1]                                        # (G, 2, k)

@@ -305,30 +305,52 @@ def _norm3(x: np.ndarray) -> np.ndarray:
     return np.sqrt(out)[..., None]
 
 
+def _coords_first(x: np.ndarray) -> np.ndarray:
+    """A view of (..., 3) with the coordinate axis first, (3, ...)."""
+    return x.transpose((x.ndim - 1,) + tuple(range(x.ndim - 1)))
+
+
+def _dot3(x: np.ndarray, y: np.ndarray) -> np.ndarray:
+    """:func:`_sum3` of x * y for coordinate-first arrays (3, ...): the same products and
+    sums, over whole rows of points."""
+    q = x * y
+    out = q[0] + q[1]
+    out += q[2]
+    out += 0.0
+    return out
+
+
 def _capsule_entry(p, n, a, b, r, seg=None):
     """Distance along the unit normals n from points p to where they enter the capsule of
     radius r around segment a-b (inf if they miss); arrays broadcast over leading axes.
     ``seg``: :func:`_capsule_segments` of (a, b), when the caller measures the same capsules
-    again."""
+    again.
+
+    Worked coordinate-first (views): each product and sum runs over contiguous rows of
+    points rather than every third number, the same operations on the same values as
+    point-major (:func:`_sum3` of the products)."""
     L, eh, ends = _capsule_segments(a, b) if seg is None else seg
+    p, n, a, eh, ends = (_coords_first(x) for x in (p, n, a, eh, ends))
     w = p - a
-    dn = _sum3(n * eh)
-    wn = _sum3(w * eh)
-    dp = n - dn[..., None] * eh
-    wp = w - wn[..., None] * eh
-    A = _sum3(dp * dp)
-    B = _sum3(wp * dp)
-    C = _sum3(wp * wp) - r * r
+    dn = _dot3(n, eh)
+    wn = _dot3(w, eh)
+    dp = n - dn * eh
+    wp = w - wn * eh
+    A = _dot3(dp, dp)
+    B = _dot3(wp, dp)
+    C = _dot3(wp, wp) - r * r
     disc = B * B - A * C
     lam = (-B - np.sqrt(_where(disc >= 0, disc, np.nan))) / A
     ax = wn + lam * dn
-    out = _where((disc >= 0) & (A > 1e-14) & (ax >= 0) & (ax <= L), lam, np.inf)
+    # (where disc < 0, lam and so ax are nan: ax >= 0 is false there)
+    out = _where((A > 1e-14) & (ax >= 0) & (ax <= L), lam, np.inf)
     # the two end spheres at once
-    wc = p - ends
-    bb = _sum3(n * wc)
-    cc = _sum3(wc * wc) - r * r
+    wc = p[:, None] - ends
+    bb = _dot3(n[:, None], wc)
+    cc = _dot3(wc, wc) - r * r
     d = bb * bb - cc
-    cap = _where(d >= 0, -bb - np.sqrt(_where(d >= 0, d, 0.0)), np.inf)
+    hit = d >= 0
+    cap = _where(hit, -bb - np.sqrt(_where(hit, d, 0.0)), np.inf)
     return np.minimum(np.minimum(out, cap[0]), cap[1])
 
 
@@ -338,7 +360,9 @@ def _capsule_segments(a, b):
     e = b - a
     L = np.sqrt(_sum3(e * e))
     eh = e / np.maximum(L, 1e-300)[..., None]
-    return L, eh, np.stack(np.broadcast_arrays(a, b))
+    ends = np.empty((2,) + e.shape)
+    ends[0], ends[1] = a, b
+    return L, eh, ends
 
 
 def cusp_heights(frame: LineFrame, g1: FrameGeom, ds: float, r: float) -> tuple[np.ndarray, np.ndarray]:

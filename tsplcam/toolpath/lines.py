@@ -47,6 +47,7 @@ if any would exceed the limit the unscaled positions are kept.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from functools import lru_cache
 
 import numpy as np
 
@@ -398,6 +399,17 @@ def cusp_heights_many(frame: LineFrame, g1: FrameGeom, ds: np.ndarray, r: float)
         return _cusp_heights(frame, g1, np.asarray(ds, float), r)
 
 
+_max_reduce = np.maximum.reduce
+
+
+@lru_cache(maxsize=64)
+def _end_t(G: int) -> np.ndarray:
+    """np.tile(_END_T, G), made once per G (read-only)."""
+    out = np.tile(_END_T, G)
+    out.flags.writeable = False
+    return out
+
+
 def _cusp_heights(frame, g1, ds, r):
     G = len(ds)
     m = len(g1.t) // G
@@ -468,7 +480,8 @@ def _cusp_heights(frame, g1, ds, r):
     np.negative(St[:, m + 3], out=tin[:, 1, 1])
     tin /= np.maximum(_norm3(tin), 1e-300)
     # both lines' capsules at once: (gap, line, end, 1, 3)
-    ca = np.stack([c2all[:, m + 4:m + 6], c2all[:, m:m + 2]], axis=1)[:, :, :, None, :]
+    ca = np.empty((G, 2, 2, 1, 3))
+    ca[:, 0, :, 0], ca[:, 1, :, 0] = c2all[:, m + 4:m + 6], c2all[:, m:m + 2]
     cb = ca + 4 * r * tin[:, :, :, None, :]
     seg = _capsule_segments(ca, cb)               # the same capsules in both passes
     ends = np.zeros((G, 2))
@@ -481,7 +494,7 @@ def _cusp_heights(frame, g1, ds, r):
         if rnd == 1:
             ff = lo[..., None] + width[..., None] * f                  # (G, 2, k)
             ge = frame.evaluate((s1[:, None] + np.minimum(np.maximum(ff, 0), 1).reshape(G, -1)
-                                 * (s2 - s1)[:, None]).ravel(), np.tile(_END_T, G), second=False)
+                                 * (s2 - s1)[:, None]).ravel(), _end_t(G), second=False)
             eP, en = rs(ge.P), rs(ge.n)
         h = _capsule_entry(eP.reshape(G, 1, 2, -1, 3), en.reshape(G, 1, 2, -1, 3), ca, cb, r, seg)
         h1, h2 = h[:, 0], h[:, 1]                                        # (G, 2, k)
@@ -490,7 +503,7 @@ def _cusp_heights(frame, g1, ds, r):
         # cusp is a corner that samples alone would cut short
         d = h1 - h2
         up = d >= 0
-        k = np.argmax(up, axis=2)
+        k = up.argmax(axis=2)
         k = _where(up.any(axis=2), k, k_end - 1)
         k = np.minimum(np.maximum(k, 1), k_end - 1)
         d0, d1 = take(d, k - 1), take(d, k)
@@ -498,7 +511,7 @@ def _cusp_heights(frame, g1, ds, r):
         hk0, hk1 = take(h1, k - 1), take(h1, k)
         cross = hk0 + x * (hk1 - hk0)
         low = np.minimum(h1, h2)
-        peak = np.max(low, axis=2)
+        peak = _max_reduce(low, axis=2)          # np.max's reduction, without its wrapper
         ok = np.isfinite(cross) & (d0 < 0) & (d1 >= 0)
         ends = np.maximum(ends, _where(ok, np.maximum(cross, take(low, k)), peak))
         step = width / (k_end - 1)

@@ -429,7 +429,8 @@ class LevelCells:
         at_vertex = mx <= 0.0
         _, e = np.frexp(mx)
         level = np.minimum(np.maximum(1 - e, 1), self.MAX_LEVEL)
-        deep = (level > self.NET_LEVELS) & ~at_vertex
+        # (at the vertex mx is 0, e 0 and the level 1: never deep)
+        deep = level > self.NET_LEVELS
         scale = np.ldexp(1.0, level)
         E *= scale
         pq = E >= 1.0                                   # the sub-cell (pa, qa) of the level

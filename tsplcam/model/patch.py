@@ -148,7 +148,7 @@ class Patch:
         if ep_rows:
             rows = _concatenate(ep_rows)
             nrm = _concatenate(ep_normals)
-            normal_override = _unit(np.cross(Pu, Pv))
+            normal_override = _unit(_cross(Pu, Pv))
             sign = np.sign(_einsum("ij,ij->i", nrm, normal_override[rows]))
             normal_override[rows] = nrm * _where(sign == 0, 1.0, sign)[:, None]
         return SurfacePoints(P, Pu, Pv, Puu, Puv, Pvv, u, v, self.index, normal_override)
@@ -559,6 +559,18 @@ def _index_or_slice(idx: np.ndarray):
     if len(idx) and idx[-1] - idx[0] + 1 == len(idx):
         return slice(int(idx[0]), int(idx[-1]) + 1)
     return idx
+
+
+def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """np.cross of (n, 3) rows: its products and differences in its order, without its
+    Python-level axis handling (the same values)."""
+    c = np.empty((len(a), 3))
+    tmp = np.empty(len(a))
+    for k, (i, j) in enumerate(((1, 2), (2, 0), (0, 1))):
+        np.multiply(a[:, i], b[:, j], out=c[:, k])
+        np.multiply(a[:, j], b[:, i], out=tmp)
+        c[:, k] -= tmp
+    return c
 
 
 def _unit(x: np.ndarray) -> np.ndarray:

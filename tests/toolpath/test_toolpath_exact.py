@@ -164,6 +164,20 @@ class SameBytes(unittest.TestCase):
         for name in ("P", "n", "Ss", "St", "u", "v"):
             self.assertTrue(same(getattr(first, name), getattr(full, name)), name)
 
+    def test_quiet_is_errstate(self):
+        """npfast.quiet sets the modes np.errstate sets, nests, and restores the caller's."""
+        from tsplcam.npfast import quiet
+        before = np.geterr()
+        for kinds in (("divide", "invalid"), ("invalid",), ("invalid", "divide", "over")):
+            with np.errstate(**dict.fromkeys(kinds, "ignore")):
+                want = np.geterr()
+            with quiet(*kinds):
+                self.assertEqual(np.geterr(), want)
+                with quiet("under"):
+                    self.assertEqual(np.geterr()["under"], "ignore")
+                self.assertEqual(np.geterr(), want)
+            self.assertEqual(np.geterr(), before)
+
     def test_frame_normal_and_cross(self):
         p = self.model.patches[0]
         sp = p.evaluate(self.rng.random(300), self.rng.random(300))

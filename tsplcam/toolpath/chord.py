@@ -28,7 +28,7 @@ import numpy as np
 
 # numpy's C functions without their Python dispatch wrappers: the same calls, a few
 # microseconds less each on the many small arrays here
-from ..npfast import where as _where, c_einsum as _einsum, concatenate as _concatenate
+from ..npfast import quiet as _quiet, where as _where, c_einsum as _einsum, concatenate as _concatenate
 
 from .sidestep import forward_step
 
@@ -69,7 +69,7 @@ def _first_points(frame, curves: list[Curve], r, tol_in, tol_out, max_step):
     span = (hi - lo)[cid]
     # the curvature is read slightly inside the ends: at an extraordinary corner the second
     # derivatives are singular (the kernel's values there are meaningless)
-    with np.errstate(invalid="ignore", divide="ignore"):
+    with _quiet("invalid", "divide"):
         inner = lo[cid] + span * (END_EPS + (1 - 2 * END_EPS) * (xa - lo[cid]) / span)
     g = _evaluate(frame, along[cid], fixed[cid], inner)
     at = along[cid]
@@ -179,7 +179,7 @@ def _interp_many(x: np.ndarray, xcid: np.ndarray, xp: np.ndarray, fp: np.ndarray
     jc = np.minimum(np.maximum(j, 0), n - 2)
     g0 = first[xcid] + jc
     x0, x1, f0, f1 = xp[g0], xp[g0 + 1], fp[g0], fp[g0 + 1]
-    with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
+    with _quiet("invalid", "divide", "over"):
         slope = (f1 - f0) / (x1 - x0)
         res = slope * (x - x0) + f0
         nan = np.isnan(res)

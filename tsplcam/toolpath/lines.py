@@ -53,7 +53,7 @@ import numpy as np
 
 # numpy's C functions without their Python dispatch wrappers: the same calls, a few
 # microseconds less each on the many small arrays here
-from ..npfast import where as _where, c_einsum as _einsum, concatenate as _concatenate
+from ..npfast import quiet as _quiet, where as _where, c_einsum as _einsum, concatenate as _concatenate
 
 from ..errors import GeometryError, InputError
 from ..layout.layout import CORNER_NAMES, CORNER_UV
@@ -123,7 +123,7 @@ class FrameGeom:
     def cross_curvature(self) -> np.ndarray:
         """Normal curvature across a line s = const, i.e. along S_s - (F/G) S_t
         (docs/method.md 3.3): (L G^2 - 2 M F G + N F^2) / (G (E G - F^2))."""
-        with np.errstate(divide="ignore", invalid="ignore"):
+        with _quiet("divide", "invalid"):
             k = (self.L * self.G ** 2 - 2 * self.M * self.F * self.G + self.N * self.F ** 2) / (
                 self.G * self.det)
         return _where((self.det > 0) & (self.G > 0), k, 0.0)
@@ -133,7 +133,7 @@ class FrameGeom:
         d1, d2 = (self.St, self.Stt) if along == "t" else (self.Ss, self.Sss)
         sp2 = _einsum("ij,ij->i", d1, d1)
         kf = self._normal_curvature(d2, sp2)
-        with np.errstate(divide="ignore", invalid="ignore"):
+        with _quiet("divide", "invalid"):
             ktot = _where(sp2 > 0, _norm3(_cross(d1, d2))[:, 0] / sp2 ** 1.5, 0.0)
         return kf, np.sqrt(np.maximum(ktot * ktot - kf * kf, 0.0))
 
@@ -143,12 +143,12 @@ class FrameGeom:
         return self._normal_curvature(d2, _einsum("ij,ij->i", d1, d1))
 
     def _normal_curvature(self, d2, sp2):
-        with np.errstate(divide="ignore", invalid="ignore"):
+        with _quiet("divide", "invalid"):
             return _where(sp2 > 0, _einsum("ij,ij->i", self.n, d2) / sp2, 0.0)
 
     def principal_max(self) -> np.ndarray:
         """Largest normal curvature (concave positive)."""
-        with np.errstate(divide="ignore", invalid="ignore"):
+        with _quiet("divide", "invalid"):
             det = _where(self.det > 0, self.det, np.inf)
             K = (self.L * self.N - self.M ** 2) / det
             H = (self.E * self.N - 2 * self.F * self.M + self.G * self.L) / (2 * det)
@@ -386,7 +386,7 @@ def cusp_heights(frame: LineFrame, g1: FrameGeom, ds: float, r: float) -> tuple[
     straight capsule from its end ball along the line; the peak is where the two entries
     are equal, bracketed on 17 samples, bracketed again on 17 inside, and interpolated.
     """
-    with np.errstate(divide="ignore", invalid="ignore"):
+    with _quiet("divide", "invalid"):
         h, ends = cusp_heights_many(frame, g1, np.array([ds], float), r)
     return h[0], ends[0]
 
@@ -395,7 +395,7 @@ def cusp_heights_many(frame: LineFrame, g1: FrameGeom, ds: np.ndarray, r: float)
     """:func:`cusp_heights` for G gaps at once: ``g1`` the samples of G lines one after the
     other (the same number on each), ``ds`` (G,) the steps to their next lines. Returns the
     heights (G, m) and the ends (G, 2); two surface evaluations whatever G is."""
-    with np.errstate(divide="ignore", invalid="ignore"):
+    with _quiet("divide", "invalid"):
         return _cusp_heights(frame, g1, np.asarray(ds, float), r)
 
 
@@ -581,7 +581,7 @@ class Placer:
         h, ends = cusp_heights_many(self.frame, g1, ds, self.r)
         th = np.asarray(target_h, float).reshape(G, -1)
         rs = h / th
-        with np.errstate(invalid="ignore"):
+        with _quiet("invalid"):
             inner = _where(np.isnan(rs).all(axis=1), 0.0,
                              np.nanmax(_where(np.isnan(rs), -np.inf, rs), axis=1))
         return np.maximum(inner, np.maximum(ends[:, 0] / th[:, 0], ends[:, 1] / th[:, -1]))

@@ -1,7 +1,8 @@
 """numpy's C functions without their Python dispatch wrappers, for the hot small calls of the
 surface evaluation and the line placement (thousands of calls on arrays of tens of rows per
 path): the same functions, a few microseconds less a call under numpy 1.x. numpy 2 moved the
-module and dispatches in C; where neither module is found the public functions stand in."""
+module and dispatches in C; where neither module is found the public functions stand in.
+``quiet``: np.errstate's ignore modes the same way (one get and one set of the error object)."""
 from __future__ import annotations
 
 import numpy as np

@@ -9,7 +9,10 @@ and the Bezier cells' in one call), convert homogeneous to Euclidean derivatives
 convert on a polynomial patch). Every shortcut gives each point the
 same arithmetic as the others would (the path's programs stay the same bytes when it gets
 faster): the only value that depends on the other points of a call is a Bezier cell's BLAS
-product, which is made run by run of the cell's points as before.
+product, which is made run by run of the cell's points as before. Callers that read no
+second derivatives (the cusps' edge pass, the chord placement) ask for the position and first
+derivatives alone (``second=False``): on a polynomial patch the same products for those,
+without the second-order ones.
 
 Corners and edges of the unit square (shang2020 section 3.2), used by every later stage:
 corner k sits at ``CORNER_UV[k]``: 0 = (0,0) lower left, 1 = (1,0) lower right, 2 = (1,1)

@@ -216,7 +216,8 @@ class LineFrame:
         else:
             Ss, St, Sss, Sst, Stt = flip(sp.Pv), sp.Pu, sp.Pvv, flip(sp.Puv), sp.Puu
         normal = sp.normal_override if sp.normal_override is not None else _unit_normal(sp.Pu, sp.Pv)
-        return FrameGeom(sp.P, normal, Ss, St, Sss, Sst, Stt, sp.u, sp.v, s.copy(), t.copy())
+        # s and t are this call's own arrays (made by the clamp above): no copies needed
+        return FrameGeom(sp.P, normal, Ss, St, Sss, Sst, Stt, sp.u, sp.v, s, t)
 
     @property
     def cells_along(self) -> int:

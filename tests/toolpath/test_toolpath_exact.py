@@ -8,7 +8,7 @@ import numpy as np
 
 from tsplcam import load_model
 from tsplcam.model.basis import bernstein_rows
-from tsplcam.model.cells import DERIVS, BezierCells
+from tsplcam.model.cells import DERIVS, BezierCells, LevelCells
 from tsplcam.toolpath.lines import (LineFrame, Placer, Target, _capsule_entry, _capsule_segments, _cross, _norm3,
                                     _sum3, _unit_normal)
 
@@ -125,6 +125,22 @@ class SameBytes(unittest.TestCase):
             p._levels = None
         for name in ("P", "Pu", "Pv", "Puu", "Puv", "Pvv", "normal"):
             self.assertTrue(same(getattr(together, name), getattr(alone, name)), name)
+
+    def test_nets_xyz_alone(self):
+        """A polynomial patch's extraordinary cells make x, y, z alone from their nets: the
+        same values as the four rows of the homogeneous route, weight rows 1 and 0."""
+        p = self.model.patches[4]
+        self.assertTrue(p._polynomial())
+        g = next(grp for grp in p.groups if isinstance(grp, LevelCells))
+        n = 200
+        idx = np.zeros(n, int)
+        a, b = self.rng.random(n), self.rng.random(n)
+        a[:5], b[:5] = g._corner[0, 0], g._corner[1, 0]          # at the irregular corner too
+        for nd in (6, 3):
+            H4 = g.evaluate(idx, a, b, nd=nd)[0]
+            H3 = g.evaluate(idx, a, b, nd=nd, nc=3)[0]
+            self.assertTrue(same(H3[:, :3], H4[:, :3]), nd)
+            self.assertTrue(np.all(H3[0, 3] == 1.0) and np.all(H3[1:, 3] == 0.0))
 
     def test_bezier_and_nets_together(self):
         """Points of Bezier and extraordinary cells in one call (one Bernstein evaluation for

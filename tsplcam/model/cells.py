@@ -448,46 +448,61 @@ class LevelCells:
         key = (idx * self.NET_LEVELS + np.minimum(level, self.NET_LEVELS) - 1) * 3 + pq[0] + 2 * pq[1] - 1
         return E, key, scale, at_vertex, deep
 
-    def _net_values(self, idx, params, out=None, B=None, nd: int = 6):
+    def _nets_xyz(self) -> np.ndarray:
+        """The nets' x, y, z rows alone, contiguous (made once per nets array): what a
+        polynomial patch reads of them (their weight rows are 0 there)."""
+        cached = getattr(self, "_xyz", None)
+        if cached is None or cached[0] is not self.nets:
+            cached = self._xyz = (self.nets, np.ascontiguousarray(self.nets[:, :3]))
+        return cached[1]
+
+    def _net_values(self, idx, params, out=None, B=None, nd: int = 6, nc: int = 4):
         """The second half of :meth:`_evaluate_nets`: (H, at_vertex, deep) from the
         parameters of :meth:`_net_params`. ``out``: a (6, 4, n) view to write H into;
         ``B``: ``bernstein_rows(3, [E[0], E[1]])`` made by the caller (with other points');
-        ``nd``: 6 derivative rows or the first 3 (``bicubic_nets``)."""
+        ``nd``: 6 derivative rows or the first 3 (``bicubic_nets``); ``nc`` 3: for a
+        polynomial patch, which reads no weight row: the x, y, z rows alone from the nets
+        (each coordinate its own products: the same values), the weight rows written 1 and 0
+        (as polynomial Bezier cells write them)."""
         E, key, scale, at_vertex, deep = params
-        R = bicubic_nets(self.nets[key], E[0], E[1], B, nd)
-        if out is None:
+        nets = self.nets if nc == 4 else LevelCells._nets_xyz(self)
+        R = bicubic_nets(nets[key], E[0], E[1], B, nd)
+        if out is None and nc == 4:
             H = scale_derivatives(R, scale, scale)
             H[0] += self.limit[idx].T
         else:
             # scale_derivatives and the limit's sum written into out as they read R (the same
             # products and sums, one pass instead of a copy and six)
-            H = out
-            np.add(R[0], self.limit[idx].T, out=H[0])
-            np.multiply(R[1], scale, out=H[1])
-            np.multiply(R[2], scale, out=H[2])
+            H = np.empty((nd, 4, len(idx))) if out is None else out
+            np.add(R[0], self.limit[idx].T[:nc], out=H[0, :nc])
+            np.multiply(R[1], scale, out=H[1, :nc])
+            np.multiply(R[2], scale, out=H[2, :nc])
             if nd > 3:
                 ss = scale * scale
-                np.multiply(R[3], ss, out=H[3])
-                np.multiply(R[4], ss, out=H[4])
-                np.multiply(R[5], ss, out=H[5])
+                np.multiply(R[3], ss, out=H[3, :nc])
+                np.multiply(R[4], ss, out=H[4, :nc])
+                np.multiply(R[5], ss, out=H[5, :nc])
+            if nc == 3:
+                H[0, 3] = 1.0
+                H[1:, 3] = 0.0
         if at_vertex.any():
             H[:, :, at_vertex] = self._vertex[:nd, :, idx[at_vertex]]
         return H, at_vertex, deep
 
-    def evaluate(self, idx: np.ndarray, a: np.ndarray, b: np.ndarray, out=None, nd: int = 6):
+    def evaluate(self, idx: np.ndarray, a: np.ndarray, b: np.ndarray, out=None, nd: int = 6, nc: int = 4):
         """From the cached nets; the few points below level NET_LEVELS through the
         configuration of their level. ``out``: a (nd, 4, n) view to write into; ``nd`` 3:
-        the position and first derivatives alone."""
-        return self.finish(self.prepare(idx, a, b), out, nd=nd)
+        the position and first derivatives alone; ``nc``: as for ``_net_values``."""
+        return self.finish(self.prepare(idx, a, b), out, nd=nd, nc=nc)
 
     def prepare(self, idx, a, b):
         """:meth:`evaluate` in two halves, so that a patch makes the Bernstein values of the
         sub-cells' parameters together with its Bezier cells' (``finish`` takes them)."""
         return idx, a, b, LevelCells._net_params(self, idx, a, b)
 
-    def finish(self, prepared, out=None, B=None, nd: int = 6):
+    def finish(self, prepared, out=None, B=None, nd: int = 6, nc: int = 4):
         idx, a, b, params = prepared
-        H, at_vertex, deep = LevelCells._net_values(self, idx, params, out, B, nd)
+        H, at_vertex, deep = LevelCells._net_values(self, idx, params, out, B, nd, nc)
         if deep.any():
             H[:, :, deep] = self._evaluate(idx[deep], a[deep], b[deep])[0][:nd]
         return H, at_vertex, self._ep_normal(idx, at_vertex)

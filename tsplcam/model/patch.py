@@ -333,6 +333,8 @@ class Patch:
         values). A Bezier group of cubic cells and the extraordinary cells' nets (the common
         patch) share one Bernstein evaluation (``_bezier_and_nets``)."""
         nu, nv = self.shape
+        # a polynomial patch reads no weight rows: its extraordinary cells make x, y, z alone
+        nc = 3 if (tables or self._tables())[4] else 4
         # a point on a cell break (or rounded off it) goes to either cell: the surface is
         # continuous there, both give the same point up to rounding
         iu = _clip(self.ubreaks.searchsorted(u, side="right") - 1, 0, nu - 1)
@@ -354,10 +356,13 @@ class Patch:
         H = np.empty((nd, 4, len(u)))
         ep = None
         if single:
-            if nd == 6:
-                H[:], at_vertex, ep_normal = self.groups[0].evaluate(local, a, b)
+            g0 = self.groups[0]
+            if type(g0) is LevelCells:
+                H[:], at_vertex, ep_normal = g0.evaluate(local, a, b, nd=nd, nc=nc)
+            elif nd == 6:
+                H[:], at_vertex, ep_normal = g0.evaluate(local, a, b)
             else:
-                H[:], at_vertex, ep_normal = self.groups[0].evaluate(local, a, b, nd=nd)
+                H[:], at_vertex, ep_normal = g0.evaluate(local, a, b, nd=nd)
             if at_vertex is not None and at_vertex.any():
                 ep = (np.nonzero(at_vertex)[0], ep_normal[at_vertex])
         else:
@@ -380,12 +385,14 @@ class Patch:
                 start += m
             results = None
             if len(calls) == 2:
-                results = self._bezier_and_nets(calls, blocks, levels, group, local, a, b, H, nd)
+                results = self._bezier_and_nets(calls, blocks, levels, group, local, a, b, H, nd, nc)
             if results is None:
                 results = []
                 for g, sel in zip(calls, blocks):
                     if g is levels:
-                        Hg, at_vertex, ep_normal = levels.evaluate(group[sel], local[sel], a[sel], b[sel], nd)
+                        Hg, at_vertex, ep_normal = levels.evaluate(group[sel], local[sel], a[sel], b[sel], nd, nc)
+                    elif type(self.groups[g]) is LevelCells:
+                        Hg, at_vertex, ep_normal = self.groups[g].evaluate(local[sel], a[sel], b[sel], nd=nd, nc=nc)
                     elif nd == 6:
                         Hg, at_vertex, ep_normal = self.groups[g].evaluate(local[sel], a[sel], b[sel])
                     else:
@@ -406,7 +413,7 @@ class Patch:
             H[5] /= wv * wv
         return order, H, ep
 
-    def _bezier_and_nets(self, calls, blocks, levels, group, local, a, b, H, nd: int = 6):
+    def _bezier_and_nets(self, calls, blocks, levels, group, local, a, b, H, nd: int = 6, nc: int = 4):
         """Two calls, cubic Bezier cells and extraordinary cells' nets (LevelCells alone or
         a _LevelSet), written into their blocks of H with the Bernstein values of both made
         in one call (they are made point by point: the same values); None for other pairs.
@@ -428,9 +435,9 @@ class Patch:
         B = bernstein_rows(3, _concatenate([a[sb], b[sb], E[0], E[1]]))
         bez.evaluate(local[sb], a[sb], b[sb], out=H[:, :, sb], bases=(B[:, :, :nb], B[:, :, nb:2 * nb]), nd=nd)
         if lv is levels:
-            _, at_vertex, ep_normal = levels.finish(group[sl], prepared, H[:, :, sl], B[:, :, 2 * nb:], nd)
+            _, at_vertex, ep_normal = levels.finish(group[sl], prepared, H[:, :, sl], B[:, :, 2 * nb:], nd, nc)
         else:
-            _, at_vertex, ep_normal = lv.finish(prepared, H[:, :, sl], B[:, :, 2 * nb:], nd)
+            _, at_vertex, ep_normal = lv.finish(prepared, H[:, :, sl], B[:, :, 2 * nb:], nd, nc)
         return [(sb, None, None), (sl, at_vertex, ep_normal)]
 
     def _widths(self, axis: int) -> np.ndarray:
@@ -523,16 +530,17 @@ class _LevelSet:
         self.limit_normal = _concatenate([g.limit_normal for g in gs])
         self._vertex = _concatenate([g._vertex for g in gs], axis=2)
 
-    def evaluate(self, gid: np.ndarray, local: np.ndarray, a: np.ndarray, b: np.ndarray, nd: int = 6):
+    def evaluate(self, gid: np.ndarray, local: np.ndarray, a: np.ndarray, b: np.ndarray, nd: int = 6,
+                 nc: int = 4):
         """As the members' ``evaluate`` for points of groups ``gid`` and their cells ``local``."""
         idx = self.offset[gid] + local
-        return self.finish(gid, LevelCells.prepare(self, idx, a, b), nd=nd)
+        return self.finish(gid, LevelCells.prepare(self, idx, a, b), nd=nd, nc=nc)
 
-    def finish(self, gid: np.ndarray, prepared, out=None, B=None, nd: int = 6):
+    def finish(self, gid: np.ndarray, prepared, out=None, B=None, nd: int = 6, nc: int = 4):
         """:meth:`evaluate` from ``LevelCells.prepare`` of the set's cell indices (``out``,
-        ``B``, ``nd``: as for ``LevelCells._net_values``)."""
+        ``B``, ``nd``, ``nc``: as for ``LevelCells._net_values``)."""
         idx, a, b, params = prepared
-        H, at_vertex, deep = LevelCells._net_values(self, idx, params, out, B, nd)
+        H, at_vertex, deep = LevelCells._net_values(self, idx, params, out, B, nd, nc)
         if deep.any():
             local = idx - self.offset[gid]
             for g in np.unique(gid[deep]).tolist():

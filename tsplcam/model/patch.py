@@ -404,13 +404,14 @@ class Patch:
                     rows = np.arange(sel.start, sel.stop)[at_vertex]
                     ep = (rows, ep_normal[at_vertex]) if ep is None else (
                         _concatenate([ep[0], rows]), _concatenate([ep[1], ep_normal[at_vertex]]))
-        # from cell (a, b) to patch (u, v)
-        H[1] /= wu
-        H[2] /= wv
+        # from cell (a, b) to patch (u, v) (a polynomial patch's weight rows, 0, stay 0)
+        Hc = H[:, :nc]
+        Hc[1] /= wu
+        Hc[2] /= wv
         if nd > 3:
-            H[3] /= wu * wu
-            H[4] /= wu * wv
-            H[5] /= wv * wv
+            Hc[3] /= wu * wu
+            Hc[4] /= wu * wv
+            Hc[5] /= wv * wv
         return order, H, ep
 
     def _bezier_and_nets(self, calls, blocks, levels, group, local, a, b, H, nd: int = 6, nc: int = 4):

@@ -1,7 +1,8 @@
 """numpy's C functions without their Python dispatch wrappers, for the hot small calls of the
 surface evaluation and the line placement (thousands of calls on arrays of tens of rows per
 path): the same functions, a few microseconds less a call under numpy 1.x. numpy 2 moved the
-module and dispatches in C; where neither module is found the public functions stand in."""
+module and dispatches in C; where neither module is found the public functions stand in.
+``quiet``: np.errstate's ignore modes the same way (one get and one set of the error object)."""
 from __future__ import annotations
 
 import numpy as np
@@ -19,3 +20,38 @@ c_einsum = getattr(_mu, "c_einsum", np.einsum)      # np.einsum (no optimize) ca
 concatenate = getattr(_mu, "concatenate", np.concatenate)
 bincount = getattr(_mu, "bincount", np.bincount)
 count_nonzero = getattr(_mu, "count_nonzero", np.count_nonzero)
+
+# numpy 1.x keeps the floating-point error modes in one per-thread object; np.errstate wraps its
+# get and set in a Python context manager and seterr's checks (some 2 us, some two thousand
+# times per path). numpy 2 has no such object, and an errstate of its own in C.
+_geterrobj = getattr(_mu, "geterrobj", None)
+_seterrobj = getattr(_mu, "seterrobj", None)
+_SHIFT = {k: getattr(_mu, "SHIFT_" + name, default)             # 3 bits per kind
+          for k, name, default in (("divide", "DIVIDEBYZERO", 0), ("over", "OVERFLOW", 3),
+                                   ("under", "UNDERFLOW", 6), ("invalid", "INVALID", 9))}
+
+
+class _Quiet:
+    __slots__ = ("_keep", "_saved")
+
+    def __init__(self, keep: int):
+        self._keep = keep
+
+    def __enter__(self):
+        self._saved = obj = _geterrobj()
+        _seterrobj([obj[0], obj[1] & self._keep, obj[2]])
+
+    def __exit__(self, *exc):
+        _seterrobj(self._saved)
+
+
+def quiet(*kinds: str):
+    """``np.errstate(kind="ignore", ...)`` for ``kinds`` among divide, over, under, invalid:
+    the same modes inside, the caller's restored after (a new context each call, so
+    nesting works)."""
+    if _seterrobj is None:                                       # pragma: no cover
+        return np.errstate(**dict.fromkeys(kinds, "ignore"))
+    keep = -1
+    for k in kinds:
+        keep &= ~(7 << _SHIFT[k])
+    return _Quiet(keep)

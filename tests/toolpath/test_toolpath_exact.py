@@ -8,7 +8,7 @@ import numpy as np
 
 from tsplcam import load_model
 from tsplcam.model.basis import bernstein_rows
-from tsplcam.model.cells import DERIVS, BezierCells
+from tsplcam.model.cells import DERIVS, BezierCells, LevelCells
 from tsplcam.toolpath.lines import (LineFrame, Placer, Target, _capsule_entry, _capsule_segments, _cross, _norm3,
                                     _sum3, _unit_normal)
 
@@ -126,6 +126,22 @@ class SameBytes(unittest.TestCase):
         for name in ("P", "Pu", "Pv", "Puu", "Puv", "Pvv", "normal"):
             self.assertTrue(same(getattr(together, name), getattr(alone, name)), name)
 
+    def test_nets_xyz_alone(self):
+        """A polynomial patch's extraordinary cells make x, y, z alone from their nets: the
+        same values as the four rows of the homogeneous route, weight rows 1 and 0."""
+        p = self.model.patches[4]
+        self.assertTrue(p._polynomial())
+        g = next(grp for grp in p.groups if isinstance(grp, LevelCells))
+        n = 200
+        idx = np.zeros(n, int)
+        a, b = self.rng.random(n), self.rng.random(n)
+        a[:5], b[:5] = g._corner[0, 0], g._corner[1, 0]          # at the irregular corner too
+        for nd in (6, 3):
+            H4 = g.evaluate(idx, a, b, nd=nd)[0]
+            H3 = g.evaluate(idx, a, b, nd=nd, nc=3)[0]
+            self.assertTrue(same(H3[:, :3], H4[:, :3]), nd)
+            self.assertTrue(np.all(H3[0, 3] == 1.0) and np.all(H3[1:, 3] == 0.0))
+
     def test_bezier_and_nets_together(self):
         """Points of Bezier and extraordinary cells in one call (one Bernstein evaluation for
         both, each group writing its block) give what each kind gives in a call of its own."""
@@ -142,6 +158,41 @@ class SameBytes(unittest.TestCase):
             alone = p.evaluate(uv[sel, 0], uv[sel, 1])
             for name in ("P", "Pu", "Pv", "Puu", "Puv", "Pvv", "normal"):
                 self.assertTrue(same(getattr(alone, name), getattr(both, name)[sel]), name)
+
+    def test_first_derivatives_alone(self):
+        """``second=False`` (the cusps' edge pass, the chord placement): the position, first
+        derivatives and normal of the full evaluation, on Bezier and extraordinary points
+        together and apart, at small and large batches (both sums of BezierCells), and in
+        the line frame with its s flipped."""
+        p = self.model.patches[4]
+        for n in (40, 600):
+            uv = self.rng.random((n, 2))
+            uv[:6] = self.rng.integers(0, 2, (6, 2))             # irregular corners among them
+            for sel in (slice(None), uv[:, 0] > 0.5):
+                full = p.evaluate(uv[sel, 0], uv[sel, 1])
+                first = p.evaluate(uv[sel, 0], uv[sel, 1], second=False)
+                self.assertIsNone(first.Puu)
+                for name in ("P", "Pu", "Pv", "normal"):
+                    self.assertTrue(same(getattr(first, name), getattr(full, name)), (n, name))
+        frame = LineFrame(self.model.patches[0], "v", 2)          # s = 1 - v
+        s, t = self.rng.random(300), self.rng.random(300)
+        full, first = frame.evaluate(s, t), frame.evaluate(s, t, second=False)
+        for name in ("P", "n", "Ss", "St", "u", "v"):
+            self.assertTrue(same(getattr(first, name), getattr(full, name)), name)
+
+    def test_quiet_is_errstate(self):
+        """npfast.quiet sets the modes np.errstate sets, nests, and restores the caller's."""
+        from tsplcam.npfast import quiet
+        before = np.geterr()
+        for kinds in (("divide", "invalid"), ("invalid",), ("invalid", "divide", "over")):
+            with np.errstate(**dict.fromkeys(kinds, "ignore")):
+                want = np.geterr()
+            with quiet(*kinds):
+                self.assertEqual(np.geterr(), want)
+                with quiet("under"):
+                    self.assertEqual(np.geterr()["under"], "ignore")
+                self.assertEqual(np.geterr(), want)
+            self.assertEqual(np.geterr(), before)
 
     def test_frame_normal_and_cross(self):
         p = self.model.patches[0]

@@ -44,26 +44,33 @@ def tensor_basis(bs: np.ndarray, bt: np.ndarray) -> np.ndarray:
 # (order in b, order in a) of DERIVS, to pick them from a 3 x 3 table of both
 _DT = np.array([dt for _, dt in DERIVS])
 _DS = np.array([ds for ds, _ in DERIVS])
+# ``nd``, the derivative rows an evaluation makes: 6 (all) or 3 (position and first
+# derivatives: DERIVS[:3] reads orders 0 and 1 of either parameter, ``_ORDERS[nd]`` of them)
+_ORDERS = {6: 3, 3: 2}
 # BezierCells.evaluate multiplies out all six derivatives in one call up to this many points;
 # above, where that product outgrows the caches and costs more than the calls it saves, one
 # derivative at a time (the same products and sums either way)
 _STACKED_POINTS = 256
 
 
-def bicubic_nets(X: np.ndarray, a: np.ndarray, b: np.ndarray, B: np.ndarray | None = None) -> np.ndarray:
+def bicubic_nets(X: np.ndarray, a: np.ndarray, b: np.ndarray, B: np.ndarray | None = None,
+                 nd: int = 6) -> np.ndarray:
     """Bicubic Bezier pieces, one per point: nets X (n, C, 4 [j along b], 4 [i along a]) at
     (a, b) -> the six derivatives (6, C, n). Two batched 4 x 4 products per point (along a
     for all three orders, then along b), whatever the pieces: for points spread over many
     small pieces (sub-cells next to extraordinary points), where runs of one piece are short.
     ``B``: ``bernstein_rows(3, [a, b])`` when the caller made it (a view of a wider array
-    does: the products' operands are strided either way, the same loop, the same sums)."""
+    does: the products' operands are strided either way, the same loop, the same sums).
+    ``nd`` 3: the first three derivatives alone, (3, C, n) (orders 0 and 1: the same products'
+    loop on fewer columns, each value the same sum)."""
     n = len(a)
+    no = _ORDERS[nd]
     if B is None:
         B = bernstein_rows(3, _concatenate([a, b]))       # (3 [order], 4, 2n)
-    bs = B[:, :, :n].transpose(2, 1, 0)[:, None]            # (n, 1, 4 [i], 3 [order in a])
-    bt = B[:, :, n:].transpose(2, 0, 1)[:, None]            # (n, 1, 3 [order in b], 4 [j])
-    R = np.matmul(bt, np.matmul(X, bs))                     # (n, C, 3 [b], 3 [a])
-    return R[:, :, _DT, _DS].transpose(2, 1, 0)
+    bs = B[:no, :, :n].transpose(2, 1, 0)[:, None]          # (n, 1, 4 [i], no [order in a])
+    bt = B[:no, :, n:].transpose(2, 0, 1)[:, None]          # (n, 1, no [order in b], 4 [j])
+    R = np.matmul(bt, np.matmul(X, bs))                     # (n, C, no [b], no [a])
+    return R[:, :, _DT[:nd], _DS[:nd]].transpose(2, 1, 0)
 
 
 def scale_derivatives(H: np.ndarray, sa, sb) -> np.ndarray:
@@ -71,9 +78,10 @@ def scale_derivatives(H: np.ndarray, sa, sb) -> np.ndarray:
     b / sb), i.e. first derivatives times sa or sb, second ones times their products."""
     H[1] *= sa
     H[2] *= sb
-    H[3] *= sa * sa
-    H[4] *= sa * sb
-    H[5] *= sb * sb
+    if len(H) > 3:
+        H[3] *= sa * sa
+        H[4] *= sa * sb
+        H[5] *= sb * sb
     return H
 
 
@@ -113,7 +121,7 @@ class BezierCells:
         return len(self.ctrl)
 
     def evaluate(self, idx: np.ndarray, a: np.ndarray, b: np.ndarray, out: np.ndarray | None = None,
-                 bases=None):
+                 bases=None, nd: int = 6):
         """The contraction along a is one BLAS product per run of equal cell index and
         derivative order; the one along b a short sum over contiguous rows, for all runs and
         derivatives at once (the same products and sums, in the same order, as run by run:
@@ -121,9 +129,11 @@ class BezierCells:
 
         ``out``: a (6, 4, n) view to write into (a block of the patch's array); ``bases``:
         (bernstein_rows(p, a), bernstein_rows(q, b)) when the caller made them together with
-        other points' (the values are point by point)."""
+        other points' (the values are point by point); ``nd`` 3: the position and first
+        derivatives alone, (3, 4, n) (the same products for them, two orders along a)."""
         n = len(a)
         q1, nc = self.q + 1, self.nc
+        no = _ORDERS[nd]
         if bases is not None:
             bs, bt = bases
         elif self.p == self.q:                          # one call for both (values point by point)
@@ -138,19 +148,19 @@ class BezierCells:
         # T[d][j, c, point]: contraction along a for derivative order d; the three orders of a
         # run in one stacked product (numpy makes the same BLAS call per order: gemv for a run
         # of one point, gemm otherwise), written into T
-        T = np.empty((3, q1 * nc, n))
+        T = np.empty((no, q1 * nc, n))
         for s0, e0 in zip(starts, ends):
-            np.matmul(self._cj[idx[s0]], bs[:, :, s0:e0], out=T[:, :, s0:e0])
-        T = T.reshape(3, q1, nc, n)
+            np.matmul(self._cj[idx[s0]], bs[:no, :, s0:e0], out=T[:, :, s0:e0])
+        T = T.reshape(no, q1, nc, n)
         if out is None:
-            out = np.empty((6, 4, n))
+            out = np.empty((nd, 4, n))
         if nc == 3:
             out[0, 3] = 1.0
             out[1:, 3] = 0.0
         o = out[:, :nc]
         if n <= _STACKED_POINTS:
             # all six derivatives at once: the same products, summed in the same order over j
-            prod = bt[_DT][:, :, None, :] * T[_DS]              # (6, q+1, nc, n)
+            prod = bt[_DT[:nd]][:, :, None, :] * T[_DS[:nd]]    # (nd, q+1, nc, n)
             if q1 == 1:
                 o[...] = prod[:, 0]
             else:
@@ -160,7 +170,7 @@ class BezierCells:
         else:
             # one derivative at a time, its q+1 products in one call
             prod = np.empty((q1, nc, n))
-            for k, (ds, dt) in enumerate(DERIVS):
+            for k, (ds, dt) in enumerate(DERIVS[:nd]):
                 np.multiply(bt[dt][:, None, :], T[ds], out=prod)
                 if q1 == 1:
                     o[k] = prod[0]
@@ -419,7 +429,8 @@ class LevelCells:
         at_vertex = mx <= 0.0
         _, e = np.frexp(mx)
         level = np.minimum(np.maximum(1 - e, 1), self.MAX_LEVEL)
-        deep = (level > self.NET_LEVELS) & ~at_vertex
+        # (at the vertex mx is 0, e 0 and the level 1: never deep)
+        deep = level > self.NET_LEVELS
         scale = np.ldexp(1.0, level)
         E *= scale
         pq = E >= 1.0                                   # the sub-cell (pa, qa) of the level
@@ -437,45 +448,63 @@ class LevelCells:
         key = (idx * self.NET_LEVELS + np.minimum(level, self.NET_LEVELS) - 1) * 3 + pq[0] + 2 * pq[1] - 1
         return E, key, scale, at_vertex, deep
 
-    def _net_values(self, idx, params, out=None, B=None):
+    def _nets_xyz(self) -> np.ndarray:
+        """The nets' x, y, z rows alone, contiguous (made once per nets array): what a
+        polynomial patch reads of them (their weight rows are 0 there)."""
+        cached = getattr(self, "_xyz", None)
+        if cached is None or cached[0] is not self.nets:
+            cached = self._xyz = (self.nets, np.ascontiguousarray(self.nets[:, :3]))
+        return cached[1]
+
+    def _net_values(self, idx, params, out=None, B=None, nd: int = 6, nc: int = 4):
         """The second half of :meth:`_evaluate_nets`: (H, at_vertex, deep) from the
         parameters of :meth:`_net_params`. ``out``: a (6, 4, n) view to write H into;
-        ``B``: ``bernstein_rows(3, [E[0], E[1]])`` made by the caller (with other points')."""
+        ``B``: ``bernstein_rows(3, [E[0], E[1]])`` made by the caller (with other points');
+        ``nd``: 6 derivative rows or the first 3 (``bicubic_nets``); ``nc`` 3: for a
+        polynomial patch, which reads no weight row: the x, y, z rows alone from the nets
+        (each coordinate its own products: the same values), the weight rows written 1 and 0
+        (as polynomial Bezier cells write them)."""
         E, key, scale, at_vertex, deep = params
-        R = bicubic_nets(self.nets[key], E[0], E[1], B)
-        if out is None:
+        nets = self.nets if nc == 4 else LevelCells._nets_xyz(self)
+        R = bicubic_nets(nets[key], E[0], E[1], B, nd)
+        if out is None and nc == 4:
             H = scale_derivatives(R, scale, scale)
             H[0] += self.limit[idx].T
         else:
             # scale_derivatives and the limit's sum written into out as they read R (the same
             # products and sums, one pass instead of a copy and six)
-            H = out
-            np.add(R[0], self.limit[idx].T, out=H[0])
-            np.multiply(R[1], scale, out=H[1])
-            np.multiply(R[2], scale, out=H[2])
-            ss = scale * scale
-            np.multiply(R[3], ss, out=H[3])
-            np.multiply(R[4], ss, out=H[4])
-            np.multiply(R[5], ss, out=H[5])
+            H = np.empty((nd, 4, len(idx))) if out is None else out
+            np.add(R[0], self.limit[idx].T[:nc], out=H[0, :nc])
+            np.multiply(R[1], scale, out=H[1, :nc])
+            np.multiply(R[2], scale, out=H[2, :nc])
+            if nd > 3:
+                ss = scale * scale
+                np.multiply(R[3], ss, out=H[3, :nc])
+                np.multiply(R[4], ss, out=H[4, :nc])
+                np.multiply(R[5], ss, out=H[5, :nc])
+            if nc == 3:
+                H[0, 3] = 1.0
+                H[1:, 3] = 0.0
         if at_vertex.any():
-            H[:, :, at_vertex] = self._vertex[:, :, idx[at_vertex]]
+            H[:, :, at_vertex] = self._vertex[:nd, :, idx[at_vertex]]
         return H, at_vertex, deep
 
-    def evaluate(self, idx: np.ndarray, a: np.ndarray, b: np.ndarray, out=None):
+    def evaluate(self, idx: np.ndarray, a: np.ndarray, b: np.ndarray, out=None, nd: int = 6, nc: int = 4):
         """From the cached nets; the few points below level NET_LEVELS through the
-        configuration of their level. ``out``: a (6, 4, n) view to write into."""
-        return self.finish(self.prepare(idx, a, b), out)
+        configuration of their level. ``out``: a (nd, 4, n) view to write into; ``nd`` 3:
+        the position and first derivatives alone; ``nc``: as for ``_net_values``."""
+        return self.finish(self.prepare(idx, a, b), out, nd=nd, nc=nc)
 
     def prepare(self, idx, a, b):
         """:meth:`evaluate` in two halves, so that a patch makes the Bernstein values of the
         sub-cells' parameters together with its Bezier cells' (``finish`` takes them)."""
         return idx, a, b, LevelCells._net_params(self, idx, a, b)
 
-    def finish(self, prepared, out=None, B=None):
+    def finish(self, prepared, out=None, B=None, nd: int = 6, nc: int = 4):
         idx, a, b, params = prepared
-        H, at_vertex, deep = LevelCells._net_values(self, idx, params, out, B)
+        H, at_vertex, deep = LevelCells._net_values(self, idx, params, out, B, nd, nc)
         if deep.any():
-            H[:, :, deep] = self._evaluate(idx[deep], a[deep], b[deep])[0]
+            H[:, :, deep] = self._evaluate(idx[deep], a[deep], b[deep])[0][:nd]
         return H, at_vertex, self._ep_normal(idx, at_vertex)
 
     def evaluate_levels(self, idx: np.ndarray, a: np.ndarray, b: np.ndarray):

@@ -9,7 +9,10 @@ and the Bezier cells' in one call), convert homogeneous to Euclidean derivatives
 convert on a polynomial patch). Every shortcut gives each point the
 same arithmetic as the others would (the path's programs stay the same bytes when it gets
 faster): the only value that depends on the other points of a call is a Bezier cell's BLAS
-product, which is made run by run of the cell's points as before.
+product, which is made run by run of the cell's points as before. Callers that read no
+second derivatives (the cusps' edge pass, the chord placement) ask for the position and first
+derivatives alone (``second=False``): on a polynomial patch the same products for those,
+without the second-order ones.
 
 Corners and edges of the unit square (shang2020 section 3.2), used by every later stage:
 corner k sits at ``CORNER_UV[k]``: 0 = (0,0) lower left, 1 = (1,0) lower right, 2 = (1,1)
@@ -89,9 +92,13 @@ class Patch:
     def shape(self) -> tuple[int, int]:
         return len(self.ubreaks) - 1, len(self.vbreaks) - 1
 
-    def evaluate(self, u, v) -> SurfacePoints:
+    def evaluate(self, u, v, second: bool = True) -> SurfacePoints:
         """Position, first and second partial derivatives and everything derived from them,
-        at parameters u, v (arrays of equal length, or scalars) in [0, 1]."""
+        at parameters u, v (arrays of equal length, or scalars) in [0, 1].
+
+        ``second`` False: the caller reads no second derivatives; a polynomial patch then
+        leaves them out (Puu, Puv, Pvv None; the position and first derivatives are the
+        same values, made by the same products), any other gives them all."""
         u = np.asarray(u, dtype=float).reshape(-1)       # (a scalar: one point)
         v = np.asarray(v, dtype=float).reshape(-1)
         if u.shape != v.shape:
@@ -113,13 +120,14 @@ class Patch:
             # would pass), not gathered back
             tables = self._tables()
             poly = tables[4]
-            order, H, ep = self._evaluate_h(u, v, tables)
+            nd = 6 if second or not poly else 3
+            order, H, ep = self._evaluate_h(u, v, tables, nd)
             if order is not None:                            # back from cell order: one gather
                 inverse = np.empty_like(order)
                 inverse[order] = np.arange(n)
                 H = (H[:, :3] if poly else H).take(inverse, axis=2)
             if poly:
-                out = tuple(H[k, :3] for k in range(6))
+                out = tuple(H[k, :3] for k in range(nd)) + (None,) * (6 - nd)
             else:
                 out = rational_from_homogeneous(H)           # six (3, n), point by point
             if ep is not None:
@@ -138,12 +146,12 @@ class Patch:
                     ep_rows.append(rows[ep[0]])
                     ep_normals.append(ep[1])
         # (n, 3) views of the coordinate-major rows: no copy
-        P, Pu, Pv, Puu, Puv, Pvv = (x.T for x in out)
+        P, Pu, Pv, Puu, Puv, Pvv = (None if x is None else x.T for x in out)
         normal_override = None
         if ep_rows:
             rows = _concatenate(ep_rows)
             nrm = _concatenate(ep_normals)
-            normal_override = _unit(np.cross(Pu, Pv))
+            normal_override = _unit(_cross(Pu, Pv))
             sign = np.sign(_einsum("ij,ij->i", nrm, normal_override[rows]))
             normal_override[rows] = nrm * _where(sign == 0, 1.0, sign)[:, None]
         return SurfacePoints(P, Pu, Pv, Puu, Puv, Pvv, u, v, self.index, normal_override)
@@ -312,10 +320,12 @@ class Patch:
                 out[(slice(None),) + tuple(rows)] = P.reshape(3, ni, nj)
         return out, level_blocks
 
-    def _evaluate_h(self, u, v, tables=None):
-        """Homogeneous derivatives (6, 4, m) of the points sorted by cell, the sorting order
+    def _evaluate_h(self, u, v, tables=None, nd: int = 6):
+        """Homogeneous derivatives (nd, 4, m) of the points sorted by cell, the sorting order
         (None when they come sorted), and (rows in sorted order, exact normals) of points at
-        irregular vertices. ``tables``: :meth:`_tables`, when the caller has them.
+        irregular vertices. ``tables``: :meth:`_tables`, when the caller has them. ``nd`` 3:
+        the position and first derivatives alone (polynomial patches only: their groups are
+        Bezier and extraordinary cells, which make them so).
 
         With several groups the points are sorted by group call first (``_tables``), then
         by cell: each call's points are one block, which it writes in place, and every group
@@ -323,6 +333,8 @@ class Patch:
         values). A Bezier group of cubic cells and the extraordinary cells' nets (the common
         patch) share one Bernstein evaluation (``_bezier_and_nets``)."""
         nu, nv = self.shape
+        # a polynomial patch reads no weight rows: its extraordinary cells make x, y, z alone
+        nc = 3 if (tables or self._tables())[4] else 4
         # a point on a cell break (or rounded off it) goes to either cell: the surface is
         # continuous there, both give the same point up to rounding
         iu = _clip(self.ubreaks.searchsorted(u, side="right") - 1, 0, nu - 1)
@@ -341,10 +353,16 @@ class Patch:
         a = (u - self.ubreaks.take(iu)) / wu
         b = (v - self.vbreaks.take(iv)) / wv
         local = self.cell_local[iu, iv]
-        H = np.empty((6, 4, len(u)))
+        H = np.empty((nd, 4, len(u)))
         ep = None
         if single:
-            H[:], at_vertex, ep_normal = self.groups[0].evaluate(local, a, b)
+            g0 = self.groups[0]
+            if type(g0) is LevelCells:
+                H[:], at_vertex, ep_normal = g0.evaluate(local, a, b, nd=nd, nc=nc)
+            elif nd == 6:
+                H[:], at_vertex, ep_normal = g0.evaluate(local, a, b)
+            else:
+                H[:], at_vertex, ep_normal = g0.evaluate(local, a, b, nd=nd)
             if at_vertex is not None and at_vertex.any():
                 ep = (np.nonzero(at_vertex)[0], ep_normal[at_vertex])
         else:
@@ -367,14 +385,18 @@ class Patch:
                 start += m
             results = None
             if len(calls) == 2:
-                results = self._bezier_and_nets(calls, blocks, levels, group, local, a, b, H)
+                results = self._bezier_and_nets(calls, blocks, levels, group, local, a, b, H, nd, nc)
             if results is None:
                 results = []
                 for g, sel in zip(calls, blocks):
                     if g is levels:
-                        Hg, at_vertex, ep_normal = levels.evaluate(group[sel], local[sel], a[sel], b[sel])
-                    else:
+                        Hg, at_vertex, ep_normal = levels.evaluate(group[sel], local[sel], a[sel], b[sel], nd, nc)
+                    elif type(self.groups[g]) is LevelCells:
+                        Hg, at_vertex, ep_normal = self.groups[g].evaluate(local[sel], a[sel], b[sel], nd=nd, nc=nc)
+                    elif nd == 6:
                         Hg, at_vertex, ep_normal = self.groups[g].evaluate(local[sel], a[sel], b[sel])
+                    else:
+                        Hg, at_vertex, ep_normal = self.groups[g].evaluate(local[sel], a[sel], b[sel], nd=nd)
                     H[:, :, sel] = Hg
                     results.append((sel, at_vertex, ep_normal))
             for sel, at_vertex, ep_normal in results:
@@ -382,15 +404,17 @@ class Patch:
                     rows = np.arange(sel.start, sel.stop)[at_vertex]
                     ep = (rows, ep_normal[at_vertex]) if ep is None else (
                         _concatenate([ep[0], rows]), _concatenate([ep[1], ep_normal[at_vertex]]))
-        # from cell (a, b) to patch (u, v)
-        H[1] /= wu
-        H[2] /= wv
-        H[3] /= wu * wu
-        H[4] /= wu * wv
-        H[5] /= wv * wv
+        # from cell (a, b) to patch (u, v) (a polynomial patch's weight rows, 0, stay 0)
+        Hc = H[:, :nc]
+        Hc[1] /= wu
+        Hc[2] /= wv
+        if nd > 3:
+            Hc[3] /= wu * wu
+            Hc[4] /= wu * wv
+            Hc[5] /= wv * wv
         return order, H, ep
 
-    def _bezier_and_nets(self, calls, blocks, levels, group, local, a, b, H):
+    def _bezier_and_nets(self, calls, blocks, levels, group, local, a, b, H, nd: int = 6, nc: int = 4):
         """Two calls, cubic Bezier cells and extraordinary cells' nets (LevelCells alone or
         a _LevelSet), written into their blocks of H with the Bernstein values of both made
         in one call (they are made point by point: the same values); None for other pairs.
@@ -410,11 +434,11 @@ class Patch:
         prepared = LevelCells.prepare(lv, lidx, a[sl], b[sl])
         E = prepared[3][0]
         B = bernstein_rows(3, _concatenate([a[sb], b[sb], E[0], E[1]]))
-        bez.evaluate(local[sb], a[sb], b[sb], out=H[:, :, sb], bases=(B[:, :, :nb], B[:, :, nb:2 * nb]))
+        bez.evaluate(local[sb], a[sb], b[sb], out=H[:, :, sb], bases=(B[:, :, :nb], B[:, :, nb:2 * nb]), nd=nd)
         if lv is levels:
-            _, at_vertex, ep_normal = levels.finish(group[sl], prepared, H[:, :, sl], B[:, :, 2 * nb:])
+            _, at_vertex, ep_normal = levels.finish(group[sl], prepared, H[:, :, sl], B[:, :, 2 * nb:], nd, nc)
         else:
-            _, at_vertex, ep_normal = lv.finish(prepared, H[:, :, sl], B[:, :, 2 * nb:])
+            _, at_vertex, ep_normal = lv.finish(prepared, H[:, :, sl], B[:, :, 2 * nb:], nd, nc)
         return [(sb, None, None), (sl, at_vertex, ep_normal)]
 
     def _widths(self, axis: int) -> np.ndarray:
@@ -507,21 +531,22 @@ class _LevelSet:
         self.limit_normal = _concatenate([g.limit_normal for g in gs])
         self._vertex = _concatenate([g._vertex for g in gs], axis=2)
 
-    def evaluate(self, gid: np.ndarray, local: np.ndarray, a: np.ndarray, b: np.ndarray):
+    def evaluate(self, gid: np.ndarray, local: np.ndarray, a: np.ndarray, b: np.ndarray, nd: int = 6,
+                 nc: int = 4):
         """As the members' ``evaluate`` for points of groups ``gid`` and their cells ``local``."""
         idx = self.offset[gid] + local
-        return self.finish(gid, LevelCells.prepare(self, idx, a, b))
+        return self.finish(gid, LevelCells.prepare(self, idx, a, b), nd=nd, nc=nc)
 
-    def finish(self, gid: np.ndarray, prepared, out=None, B=None):
+    def finish(self, gid: np.ndarray, prepared, out=None, B=None, nd: int = 6, nc: int = 4):
         """:meth:`evaluate` from ``LevelCells.prepare`` of the set's cell indices (``out``,
-        ``B``: as for ``LevelCells._net_values``)."""
+        ``B``, ``nd``, ``nc``: as for ``LevelCells._net_values``)."""
         idx, a, b, params = prepared
-        H, at_vertex, deep = LevelCells._net_values(self, idx, params, out, B)
+        H, at_vertex, deep = LevelCells._net_values(self, idx, params, out, B, nd, nc)
         if deep.any():
             local = idx - self.offset[gid]
             for g in np.unique(gid[deep]).tolist():
                 rows = np.nonzero(deep & (gid == g))[0]
-                H[:, :, rows] = self.groups[g]._evaluate(local[rows], a[rows], b[rows])[0]
+                H[:, :, rows] = self.groups[g]._evaluate(local[rows], a[rows], b[rows])[0][:nd]
         ep_normal = None
         if at_vertex.any():
             ep_normal = np.zeros((len(idx), 3))
@@ -546,6 +571,18 @@ def _index_or_slice(idx: np.ndarray):
     if len(idx) and idx[-1] - idx[0] + 1 == len(idx):
         return slice(int(idx[0]), int(idx[-1]) + 1)
     return idx
+
+
+def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """np.cross of (n, 3) rows: its products and differences in its order, without its
+    Python-level axis handling (the same values)."""
+    c = np.empty((len(a), 3))
+    tmp = np.empty(len(a))
+    for k, (i, j) in enumerate(((1, 2), (2, 0), (0, 1))):
+        np.multiply(a[:, i], b[:, j], out=c[:, k])
+        np.multiply(a[:, j], b[:, i], out=tmp)
+        c[:, k] -= tmp
+    return c
 
 
 def _unit(x: np.ndarray) -> np.ndarray:

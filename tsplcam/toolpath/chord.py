@@ -28,7 +28,7 @@ import numpy as np
 
 # numpy's C functions without their Python dispatch wrappers: the same calls, a few
 # microseconds less each on the many small arrays here
-from ..npfast import where as _where, c_einsum as _einsum, concatenate as _concatenate
+from ..npfast import quiet as _quiet, where as _where, c_einsum as _einsum, concatenate as _concatenate
 
 from .sidestep import forward_step
 
@@ -49,9 +49,10 @@ class Curve:
     dense: int
 
 
-def _evaluate(frame, along: np.ndarray, fixed: np.ndarray, x: np.ndarray):
-    """Frame geometry at parameter x of curves with these ``along`` flags (True: 't')."""
-    return frame.evaluate(_where(along, fixed, x), _where(along, x, fixed))
+def _evaluate(frame, along: np.ndarray, fixed: np.ndarray, x: np.ndarray, second: bool = True):
+    """Frame geometry at parameter x of curves with these ``along`` flags (True: 't');
+    ``second`` as for ``LineFrame.evaluate``."""
+    return frame.evaluate(_where(along, fixed, x), _where(along, x, fixed), second)
 
 
 def _first_points(frame, curves: list[Curve], r, tol_in, tol_out, max_step):
@@ -68,7 +69,7 @@ def _first_points(frame, curves: list[Curve], r, tol_in, tol_out, max_step):
     span = (hi - lo)[cid]
     # the curvature is read slightly inside the ends: at an extraordinary corner the second
     # derivatives are singular (the kernel's values there are meaningless)
-    with np.errstate(invalid="ignore", divide="ignore"):
+    with _quiet("invalid", "divide"):
         inner = lo[cid] + span * (END_EPS + (1 - 2 * END_EPS) * (xa - lo[cid]) / span)
     g = _evaluate(frame, along[cid], fixed[cid], inner)
     at = along[cid]
@@ -178,7 +179,7 @@ def _interp_many(x: np.ndarray, xcid: np.ndarray, xp: np.ndarray, fp: np.ndarray
     jc = np.minimum(np.maximum(j, 0), n - 2)
     g0 = first[xcid] + jc
     x0, x1, f0, f1 = xp[g0], xp[g0 + 1], fp[g0], fp[g0 + 1]
-    with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
+    with _quiet("invalid", "divide", "over"):
         slope = (f1 - f0) / (x1 - x0)
         res = slope * (x - x0) + f0
         nan = np.isnan(res)
@@ -199,7 +200,7 @@ def place_curves(frame, curves: list[Curve], r: float, tol_in: float, tol_out: f
     first, lo, hi, along, fixed = _first_points(frame, curves, r, tol_in, tol_out, max_step)
     cid = np.repeat(np.arange(len(curves)), [len(a) for a in first])
     x = _concatenate(first)
-    g = _evaluate(frame, along[cid], fixed[cid], x)
+    g = _evaluate(frame, along[cid], fixed[cid], x, second=False)
     P, n, u, v = g.P, g.n, g.u, g.v
     same = cid[1:] == cid[:-1]
     pending = same.copy()
@@ -209,7 +210,7 @@ def place_curves(frame, curves: list[Curve], r: float, tol_in: float, tol_out: f
         if len(idx) == 0:
             break
         xm = 0.5 * (x[idx] + x[idx + 1])
-        gm = _evaluate(frame, along[cid[idx]], fixed[cid[idx]], xm)
+        gm = _evaluate(frame, along[cid[idx]], fixed[cid[idx]], xm, second=False)
         cm = gm.P + r * gm.n
         chord = 0.5 * ((P[idx] + r * n[idx]) + (P[idx + 1] + r * n[idx + 1]))
         dev = cm - chord

@@ -47,12 +47,13 @@ if any would exceed the limit the unscaled positions are kept.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from functools import lru_cache
 
 import numpy as np
 
 # numpy's C functions without their Python dispatch wrappers: the same calls, a few
 # microseconds less each on the many small arrays here
-from ..npfast import where as _where, c_einsum as _einsum, concatenate as _concatenate
+from ..npfast import quiet as _quiet, where as _where, c_einsum as _einsum, concatenate as _concatenate
 
 from ..errors import GeometryError, InputError
 from ..layout.layout import CORNER_NAMES, CORNER_UV
@@ -122,7 +123,7 @@ class FrameGeom:
     def cross_curvature(self) -> np.ndarray:
         """Normal curvature across a line s = const, i.e. along S_s - (F/G) S_t
         (docs/method.md 3.3): (L G^2 - 2 M F G + N F^2) / (G (E G - F^2))."""
-        with np.errstate(divide="ignore", invalid="ignore"):
+        with _quiet("divide", "invalid"):
             k = (self.L * self.G ** 2 - 2 * self.M * self.F * self.G + self.N * self.F ** 2) / (
                 self.G * self.det)
         return _where((self.det > 0) & (self.G > 0), k, 0.0)
@@ -132,7 +133,7 @@ class FrameGeom:
         d1, d2 = (self.St, self.Stt) if along == "t" else (self.Ss, self.Sss)
         sp2 = _einsum("ij,ij->i", d1, d1)
         kf = self._normal_curvature(d2, sp2)
-        with np.errstate(divide="ignore", invalid="ignore"):
+        with _quiet("divide", "invalid"):
             ktot = _where(sp2 > 0, _norm3(_cross(d1, d2))[:, 0] / sp2 ** 1.5, 0.0)
         return kf, np.sqrt(np.maximum(ktot * ktot - kf * kf, 0.0))
 
@@ -142,12 +143,12 @@ class FrameGeom:
         return self._normal_curvature(d2, _einsum("ij,ij->i", d1, d1))
 
     def _normal_curvature(self, d2, sp2):
-        with np.errstate(divide="ignore", invalid="ignore"):
+        with _quiet("divide", "invalid"):
             return _where(sp2 > 0, _einsum("ij,ij->i", self.n, d2) / sp2, 0.0)
 
     def principal_max(self) -> np.ndarray:
         """Largest normal curvature (concave positive)."""
-        with np.errstate(divide="ignore", invalid="ignore"):
+        with _quiet("divide", "invalid"):
             det = _where(self.det > 0, self.det, np.inf)
             K = (self.L * self.N - self.M ** 2) / det
             H = (self.E * self.N - 2 * self.F * self.M + self.G * self.L) / (2 * det)
@@ -197,7 +198,10 @@ class LineFrame:
         a = 1.0 - s if self.s_flip else s
         return (a, t) if self.crossfeed == "u" else (t, a)
 
-    def evaluate(self, s, t) -> FrameGeom:
+    def evaluate(self, s, t, second: bool = True) -> FrameGeom:
+        """The geometry at (s, t); ``second`` False: for readers of the points, normals and
+        first derivatives alone (the patch may leave Sss, Sst, Stt None: ``Patch.evaluate``;
+        the rest are the same values)."""
         s = np.asarray(s, float)
         t = np.asarray(t, float)
         if s.shape != t.shape or s.ndim == 0:           # (equal shapes: broadcast_arrays' views)
@@ -205,14 +209,15 @@ class LineFrame:
         s = np.minimum(np.maximum(s, 0.0), 1.0)
         t = np.minimum(np.maximum(t, 0.0), 1.0)
         u, v = self.uv(s, t)
-        sp = self.patch.evaluate(u, v)
-        flip = (lambda x: -1.0 * x) if self.s_flip else (lambda x: x)   # noqa: E731
+        sp = self.patch.evaluate(u, v) if second else self.patch.evaluate(u, v, second=False)
+        flip = (lambda x: x if x is None else -1.0 * x) if self.s_flip else (lambda x: x)   # noqa: E731
         if self.crossfeed == "u":
             Ss, St, Sss, Sst, Stt = flip(sp.Pu), sp.Pv, sp.Puu, flip(sp.Puv), sp.Pvv
         else:
             Ss, St, Sss, Sst, Stt = flip(sp.Pv), sp.Pu, sp.Pvv, flip(sp.Puv), sp.Puu
         normal = sp.normal_override if sp.normal_override is not None else _unit_normal(sp.Pu, sp.Pv)
-        return FrameGeom(sp.P, normal, Ss, St, Sss, Sst, Stt, sp.u, sp.v, s.copy(), t.copy())
+        # s and t are this call's own arrays (made by the clamp above): no copies needed
+        return FrameGeom(sp.P, normal, Ss, St, Sss, Sst, Stt, sp.u, sp.v, s, t)
 
     @property
     def cells_along(self) -> int:
@@ -302,30 +307,52 @@ def _norm3(x: np.ndarray) -> np.ndarray:
     return np.sqrt(out)[..., None]
 
 
+def _coords_first(x: np.ndarray) -> np.ndarray:
+    """A view of (..., 3) with the coordinate axis first, (3, ...)."""
+    return x.transpose((x.ndim - 1,) + tuple(range(x.ndim - 1)))
+
+
+def _dot3(x: np.ndarray, y: np.ndarray) -> np.ndarray:
+    """:func:`_sum3` of x * y for coordinate-first arrays (3, ...): the same products and
+    sums, over whole rows of points."""
+    q = x * y
+    out = q[0] + q[1]
+    out += q[2]
+    out += 0.0
+    return out
+
+
 def _capsule_entry(p, n, a, b, r, seg=None):
     """Distance along the unit normals n from points p to where they enter the capsule of
     radius r around segment a-b (inf if they miss); arrays broadcast over leading axes.
     ``seg``: :func:`_capsule_segments` of (a, b), when the caller measures the same capsules
-    again."""
+    again.
+
+    Worked coordinate-first (views): each product and sum runs over contiguous rows of
+    points rather than every third number, the same operations on the same values as
+    point-major (:func:`_sum3` of the products)."""
     L, eh, ends = _capsule_segments(a, b) if seg is None else seg
+    p, n, a, eh, ends = (_coords_first(x) for x in (p, n, a, eh, ends))
     w = p - a
-    dn = _sum3(n * eh)
-    wn = _sum3(w * eh)
-    dp = n - dn[..., None] * eh
-    wp = w - wn[..., None] * eh
-    A = _sum3(dp * dp)
-    B = _sum3(wp * dp)
-    C = _sum3(wp * wp) - r * r
+    dn = _dot3(n, eh)
+    wn = _dot3(w, eh)
+    dp = n - dn * eh
+    wp = w - wn * eh
+    A = _dot3(dp, dp)
+    B = _dot3(wp, dp)
+    C = _dot3(wp, wp) - r * r
     disc = B * B - A * C
     lam = (-B - np.sqrt(_where(disc >= 0, disc, np.nan))) / A
     ax = wn + lam * dn
-    out = _where((disc >= 0) & (A > 1e-14) & (ax >= 0) & (ax <= L), lam, np.inf)
+    # (where disc < 0, lam and so ax are nan: ax >= 0 is false there)
+    out = _where((A > 1e-14) & (ax >= 0) & (ax <= L), lam, np.inf)
     # the two end spheres at once
-    wc = p - ends
-    bb = _sum3(n * wc)
-    cc = _sum3(wc * wc) - r * r
+    wc = p[:, None] - ends
+    bb = _dot3(n[:, None], wc)
+    cc = _dot3(wc, wc) - r * r
     d = bb * bb - cc
-    cap = _where(d >= 0, -bb - np.sqrt(_where(d >= 0, d, 0.0)), np.inf)
+    hit = d >= 0
+    cap = _where(hit, -bb - np.sqrt(_where(hit, d, 0.0)), np.inf)
     return np.minimum(np.minimum(out, cap[0]), cap[1])
 
 
@@ -335,7 +362,9 @@ def _capsule_segments(a, b):
     e = b - a
     L = np.sqrt(_sum3(e * e))
     eh = e / np.maximum(L, 1e-300)[..., None]
-    return L, eh, np.stack(np.broadcast_arrays(a, b))
+    ends = np.empty((2,) + e.shape)
+    ends[0], ends[1] = a, b
+    return L, eh, ends
 
 
 def cusp_heights(frame: LineFrame, g1: FrameGeom, ds: float, r: float) -> tuple[np.ndarray, np.ndarray]:
@@ -358,7 +387,7 @@ def cusp_heights(frame: LineFrame, g1: FrameGeom, ds: float, r: float) -> tuple[
     straight capsule from its end ball along the line; the peak is where the two entries
     are equal, bracketed on 17 samples, bracketed again on 17 inside, and interpolated.
     """
-    with np.errstate(divide="ignore", invalid="ignore"):
+    with _quiet("divide", "invalid"):
         h, ends = cusp_heights_many(frame, g1, np.array([ds], float), r)
     return h[0], ends[0]
 
@@ -367,8 +396,19 @@ def cusp_heights_many(frame: LineFrame, g1: FrameGeom, ds: np.ndarray, r: float)
     """:func:`cusp_heights` for G gaps at once: ``g1`` the samples of G lines one after the
     other (the same number on each), ``ds`` (G,) the steps to their next lines. Returns the
     heights (G, m) and the ends (G, 2); two surface evaluations whatever G is."""
-    with np.errstate(divide="ignore", invalid="ignore"):
+    with _quiet("divide", "invalid"):
         return _cusp_heights(frame, g1, np.asarray(ds, float), r)
+
+
+_max_reduce = np.maximum.reduce
+
+
+@lru_cache(maxsize=64)
+def _end_t(G: int) -> np.ndarray:
+    """np.tile(_END_T, G), made once per G (read-only)."""
+    out = np.tile(_END_T, G)
+    out.flags.writeable = False
+    return out
 
 
 def _cusp_heights(frame, g1, ds, r):
@@ -441,7 +481,8 @@ def _cusp_heights(frame, g1, ds, r):
     np.negative(St[:, m + 3], out=tin[:, 1, 1])
     tin /= np.maximum(_norm3(tin), 1e-300)
     # both lines' capsules at once: (gap, line, end, 1, 3)
-    ca = np.stack([c2all[:, m + 4:m + 6], c2all[:, m:m + 2]], axis=1)[:, :, :, None, :]
+    ca = np.empty((G, 2, 2, 1, 3))
+    ca[:, 0, :, 0], ca[:, 1, :, 0] = c2all[:, m + 4:m + 6], c2all[:, m:m + 2]
     cb = ca + 4 * r * tin[:, :, :, None, :]
     seg = _capsule_segments(ca, cb)               # the same capsules in both passes
     ends = np.zeros((G, 2))
@@ -454,7 +495,7 @@ def _cusp_heights(frame, g1, ds, r):
         if rnd == 1:
             ff = lo[..., None] + width[..., None] * f                  # (G, 2, k)
             ge = frame.evaluate((s1[:, None] + np.minimum(np.maximum(ff, 0), 1).reshape(G, -1)
-                                 * (s2 - s1)[:, None]).ravel(), np.tile(_END_T, G))
+                                 * (s2 - s1)[:, None]).ravel(), _end_t(G), second=False)
             eP, en = rs(ge.P), rs(ge.n)
         h = _capsule_entry(eP.reshape(G, 1, 2, -1, 3), en.reshape(G, 1, 2, -1, 3), ca, cb, r, seg)
         h1, h2 = h[:, 0], h[:, 1]                                        # (G, 2, k)
@@ -463,7 +504,7 @@ def _cusp_heights(frame, g1, ds, r):
         # cusp is a corner that samples alone would cut short
         d = h1 - h2
         up = d >= 0
-        k = np.argmax(up, axis=2)
+        k = up.argmax(axis=2)
         k = _where(up.any(axis=2), k, k_end - 1)
         k = np.minimum(np.maximum(k, 1), k_end - 1)
         d0, d1 = take(d, k - 1), take(d, k)
@@ -471,7 +512,7 @@ def _cusp_heights(frame, g1, ds, r):
         hk0, hk1 = take(h1, k - 1), take(h1, k)
         cross = hk0 + x * (hk1 - hk0)
         low = np.minimum(h1, h2)
-        peak = np.max(low, axis=2)
+        peak = _max_reduce(low, axis=2)          # np.max's reduction, without its wrapper
         ok = np.isfinite(cross) & (d0 < 0) & (d1 >= 0)
         ends = np.maximum(ends, _where(ok, np.maximum(cross, take(low, k)), peak))
         step = width / (k_end - 1)
@@ -541,7 +582,7 @@ class Placer:
         h, ends = cusp_heights_many(self.frame, g1, ds, self.r)
         th = np.asarray(target_h, float).reshape(G, -1)
         rs = h / th
-        with np.errstate(invalid="ignore"):
+        with _quiet("invalid"):
             inner = _where(np.isnan(rs).all(axis=1), 0.0,
                              np.nanmax(_where(np.isnan(rs), -np.inf, rs), axis=1))
         return np.maximum(inner, np.maximum(ends[:, 0] / th[:, 0], ends[:, 1] / th[:, -1]))

@@ -26,7 +26,7 @@ import numpy as np
 
 # numpy's C functions without their Python dispatch wrappers: the same calls, a few
 # microseconds less each on the many small arrays here
-from ..npfast import where as _where
+from ..npfast import quiet as _quiet, where as _where
 
 
 def side_step(r: float, h, k) -> np.ndarray:
@@ -44,7 +44,7 @@ def side_step(r: float, h, k) -> np.ndarray:
     z = ak * X
     zmax = np.sin(np.pi / 8)                        # theta = 4 asin(z) <= pi / 2
     zc = np.minimum(z, zmax)
-    with np.errstate(invalid="ignore", divide="ignore"):
+    with _quiet("invalid", "divide"):
         asinc = _where(zc > 1e-6, np.arcsin(zc) / _where(zc > 0, zc, 1.0), 1.0 + zc * zc / 6.0)
         capped = 0.5 * np.pi / _where(ak > 0, ak, 1.0)
     return _where(z > zmax, capped, 4.0 * X * asinc)
@@ -77,7 +77,7 @@ def parameter_step(g, E, F, G) -> np.ndarray:
     """Parameter step ``ds`` across lines of constant s for a side step g in space
     (docs/method.md 3.4): ``g sqrt(G) / sqrt(E G - F^2)`` with E, F, G in (s, t)."""
     det = np.asarray(E) * np.asarray(G) - np.asarray(F) ** 2
-    with np.errstate(divide="ignore", invalid="ignore"):
+    with _quiet("divide", "invalid"):
         return _where(det > 0, np.asarray(g) * np.sqrt(np.asarray(G) / _where(det > 0, det, 1.0)),
                         np.inf)
 
@@ -89,5 +89,5 @@ def forward_step(r: float, tol, k_f, k_g=0.0) -> np.ndarray:
     k_f = np.asarray(k_f, float)
     kappa = np.maximum(np.abs(k_f), np.abs(np.asarray(k_g, float)))
     den = kappa * np.maximum(1.0 - r * k_f, 1e-12)
-    with np.errstate(divide="ignore"):
+    with _quiet("divide"):
         return _where(den > 0, np.sqrt(8.0 * np.asarray(tol, float) / _where(den > 0, den, 1.0)), np.inf)

@@ -164,7 +164,8 @@ class Clearance:
         if mode == "auto":
             g = np.linspace(0.0, 1.0, 17)
             U, V = np.meshgrid(g, g)
-            nz = min(float(pt.evaluate(U.ravel(), V.ravel()).normal[:, 2].min()) for pt in model.patches)
+            nz = min(float(pt.evaluate(U.ravel(), V.ravel(), second=False).normal[:, 2].min())
+                     for pt in model.patches)
             mode = "plane" if nz >= -1e-3 else "sphere"
         self.mode = mode
         self.z = hi[2] + settings.clearance + self.r           # ball centre height at clearance

@@ -430,6 +430,11 @@ class CollisionChecker:
             self._wp_object = fcl.CollisionObject(_bvh(self.mesh.vertices, self.mesh.triangles), fcl.Transform())
         return self._wp_object
 
+    def build_bvh(self) -> None:
+        """Build the workpiece's BVH now (otherwise at fcl's first question): for timing the
+        questions alone, or before forking processes that will ask fcl."""
+        self._wp
+
     def profile(self, grow: float = 0.0) -> Profile:
         """The tool above the ball centre as the fcl checks see it, grown by ``grow`` mm more
         (as :meth:`_tool_object`): per part its heights and its inscribed (grown) and
@@ -549,7 +554,7 @@ class CollisionChecker:
         if pool is None:
             global _POOL_CHECKER
             _POOL_CHECKER = self
-            self._wp                                 # (built once, inherited by the workers)
+            self.build_bvh()                         # (built once, inherited by the workers)
             pool = self._workers = multiprocessing.get_context("fork").Pool(workers)
             weakref.finalize(self, pool.terminate)
         return pool

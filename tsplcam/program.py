@@ -325,11 +325,11 @@ def _orient(path, model, settings: JobSettings, tool, machine, stock, progress, 
     try:
         oriented, report = orient(path, model, tool, settings=base, per_patch=per_patch, checker=checker,
                                   machine=machine, progress=for_stage(progress, "tool axes"), ball=companion)
-    except BaseException:
+        tick(progress, "checking axes", 0, 1)
+    except BaseException:                        # (a process waiting for its second piece)
         if companion is not None:
             companion.close()
         raise
-    tick(progress, "checking axes", 0, 1)
     # orient refused the path if the ball gouged anywhere (its centres do not move with the
     # axes): no gouge to count again
     measure = functools.partial(orientation_metrics, oriented, checker, machine, gouges=0)

@@ -2,7 +2,8 @@
 surface evaluation and the line placement (thousands of calls on arrays of tens of rows per
 path): the same functions, a few microseconds less a call under numpy 1.x. numpy 2 moved the
 module and dispatches in C; where neither module is found the public functions stand in.
-``quiet``: np.errstate's ignore modes the same way (one get and one set of the error object)."""
+``clip``: np.clip's ufunc. ``quiet``: np.errstate's ignore modes the same way (one get and
+one set of the error object)."""
 from __future__ import annotations
 
 import numpy as np
@@ -20,6 +21,7 @@ c_einsum = getattr(_mu, "c_einsum", np.einsum)      # np.einsum (no optimize) ca
 concatenate = getattr(_mu, "concatenate", np.concatenate)
 bincount = getattr(_mu, "bincount", np.bincount)
 count_nonzero = getattr(_mu, "count_nonzero", np.count_nonzero)
+clip = getattr(_mu, "clip", np.clip)                # np.clip's ufunc (the same for arrays)
 
 # numpy 1.x keeps the floating-point error modes in one per-thread object; np.errstate wraps its
 # get and set in a Python context manager and seterr's checks (some 2 us, some two thousand

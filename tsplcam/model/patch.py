@@ -28,7 +28,7 @@ import numpy as np
 # numpy's C functions without their Python dispatch wrappers: the same calls, a few
 # microseconds less each on the many small arrays here
 from ..npfast import where as _where, c_einsum as _einsum, concatenate as _concatenate
-from ..npfast import bincount as _bincount, count_nonzero as _count_nonzero
+from ..npfast import bincount as _bincount, clip as _clip, count_nonzero as _count_nonzero
 
 from ..errors import InputError
 from .basis import bernstein, bernstein_rows
@@ -41,7 +41,6 @@ CORNER_NAMES = ("lower-left", "lower-right", "upper-right", "upper-left")
 EDGE_NAMES = ("bottom", "right", "top", "left")
 
 CHUNK = 1 << 17
-_clip = np.core.umath.clip             # np.clip's ufunc, without its Python wrapper
 _min, _max = np.minimum.reduce, np.maximum.reduce    # ndarray.min / max without theirs
 
 

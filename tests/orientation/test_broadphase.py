@@ -463,7 +463,7 @@ class Geometry(unittest.TestCase):
         """The tessellation's distance from triangle planes and the rows' cross products and
         lengths written out: the bits of ``np.cross`` and ``np.linalg.norm``, also for
         degenerate triangles (distance 0 / 1 there: the plane is not defined)."""
-        from tsplcam.orientation.broadphase import cross_rows, row_norms
+        from tsplcam.npfast import cross_rows, row_norms
         from tsplcam.orientation.collision import _plane_distance
         rng = np.random.default_rng(7)
         for scale in (1e-3, 1.0, 1e3):

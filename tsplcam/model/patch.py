@@ -29,6 +29,7 @@ import numpy as np
 # microseconds less each on the many small arrays here
 from ..npfast import where as _where, c_einsum as _einsum, concatenate as _concatenate
 from ..npfast import bincount as _bincount, clip as _clip, count_nonzero as _count_nonzero
+from ..npfast import cross_rows as _cross
 
 from ..errors import InputError
 from .basis import bernstein, bernstein_rows
@@ -570,18 +571,6 @@ def _index_or_slice(idx: np.ndarray):
     if len(idx) and idx[-1] - idx[0] + 1 == len(idx):
         return slice(int(idx[0]), int(idx[-1]) + 1)
     return idx
-
-
-def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """np.cross of (n, 3) rows: its products and differences in its order, without its
-    Python-level axis handling (the same values)."""
-    c = np.empty((len(a), 3))
-    tmp = np.empty(len(a))
-    for k, (i, j) in enumerate(((1, 2), (2, 0), (0, 1))):
-        np.multiply(a[:, i], b[:, j], out=c[:, k])
-        np.multiply(a[:, j], b[:, i], out=tmp)
-        c[:, k] -= tmp
-    return c
 
 
 def _unit(x: np.ndarray) -> np.ndarray:

@@ -41,7 +41,8 @@ import numpy as np
 
 from ..errors import GeometryError, InputError
 from ..toolpath.parallel import map_pieces, worker_count
-from .broadphase import FREE, HIT, UNKNOWN, BroadPhase, Profile, cross_rows, longest_edges, row_bits, row_norms
+from ..npfast import cross_rows, row_norms
+from .broadphase import FREE, HIT, UNKNOWN, BroadPhase, Profile, longest_edges, row_bits
 from .tool import Tool
 
 try:                                   # python-fcl is a dependency of this stage only

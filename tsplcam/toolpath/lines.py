@@ -54,6 +54,7 @@ import numpy as np
 # numpy's C functions without their Python dispatch wrappers: the same calls, a few
 # microseconds less each on the many small arrays here
 from ..npfast import quiet as _quiet, where as _where, c_einsum as _einsum, concatenate as _concatenate
+from ..npfast import cross_rows as _cross
 
 from ..errors import GeometryError, InputError
 from ..layout.layout import CORNER_NAMES, CORNER_UV
@@ -153,21 +154,6 @@ class FrameGeom:
             K = (self.L * self.N - self.M ** 2) / det
             H = (self.E * self.N - 2 * self.F * self.M + self.G * self.L) / (2 * det)
         return H + np.sqrt(np.maximum(H * H - K, 0.0))
-
-
-def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """np.cross of (n, 3) rows: the same products and differences, without its axis
-    handling, which costs more than the products at the few hundred points a call here has."""
-    c = np.empty((len(a), 3))
-    a0, a1, a2 = a[:, 0], a[:, 1], a[:, 2]
-    b0, b1, b2 = b[:, 0], b[:, 1], b[:, 2]
-    np.multiply(a1, b2, out=c[:, 0])
-    c[:, 0] -= a2 * b1
-    np.multiply(a2, b0, out=c[:, 1])
-    c[:, 1] -= a0 * b2
-    np.multiply(a0, b1, out=c[:, 2])
-    c[:, 2] -= a1 * b0
-    return c
 
 
 def _unit_normal(Pu: np.ndarray, Pv: np.ndarray) -> np.ndarray:

@@ -29,6 +29,7 @@ import numpy as np
 # numpy's C functions without their Python dispatch wrappers: the same calls, a few
 # microseconds less each on the many small arrays here
 from ..npfast import quiet as _quiet, where as _where, c_einsum as _einsum, concatenate as _concatenate
+from ..npfast import row_norms
 
 from .sidestep import forward_step
 
@@ -73,7 +74,7 @@ def _first_points(frame, curves: list[Curve], r, tol_in, tol_out, max_step):
         inner = lo[cid] + span * (END_EPS + (1 - 2 * END_EPS) * (xa - lo[cid]) / span)
     g = _evaluate(frame, along[cid], fixed[cid], inner)
     at = along[cid]
-    speed = _norm(_where(at[:, None], g.St, g.Ss))
+    speed = row_norms(_where(at[:, None], g.St, g.Ss))
     kft, kgt = g.curve_curvature("t")
     kfs, kgs = g.curve_curvature("s")
     kf, kg = _where(at, kft, kfs), _where(at, kgt, kgs)
@@ -126,15 +127,6 @@ def _first_points(frame, curves: list[Curve], r, tol_in, tol_out, max_step):
         p[0], p[-1] = lo[k], hi[k]
         out[k] = np.unique(p)
     return out, lo, hi, along, fixed
-
-
-def _norm(x: np.ndarray) -> np.ndarray:
-    """np.linalg.norm(x, axis=1) of real 3-vectors: the same squares and sums (a reduction
-    along a row of three adds them in order, from 0; squares are never -0.0)."""
-    q = x * x
-    out = q[:, 0] + q[:, 1]
-    out += q[:, 2]
-    return np.sqrt(out)
 
 
 def _linspaces(lo: np.ndarray, hi: np.ndarray, num: np.ndarray):

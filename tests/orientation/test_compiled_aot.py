@@ -104,6 +104,19 @@ class AheadOfTime(unittest.TestCase):
                 if isinstance(a, np.ndarray):
                     self.assertEqual(a.tobytes(), b.tobytes(), name)
 
+    def test_releases_gil(self):
+        """The module's wrappers release the GIL around a kernel (as numba's ``nogil``), so the
+        broad phase's two halves run at once: the module calls CPython's
+        ``PyEval_SaveThread``/``PyEval_RestoreThread`` (a module built with pycc's default
+        flags imports neither), and its kernels say so as numba's do."""
+        if compiled._aot() is None:
+            self.skipTest("no ahead-of-time module of this source (scripts/install.sh builds it)")
+        with open(compiled._aot_path(), "rb") as f:
+            text = f.read()
+        self.assertIn(b"PyEval_SaveThread", text)
+        self.assertIn(b"PyEval_RestoreThread", text)
+        self.assertTrue(compiled._aot()["sphere_loop"].targetoptions["nogil"])
+
     def test_stale_or_other_types(self):
         """A module built from another source (or for another processor) is not used; arguments of other types than the
         signature's (here a float32 array, a non-contiguous one, a read-only one written to,

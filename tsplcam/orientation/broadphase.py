@@ -76,10 +76,10 @@ hit tests), with the same operations per sphere as numpy's level-by-level loop
 and hit witnesses, bit for bit (tests/orientation/test_broadphase.py compares them).
 
 **Threads.** The kernel takes the poses one by one, each writing only its own rows; numba's
-JIT kernel releases the GIL (the ahead-of-time module's does not), as scipy's KD-tree queries
-do: where a core is idle (:func:`threads`) a batch's poses go to it in two halves, and KD
-queries of ``KD_THREADS`` points or more are split between two threads (each point's answer
-is the one a single thread gives). Every thread ends before the call returns, so none is
+JIT kernel and the ahead-of-time module's release the GIL, as scipy's KD-tree queries do:
+where a core is idle (:func:`threads`) a batch's poses go to it in two halves, and KD queries
+of ``KD_THREADS`` points or more are split between two threads (each point's answer is the
+one a single thread gives). Every thread ends before the call returns, so none is
 alive when the path or fcl workers fork.
 
 **Per centre.** The free cones are kept per ball centre, found by the centre's bytes
@@ -1072,9 +1072,8 @@ class BroadPhase:
         todo = np.ascontiguousarray(todo, np.int64)
         # the kernel takes the poses one by one, each writing only its own rows: two halves of
         # them on two threads (the kernel releases the GIL) give the same rows, and the hits'
-        # witnesses, remembered level by level as a set, the same table
-        # (only numba's JIT kernel, compiled nogil, releases the GIL: the ahead-of-time module's
-        # holds it, and two threads would only take turns)
+        # witnesses, remembered level by level as a set, the same table (a kernel that held the
+        # GIL would have the two threads only take turns)
         nogil = bool(getattr(kern, "targetoptions", {}).get("nogil", False))
         halves = np.array_split(todo, 2) if nogil and len(todo) >= KERNEL_THREADS and threads() > 1 else [todo]
         args = (np.ascontiguousarray(asked, np.int64), prof.z0, prof.z1, prof.rout0, prof.rout1, prof.rin0,

@@ -947,6 +947,7 @@ def build_key() -> int | None:
     h = hashlib.sha256(text[i:j])
     h.update(repr(sorted(SIGNATURES.items())).encode())
     h.update(b"\0" + _processor())
+    h.update(b"\0nogil")                          # modules built before their wrappers released the GIL
     return int(h.hexdigest()[:15], 16)
 
 
@@ -957,6 +958,7 @@ class _Exported:
     (the module's wrapper would convert other arguments silently, or misread them)."""
 
     __slots__ = ("name", "fn", "spec")
+    targetoptions = {"nogil": True}       # the module's wrappers release the GIL (:func:`build_aot`)
 
     def __init__(self, name: str, fn, sig: str):
         self.name, self.fn = name, fn
@@ -1029,6 +1031,7 @@ def build_aot(force: bool = False) -> str | None:
             from numba.core import types
             from numba.core.codegen import AOTCPUCodegen
             from numba.pycc import CC
+            from numba.pycc import compiler as pycc_compiler
     except ImportError:
         return None
     codes = {"f8": types.float64, "i8": types.int64, "i4": types.int32, "i1": types.int8,
@@ -1037,7 +1040,18 @@ def build_aot(force: bool = False) -> str | None:
     key = build_key()
     tmp = tempfile.mkdtemp(prefix=".aot-build-", dir=here)
     features = AOTCPUCodegen._customize_tm_features
+    flags = pycc_compiler.Flags
+
+    class _NoGil(flags):
+        """pycc's compile flags with ``release_gil`` set: each exported function's CPython
+        wrapper then releases the GIL around the kernel, as ``njit(nogil=True)`` does (pycc
+        has no option for it). The kernels touch no Python object."""
+
+        def __init__(self, *a, **k):
+            super().__init__(*a, **k)
+            self.release_gil = True
     try:
+        pycc_compiler.Flags = _NoGil
         cc = CC(AOT_MODULE)
         cc.output_dir = tmp
         if _processor():                          # as the JIT: the host's name and flags
@@ -1055,6 +1069,7 @@ def build_aot(force: bool = False) -> str | None:
         os.replace(os.path.join(tmp, cc.output_file), out)
     finally:
         AOTCPUCodegen._customize_tm_features = features
+        pycc_compiler.Flags = flags
         shutil.rmtree(tmp, ignore_errors=True)
     _STATE.pop("aot", None)
     return out

@@ -27,7 +27,10 @@ array calls per level over all poses with temporaries per sphere; ``sphere_loop`
 poses one by one with the same operations per sphere in the same order (about 0.5 us a
 pose on the keycap's candidates against 1.5-2 us), so the same decisions and bits. Its hit
 test (``hit_pairs``: samples inside the tool, their pieces' anchors outside) serves the
-broad phase's other passes too (keycap_mold: 0.32 CPU-s in numpy).
+broad phase's other passes too (keycap_mold: 0.32 CPU-s in numpy). The side pass's balls
+are bounded by the grids in ``side_bounds`` (each ball's slab and centre and its grid reads,
+the same operations; only the balls left open are listed), and the free cones are stored row
+by row in ``store_cones`` (the rounds of numpy's gathers and masks, the same cones kept).
 
 The banded Cholesky solve of the smoothing's polish (``_Banded.solve_box``, 215 solves on
 the keycap) is latency-bound in LAPACK as here; the kernel takes LAPACK's operations in
@@ -876,9 +879,130 @@ def _define(jit):
             i = e
         return nf
 
+    @jit
+    def side_bounds(C, A, pose, part, seg, level, nseg, z0, z1, rout0, rout1, box_lo, box_hi,
+                    g_origin, g_h, g_shape, g_stride, g_offsets, g_base, g_lb, g_idx, eps, phi,
+                    f_ball, f_t, f_R, f_x, f_bound):
+        """The side pass's balls bounded by the grids
+        (:meth:`~tsplcam.orientation.broadphase.BroadPhase._side_level`), ball by ball, the same
+        operations in the same order (so the same bits): row i stands for the ``nseg`` slabs
+        ``seg[i] * nseg + s`` of ``part[i]`` at ``level`` at pose ``pose[i]``; each slab's ball
+        (``side_balls``), its bound from the box, the fine grid and the coarse one where short
+        of R + eps (``lower_bound``, :func:`grid_read`'s read written out). A ball cleared
+        narrows ``phi`` of its pose; the others are listed in order (``f_ball`` row * nseg + s,
+        the ball's height ``f_t``, radius ``f_R``, centre ``f_x`` and bound ``f_bound``).
+        Returns how many are listed."""
+        f = np.empty(3)
+        r = np.empty(3)
+        kk = np.empty(3, np.int64)
+        sq = np.empty((3, 2))
+        xs = np.empty(3)
+        nf = 0
+        for i in range(pose.shape[0]):
+            p = pose[i]
+            k = part[i]
+            for sg in range(nseg):
+                # side_balls
+                length = (z1[k] - z0[k]) / (1 << level)
+                za = z0[k] + (seg[i] * nseg + sg) * length
+                zb = za + length
+                fa = (za - z0[k]) / (z1[k] - z0[k])
+                ra = rout0[k] + fa * (rout1[k] - rout0[k])
+                fb = (zb - z0[k]) / (z1[k] - z0[k])
+                rb = rout0[k] + fb * (rout1[k] - rout0[k])
+                slope = (rout1[k] - rout0[k]) / (z1[k] - z0[k])
+                t = 0.5 * (za + zb) + slope * 0.5 * (ra + rb)
+                da = t - za
+                db = t - zb
+                Ra = np.sqrt(ra * ra + da * da)
+                Rb = np.sqrt(rb * rb + db * db)
+                R = Ra if Ra >= Rb else Rb
+                # lower_bound: the box, the fine grid, the coarse one where short of R + eps
+                for d in range(3):
+                    xs[d] = C[p, d] + t * A[p, d]
+                o0 = max(max(box_lo[0] - xs[0], xs[0] - box_hi[0]), 0.0)
+                o1 = max(max(box_lo[1] - xs[1], xs[1] - box_hi[1]), 0.0)
+                o2 = max(max(box_lo[2] - xs[2], xs[2] - box_hi[2]), 0.0)
+                bound = np.sqrt(o0 * o0 + o1 * o1 + o2 * o2)
+                need = R + eps
+                for g in range(2):
+                    if g == 1 and not bound < need:
+                        break
+                    inside = True
+                    base = 0
+                    h = g_h[g]
+                    for d in range(3):
+                        f[d] = (xs[d] - g_origin[g, d]) / h
+                        kk[d] = np.int64(np.floor(f[d]))
+                        if kk[d] < 0 or kk[d] >= g_shape[g, d] - 1:
+                            inside = False
+                        kk[d] = min(max(kk[d], 0), g_shape[g, d] - 2)
+                        r[d] = f[d] - np.float64(kk[d])
+                        base += kk[d] * g_stride[g, d]
+                        sq[d, 0] = r[d] * r[d]
+                        sq[d, 1] = (1.0 - r[d]) * (1.0 - r[d])
+                    best = 0.0
+                    if inside:
+                        best = -np.inf
+                        c = 0
+                        for a in range(2):
+                            for b in range(2):
+                                for e in range(2):
+                                    dd = h * np.sqrt(sq[0, a] + sq[1, b] + sq[2, e])
+                                    v = g_lb[g_base[g] + base + g_offsets[g, c]] - dd
+                                    if v > best:
+                                        best = v
+                                    c += 1
+                    if best > bound:
+                        bound = best
+                if bound >= R + eps:
+                    at = abs(t)
+                    v = (bound - R - eps) / (at if at >= 1e-12 else 1e-12)
+                    if v < phi[p]:
+                        phi[p] = v
+                else:
+                    f_ball[nf] = i * nseg + sg
+                    f_t[nf] = t
+                    f_R[nf] = R
+                    f_x[nf, 0] = xs[0]
+                    f_x[nf, 1] = xs[1]
+                    f_x[nf, 2] = xs[2]
+                    f_bound[nf] = bound
+                    nf += 1
+        return nf
+
+    @jit
+    def store_cones(slot, A, c, rounds, from_fcl, cone_a, cone_c, cone_f):
+        """:meth:`~tsplcam.orientation.broadphase.BroadPhase._store_cones` row by row: its
+        ``rounds`` rounds each put, per slot, the first row (in row order) whose cone is wider
+        than the slot's narrowest (the first largest cos) in the narrowest's place; a row
+        before a slot's pick is not wider than the narrowest then, nor than any later
+        narrowest (the narrowest only widens), so taking the rows in order, each slot at most
+        ``rounds`` times, puts the same cones in the same places."""
+        taken = np.zeros(cone_c.shape[0], np.int64)
+        K = cone_c.shape[1]
+        for i in range(slot.shape[0]):
+            s = slot[i]
+            if taken[s] >= rounds:
+                continue
+            worst = 0
+            most = cone_c[s, 0]
+            for k in range(1, K):
+                if cone_c[s, k] > most:
+                    worst = k
+                    most = cone_c[s, k]
+            if c[i] < most:
+                cone_a[s, worst, 0] = A[i, 0]
+                cone_a[s, worst, 1] = A[i, 1]
+                cone_a[s, worst, 2] = A[i, 2]
+                cone_c[s, worst] = c[i]
+                cone_f[s, worst] = from_fcl != 0
+                taken[s] += 1
+
     return {"hit_pairs": hit_pairs, "viterbi_steps": viterbi_steps, "joint_steps": joint_steps, "viterbi_path": viterbi_path,
             "banded_solve": banded_solve, "grid_read": grid_read, "two_states": two_states,
-            "solve_box": solve_box, "sphere_loop": sphere_loop}
+            "solve_box": solve_box, "sphere_loop": sphere_loop, "side_bounds": side_bounds,
+            "store_cones": store_cones}
 
 
 #: each kernel's types for the ahead-of-time module, as the callers pass them (numba's JIT
@@ -899,6 +1023,10 @@ SIGNATURES = {
                    " f8[3], f8, f8, i1[1]w, b1[2]w, f8[1]w, i8[2]w)",
     "hit_pairs": "i8(f8[2], i8[1], i8[1], i8[1], f8[2], f8[2], f8[1], f8[1], f8[1], f8[1], f8[1], f8[1], i8,"
                  " i4[1], f8[3], f8, i1[1]w, i8[2]w)",
+    "side_bounds": "i8(f8[2], f8[2], i8[1], i8[1], i8[1], i8, i8, f8[1], f8[1], f8[1], f8[1], f8[1], f8[1],"
+                   " f8[2], f8[1], i8[2], i8[2], i8[2], i8[1], f8[1], i8[1], f8, f8[1]w, i8[1]w, f8[1]w, f8[1]w,"
+                   " f8[2]w, f8[1]w)",
+    "store_cones": "void(i8[1], f8[2], f8[1], i8, i8, f8[3]w, f8[2]w, b1[2]w)",
 }
 #: the ahead-of-time module's name (beside this file, built by :func:`build_aot`)
 AOT_MODULE = "_aot_kernels"
@@ -1158,10 +1286,11 @@ def _exercise() -> None:
     DistanceGrid(cKDTree(P), 0.0, P[0], P[0] + 1.0, 0.5, 0.5, 1.0, 64)(np.full((2, 3), 0.25))
     from .broadphase import BroadPhase, Profile
     one = np.ones(1)
-    tri = BroadPhase(np.eye(3), np.array([[0, 1, 2]]), lambda grow: Profile(0.5 * one, 3 * one, one, one, one, one), 0.5)
-    C, A = np.full((2, 3), 0.5), np.array([[0.0, 0.0, 1.0], [1.0, 0.0, 0.0]])
+    # (a cone part, for the side pass's kernel; the pose far off is free: its cone is stored)
+    tri = BroadPhase(np.eye(3), np.array([[0, 1, 2]]), lambda grow: Profile(0.5 * one, 3 * one, one, 2 * one, one, 2 * one), 0.5)
+    C, A = np.array([[0.5, 0.5, 0.5], [0.5, 0.5, 0.5], [9.0, 9.0, 9.0]]), np.array([[0.0, 0.0, 1.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]])
     tri.decide(C, A)
-    tri._hits(np.full(2, -1, np.int8), tri.samples[[0, 1]], np.arange(2), np.arange(2), C, A, tri._cover(0.0).prof)
+    tri._hits(np.full(3, -1, np.int8), tri.samples[[0, 1]], np.arange(2), np.arange(2), C, A, tri._cover(0.0).prof)
 
 
 def warm() -> float:

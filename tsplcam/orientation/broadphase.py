@@ -524,7 +524,7 @@ class CentreTable:
         self.ordered = bool(ordered)
         self.keys = np.zeros(0, np.uint64 if not ordered else np.dtype((np.void, 24)))
         self.slot_of_key = np.zeros(0, np.int64)
-        self.rows = np.zeros((0, 3))            # per slot: its centre (while hashed)
+        self._rows = np.zeros((0, 3))           # per slot: its centre (while hashed), with room to grow
         self.size = 0
 
     @staticmethod
@@ -536,6 +536,11 @@ class CentreTable:
         h ^= (h >> np.uint64(31)) ^ bits[:, 2]
         h *= np.uint64(0x94D049BB133111EB)
         return h ^ (h >> np.uint64(32))
+
+    @property
+    def rows(self) -> np.ndarray:
+        """Per slot its centre (while hashed)."""
+        return self._rows[:self.size]
 
     def _exact_keys(self) -> None:
         """Key the table by the centres' bytes from now on (two centres shared a hash)."""
@@ -566,8 +571,11 @@ class CentreTable:
             uk, first = ks[flag], order[flag]
             inv = np.empty(len(keys), np.int64)
             inv[order] = np.cumsum(flag) - 1
-            # (every run's centre is its key's: else two centres share a hash)
-            same = np.array_equal(runs, runs[first][inv])
+            # (every run's centre is its key's: else two centres share a hash; only the runs
+            # whose key an earlier run has are compared, the others are their key's first)
+            fi = first[inv]
+            other = np.flatnonzero(fi != np.arange(len(fi)))
+            same = np.array_equal(runs[other], runs[fi[other]])
         else:
             uk, first, inv = np.unique(runs.view(np.dtype((np.void, 24))).ravel(), return_index=True,
                                        return_inverse=True)
@@ -586,6 +594,14 @@ class CentreTable:
         new = np.nonzero(~known)[0]
         slot_u[new] = self.size + np.arange(len(new))
         if len(new):
+            if hashed:
+                # (the centres in a buffer of doubling room: copied a few times, not each call)
+                end = self.size + len(new)
+                if end > len(self._rows):
+                    grown = np.empty((max(end, 2 * len(self._rows)), 3))
+                    grown[:self.size] = self.rows
+                    self._rows = grown
+                self._rows[self.size:end] = C[first[new]]
             self.size += len(new)
             if hashed:
                 # uk is sorted: its new keys go in at their positions, the table stays sorted
@@ -597,7 +613,6 @@ class CentreTable:
                 slots_all = np.empty(len(old), np.int64)
                 slots_all[at], slots_all[old] = slot_u[new], self.slot_of_key
                 self.keys, self.slot_of_key = keys_all, slots_all
-                self.rows = np.concatenate([self.rows, C[first[new]]])
             else:
                 keys_all = np.concatenate([self.keys, uk[new]])
                 order = np.argsort(keys_all, kind="stable")

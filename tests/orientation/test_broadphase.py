@@ -291,7 +291,11 @@ class AgreesWithFcl(unittest.TestCase):
             for kern in (None, k):
                 b._cone_a[9.0], b._cone_c[9.0], b._cone_fcl[9.0] = (x.copy() for x in start)
                 with mock.patch.object(compiled, "loaded", lambda: kern):
-                    b._store_cones(slot, Ax, c, 9.0, from_fcl)
+                    if from_fcl:                                  # the axes as rows of a larger array
+                        big = np.concatenate([rng.normal(size=(30, 3)), Ax])
+                        b._store_cones(slot, big[::-1], c, 9.0, from_fcl, rows=len(Ax) - 1 - np.arange(len(Ax)))
+                    else:
+                        b._store_cones(slot, Ax, c, 9.0, from_fcl)
                 out.append((b._cone_a.pop(9.0), b._cone_c.pop(9.0), b._cone_fcl.pop(9.0)))
             for r, g in zip(*out):
                 np.testing.assert_array_equal(g, r)
@@ -601,7 +605,7 @@ class Geometry(unittest.TestCase):
 
     def test_row_helpers_and_threads(self):
         """The column-by-column forms equal numpy's (any over rows, bit masks, first
-        occurrences); two threads only with two cores allowed and one of them idle."""
+        occurrences, the pairs of a 2-d mask); two threads only with two cores allowed and one of them idle."""
         import os
         from unittest import mock
         from tsplcam.orientation import broadphase as bp
@@ -613,6 +617,11 @@ class Geometry(unittest.TestCase):
         np.testing.assert_array_equal(bp.any_row(w >= 0), (w >= 0).any(axis=1))
         for v in (np.repeat(rng.integers(0, 40, 200), rng.integers(1, 4, 200)), rng.integers(0, 9, 50), np.zeros(0, int)):
             np.testing.assert_array_equal(bp.first_of_each(v), np.unique(v, return_index=True)[1])
+        rows, cols = rng.random(500) < 0.7, np.array([True, False, True, True])
+        for m, r, c in ((a, None, None), (a, rows, None), (a, rows, cols), (a[:0], rows[:0], cols)):
+            ref = np.nonzero(m & (True if r is None else r[:, None]) & (True if c is None else c[None, :]))
+            for x, y in zip(bp.nonzero_pairs(m, r, c), ref):
+                np.testing.assert_array_equal(x, y)
         with mock.patch.dict(os.environ, {"TSPLCAM_WORKERS": "1"}):
             self.assertEqual(bp.threads(), 1)
         with mock.patch.dict(os.environ, {"TSPLCAM_WORKERS": "2"}), \

@@ -1017,8 +1017,9 @@ def _define(jit):
         return nf
 
     @jit
-    def store_cones(slot, A, c, rounds, from_fcl, cone_a, cone_c, cone_f):
-        """:meth:`~tsplcam.orientation.broadphase.BroadPhase._store_cones` row by row: its
+    def store_cones(slot, rows, A, c, rounds, from_fcl, cone_a, cone_c, cone_f):
+        """:meth:`~tsplcam.orientation.broadphase.BroadPhase._store_cones` row by row (row i's
+        axis ``A[rows[i]]``): its
         ``rounds`` rounds each put, per slot, the first row (in row order) whose cone is wider
         than the slot's narrowest (the first largest cos) in the narrowest's place; a row
         before a slot's pick is not wider than the narrowest then, nor than any later
@@ -1037,9 +1038,9 @@ def _define(jit):
                     worst = k
                     most = cone_c[s, k]
             if c[i] < most:
-                cone_a[s, worst, 0] = A[i, 0]
-                cone_a[s, worst, 1] = A[i, 1]
-                cone_a[s, worst, 2] = A[i, 2]
+                cone_a[s, worst, 0] = A[rows[i], 0]
+                cone_a[s, worst, 1] = A[rows[i], 1]
+                cone_a[s, worst, 2] = A[rows[i], 2]
                 cone_c[s, worst] = c[i]
                 cone_f[s, worst] = from_fcl != 0
                 taken[s] += 1
@@ -1071,7 +1072,7 @@ SIGNATURES = {
     "side_bounds": "i8(f8[2], f8[2], i8[1], i8[1], i8[1], i8, i8, f8[1], f8[1], f8[1], f8[1], f8[1], f8[1],"
                    " f8[2], f8[1], i8[2], i8[2], i8[2], i8[1], f8[1], i8[1], f8, f8[1]w, i8[1]w, f8[1]w, f8[1]w,"
                    " f8[2]w, f8[1]w)",
-    "store_cones": "void(i8[1], f8[2], f8[1], i8, i8, f8[3]w, f8[2]w, b1[2]w)",
+    "store_cones": "void(i8[1], i8[1], f8[2], f8[1], i8, i8, f8[3]w, f8[2]w, b1[2]w)",
 }
 #: the ahead-of-time module's name (beside this file, built by :func:`build_aot`)
 AOT_MODULE = "_aot_kernels"

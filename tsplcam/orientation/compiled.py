@@ -613,7 +613,8 @@ def _define(jit):
         filled from row 0; returns the rows used, or -1 when ``hits`` is too short (the
         caller asks again with a longer one). Each (part, level, slab)'s sphere is computed
         once, into a table, and the read's coordinates are kept in scalars (the same
-        operations: a third less time than per sphere with small arrays)."""
+        operations; on the all-candidates batch 47 ms on one thread, 78 ms per sphere with
+        small arrays)."""
         K = z0.shape[0]
         width = 0
         for k in range(K):

@@ -632,10 +632,12 @@ def _define(jit):
         comp_c = np.empty(cap, np.int64)
         nd = anchors.shape[1]
         nh = 0
-        # per (part, level, seg) the sphere: row k * tw + 2^level + seg
+        # per (part, level, seg) the sphere: row k * tw + 2^level + seg (the parts asked, as
+        # the loop below asks them)
         tw = 2 * width
         tab = np.empty((K * tw, 3))
-        for k in range(K):
+        for q in range(asked.shape[0]):
+            k = asked[q]
             for level in range(max_level[k] + 1):
                 for seg in range(1 << level):
                     length = (z1[k] - z0[k]) / (1 << level)

@@ -241,6 +241,66 @@ class AgreesWithFcl(unittest.TestCase):
         np.testing.assert_array_equal(out[1][1], out[0][1])
         self.assertGreater(int((out[0][0] != start).sum()), 100)
 
+    def test_compiled_side_level_and_cones(self):
+        """The side pass's balls bounded by the compiled kernel (``side_bounds``: ball by ball,
+        on one thread or the rows cut between poses on two) leave the balls numpy's
+        ``_side_level`` leaves, with the same heights, radii, centres and bounds, and the same
+        free cones (bit for bit), at the first level and at a split one; and the compiled
+        ``store_cones`` keeps the cones numpy's rounds keep (several axes per centre)."""
+        from unittest import mock
+        from tsplcam.orientation import broadphase as bp, compiled
+        k = compiled.kernels()
+        if k is None:
+            self.skipTest("numba not available (or TSPLCAM_COMPILED=0)")
+        rng = np.random.default_rng(23)
+        b = self.mold.broad
+        for grow in (0.0, 0.2):
+            prof = b._cover(grow).prof
+            cone = np.nonzero(np.abs(prof.rout1 - prof.rout0) > 1e-9)[0]
+            C, A = random_poses(self.mold_path, 1500, rng, spread=0.1, tilt=np.radians(75))
+            pose = np.repeat(np.arange(len(C)), len(cone))
+            part = np.tile(cone, len(C))
+            for level, nseg, seg in ((3, 8, np.zeros(len(pose), np.int64)), (5, 2, rng.integers(0, 16, len(pose)))):
+                runs = []
+                phi = np.where(rng.random(len(C)) < 0.5, np.inf, 0.05)
+                for kern, nthreads in ((None, 1), (k, 1), (k, 2)):
+                    phi0 = phi.copy()
+                    with mock.patch.object(compiled, "loaded", lambda: kern), \
+                            mock.patch.object(bp, "threads", lambda: nthreads), mock.patch.object(bp, "KERNEL_THREADS", 1):
+                        if kern is None:
+                            with mock.patch.object(compiled, "kernels", lambda work=None: None):
+                                got = b._side_level(C, A, prof, pose, part, seg, level, nseg, phi0)
+                        else:
+                            got = b._side_level(C, A, prof, pose, part, seg, level, nseg, phi0)
+                    runs.append(got + (phi0,))
+                for got in runs[1:]:
+                    for r, g in zip(runs[0], got):
+                        np.testing.assert_array_equal(g, r)
+                left = len(runs[0][0])
+                self.assertTrue(0 < left < len(pose) * nseg, left)       # some balls cleared, some left
+                self.assertGreater(int((runs[0][-1] < phi).sum()), 50)     # and cones narrowed
+        # store_cones: slots in runs, some twice, from empty and from kept cones
+        from tsplcam.orientation.broadphase import CONES
+        for from_fcl in (False, True):
+            slot = np.repeat(rng.integers(0, 40, 300), rng.integers(1, 6, 300))
+            Ax = rng.normal(size=(len(slot), 3))
+            c = np.round(rng.random(len(slot)) * 8) / 8           # ties
+            start = (rng.normal(size=(40, CONES, 3)), np.where(rng.random((40, CONES)) < 0.3, 2.0,
+                     np.round(rng.random((40, CONES)) * 8) / 8), rng.random((40, CONES)) < 0.5)
+            out = []
+            for kern in (None, k):
+                b._cone_a[9.0], b._cone_c[9.0], b._cone_fcl[9.0] = (x.copy() for x in start)
+                with mock.patch.object(compiled, "loaded", lambda: kern):
+                    if from_fcl:                                  # the axes as rows of a larger array
+                        big = np.concatenate([rng.normal(size=(30, 3)), Ax])
+                        b._store_cones(slot, big[::-1], c, 9.0, from_fcl, rows=len(Ax) - 1 - np.arange(len(Ax)))
+                    else:
+                        b._store_cones(slot, Ax, c, 9.0, from_fcl)
+                out.append((b._cone_a.pop(9.0), b._cone_c.pop(9.0), b._cone_fcl.pop(9.0)))
+            for r, g in zip(*out):
+                np.testing.assert_array_equal(g, r)
+            self.assertGreater(int((out[0][1] != start[1]).sum()), 20)
+
     def test_keycap_poses(self):
         st, mesh = self.check(self.keycap, self.keycap_path, 0.0, 5)
         self.assertGreater(np.mean(st != UNKNOWN), 0.6)
@@ -545,7 +605,7 @@ class Geometry(unittest.TestCase):
 
     def test_row_helpers_and_threads(self):
         """The column-by-column forms equal numpy's (any over rows, bit masks, first
-        occurrences); two threads only with two cores allowed and one of them idle."""
+        occurrences, the pairs of a 2-d mask); two threads only with two cores allowed and one of them idle."""
         import os
         from unittest import mock
         from tsplcam.orientation import broadphase as bp
@@ -557,6 +617,11 @@ class Geometry(unittest.TestCase):
         np.testing.assert_array_equal(bp.any_row(w >= 0), (w >= 0).any(axis=1))
         for v in (np.repeat(rng.integers(0, 40, 200), rng.integers(1, 4, 200)), rng.integers(0, 9, 50), np.zeros(0, int)):
             np.testing.assert_array_equal(bp.first_of_each(v), np.unique(v, return_index=True)[1])
+        rows, cols = rng.random(500) < 0.7, np.array([True, False, True, True])
+        for m, r, c in ((a, None, None), (a, rows, None), (a, rows, cols), (a[:0], rows[:0], cols)):
+            ref = np.nonzero(m & (True if r is None else r[:, None]) & (True if c is None else c[None, :]))
+            for x, y in zip(bp.nonzero_pairs(m, r, c), ref):
+                np.testing.assert_array_equal(x, y)
         with mock.patch.dict(os.environ, {"TSPLCAM_WORKERS": "1"}):
             self.assertEqual(bp.threads(), 1)
         with mock.patch.dict(os.environ, {"TSPLCAM_WORKERS": "2"}), \

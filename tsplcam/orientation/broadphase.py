@@ -73,11 +73,16 @@ compare the decisions with fcl on random poses (tests/orientation).
 pose in one kernel (``sphere_loop``: each pose's spheres level by level, its grid reads and
 hit tests), with the same operations per sphere as numpy's level-by-level loop
 (:meth:`BroadPhase._sphere_loop`, the fallback): the same decisions, open parts, free cones
-and hit witnesses, bit for bit (tests/orientation/test_broadphase.py compares them).
+and hit witnesses, bit for bit (tests/orientation/test_broadphase.py compares them). So do the
+side pass's first read of its balls (``side_bounds``: 155k balls on the all-candidates batch,
+28 ms in numpy, each ball's slab, centre and grid bounds; only the balls the grids leave open
+come back) and the free cones' store (``store_cones``: row by row where numpy takes two rounds
+of gathers and masks over every free pose, 16 ms there).
 
-**Threads.** The kernel takes the poses one by one, each writing only its own rows; numba's
+**Threads.** The kernels take the poses one by one, each writing only its own rows; numba's
 JIT kernel and the ahead-of-time module's release the GIL, as scipy's KD-tree queries do:
-where a core is idle (:func:`threads`) a batch's poses go to it in two halves, and KD queries
+where a core is idle (:func:`threads`) a batch's poses go to it in two halves (the side
+pass's rows cut between two poses), and KD queries
 of ``KD_THREADS`` points or more are split between two threads (each point's answer is the
 one a single thread gives). Every thread ends before the call returns, so none is
 alive when the path or fcl workers fork.
@@ -177,6 +182,22 @@ def row_bits(a: np.ndarray) -> np.ndarray:
     for k in range(a.shape[1]):
         out |= a[:, k].astype(np.int64) << k
     return out
+
+
+def nonzero_pairs(a: np.ndarray, rows: np.ndarray | None = None, cols: np.ndarray | None = None):
+    """``np.nonzero(a & rows[:, None] & cols[None, :])`` of a 2-d bool array ``a`` (``rows``,
+    ``cols`` bool masks, None: all): the same pairs in the same (row-major) order, through the
+    rows that have any (np.nonzero over the whole array costs about 6 ns an element, 4.5 ms for
+    the all-candidates batch's unresolved parts, of which few rows have any)."""
+    live = np.zeros(len(a), bool)
+    for k in range(a.shape[1]) if cols is None else np.flatnonzero(cols):
+        live |= a[:, k]
+    if rows is not None:
+        live &= rows
+    r = np.flatnonzero(live)
+    sub = a[r] if cols is None else a[r] & cols[None, :]
+    i, j = np.nonzero(sub)
+    return r[i], j
 
 
 def min_into(out: np.ndarray, idx: np.ndarray, vals: np.ndarray) -> None:
@@ -519,7 +540,7 @@ class CentreTable:
         self.ordered = bool(ordered)
         self.keys = np.zeros(0, np.uint64 if not ordered else np.dtype((np.void, 24)))
         self.slot_of_key = np.zeros(0, np.int64)
-        self.rows = np.zeros((0, 3))            # per slot: its centre (while hashed)
+        self._rows = np.zeros((0, 3))           # per slot: its centre (while hashed), with room to grow
         self.size = 0
 
     @staticmethod
@@ -531,6 +552,11 @@ class CentreTable:
         h ^= (h >> np.uint64(31)) ^ bits[:, 2]
         h *= np.uint64(0x94D049BB133111EB)
         return h ^ (h >> np.uint64(32))
+
+    @property
+    def rows(self) -> np.ndarray:
+        """Per slot its centre (while hashed)."""
+        return self._rows[:self.size]
 
     def _exact_keys(self) -> None:
         """Key the table by the centres' bytes from now on (two centres shared a hash)."""
@@ -561,8 +587,11 @@ class CentreTable:
             uk, first = ks[flag], order[flag]
             inv = np.empty(len(keys), np.int64)
             inv[order] = np.cumsum(flag) - 1
-            # (every run's centre is its key's: else two centres share a hash)
-            same = np.array_equal(runs, runs[first][inv])
+            # (every run's centre is its key's: else two centres share a hash; only the runs
+            # whose key an earlier run has are compared, the others are their key's first)
+            fi = first[inv]
+            other = np.flatnonzero(fi != np.arange(len(fi)))
+            same = np.array_equal(runs[other], runs[fi[other]])
         else:
             uk, first, inv = np.unique(runs.view(np.dtype((np.void, 24))).ravel(), return_index=True,
                                        return_inverse=True)
@@ -581,6 +610,14 @@ class CentreTable:
         new = np.nonzero(~known)[0]
         slot_u[new] = self.size + np.arange(len(new))
         if len(new):
+            if hashed:
+                # (the centres in a buffer of doubling room: copied a few times, not each call)
+                end = self.size + len(new)
+                if end > len(self._rows):
+                    grown = np.empty((max(end, 2 * len(self._rows)), 3))
+                    grown[:self.size] = self.rows
+                    self._rows = grown
+                self._rows[self.size:end] = C[first[new]]
             self.size += len(new)
             if hashed:
                 # uk is sorted: its new keys go in at their positions, the table stays sorted
@@ -592,7 +629,6 @@ class CentreTable:
                 slots_all = np.empty(len(old), np.int64)
                 slots_all[at], slots_all[old] = slot_u[new], self.slot_of_key
                 self.keys, self.slot_of_key = keys_all, slots_all
-                self.rows = np.concatenate([self.rows, C[first[new]]])
             else:
                 keys_all = np.concatenate([self.keys, uk[new]])
                 order = np.argsort(keys_all, kind="stable")
@@ -860,11 +896,22 @@ class BroadPhase:
         return np.concatenate(found)
 
     def _witness_cells(self, C: np.ndarray) -> np.ndarray:
-        cells = np.floor(np.asarray(C, float) / WITNESS_CELL)
-        slot, first = self._wit_cells.slots(cells)
+        """The witness cell (slot) of each ball centre. A run of equal centres (a batch asks
+        several axes per centre in a row: the all-candidates batch 182k rows in 1.5k runs) is
+        one cell, floored and looked up once: the same cells, numbered the same (the table
+        numbers new cells in the order of their bytes, whatever rows they come in)."""
+        C = np.ascontiguousarray(C, float).reshape(-1, 3)
+        if len(C) > 1:
+            bits = C.view(np.uint64)
+            b0, b1, b2 = bits[:, 0], bits[:, 1], bits[:, 2]
+            start = np.flatnonzero(np.concatenate(([True], (b0[1:] != b0[:-1]) | (b1[1:] != b1[:-1])
+                                                   | (b2[1:] != b2[:-1]))))
+        else:
+            start = np.arange(len(C))
+        slot, first = self._wit_cells.slots(np.floor(C[start] / WITNESS_CELL))
         if len(first):
             self._wit = np.concatenate([self._wit, np.full((len(first), WITNESSES), -1, np.int64)])
-        return slot
+        return slot if len(start) == len(C) else np.repeat(slot, np.diff(np.append(start, len(C))))
 
     def _remember(self, cell: np.ndarray, found: np.ndarray):
         """Keep the samples of new hits as witnesses of their poses' cells (newest first)."""
@@ -907,11 +954,21 @@ class BroadPhase:
         self._grow_cones(grow)
         self._store_cones(slot, A, np.full(len(A), np.cos(phi)), grow, True)
 
-    def _store_cones(self, slot, A, c, grow, from_fcl: bool = False):
+    def _store_cones(self, slot, A, c, grow, from_fcl: bool = False, rows=None):
         """Keep cone (axis A, cos of its angle c) at each slot, replacing the slot's narrowest;
         ``from_fcl``: the cones come from fcl's swing check (:meth:`add_cones`), counted apart
-        when they decide a pose (``stats["cone_fcl"]``)."""
+        when they decide a pose (``stats["cone_fcl"]``); ``rows``: the axes are ``A[rows]``
+        (taken there by the kernel, not gathered)."""
         cone_a, cone_c, cone_f = self._cone_a[grow], self._cone_c[grow], self._cone_fcl[grow]
+        k = compiled.loaded()
+        if k is not None and len(slot):
+            # row by row, each slot at most twice (the kernel's doc: the same cones, in place)
+            rows = np.arange(len(slot)) if rows is None else np.ascontiguousarray(rows, np.int64)
+            k["store_cones"](np.ascontiguousarray(slot, np.int64), rows, np.ascontiguousarray(A, float),
+                             np.ascontiguousarray(c, float), np.int64(2), np.int64(from_fcl), cone_a, cone_c, cone_f)
+            return
+        if rows is not None:
+            A = A[rows]
         for _ in range(2):                        # a slot may come twice in one batch
             # (np.argmax over a row of CONES, column by column: the first largest)
             cs = cone_c[slot]
@@ -943,7 +1000,7 @@ class BroadPhase:
         # not next to a wall that stopped poses before (a hit witness in the centre's cell):
         # there most poses collide, and fcl settles them in fewer steps
         near_wall = any_row(self._wit >= 0)[cell]
-        pose, part = np.nonzero(unresolved & ((status != HIT) & ~near_wall)[:, None])
+        pose, part = nonzero_pairs(unresolved, (status != HIT) & ~near_wall)
         # only while it pays: a pose fcl answers costs about as much as EXACT_COST spheres
         # here; the pass stops while the last calls decided fewer poses per sphere (decayed
         # sums, so it is tried again later; the answers are the same either way)
@@ -1134,39 +1191,103 @@ class BroadPhase:
             g = self._side_grid = LazyGrid(self.tree, self.e2, SIDE_GRID, cap)
         return g(x)
 
+    def _side_level(self, C, A, prof: Profile, pose, part, seg, level: int, nseg: int, phi):
+        """The side pass's balls at ``level`` bounded by the grids (:meth:`lower_bound`): row i
+        stands for the ``nseg`` slabs ``seg[i] * nseg + s`` of ``part[i]`` at pose ``pose[i]``.
+        A ball the grids clear narrows its pose's free cone ``phi`` (in place); returns the
+        others in row order: (pose, part, seg, height t, radius R, centre x, bound). With the
+        kernels ``compiled.side_bounds`` (ball by ball, the same bits), the rows in two parts
+        on two threads where they are many (the parts split between poses: each thread
+        writes only its own poses' ``phi``)."""
+        # (only where the kernels are loaded already: the numpy form's grid reads ask for them
+        # by their work, as before, so the kernels load when they did)
+        k = compiled.loaded()
+        if k is None:
+            pose, part = np.repeat(pose, nseg), np.repeat(part, nseg)
+            seg = nseg * np.repeat(seg, nseg) + np.tile(np.arange(nseg), len(seg))
+            t, R = self.side_balls(prof, part, level, seg)
+            x = C[pose] + t[:, None] * A[pose]
+            bound, _, _ = self.lower_bound(x, R + EPS)
+            cert = bound >= R + EPS
+            ok = np.nonzero(cert)[0]
+            # (turning the axis by phi moves the ball's centre by at most |t| phi)
+            min_into(phi, pose[ok], (bound[ok] - R[ok] - EPS) / np.maximum(np.abs(t[ok]), 1e-12))
+            f = np.nonzero(~cert)[0]
+            return pose[f], part[f], seg[f], t[f], R[f], x[f], bound[f]
+        lo, hi = self.box
+        pose = np.ascontiguousarray(pose, np.int64)
+        part = np.ascontiguousarray(part, np.int64)
+        seg = np.ascontiguousarray(seg, np.int64)
+        cut = [0, len(pose)]
+        if len(pose) * nseg >= KERNEL_THREADS and threads() > 1:
+            # (np.nonzero's pairs: sorted by pose, so a pose's rows lie on one side of the cut)
+            mid = len(pose) // 2
+            cut.insert(1, mid + int(np.searchsorted(pose[mid:], pose[mid], "right")))
+        args = (np.int64(level), np.int64(nseg), prof.z0, prof.z1, prof.rout0, prof.rout1,
+                np.ascontiguousarray(lo, float), np.ascontiguousarray(hi, float), *self._grid_arrays(), EPS, phi)
+        C = np.ascontiguousarray(C, float)
+        A = np.ascontiguousarray(A, float)
+        outs: list = []
+        for a, b in zip(cut[:-1], cut[1:]):
+            m = (b - a) * nseg
+            outs.append((np.empty(m, np.int64), np.empty(m), np.empty(m), np.empty((m, 3)), np.empty(m)))
+        nf: list = [0] * len(outs)
+
+        def run(i):
+            try:
+                a, b = cut[i], cut[i + 1]
+                nf[i] = k["side_bounds"](C, A, pose[a:b], part[a:b], seg[a:b], *args, *outs[i])
+            except BaseException as exc:              # raised again in the calling thread
+                nf[i] = exc
+        if len(outs) > 1:
+            other = threading.Thread(target=run, args=(1,))
+            other.start()
+            try:
+                run(0)
+            finally:
+                other.join()
+        else:
+            run(0)
+        for got in nf:
+            if isinstance(got, BaseException):
+                raise got
+        ball = np.concatenate([o[0][:m] + cut[i] * nseg for i, (o, m) in enumerate(zip(outs, nf))])
+        t, R, x, bound = (np.concatenate([o[j][:m] for o, m in zip(outs, nf)]) for j in range(1, 5))
+        row = ball // nseg
+        return pose[row], part[row], nseg * seg[row] + ball % nseg, t, R, x, bound
+
     def _side_pass(self, C, A, prof: Profile, status, unresolved, phi, cell, parts: int = -1):
         """The cone parts the spheres left unresolved, asked with :meth:`side_balls` (module
         doc): a part is cleared when each of its slabs is, at 2^``SIDE_LEVELS[0]`` slabs or,
-        a failing slab split, finer down to 2^``SIDE_LEVELS[1]``; the bounds are the grids',
-        else :meth:`exact_bound`'s, whose nearest samples are tried as hits. Updates
-        ``status``, ``unresolved`` and the free cones ``phi`` in place."""
+        a failing slab split, finer down to 2^``SIDE_LEVELS[1]``; the bounds are the grids'
+        (:meth:`_side_level`), else the side grid's or :meth:`exact_bound`'s, whose nearest
+        samples are tried as hits. Updates ``status``, ``unresolved`` and the free cones
+        ``phi`` in place."""
         cone = np.abs(prof.rout1 - prof.rout0) > 1e-9
         if not cone.any():
             return
-        pose, part = np.nonzero(unresolved & ((status != HIT)[:, None] & cone[None, :]))
+        pose, part = nonzero_pairs(unresolved, status != HIT, cone)
         if len(pose) == 0:
             return
         first, last = SIDE_LEVELS
         lost = np.zeros(unresolved.shape, bool)
         asked_pose, asked_part = pose, part
-        pose, part = np.repeat(pose, 2 ** first), np.repeat(part, 2 ** first)
-        seg = np.tile(np.arange(2 ** first), len(asked_pose))
+        seg, nseg = np.zeros(len(pose), np.int64), 2 ** first
         level = first
         while len(pose):
-            t, R = self.side_balls(prof, part, level, seg)
-            x = C[pose] + t[:, None] * A[pose]
-            bound, _, _ = self.lower_bound(x, R + EPS)
-            cert = bound >= R + EPS
-            rest = np.nonzero(~cert)[0]
+            # the balls the grids leave open (the others have narrowed phi)
+            pose, part, seg, t, R, x, bound = self._side_level(C, A, prof, pose, part, seg, level, nseg, phi)
+            cert = np.zeros(len(pose), bool)
             near = np.full(len(x), -1, np.int64)
+            rest = np.arange(len(pose))
             if len(rest):
                 # the side grid's bound, and its node's sample: where that lies within the
                 # ball (so does the mesh), the exact bound cannot clear it
-                gb, gj = self._side_bound(x[rest], R[rest])
-                bound[rest] = np.maximum(bound[rest], gb)
-                cert[rest] = bound[rest] >= R[rest] + EPS
-                near[rest] = gj
-                rest = rest[~cert[rest]]
+                gb, gj = self._side_bound(x, R)
+                bound = np.maximum(bound, gb)
+                cert = bound >= R + EPS
+                near = gj
+                rest = rest[~cert]
                 q = self.samples[np.maximum(near[rest], 0)] - x[rest]
                 inside = (near[rest] >= 0) & (_dot(q, q) - self.e2 < (R[rest] + EPS) ** 2)
                 rest = rest[~inside]
@@ -1181,17 +1302,12 @@ class BroadPhase:
                 found = self._hits(status, self.samples[near[has]], near[has], pose[has], C, A, prof, parts)
                 self._remember(cell, found)
             ok = np.nonzero(cert)[0]
-            # (turning the axis by phi moves the ball's centre by at most |t| phi)
             min_into(phi, pose[ok], (bound[ok] - R[ok] - EPS) / np.maximum(np.abs(t[ok]), 1e-12))
             if level >= last:
                 lost[pose[bad], part[bad]] = True
                 break
-            keep = np.zeros(len(pose), bool)
-            keep[bad] = True
-            keep &= status[pose] != HIT
-            m = int(keep.sum())
-            pose, part = np.repeat(pose[keep], 2), np.repeat(part[keep], 2)
-            seg = 2 * np.repeat(seg[keep], 2) + np.tile([0, 1], m)
+            keep = bad[status[pose[bad]] != HIT]
+            pose, part, seg, nseg = pose[keep], part[keep], seg[keep], 2
             level += 1
         done = ~lost[asked_pose, asked_part] & (status[asked_pose] != HIT)
         unresolved[asked_pose[done], asked_part[done]] = False
@@ -1264,7 +1380,7 @@ class BroadPhase:
         # remember the new free cones (replacing each centre's narrower one)
         fi = np.nonzero(free & (phi > 0))[0] if parts == -1 or parts == (1 << K) - 1 else np.zeros(0, int)
         if len(fi):
-            self._store_cones(slot[fi], A[fi], np.cos(np.minimum(phi[fi], np.pi)), grow)
+            self._store_cones(slot[fi], A, np.cos(np.minimum(phi[fi], np.pi)), grow, rows=fi)
         st = self.stats
         st["poses"] += n
         st["free"] += int((status == FREE).sum())

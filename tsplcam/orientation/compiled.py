@@ -27,7 +27,10 @@ array calls per level over all poses with temporaries per sphere; ``sphere_loop`
 poses one by one with the same operations per sphere in the same order (about 0.5 us a
 pose on the keycap's candidates against 1.5-2 us), so the same decisions and bits. Its hit
 test (``hit_pairs``: samples inside the tool, their pieces' anchors outside) serves the
-broad phase's other passes too (keycap_mold: 0.32 CPU-s in numpy).
+broad phase's other passes too (keycap_mold: 0.32 CPU-s in numpy). The side pass's balls
+are bounded by the grids in ``side_bounds`` (each ball's slab and centre and its grid reads,
+the same operations; only the balls left open are listed), and the free cones are stored row
+by row in ``store_cones`` (the rounds of numpy's gathers and masks, the same cones kept).
 
 The banded Cholesky solve of the smoothing's polish (``_Banded.solve_box``, 215 solves on
 the keycap) is latency-bound in LAPACK as here; the kernel takes LAPACK's operations in
@@ -608,7 +611,10 @@ def _define(jit):
         (a kernel calling another misses numba's cache). Updates ``status``, ``unresolved``,
         ``phi``; ``hits`` (rows level, pose, sample: what ``_hits`` returns per level) is
         filled from row 0; returns the rows used, or -1 when ``hits`` is too short (the
-        caller asks again with a longer one)."""
+        caller asks again with a longer one). Each (part, level, slab)'s sphere is computed
+        once, into a table, and the read's coordinates are kept in scalars (the same
+        operations; on the all-candidates batch 47 ms on one thread, 78 ms per sphere with
+        small arrays)."""
         K = z0.shape[0]
         width = 0
         for k in range(K):
@@ -624,13 +630,28 @@ def _define(jit):
         cand = np.empty(cap, np.int64)
         comp_j = np.empty(cap, np.int64)
         comp_c = np.empty(cap, np.int64)
-        xs = np.empty(3)
-        f = np.empty(3)
-        r = np.empty(3)
-        kk = np.empty(3, np.int64)
-        sq = np.empty((3, 2))
         nd = anchors.shape[1]
         nh = 0
+        # per (part, level, seg) the sphere: row k * tw + 2^level + seg (the parts asked, as
+        # the loop below asks them)
+        tw = 2 * width
+        tab = np.empty((K * tw, 3))
+        for q in range(asked.shape[0]):
+            k = asked[q]
+            for level in range(max_level[k] + 1):
+                for seg in range(1 << level):
+                    length = (z1[k] - z0[k]) / (1 << level)
+                    za = z0[k] + seg * length
+                    zb = za + length
+                    fa = (za - z0[k]) / (z1[k] - z0[k])
+                    ra = rout0[k] + fa * (rout1[k] - rout0[k])
+                    fb = (zb - z0[k]) / (z1[k] - z0[k])
+                    rb = rout0[k] + fb * (rout1[k] - rout0[k])
+                    rmax = ra if ra >= rb else rb
+                    ti = k * tw + (1 << level) + seg
+                    tab[ti, 0] = 0.5 * (za + zb)
+                    tab[ti, 1] = np.sqrt(rmax * rmax + 0.25 * length * length)
+                    tab[ti, 2] = rmax
         for t in range(todo.shape[0]):
             p = todo[t]
             n = asked.shape[0]
@@ -643,57 +664,74 @@ def _define(jit):
                 for i in range(n):
                     k = a_part[i]
                     seg = a_seg[i]
-                    # SphereCover.spheres
-                    length = (z1[k] - z0[k]) / (1 << level)
-                    za = z0[k] + seg * length
-                    zb = za + length
-                    fa = (za - z0[k]) / (z1[k] - z0[k])
-                    ra = rout0[k] + fa * (rout1[k] - rout0[k])
-                    fb = (zb - z0[k]) / (z1[k] - z0[k])
-                    rb = rout0[k] + fb * (rout1[k] - rout0[k])
-                    rmax = ra if ra >= rb else rb
-                    zc = 0.5 * (za + zb)
-                    s = np.sqrt(rmax * rmax + 0.25 * length * length)
+                    ti = k * tw + (1 << level) + seg
+                    zc = tab[ti, 0]
+                    s = tab[ti, 1]
+                    rmax = tab[ti, 2]
                     # lower_bound: the box, the fine grid, the coarse one where short of the need
-                    for d in range(3):
-                        xs[d] = C[p, d] + zc * A[p, d]
-                    o0 = max(max(box_lo[0] - xs[0], xs[0] - box_hi[0]), 0.0)
-                    o1 = max(max(box_lo[1] - xs[1], xs[1] - box_hi[1]), 0.0)
-                    o2 = max(max(box_lo[2] - xs[2], xs[2] - box_hi[2]), 0.0)
+                    x0 = C[p, 0] + zc * A[p, 0]
+                    x1 = C[p, 1] + zc * A[p, 1]
+                    x2 = C[p, 2] + zc * A[p, 2]
+                    o0 = max(max(box_lo[0] - x0, x0 - box_hi[0]), 0.0)
+                    o1 = max(max(box_lo[1] - x1, x1 - box_hi[1]), 0.0)
+                    o2 = max(max(box_lo[2] - x2, x2 - box_hi[2]), 0.0)
                     bound = np.sqrt(o0 * o0 + o1 * o1 + o2 * o2)
                     need = s + eps + cone_want * zc
                     jg = -1
                     for g in range(2):
                         if g == 1 and not bound < need:
                             break
-                        inside = True
-                        base = 0
-                        nb = 0
                         h = g_h[g]
-                        for d in range(3):
-                            f[d] = (xs[d] - g_origin[g, d]) / h
-                            kk[d] = np.int64(np.floor(f[d]))
-                            if kk[d] < 0 or kk[d] >= g_shape[g, d] - 1:
-                                inside = False
-                            kk[d] = min(max(kk[d], 0), g_shape[g, d] - 2)
-                            r[d] = f[d] - np.float64(kk[d])
-                            base += kk[d] * g_stride[g, d]
-                            if r[d] >= 0.5:
-                                nb += g_stride[g, d]
-                            sq[d, 0] = r[d] * r[d]
-                            sq[d, 1] = (1.0 - r[d]) * (1.0 - r[d])
+                        # grid_read's cell, axis by axis (scalars: the same operations)
+                        f0 = (x0 - g_origin[g, 0]) / h
+                        f1 = (x1 - g_origin[g, 1]) / h
+                        f2 = (x2 - g_origin[g, 2]) / h
+                        k0 = np.int64(np.floor(f0))
+                        k1 = np.int64(np.floor(f1))
+                        k2 = np.int64(np.floor(f2))
+                        inside = (k0 >= 0 and k0 < g_shape[g, 0] - 1 and k1 >= 0 and k1 < g_shape[g, 1] - 1
+                                  and k2 >= 0 and k2 < g_shape[g, 2] - 1)
                         if inside:
-                            best = -np.inf
-                            c = 0
-                            for a in range(2):
-                                for b in range(2):
-                                    for e in range(2):
-                                        dd = h * np.sqrt(sq[0, a] + sq[1, b] + sq[2, e])
-                                        v = g_lb[g_base[g] + base + g_offsets[g, c]] - dd
-                                        if v > best:
-                                            best = v
-                                        c += 1
-                            near = g_idx[g_base[g] + base + nb]
+                            r0 = f0 - np.float64(k0)
+                            r1 = f1 - np.float64(k1)
+                            r2 = f2 - np.float64(k2)
+                            base = g_base[g] + k0 * g_stride[g, 0] + k1 * g_stride[g, 1] + k2 * g_stride[g, 2]
+                            nb = 0
+                            if r0 >= 0.5:
+                                nb += g_stride[g, 0]
+                            if r1 >= 0.5:
+                                nb += g_stride[g, 1]
+                            if r2 >= 0.5:
+                                nb += g_stride[g, 2]
+                            a0 = r0 * r0
+                            a1 = (1.0 - r0) * (1.0 - r0)
+                            b0 = r1 * r1
+                            b1 = (1.0 - r1) * (1.0 - r1)
+                            c0 = r2 * r2
+                            c1 = (1.0 - r2) * (1.0 - r2)
+                            best = g_lb[base + g_offsets[g, 0]] - h * np.sqrt(a0 + b0 + c0)
+                            v = g_lb[base + g_offsets[g, 1]] - h * np.sqrt(a0 + b0 + c1)
+                            if v > best:
+                                best = v
+                            v = g_lb[base + g_offsets[g, 2]] - h * np.sqrt(a0 + b1 + c0)
+                            if v > best:
+                                best = v
+                            v = g_lb[base + g_offsets[g, 3]] - h * np.sqrt(a0 + b1 + c1)
+                            if v > best:
+                                best = v
+                            v = g_lb[base + g_offsets[g, 4]] - h * np.sqrt(a1 + b0 + c0)
+                            if v > best:
+                                best = v
+                            v = g_lb[base + g_offsets[g, 5]] - h * np.sqrt(a1 + b0 + c1)
+                            if v > best:
+                                best = v
+                            v = g_lb[base + g_offsets[g, 6]] - h * np.sqrt(a1 + b1 + c0)
+                            if v > best:
+                                best = v
+                            v = g_lb[base + g_offsets[g, 7]] - h * np.sqrt(a1 + b1 + c1)
+                            if v > best:
+                                best = v
+                            near = g_idx[base + nb]
                         else:
                             best = 0.0
                             near = -1
@@ -876,9 +914,144 @@ def _define(jit):
             i = e
         return nf
 
+    @jit
+    def side_bounds(C, A, pose, part, seg, level, nseg, z0, z1, rout0, rout1, box_lo, box_hi,
+                    g_origin, g_h, g_shape, g_stride, g_offsets, g_base, g_lb, g_idx, eps, phi,
+                    f_ball, f_t, f_R, f_x, f_bound):
+        """The side pass's balls bounded by the grids
+        (:meth:`~tsplcam.orientation.broadphase.BroadPhase._side_level`), ball by ball, the same
+        operations in the same order (so the same bits): row i stands for the ``nseg`` slabs
+        ``seg[i] * nseg + s`` of ``part[i]`` at ``level`` at pose ``pose[i]``; each slab's ball
+        (``side_balls``), its bound from the box, the fine grid and the coarse one where short
+        of R + eps (``lower_bound``, :func:`grid_read`'s read written out). A ball cleared
+        narrows ``phi`` of its pose; the others are listed in order (``f_ball`` row * nseg + s,
+        the ball's height ``f_t``, radius ``f_R``, centre ``f_x`` and bound ``f_bound``).
+        Returns how many are listed."""
+        nf = 0
+        for i in range(pose.shape[0]):
+            p = pose[i]
+            k = part[i]
+            for sg in range(nseg):
+                # side_balls
+                length = (z1[k] - z0[k]) / (1 << level)
+                za = z0[k] + (seg[i] * nseg + sg) * length
+                zb = za + length
+                fa = (za - z0[k]) / (z1[k] - z0[k])
+                ra = rout0[k] + fa * (rout1[k] - rout0[k])
+                fb = (zb - z0[k]) / (z1[k] - z0[k])
+                rb = rout0[k] + fb * (rout1[k] - rout0[k])
+                slope = (rout1[k] - rout0[k]) / (z1[k] - z0[k])
+                t = 0.5 * (za + zb) + slope * 0.5 * (ra + rb)
+                da = t - za
+                db = t - zb
+                Ra = np.sqrt(ra * ra + da * da)
+                Rb = np.sqrt(rb * rb + db * db)
+                R = Ra if Ra >= Rb else Rb
+                # lower_bound: the box, the fine grid, the coarse one where short of R + eps
+                x0 = C[p, 0] + t * A[p, 0]
+                x1 = C[p, 1] + t * A[p, 1]
+                x2 = C[p, 2] + t * A[p, 2]
+                o0 = max(max(box_lo[0] - x0, x0 - box_hi[0]), 0.0)
+                o1 = max(max(box_lo[1] - x1, x1 - box_hi[1]), 0.0)
+                o2 = max(max(box_lo[2] - x2, x2 - box_hi[2]), 0.0)
+                bound = np.sqrt(o0 * o0 + o1 * o1 + o2 * o2)
+                need = R + eps
+                for g in range(2):
+                    if g == 1 and not bound < need:
+                        break
+                    h = g_h[g]
+                    f0 = (x0 - g_origin[g, 0]) / h
+                    f1 = (x1 - g_origin[g, 1]) / h
+                    f2 = (x2 - g_origin[g, 2]) / h
+                    k0 = np.int64(np.floor(f0))
+                    k1 = np.int64(np.floor(f1))
+                    k2 = np.int64(np.floor(f2))
+                    if not (k0 >= 0 and k0 < g_shape[g, 0] - 1 and k1 >= 0 and k1 < g_shape[g, 1] - 1
+                            and k2 >= 0 and k2 < g_shape[g, 2] - 1):
+                        continue                    # outside the grid: its bound 0 adds nothing
+                    r0 = f0 - np.float64(k0)
+                    r1 = f1 - np.float64(k1)
+                    r2 = f2 - np.float64(k2)
+                    base = g_base[g] + k0 * g_stride[g, 0] + k1 * g_stride[g, 1] + k2 * g_stride[g, 2]
+                    a0 = r0 * r0
+                    a1 = (1.0 - r0) * (1.0 - r0)
+                    b0 = r1 * r1
+                    b1 = (1.0 - r1) * (1.0 - r1)
+                    c0 = r2 * r2
+                    c1 = (1.0 - r2) * (1.0 - r2)
+                    best = g_lb[base + g_offsets[g, 0]] - h * np.sqrt(a0 + b0 + c0)
+                    v = g_lb[base + g_offsets[g, 1]] - h * np.sqrt(a0 + b0 + c1)
+                    if v > best:
+                        best = v
+                    v = g_lb[base + g_offsets[g, 2]] - h * np.sqrt(a0 + b1 + c0)
+                    if v > best:
+                        best = v
+                    v = g_lb[base + g_offsets[g, 3]] - h * np.sqrt(a0 + b1 + c1)
+                    if v > best:
+                        best = v
+                    v = g_lb[base + g_offsets[g, 4]] - h * np.sqrt(a1 + b0 + c0)
+                    if v > best:
+                        best = v
+                    v = g_lb[base + g_offsets[g, 5]] - h * np.sqrt(a1 + b0 + c1)
+                    if v > best:
+                        best = v
+                    v = g_lb[base + g_offsets[g, 6]] - h * np.sqrt(a1 + b1 + c0)
+                    if v > best:
+                        best = v
+                    v = g_lb[base + g_offsets[g, 7]] - h * np.sqrt(a1 + b1 + c1)
+                    if v > best:
+                        best = v
+                    if best > bound:
+                        bound = best
+                if bound >= R + eps:
+                    at = abs(t)
+                    v = (bound - R - eps) / (at if at >= 1e-12 else 1e-12)
+                    if v < phi[p]:
+                        phi[p] = v
+                else:
+                    f_ball[nf] = i * nseg + sg
+                    f_t[nf] = t
+                    f_R[nf] = R
+                    f_x[nf, 0] = x0
+                    f_x[nf, 1] = x1
+                    f_x[nf, 2] = x2
+                    f_bound[nf] = bound
+                    nf += 1
+        return nf
+
+    @jit
+    def store_cones(slot, rows, A, c, rounds, from_fcl, cone_a, cone_c, cone_f):
+        """:meth:`~tsplcam.orientation.broadphase.BroadPhase._store_cones` row by row (row i's
+        axis ``A[rows[i]]``): its
+        ``rounds`` rounds each put, per slot, the first row (in row order) whose cone is wider
+        than the slot's narrowest (the first largest cos) in the narrowest's place; a row
+        before a slot's pick is not wider than the narrowest then, nor than any later
+        narrowest (the narrowest only widens), so taking the rows in order, each slot at most
+        ``rounds`` times, puts the same cones in the same places."""
+        taken = np.zeros(cone_c.shape[0], np.int64)
+        K = cone_c.shape[1]
+        for i in range(slot.shape[0]):
+            s = slot[i]
+            if taken[s] >= rounds:
+                continue
+            worst = 0
+            most = cone_c[s, 0]
+            for k in range(1, K):
+                if cone_c[s, k] > most:
+                    worst = k
+                    most = cone_c[s, k]
+            if c[i] < most:
+                cone_a[s, worst, 0] = A[rows[i], 0]
+                cone_a[s, worst, 1] = A[rows[i], 1]
+                cone_a[s, worst, 2] = A[rows[i], 2]
+                cone_c[s, worst] = c[i]
+                cone_f[s, worst] = from_fcl != 0
+                taken[s] += 1
+
     return {"hit_pairs": hit_pairs, "viterbi_steps": viterbi_steps, "joint_steps": joint_steps, "viterbi_path": viterbi_path,
             "banded_solve": banded_solve, "grid_read": grid_read, "two_states": two_states,
-            "solve_box": solve_box, "sphere_loop": sphere_loop}
+            "solve_box": solve_box, "sphere_loop": sphere_loop, "side_bounds": side_bounds,
+            "store_cones": store_cones}
 
 
 #: each kernel's types for the ahead-of-time module, as the callers pass them (numba's JIT
@@ -899,6 +1072,10 @@ SIGNATURES = {
                    " f8[3], f8, f8, i1[1]w, b1[2]w, f8[1]w, i8[2]w)",
     "hit_pairs": "i8(f8[2], i8[1], i8[1], i8[1], f8[2], f8[2], f8[1], f8[1], f8[1], f8[1], f8[1], f8[1], i8,"
                  " i4[1], f8[3], f8, i1[1]w, i8[2]w)",
+    "side_bounds": "i8(f8[2], f8[2], i8[1], i8[1], i8[1], i8, i8, f8[1], f8[1], f8[1], f8[1], f8[1], f8[1],"
+                   " f8[2], f8[1], i8[2], i8[2], i8[2], i8[1], f8[1], i8[1], f8, f8[1]w, i8[1]w, f8[1]w, f8[1]w,"
+                   " f8[2]w, f8[1]w)",
+    "store_cones": "void(i8[1], i8[1], f8[2], f8[1], i8, i8, f8[3]w, f8[2]w, b1[2]w)",
 }
 #: the ahead-of-time module's name (beside this file, built by :func:`build_aot`)
 AOT_MODULE = "_aot_kernels"
@@ -1158,10 +1335,11 @@ def _exercise() -> None:
     DistanceGrid(cKDTree(P), 0.0, P[0], P[0] + 1.0, 0.5, 0.5, 1.0, 64)(np.full((2, 3), 0.25))
     from .broadphase import BroadPhase, Profile
     one = np.ones(1)
-    tri = BroadPhase(np.eye(3), np.array([[0, 1, 2]]), lambda grow: Profile(0.5 * one, 3 * one, one, one, one, one), 0.5)
-    C, A = np.full((2, 3), 0.5), np.array([[0.0, 0.0, 1.0], [1.0, 0.0, 0.0]])
+    # (a cone part, for the side pass's kernel; the pose far off is free: its cone is stored)
+    tri = BroadPhase(np.eye(3), np.array([[0, 1, 2]]), lambda grow: Profile(0.5 * one, 3 * one, one, 2 * one, one, 2 * one), 0.5)
+    C, A = np.array([[0.5, 0.5, 0.5], [0.5, 0.5, 0.5], [9.0, 9.0, 9.0]]), np.array([[0.0, 0.0, 1.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]])
     tri.decide(C, A)
-    tri._hits(np.full(2, -1, np.int8), tri.samples[[0, 1]], np.arange(2), np.arange(2), C, A, tri._cover(0.0).prof)
+    tri._hits(np.full(3, -1, np.int8), tri.samples[[0, 1]], np.arange(2), np.arange(2), C, A, tri._cover(0.0).prof)
 
 
 def warm() -> float:

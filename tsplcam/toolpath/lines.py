@@ -31,7 +31,10 @@ the first whose cusp misses the accept window, and that one is corrected by the 
 measured trial. The accept window is the same as one step at a time, so the lines meet the
 same scallop condition; on the keycap job about two predicted steps in three are kept (623 of
 952, parity trials included). A batch's gaps are measured ``STAGE`` at a time, and not past a
-group with a miss (those gaps are never read).
+group with a miss (those gaps are never read). The secant's first candidate after a miss is
+measured in one call with the gaps of the batch that follows if the secant takes it (it takes
+the first candidate at 427 of 428 misses on four sample jobs); if it goes on,
+that batch is dropped.
 
 The target is SAFETY h (0.995 h) less what the chords between points may add
 (:class:`Target`); what the generator cannot see between its samples is left to that
@@ -597,8 +600,12 @@ class Placer:
             while True:
                 if req[0] is _LINES:
                     new = [x for x in req[1] if x not in self._lines]
-                    if new:
-                        self._evaluate_lines(new)
+                    try:
+                        if new:
+                            self._evaluate_lines(new)
+                    except GeometryError as e:       # raised where the trial asked (it may catch)
+                        req = gen.throw(e)
+                        continue
                     req = gen.send(None)
                 else:
                     req = gen.send(self.ratios(req[1], req[2], req[3]))
@@ -715,6 +722,15 @@ class Placer:
         return self._drive(self._step_g(s, guess_factor, target, first))
 
     def _step_g(self, s: float, guess_factor: float, target: Target, first=None):
+        step, _ = yield from self._secant_g(s, guess_factor, target, first)
+        return step
+
+    def _secant_g(self, s: float, guess_factor: float, target: Target, first=None, known=None):
+        """:meth:`step` as a step of a trial, and the batch measured ahead (None if not).
+        ``known``: the (s values, first-order steps) of the placed lines when the trial goes on
+        with a batch after this step (``first`` given): the secant's first candidate is then
+        measured together with that batch's gaps (:meth:`_measure_ahead_g`)."""
+        ahead = None
         g1 = yield from self._line_g(s)
         th = yield from self._target_at_g(s, target)
         d0 = yield from self._first_order_at_g(s, target)
@@ -727,6 +743,8 @@ class Placer:
         for it in range(MAX_SECANT):
             if it == 0 and first is not None:
                 R = first[1]
+            elif it == 1 and known is not None and d < cap * (1 - 1e-12) and s + d < 1.0 - 1e-12:
+                R, ahead = yield from self._measure_ahead_g(s, g1, th, d, d0, target, known)
             else:
                 R = float((yield _RATIOS, g1, np.array([d]), th)[0])
             hist.append((d, R))
@@ -735,9 +753,9 @@ class Placer:
                     lo, lo_r = d, R
                 if d >= cap * (1 - 1e-12):
                     full = cap * (AIM / R) ** 0.5 if R > 0 else np.inf
-                    return cap, R, max(full, cap), d / d0
+                    return (cap, R, max(full, cap), d / d0), None
                 if R >= ACCEPT:
-                    return d, R, d, d / d0
+                    return (d, R, d, d / d0), ahead
             else:
                 hi = min(hi, d)
             if len(hist) >= 2 and hist[-1][0] != hist[-2][0] and hist[-1][1] > 0 and hist[-2][1] > 0 \
@@ -751,15 +769,56 @@ class Placer:
                 nd = np.sqrt(lo * hi) if lo > 0 and np.isfinite(hi) else (0.5 * d if nd >= hi else 2 * d)
             d = min(nd, cap)
         if lo > 0:
-            return lo, lo_r, lo, lo / d0
+            return (lo, lo_r, lo, lo / d0), None
         d = min(hist[-1][0], cap)
         for _ in range(60):                      # nothing fitted: shrink until it does
             d *= 0.5
             R = float((yield _RATIOS, g1, np.array([d]), th)[0])
             if R <= FIT:
-                return d, R, d, d / d0
+                return (d, R, d, d / d0), None
         raise GeometryError(f"{self.frame.patch.name}: the side step from the line at s = {s:.6f} "
                             f"does not converge (scallop {target.h:g} mm)")
+
+    def _measure_ahead_g(self, s: float, g1: FrameGeom, th: np.ndarray, d: float, d0: float, target: Target,
+                         known: tuple):
+        """The cusp ratio of the secant's candidate step d from line s, measured in one call
+        with the gaps of the batch the trial makes next if the secant takes d (almost always:
+        the first candidate; the batch from s + d at the factor d / d0, its first-order steps
+        extrapolated from ``known`` and s + d). Returns (ratio, the batch as :meth:`_run` gives
+        it) when the secant takes d, else (ratio, None): then the batch's lines stay evaluated
+        (the same lines whenever asked for) and its gaps are dropped. A line out of reach
+        there ends the look ahead, and is met again if the trial comes to it."""
+        s1 = s + d
+        run = None
+        try:
+            d01 = yield from self._first_order_at_g(s1, target)
+            if np.isfinite(d01) and d01 > 0:
+                ks, kd = known
+                if not ks or s1 > ks[-1]:
+                    ks, kd = ks + [s1], kd + [d01]
+                run = self._run_g(s1, float(min(max(d / d0, 0.25), 4.0)), target, LOOKAHEAD[0], (ks, kd))
+                req = next(run)
+                while req[0] is _LINES:
+                    yield req
+                    req = run.send(None)
+        except GeometryError:
+            if run is not None:
+                run.close()
+            run = None
+        if run is None:
+            return float((yield _RATIOS, g1, np.array([d]), th)[0]), None
+        both = yield (_RATIOS, FrameGeom.concat([g1, req[1]]), _concatenate([np.array([d]), req[2]]),
+                      _concatenate([np.asarray(th, float).ravel(), req[3]]))
+        R = float(both[0])
+        if not ACCEPT <= R <= FIT:                   # the secant goes on: the batch is not made
+            run.close()
+            return R, None
+        try:
+            req = run.send(both[1:])
+            while True:
+                req = run.send((yield req))
+        except StopIteration as stop:
+            return R, stop.value
 
     def _run(self, s: float, factor: float, target: Target, count: int, known: tuple):
         """Up to ``count`` steps from line s predicted at once (module doc): each the current
@@ -830,13 +889,18 @@ class Placer:
         full = np.nan
         ks, kd = [], []                            # exact first-order steps at placed lines
         count = LOOKAHEAD[0]
+        ahead = None                               # the batch measured with the last secant
         while True:
             d0 = yield from self._first_order_at_g(s, target)
             if not np.isfinite(d0) or d0 <= 0:
                 raise GeometryError(f"{self.frame.patch.name}: no side step from the line at s = {s:.6f}")
             if not ks or s > ks[-1]:
                 ks.append(s), kd.append(d0)
-            S, D, R, geoms, th = yield from self._run_g(s, factor, target, count, (ks, kd))
+            if ahead is not None:
+                S, D, R, geoms, th = ahead
+                ahead = None
+            else:
+                S, D, R, geoms, th = yield from self._run_g(s, factor, target, count, (ks, kd))
             done = False
             missed = None
             for j, (d, r_) in enumerate(zip(D, R)):
@@ -863,7 +927,8 @@ class Placer:
                 count = min(2 * count, LOOKAHEAD[1])
             else:
                 s = S[missed]
-                d, r_, full, f = yield from self._step_g(s, factor, target, first=(D[missed], float(R[missed])))
+                (d, r_, full, f), ahead = yield from self._secant_g(s, factor, target, (D[missed], float(R[missed])),
+                                                                    (ks, kd))
                 factor = float(min(max(f, 0.25), 4.0))
                 count = LOOKAHEAD[0]
                 ratios.append(r_)
@@ -914,8 +979,8 @@ class Placer:
                 if not ok:
                     raise res
                 pos, ratios, full = res
-            elif ahead:
-                fs = [factor] + list(ahead)
+            elif any(f not in ahead_of for f in ahead):
+                fs = [factor] + [f for f in ahead if f not in ahead_of]
                 got = self._lockstep([self._place_g(self.target.scaled(f)) for f in fs])
                 ahead_of.update(zip(fs[1:], got[1:]))
                 ok, res = got[0]

@@ -420,52 +420,25 @@ def _cusp_heights(frame, g1, ds, r):
     s2 = np.minimum(s1 + ds, 1.0)
     f = _END_F
     k_end = END_SAMPLES
-    # one evaluation per gap block: the partners on line 2 (m), line 2 at its ends and just
-    # inside them (4), line 1 at its ends (2), the mid points of the cusps (m), the edges
-    # between the ends (2 k)
-    B = 2 * m + 6 + 2 * k_end
+    # two evaluations per gap block. The first reads positions and normals alone (second
+    # False: the same values as with the second derivatives): the partners on line 2 (m),
+    # line 2 at its ends and just inside them (4), line 1 at its ends (2), the edges between
+    # the ends (2 k). The second, after the ends' coarse pass: the mid points of the cusps
+    # (m), whose second fundamental form the foot point reads, and the edge points of the
+    # fine pass (2 k)
+    B = m + 6 + 2 * k_end
     S = np.empty((G, B))
     T = np.empty((G, B))
     S[:, :m + 4] = s2[:, None]
     S[:, m + 4:m + 6] = s1[:, None]
-    S[:, m + 6:2 * m + 6] = (0.5 * (s1 + s2))[:, None]
-    S[:, 2 * m + 6:] = s1[:, None] + _END_F2[None, :] * (s2 - s1)[:, None]
+    S[:, m + 6:] = s1[:, None] + _END_F2[None, :] * (s2 - s1)[:, None]
     T[:, :m] = t2
     T[:, m:m + 6] = _END_T6
-    T[:, m + 6:2 * m + 6] = 0.5 * (t1 + t2)
-    T[:, 2 * m + 6:] = _END_T
-    ga = frame.evaluate(S.ravel(), T.ravel())
+    T[:, m + 6:] = _END_T
+    ga = frame.evaluate(S.ravel(), T.ravel(), second=False)
     P, n, St = rs(ga.P), rs(ga.n), rs(ga.St)
     gP, gn = P[:, :m + 6], n[:, :m + 6]
-    mP, mn, mSs, mSt = P[:, m + 6:2 * m + 6], n[:, m + 6:2 * m + 6], rs(ga.Ss)[:, m + 6:2 * m + 6], \
-        St[:, m + 6:2 * m + 6]
-    mid = slice(m + 6, 2 * m + 6)
-    # the fundamental forms at the mid points alone, on a copy of their rows (a form is made
-    # row by row: the same values as on all the call's points, for a third of the work)
-    fm = object.__new__(FrameGeom)
-    for k in ("n", "Ss", "St", "Sss", "Sst", "Stt"):
-        setattr(fm, k, rs(getattr(ga, k))[:, mid].reshape(-1, 3))
-    mE, mF, mG, mL, mM, mN = (getattr(fm, k).reshape(G, m) for k in ("E", "F", "G", "L", "M", "N"))
     c2all = gP + r * gn
-    n1 = rs(g1.n)
-    c1 = rs(g1.P) + r * n1
-    c2 = c2all[:, :m]
-    w = c2 - c1
-    d2 = _einsum("gij,gij->gi", w, w)
-    meet = d2 < 4 * r * r
-    down = -(n1 + gn[:, :m])
-    down -= (_einsum("gij,gij->gi", down, w) / _where(d2 > 0, d2, 1.0))[..., None] * w
-    down /= np.maximum(_norm3(down), 1e-300)
-    q = 0.5 * (c1 + c2) + np.sqrt(np.maximum(r * r - 0.25 * d2, 0.0))[..., None] * down
-    rel = q - mP
-    # Gauss-Newton foot offset (ds, dt): (J^T J) x = J^T rel
-    ra, rb = _einsum("gij,gij->gi", mSs, rel), _einsum("gij,gij->gi", mSt, rel)
-    det = mE * mG - mF * mF
-    x = _where(det > 0, (mG * ra - mF * rb) / det, 0.0)
-    y = _where(det > 0, (mE * rb - mF * ra) / det, 0.0)
-    height = _einsum("gij,gij->gi", mn, rel) - 0.5 * (mL * x * x + 2 * mM * x * y + mN * y * y)
-    height = _where(meet, height, np.inf)
-    height = _where(beyond, np.nan, height)
     # the ends: material along the edge between the two end balls, each line's tube taken
     # as a straight capsule from its end ball along the line (into the patch)
     St1 = rs(g1.St)
@@ -483,15 +456,12 @@ def _cusp_heights(frame, g1, ds, r):
     ends = np.zeros((G, 2))
     lo = np.zeros((G, 2))
     width = np.ones((G, 2))
-    eP, en = P[:, 2 * m + 6:], n[:, 2 * m + 6:]
     gi, li = np.arange(G)[:, None], np.arange(2)[None, :]
     take = lambda a, i: a[gi, li, i]          # noqa: E731  a[g, l, i[g, l]]
-    for rnd in range(2):        # a coarse pass, then one inside the bracket of the crossing
-        if rnd == 1:
-            ff = lo[..., None] + width[..., None] * f                  # (G, 2, k)
-            ge = frame.evaluate((s1[:, None] + np.minimum(np.maximum(ff, 0), 1).reshape(G, -1)
-                                 * (s2 - s1)[:, None]).ravel(), _end_t(G), second=False)
-            eP, en = rs(ge.P), rs(ge.n)
+
+    def end_pass(eP, en, ends, lo, width):
+        """One pass along the edges (a coarse one, then one inside the bracket of the
+        crossing): the ends so far, and the bracket for the next."""
         h = _capsule_entry(eP.reshape(G, 1, 2, -1, 3), en.reshape(G, 1, 2, -1, 3), ca, cb, r, seg)
         h1, h2 = h[:, 0], h[:, 1]                                        # (G, 2, k)
         # the material peaks where the two tubes leave the same height (line 1's lower near
@@ -512,7 +482,45 @@ def _cusp_heights(frame, g1, ds, r):
         ends = np.maximum(ends, _where(ok, np.maximum(cross, take(low, k)), peak))
         step = width / (k_end - 1)
         lo = np.minimum(np.maximum(lo + step * (k - 1), 0.0), 1.0)
-        width = step
+        return ends, lo, step
+
+    ends, lo, width = end_pass(P[:, m + 6:], n[:, m + 6:], ends, lo, width)
+    ff = lo[..., None] + width[..., None] * f                  # (G, 2, k)
+    S = np.empty((G, m + 2 * k_end))
+    T = np.empty((G, m + 2 * k_end))
+    S[:, :m] = (0.5 * (s1 + s2))[:, None]
+    S[:, m:] = s1[:, None] + np.minimum(np.maximum(ff, 0), 1).reshape(G, -1) * (s2 - s1)[:, None]
+    T[:, :m] = 0.5 * (t1 + t2)
+    T[:, m:] = _END_T
+    gb = frame.evaluate(S.ravel(), T.ravel())
+    Pb, nb = rs(gb.P), rs(gb.n)
+    ends, _, _ = end_pass(Pb[:, m:], nb[:, m:], ends, lo, width)
+    mP, mn, mSs, mSt = Pb[:, :m], nb[:, :m], rs(gb.Ss)[:, :m], rs(gb.St)[:, :m]
+    # the fundamental forms at the mid points alone, on a copy of their rows (a form is made
+    # row by row: the same values as on all the call's points, for a third of the work)
+    fm = object.__new__(FrameGeom)
+    for k in ("n", "Ss", "St", "Sss", "Sst", "Stt"):
+        setattr(fm, k, rs(getattr(gb, k))[:, :m].reshape(-1, 3))
+    mE, mF, mG, mL, mM, mN = (getattr(fm, k).reshape(G, m) for k in ("E", "F", "G", "L", "M", "N"))
+    n1 = rs(g1.n)
+    c1 = rs(g1.P) + r * n1
+    c2 = c2all[:, :m]
+    w = c2 - c1
+    d2 = _einsum("gij,gij->gi", w, w)
+    meet = d2 < 4 * r * r
+    down = -(n1 + gn[:, :m])
+    down -= (_einsum("gij,gij->gi", down, w) / _where(d2 > 0, d2, 1.0))[..., None] * w
+    down /= np.maximum(_norm3(down), 1e-300)
+    q = 0.5 * (c1 + c2) + np.sqrt(np.maximum(r * r - 0.25 * d2, 0.0))[..., None] * down
+    rel = q - mP
+    # Gauss-Newton foot offset (ds, dt): (J^T J) x = J^T rel
+    ra, rb = _einsum("gij,gij->gi", mSs, rel), _einsum("gij,gij->gi", mSt, rel)
+    det = mE * mG - mF * mF
+    x = _where(det > 0, (mG * ra - mF * rb) / det, 0.0)
+    y = _where(det > 0, (mE * rb - mF * ra) / det, 0.0)
+    height = _einsum("gij,gij->gi", mn, rel) - 0.5 * (mL * x * x + 2 * mM * x * y + mN * y * y)
+    height = _where(meet, height, np.inf)
+    height = _where(beyond, np.nan, height)
     return height, ends
 
 

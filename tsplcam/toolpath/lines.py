@@ -100,7 +100,7 @@ class FrameGeom:
     t: np.ndarray
 
     # E, F, G, L, M, N and det = E G - F^2: the fundamental forms, computed on first use
-    # (the chord placement and the cusps' second evaluation never read them)
+    # (the chord placement and the cusps' evaluations never read them on their whole rows)
     FORMS = ("E", "F", "G", "L", "M", "N", "det")
 
     def __getattr__(self, name):

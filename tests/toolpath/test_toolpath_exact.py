@@ -308,12 +308,23 @@ class SameBytes(unittest.TestCase):
 
     def test_lockstep_keeps_each_trials_error(self):
         """A trial that fails in a lockstep fails alone: its error is its result, the others
-        run on."""
+        run on; a line out of reach among several trials' lines goes to the trial that asked
+        for it."""
         fr = LineFrame(self.model.patches[4], "u", 0)
         pl = Placer(fr, Target(0.5, 0.005, 0.0005, 1.0))
+        check = lines_module.check_reachable
+
+        def out_of_reach_at_quarter(frame, geom, r):
+            if (geom.s == 0.25).any():
+                raise GeometryError("out of reach")
+            check(frame, geom, r)
 
         def fails():
-            yield "lines", [0.25]
+            yield from pl._line_g(0.25)
+            return "reached"
+
+        def raises():
+            yield "lines", [0.75]
             raise GeometryError("no side step")
 
         def measures():
@@ -321,12 +332,14 @@ class SameBytes(unittest.TestCase):
             r = yield "ratios", g, np.array([0.01]), np.full(len(g.t), 0.005)
             return float(r[0])
 
-        (ok1, e), (ok2, r) = pl._lockstep([fails(), measures()])
-        self.assertFalse(ok1)
-        self.assertIsInstance(e, GeometryError)
-        self.assertTrue(ok2 and r > 0)
-        self.assertIn(0.25, pl._lines)
-
+        with patch.object(lines_module, "check_reachable", out_of_reach_at_quarter):
+            (ok1, e1), (ok2, e2), (ok3, r) = pl._lockstep([fails(), raises(), measures()])
+        self.assertFalse(ok1 or ok2)
+        self.assertEqual((str(e1), str(e2)), ("out of reach", "no side step"))
+        self.assertTrue(ok3 and r > 0)
+        self.assertNotIn(0.25, pl._lines)
+        self.assertIn(0.5, pl._lines)
+        self.assertIn(0.75, pl._lines)
 
 if __name__ == "__main__":
     unittest.main()

@@ -3,13 +3,16 @@ stay the same bytes (issue 16: the keycap and keycap_mold programs must not chan
 path gets faster). Here, and only here, values are compared byte for byte: the claim under
 test is identity, not closeness."""
 import unittest
+from unittest.mock import patch
 
 import numpy as np
 
 from tsplcam import load_model
 from tsplcam.model.basis import bernstein_rows
+from tsplcam.errors import GeometryError
 from tsplcam.model.cells import DERIVS, BezierCells, LevelCells
-from tsplcam.toolpath.lines import (LineFrame, Placer, Target, _capsule_entry, _capsule_segments, _cross, _norm3,
+from tsplcam.toolpath import lines as lines_module
+from tsplcam.toolpath.lines import (ACCEPT, FIT, STAGE, LineFrame, Placer, Target, _capsule_entry, _capsule_segments, _cross, _norm3,
                                     _sum3, _unit_normal)
 
 
@@ -248,6 +251,95 @@ class SameBytes(unittest.TestCase):
             batch = pl._first[(float(x), target.h, target.undercut, target.max_step)]
             self.assertTrue(same(batch, alone.first_order_at(x, target)), x)
 
+    def test_trials_in_lockstep_are_trials_alone(self):
+        """Parity trials run together (their lines in one evaluation, their gaps in one cusp
+        measurement) place the same lines, bytes and all, as each alone; a batch measured a
+        stage at a time gives the same ratios as measured whole, up to its first miss (keycap
+        patch 4)."""
+        fr = LineFrame(self.model.patches[4], "u", 0)
+        target = Target(0.5, 0.005, 0.0005, 1.0)
+        pl = Placer(fr, target)
+        factors = (0.9, 0.95)
+        got = pl._lockstep([pl._place_g(target.scaled(f)) for f in factors])
+        for f, (ok, (pos, ratios, full)) in zip(factors, got):
+            self.assertTrue(ok)
+            want = Placer(fr, target).place(target.scaled(f))
+            self.assertTrue(same(pos, want[0]) and same(ratios, want[1]) and same(full, want[2]), f)
+        # a 32-line batch: staged, it stops measuring after the stage with its first miss
+        known = ([0.0], [pl.first_order_at(0.0, target)])
+        S, D, R, _, _ = Placer(fr, target)._run(0.0, 1.03, target, 32, known)
+        with patch.object(lines_module, "STAGE", 1000):
+            S2, D2, R2, _, _ = Placer(fr, target)._run(0.0, 1.03, target, 32, known)
+        self.assertTrue(same(S, S2) and same(D, D2))
+        self.assertLess(len(R), len(D))                  # a stage left unmeasured
+        self.assertTrue(same(R, R2[:len(R)]))
+        miss = np.nonzero((R2 < ACCEPT) | (R2 > FIT))[0]
+        self.assertTrue(len(miss) and len(R) == min(len(R2), (miss[0] // STAGE + 1) * STAGE), (len(R), miss))
+
+    def test_trials_run_ahead_change_nothing(self):
+        """The tuning with the trials the first one predicts run ahead gives the placement it
+        gives with none run ahead: the same trials, lines and ratios."""
+        fr = LineFrame(self.model.patches[4], "u", 0)
+        target = Target(0.5, 0.005, 0.0005, 1.0)
+        n0 = len(Placer(fr, target).place(target)[0])
+        ahead = Placer(fr, target).tuned(1 - n0 % 2)
+        with patch.object(lines_module, "AHEAD_MAX", 0):
+            alone = Placer(fr, target).tuned(1 - n0 % 2)
+        self.assertGreaterEqual(len(ahead.trials), 3)
+        self.assertEqual(ahead.trials, alone.trials)
+        self.assertTrue(same(ahead.s, alone.s) and same(ahead.ratio, alone.ratio))
+
+    def test_secant_with_the_batch_ahead_is_the_secant(self):
+        """The secant's first candidate measured with the next batch's gaps places the lines
+        it places measured alone, whether the secant takes it or goes on (with the accept
+        window narrowed to [0.99, 1] it goes on at about half the misses; keycap patch 4)."""
+        fr = LineFrame(self.model.patches[4], "u", 0)
+        target = Target(0.5, 0.005, 0.0005, 1.0)
+
+        def alone(self, s, g1, th, d, d0, target, known):       # the candidate alone, no batch
+            return float((yield "ratios", g1, np.array([d]), th)[0]), None
+
+        for accept in (ACCEPT, 0.99):
+            with patch.object(lines_module, "ACCEPT", accept):
+                got = Placer(fr, target).place(target)
+                with patch.object(Placer, "_measure_ahead_g", alone):
+                    want = Placer(fr, target).place(target)
+            self.assertTrue(all(same(a, b) for a, b in zip(got, want)), accept)
+
+    def test_lockstep_keeps_each_trials_error(self):
+        """A trial that fails in a lockstep fails alone: its error is its result, the others
+        run on; a line out of reach among several trials' lines goes to the trial that asked
+        for it."""
+        fr = LineFrame(self.model.patches[4], "u", 0)
+        pl = Placer(fr, Target(0.5, 0.005, 0.0005, 1.0))
+        check = lines_module.check_reachable
+
+        def out_of_reach_at_quarter(frame, geom, r):
+            if (geom.s == 0.25).any():
+                raise GeometryError("out of reach")
+            check(frame, geom, r)
+
+        def fails():
+            yield from pl._line_g(0.25)
+            return "reached"
+
+        def raises():
+            yield "lines", [0.75]
+            raise GeometryError("no side step")
+
+        def measures():
+            g = yield from pl._line_g(0.5)
+            r = yield "ratios", g, np.array([0.01]), np.full(len(g.t), 0.005)
+            return float(r[0])
+
+        with patch.object(lines_module, "check_reachable", out_of_reach_at_quarter):
+            (ok1, e1), (ok2, e2), (ok3, r) = pl._lockstep([fails(), raises(), measures()])
+        self.assertFalse(ok1 or ok2)
+        self.assertEqual((str(e1), str(e2)), ("out of reach", "no side step"))
+        self.assertTrue(ok3 and r > 0)
+        self.assertNotIn(0.25, pl._lines)
+        self.assertIn(0.5, pl._lines)
+        self.assertIn(0.75, pl._lines)
 
 if __name__ == "__main__":
     unittest.main()

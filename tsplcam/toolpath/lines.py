@@ -30,7 +30,11 @@ their own first-order steps in one and all their gaps' cusps in two; the steps a
 the first whose cusp misses the accept window, and that one is corrected by the secant from its
 measured trial. The accept window is the same as one step at a time, so the lines meet the
 same scallop condition; on the keycap job about two predicted steps in three are kept (623 of
-952, parity trials included).
+952, parity trials included). A batch's gaps are measured ``STAGE`` at a time, and not past a
+group with a miss (those gaps are never read). The secant's first candidate after a miss is
+measured in one call with the gaps of the batch that follows if the secant takes it (it takes
+the first candidate at 427 of 428 misses on four sample jobs); if it goes on,
+that batch is dropped.
 
 The target is SAFETY h (0.995 h) less what the chords between points may add
 (:class:`Target`); what the generator cannot see between its samples is left to that
@@ -40,7 +44,10 @@ came to 0.969-0.996 h before the margin, 0.971 h on the paper's keycap job after
 Parity (section 3.5): the zigzag ends on the finish corner's side only for the right
 parity of the line count; otherwise the scallop is lowered in steps of 0.1 h, bisecting
 between the last two scallops when a step overshoots, until the count has the needed
-parity. Then (``balance``, an addition to the paper) the slack of the partial last gap is
+parity. The trials the first one's count predicts are run together with the next one
+(:meth:`Placer._lockstep`: one call for all their waiting lines, one for all their gaps; the
+values of each line and gap are those of the trial alone); a trial run ahead is used only when
+the tuning comes to it. Then (``balance``, an addition to the paper) the slack of the partial last gap is
 spread over all gaps by scaling the line positions, and each gap's cusp is measured again;
 if any would exceed the limit the unscaled positions are kept.
 """
@@ -73,6 +80,8 @@ _END_T = np.repeat([0.0, 1.0], END_SAMPLES)                   # their t
 _END_T6 = np.array([0.0, 1.0, EDGE_EPS, 1.0 - EDGE_EPS, 0.0, 1.0])   # line ends, just inside, line 1's ends
 MAX_TUNING = 60
 LOOKAHEAD = (4, 32)      # lines predicted per batch: after a miss, at most
+STAGE = 16               # gaps of a batch measured per call (the rest only if all are kept)
+_LINES, _RATIOS = "lines", "ratios"          # the requests of a trial (Placer._place_g)
 
 
 @dataclass
@@ -91,7 +100,7 @@ class FrameGeom:
     t: np.ndarray
 
     # E, F, G, L, M, N and det = E G - F^2: the fundamental forms, computed on first use
-    # (the chord placement and the cusps' second evaluation never read them)
+    # (the chord placement and the cusps' evaluations never read them on their whole rows)
     FORMS = ("E", "F", "G", "L", "M", "N", "det")
 
     def __getattr__(self, name):
@@ -411,52 +420,25 @@ def _cusp_heights(frame, g1, ds, r):
     s2 = np.minimum(s1 + ds, 1.0)
     f = _END_F
     k_end = END_SAMPLES
-    # one evaluation per gap block: the partners on line 2 (m), line 2 at its ends and just
-    # inside them (4), line 1 at its ends (2), the mid points of the cusps (m), the edges
-    # between the ends (2 k)
-    B = 2 * m + 6 + 2 * k_end
+    # two evaluations per gap block. The first reads positions and normals alone (second
+    # False: the same values as with the second derivatives): the partners on line 2 (m),
+    # line 2 at its ends and just inside them (4), line 1 at its ends (2), the edges between
+    # the ends (2 k). The second, after the ends' coarse pass: the mid points of the cusps
+    # (m), whose second fundamental form the foot point reads, and the edge points of the
+    # fine pass (2 k)
+    B = m + 6 + 2 * k_end
     S = np.empty((G, B))
     T = np.empty((G, B))
     S[:, :m + 4] = s2[:, None]
     S[:, m + 4:m + 6] = s1[:, None]
-    S[:, m + 6:2 * m + 6] = (0.5 * (s1 + s2))[:, None]
-    S[:, 2 * m + 6:] = s1[:, None] + _END_F2[None, :] * (s2 - s1)[:, None]
+    S[:, m + 6:] = s1[:, None] + _END_F2[None, :] * (s2 - s1)[:, None]
     T[:, :m] = t2
     T[:, m:m + 6] = _END_T6
-    T[:, m + 6:2 * m + 6] = 0.5 * (t1 + t2)
-    T[:, 2 * m + 6:] = _END_T
-    ga = frame.evaluate(S.ravel(), T.ravel())
+    T[:, m + 6:] = _END_T
+    ga = frame.evaluate(S.ravel(), T.ravel(), second=False)
     P, n, St = rs(ga.P), rs(ga.n), rs(ga.St)
     gP, gn = P[:, :m + 6], n[:, :m + 6]
-    mP, mn, mSs, mSt = P[:, m + 6:2 * m + 6], n[:, m + 6:2 * m + 6], rs(ga.Ss)[:, m + 6:2 * m + 6], \
-        St[:, m + 6:2 * m + 6]
-    mid = slice(m + 6, 2 * m + 6)
-    # the fundamental forms at the mid points alone, on a copy of their rows (a form is made
-    # row by row: the same values as on all the call's points, for a third of the work)
-    fm = object.__new__(FrameGeom)
-    for k in ("n", "Ss", "St", "Sss", "Sst", "Stt"):
-        setattr(fm, k, rs(getattr(ga, k))[:, mid].reshape(-1, 3))
-    mE, mF, mG, mL, mM, mN = (getattr(fm, k).reshape(G, m) for k in ("E", "F", "G", "L", "M", "N"))
     c2all = gP + r * gn
-    n1 = rs(g1.n)
-    c1 = rs(g1.P) + r * n1
-    c2 = c2all[:, :m]
-    w = c2 - c1
-    d2 = _einsum("gij,gij->gi", w, w)
-    meet = d2 < 4 * r * r
-    down = -(n1 + gn[:, :m])
-    down -= (_einsum("gij,gij->gi", down, w) / _where(d2 > 0, d2, 1.0))[..., None] * w
-    down /= np.maximum(_norm3(down), 1e-300)
-    q = 0.5 * (c1 + c2) + np.sqrt(np.maximum(r * r - 0.25 * d2, 0.0))[..., None] * down
-    rel = q - mP
-    # Gauss-Newton foot offset (ds, dt): (J^T J) x = J^T rel
-    ra, rb = _einsum("gij,gij->gi", mSs, rel), _einsum("gij,gij->gi", mSt, rel)
-    det = mE * mG - mF * mF
-    x = _where(det > 0, (mG * ra - mF * rb) / det, 0.0)
-    y = _where(det > 0, (mE * rb - mF * ra) / det, 0.0)
-    height = _einsum("gij,gij->gi", mn, rel) - 0.5 * (mL * x * x + 2 * mM * x * y + mN * y * y)
-    height = _where(meet, height, np.inf)
-    height = _where(beyond, np.nan, height)
     # the ends: material along the edge between the two end balls, each line's tube taken
     # as a straight capsule from its end ball along the line (into the patch)
     St1 = rs(g1.St)
@@ -474,15 +456,12 @@ def _cusp_heights(frame, g1, ds, r):
     ends = np.zeros((G, 2))
     lo = np.zeros((G, 2))
     width = np.ones((G, 2))
-    eP, en = P[:, 2 * m + 6:], n[:, 2 * m + 6:]
     gi, li = np.arange(G)[:, None], np.arange(2)[None, :]
     take = lambda a, i: a[gi, li, i]          # noqa: E731  a[g, l, i[g, l]]
-    for rnd in range(2):        # a coarse pass, then one inside the bracket of the crossing
-        if rnd == 1:
-            ff = lo[..., None] + width[..., None] * f                  # (G, 2, k)
-            ge = frame.evaluate((s1[:, None] + np.minimum(np.maximum(ff, 0), 1).reshape(G, -1)
-                                 * (s2 - s1)[:, None]).ravel(), _end_t(G), second=False)
-            eP, en = rs(ge.P), rs(ge.n)
+
+    def end_pass(eP, en, ends, lo, width):
+        """One pass along the edges (a coarse one, then one inside the bracket of the
+        crossing): the ends so far, and the bracket for the next."""
         h = _capsule_entry(eP.reshape(G, 1, 2, -1, 3), en.reshape(G, 1, 2, -1, 3), ca, cb, r, seg)
         h1, h2 = h[:, 0], h[:, 1]                                        # (G, 2, k)
         # the material peaks where the two tubes leave the same height (line 1's lower near
@@ -503,7 +482,45 @@ def _cusp_heights(frame, g1, ds, r):
         ends = np.maximum(ends, _where(ok, np.maximum(cross, take(low, k)), peak))
         step = width / (k_end - 1)
         lo = np.minimum(np.maximum(lo + step * (k - 1), 0.0), 1.0)
-        width = step
+        return ends, lo, step
+
+    ends, lo, width = end_pass(P[:, m + 6:], n[:, m + 6:], ends, lo, width)
+    ff = lo[..., None] + width[..., None] * f                  # (G, 2, k)
+    S = np.empty((G, m + 2 * k_end))
+    T = np.empty((G, m + 2 * k_end))
+    S[:, :m] = (0.5 * (s1 + s2))[:, None]
+    S[:, m:] = s1[:, None] + np.minimum(np.maximum(ff, 0), 1).reshape(G, -1) * (s2 - s1)[:, None]
+    T[:, :m] = 0.5 * (t1 + t2)
+    T[:, m:] = _END_T
+    gb = frame.evaluate(S.ravel(), T.ravel())
+    Pb, nb = rs(gb.P), rs(gb.n)
+    ends, _, _ = end_pass(Pb[:, m:], nb[:, m:], ends, lo, width)
+    mP, mn, mSs, mSt = Pb[:, :m], nb[:, :m], rs(gb.Ss)[:, :m], rs(gb.St)[:, :m]
+    # the fundamental forms at the mid points alone, on a copy of their rows (a form is made
+    # row by row: the same values as on all the call's points, for a third of the work)
+    fm = object.__new__(FrameGeom)
+    for k in ("n", "Ss", "St", "Sss", "Sst", "Stt"):
+        setattr(fm, k, rs(getattr(gb, k))[:, :m].reshape(-1, 3))
+    mE, mF, mG, mL, mM, mN = (getattr(fm, k).reshape(G, m) for k in ("E", "F", "G", "L", "M", "N"))
+    n1 = rs(g1.n)
+    c1 = rs(g1.P) + r * n1
+    c2 = c2all[:, :m]
+    w = c2 - c1
+    d2 = _einsum("gij,gij->gi", w, w)
+    meet = d2 < 4 * r * r
+    down = -(n1 + gn[:, :m])
+    down -= (_einsum("gij,gij->gi", down, w) / _where(d2 > 0, d2, 1.0))[..., None] * w
+    down /= np.maximum(_norm3(down), 1e-300)
+    q = 0.5 * (c1 + c2) + np.sqrt(np.maximum(r * r - 0.25 * d2, 0.0))[..., None] * down
+    rel = q - mP
+    # Gauss-Newton foot offset (ds, dt): (J^T J) x = J^T rel
+    ra, rb = _einsum("gij,gij->gi", mSs, rel), _einsum("gij,gij->gi", mSt, rel)
+    det = mE * mG - mF * mF
+    x = _where(det > 0, (mG * ra - mF * rb) / det, 0.0)
+    y = _where(det > 0, (mE * rb - mF * ra) / det, 0.0)
+    height = _einsum("gij,gij->gi", mn, rel) - 0.5 * (mL * x * x + 2 * mM * x * y + mN * y * y)
+    height = _where(meet, height, np.inf)
+    height = _where(beyond, np.nan, height)
     return height, ends
 
 
@@ -549,12 +566,116 @@ class Placer:
         checked for reach."""
         new = [x for x in dict.fromkeys(float(x) for x in S) if x not in self._lines]
         if new:
-            m = len(self.t)
-            g = self.frame.evaluate(np.repeat(new, m), np.tile(self.t, len(new)))
-            check_reachable(self.frame, g, self.r)
-            for k, x in enumerate(new):
-                self._lines[x] = g.rows(slice(k * m, (k + 1) * m))
+            self._evaluate_lines(new)
         return [self._lines[float(x)] for x in S]
+
+    def _evaluate_lines(self, new: list) -> None:
+        """Evaluates the lines ``new`` (s values not seen yet) in one call, checks their reach
+        and keeps them."""
+        m = len(self.t)
+        g = self.frame.evaluate(np.repeat(new, m), np.tile(self.t, len(new)))
+        check_reachable(self.frame, g, self.r)
+        for k, x in enumerate(new):
+            self._lines[x] = g.rows(slice(k * m, (k + 1) * m))
+
+    # A trial (:meth:`place`) is written as a generator: its two costly kinds of work, new
+    # lines and gaps' cusps, are yielded as requests ((_LINES, s values) or (_RATIOS, g1, ds,
+    # target)) and answered by a driver. :meth:`_drive` answers each as its own call (what a
+    # trial alone does); :meth:`_lockstep` runs several trials' generators at once and answers
+    # their waiting requests of one kind in one call (the lines in one evaluation, the gaps
+    # in one cusp measurement), which gives each line and gap the same values as alone (each
+    # is made point by point and gap by gap) and saves the calls' fixed costs.
+
+    def _lines_g(self, S):
+        """:meth:`lines` as a step of a trial."""
+        new = [x for x in dict.fromkeys(float(x) for x in S) if x not in self._lines]
+        if new:
+            yield _LINES, new
+        return [self._lines[float(x)] for x in S]
+
+    def _line_g(self, s: float):
+        """:meth:`line` as a step of a trial."""
+        g = self._lines.get(s)
+        if g is None:
+            yield _LINES, [float(s)]
+            g = self._lines[s]
+        return g
+
+    def _drive(self, gen):
+        """The value of a trial's generator, each request answered by its own call."""
+        try:
+            req = next(gen)
+            while True:
+                if req[0] is _LINES:
+                    new = [x for x in req[1] if x not in self._lines]
+                    try:
+                        if new:
+                            self._evaluate_lines(new)
+                    except GeometryError as e:       # raised where the trial asked (it may catch)
+                        req = gen.throw(e)
+                        continue
+                    req = gen.send(None)
+                else:
+                    req = gen.send(self.ratios(req[1], req[2], req[3]))
+        except StopIteration as stop:
+            return stop.value
+
+    def _lockstep(self, gens: list) -> list:
+        """The generators of several trials run at once: each round answers the requests of
+        the kind most of them wait on (the gaps on a tie) in one call. Returns per generator
+        (True, value) or (False, the exception it raised)."""
+        out = [None] * len(gens)
+        wait = {}
+
+        def advance(i, value=None, exc=None):
+            try:
+                wait[i] = gens[i].send(value) if exc is None else gens[i].throw(exc)
+            except StopIteration as stop:
+                wait.pop(i, None)
+                out[i] = (True, stop.value)
+            except Exception as e:                   # noqa: BLE001  kept for whoever reads it
+                wait.pop(i, None)
+                out[i] = (False, e)
+
+        for i in range(len(gens)):
+            advance(i)
+        while wait:
+            lines = [i for i, req in wait.items() if req[0] is _LINES]
+            gaps = [i for i, req in wait.items() if req[0] is _RATIOS]
+            if len(lines) > len(gaps):
+                new = [x for x in dict.fromkeys(x for i in lines for x in wait[i][1]) if x not in self._lines]
+                try:
+                    if new:
+                        self._evaluate_lines(new)
+                except GeometryError:
+                    # which trials' lines are out of reach: each request again on its own
+                    for i in lines:
+                        new = [x for x in wait[i][1] if x not in self._lines]
+                        try:
+                            if new:
+                                self._evaluate_lines(new)
+                        except GeometryError as e:
+                            advance(i, exc=e)
+                        else:
+                            advance(i)
+                    continue
+                for i in lines:
+                    advance(i)
+            elif len(gaps) == 1:
+                i = gaps[0]
+                req = wait[i]
+                advance(i, self.ratios(req[1], req[2], req[3]))
+            else:
+                reqs = [wait[i] for i in gaps]
+                G = [len(req[2]) for req in reqs]
+                R = self.ratios(FrameGeom.concat([req[1] for req in reqs]),
+                                _concatenate([np.asarray(req[2], float) for req in reqs]),
+                                _concatenate([np.asarray(req[3], float).ravel() for req in reqs]))
+                start = 0
+                for i, g in zip(gaps, G):
+                    advance(i, R[start:start + g])
+                    start += g
+        return out
 
     def ratio(self, g1: FrameGeom, ds: float, target_h: np.ndarray) -> float:
         """Largest cusp / target between line g1 and the line ds further."""
@@ -580,26 +701,47 @@ class Placer:
 
     def target_at(self, s: float, target: Target) -> np.ndarray:
         """``target.at`` the samples of line s (computed once per line and target)."""
+        return self._drive(self._target_at_g(s, target))
+
+    def _target_at_g(self, s: float, target: Target):
         key = (float(s), target.h, target.undercut, target.max_step)
         th = self._targets.get(key)
         if th is None:
-            th = self._targets[key] = target.at(self.line(s))
+            g = yield from self._line_g(s)
+            th = self._targets[key] = target.at(g)
         return th
 
     def first_order_at(self, s: float, target: Target) -> float:
         """:meth:`first_order` of line s (computed once per line and target)."""
+        return self._drive(self._first_order_at_g(s, target))
+
+    def _first_order_at_g(self, s: float, target: Target):
         key = (float(s), target.h, target.undercut, target.max_step)
         d0 = self._first.get(key)
         if d0 is None:
-            d0 = self._first[key] = self.first_order(self.line(s), self.target_at(s, target))
+            g = yield from self._line_g(s)
+            th = yield from self._target_at_g(s, target)
+            d0 = self._first[key] = self.first_order(g, th)
         return d0
 
     def step(self, s: float, guess_factor: float, target: Target, first=None):
         """(ds, ratio, estimate of the uncapped step, correction factor) from line s;
         ``first``: a trial (ds, ratio) already measured, where the secant starts."""
-        g1 = self.line(s)
-        th = self.target_at(s, target)
-        d0 = self.first_order_at(s, target)
+        return self._drive(self._step_g(s, guess_factor, target, first))
+
+    def _step_g(self, s: float, guess_factor: float, target: Target, first=None):
+        step, _ = yield from self._secant_g(s, guess_factor, target, first)
+        return step
+
+    def _secant_g(self, s: float, guess_factor: float, target: Target, first=None, known=None):
+        """:meth:`step` as a step of a trial, and the batch measured ahead (None if not).
+        ``known``: the (s values, first-order steps) of the placed lines when the trial goes on
+        with a batch after this step (``first`` given): the secant's first candidate is then
+        measured together with that batch's gaps (:meth:`_measure_ahead_g`)."""
+        ahead = None
+        g1 = yield from self._line_g(s)
+        th = yield from self._target_at_g(s, target)
+        d0 = yield from self._first_order_at_g(s, target)
         if not np.isfinite(d0) or d0 <= 0:
             raise GeometryError(f"{self.frame.patch.name}: no side step from the line at s = {s:.6f}")
         cap = 1.0 - s
@@ -607,16 +749,21 @@ class Placer:
         lo, lo_r, hi = 0.0, 0.0, np.inf
         hist = []
         for it in range(MAX_SECANT):
-            R = first[1] if (it == 0 and first is not None) else self.ratio(g1, d, th)
+            if it == 0 and first is not None:
+                R = first[1]
+            elif it == 1 and known is not None and d < cap * (1 - 1e-12) and s + d < 1.0 - 1e-12:
+                R, ahead = yield from self._measure_ahead_g(s, g1, th, d, d0, target, known)
+            else:
+                R = float((yield _RATIOS, g1, np.array([d]), th)[0])
             hist.append((d, R))
             if R <= FIT:
                 if d > lo:
                     lo, lo_r = d, R
                 if d >= cap * (1 - 1e-12):
                     full = cap * (AIM / R) ** 0.5 if R > 0 else np.inf
-                    return cap, R, max(full, cap), d / d0
+                    return (cap, R, max(full, cap), d / d0), None
                 if R >= ACCEPT:
-                    return d, R, d, d / d0
+                    return (d, R, d, d / d0), ahead
             else:
                 hi = min(hi, d)
             if len(hist) >= 2 and hist[-1][0] != hist[-2][0] and hist[-1][1] > 0 and hist[-2][1] > 0 \
@@ -630,22 +777,67 @@ class Placer:
                 nd = np.sqrt(lo * hi) if lo > 0 and np.isfinite(hi) else (0.5 * d if nd >= hi else 2 * d)
             d = min(nd, cap)
         if lo > 0:
-            return lo, lo_r, lo, lo / d0
+            return (lo, lo_r, lo, lo / d0), None
         d = min(hist[-1][0], cap)
         for _ in range(60):                      # nothing fitted: shrink until it does
             d *= 0.5
-            R = self.ratio(g1, d, th)
+            R = float((yield _RATIOS, g1, np.array([d]), th)[0])
             if R <= FIT:
-                return d, R, d, d / d0
+                return (d, R, d, d / d0), None
         raise GeometryError(f"{self.frame.patch.name}: the side step from the line at s = {s:.6f} "
                             f"does not converge (scallop {target.h:g} mm)")
+
+    def _measure_ahead_g(self, s: float, g1: FrameGeom, th: np.ndarray, d: float, d0: float, target: Target,
+                         known: tuple):
+        """The cusp ratio of the secant's candidate step d from line s, measured in one call
+        with the gaps of the batch the trial makes next if the secant takes d (almost always:
+        the first candidate; the batch from s + d at the factor d / d0, its first-order steps
+        extrapolated from ``known`` and s + d). Returns (ratio, the batch as :meth:`_run` gives
+        it) when the secant takes d, else (ratio, None): then the batch's lines stay evaluated
+        (the same lines whenever asked for) and its gaps are dropped. A line out of reach
+        there ends the look ahead, and is met again if the trial comes to it."""
+        s1 = s + d
+        run = None
+        try:
+            d01 = yield from self._first_order_at_g(s1, target)
+            if np.isfinite(d01) and d01 > 0:
+                ks, kd = known
+                if not ks or s1 > ks[-1]:
+                    ks, kd = ks + [s1], kd + [d01]
+                run = self._run_g(s1, float(min(max(d / d0, 0.25), 4.0)), target, LOOKAHEAD[0], (ks, kd))
+                req = next(run)
+                while req[0] is _LINES:
+                    yield req
+                    req = run.send(None)
+        except GeometryError:
+            if run is not None:
+                run.close()
+            run = None
+        if run is None:
+            return float((yield _RATIOS, g1, np.array([d]), th)[0]), None
+        both = yield (_RATIOS, FrameGeom.concat([g1, req[1]]), _concatenate([np.array([d]), req[2]]),
+                      _concatenate([np.asarray(th, float).ravel(), req[3]]))
+        R = float(both[0])
+        if not ACCEPT <= R <= FIT:                   # the secant goes on: the batch is not made
+            run.close()
+            return R, None
+        try:
+            req = run.send(both[1:])
+            while True:
+                req = run.send((yield req))
+        except StopIteration as stop:
+            return R, stop.value
 
     def _run(self, s: float, factor: float, target: Target, count: int, known: tuple):
         """Up to ``count`` steps from line s predicted at once (module doc): each the current
         correction factor times the first-order step, at the lines beyond s extrapolated from
         the exact first-order steps ``known`` (s values, steps) of the lines placed so far.
         All predicted lines in one evaluation, all their gaps in two. Returns the steps and
-        their ratios up to and including the first that misses [ACCEPT, FIT] (or the last)."""
+        their ratios up to and including the first that misses [ACCEPT, FIT] (or the last):
+        the gaps are measured STAGE at a time, and those after a stage with a miss are not."""
+        return self._drive(self._run_g(s, factor, target, count, known))
+
+    def _run_g(self, s: float, factor: float, target: Target, count: int, known: tuple):
         ks, kd = known
         S, D = [s], []
         cur = s
@@ -663,19 +855,31 @@ class Placer:
             if cur >= 1.0 - 1e-12:
                 break
             S.append(cur)
-        geoms = self.lines(S)
-        g1 = FrameGeom.concat(geoms[:len(D)]) if len(D) > 1 else geoms[0]
-        th = target.at(g1).reshape(len(D), -1)
-        for x, row in zip(S, th):      # per sample, the same values as line by line
-            self._targets.setdefault((float(x), target.h, target.undercut, target.max_step), row)
-        if len(D) > 1:
-            # the first-order steps of the predicted lines in one go (place asks for each
-            # line it keeps): the same values per sample, and the same least per line
-            g = side_step(self.r, th.ravel(), g1.cross_curvature())
-            least = np.min(parameter_step(g, g1.E, g1.F, g1.G).reshape(len(D), -1), axis=1)
-            for x, d0 in zip(S[1:len(D)], least[1:].tolist()):
-                self._first.setdefault((float(x), target.h, target.undercut, target.max_step), d0)
-        R = self.ratios(g1, np.array(D), th.ravel())
+        # measured a stage at a time: the gaps past the first miss are never read
+        geoms, th, R = [], [], []
+        for a in range(0, len(D), STAGE):
+            b = min(a + STAGE, len(D))
+            # (the last stage with the line after the batch's last gap, where the next starts)
+            part = yield from self._lines_g(S[a:] if b == len(D) else S[a:b])
+            geoms += part
+            g1 = FrameGeom.concat(part[:b - a]) if b - a > 1 else part[0]
+            tha = target.at(g1).reshape(b - a, -1)
+            for x, row in zip(S[a:b], tha):      # per sample, the same values as line by line
+                self._targets.setdefault((float(x), target.h, target.undercut, target.max_step), row)
+            if b - a > 1 or a > 0:
+                # the first-order steps of the predicted lines in one go (place asks for each
+                # line it keeps): the same values per sample, and the same least per line
+                g = side_step(self.r, tha.ravel(), g1.cross_curvature())
+                least = np.min(parameter_step(g, g1.E, g1.F, g1.G).reshape(b - a, -1), axis=1)
+                for x, d0 in zip(S[a:b][1 if a == 0 else 0:], least[1 if a == 0 else 0:].tolist()):
+                    self._first.setdefault((float(x), target.h, target.undercut, target.max_step), d0)
+            Ra = yield _RATIOS, g1, np.array(D[a:b]), tha.ravel()
+            th.append(tha)
+            R.append(Ra)
+            if b < len(D) and not ((ACCEPT <= Ra) & (Ra <= FIT)).all():
+                break
+        R = R[0] if len(R) == 1 else _concatenate(R)
+        th = th[0] if len(th) == 1 else _concatenate(th)
         return S, D, R, geoms, th
 
     def place(self, target: Target) -> tuple[np.ndarray, np.ndarray, float]:
@@ -684,19 +888,27 @@ class Placer:
         Lines are placed a batch at a time (:meth:`_run`): the predicted steps are kept up to
         the first whose cusp misses [ACCEPT, FIT] of the target; that one is corrected by the
         secant of :meth:`step` from the measured trial, and the next batch starts after it."""
+        return self._drive(self._place_g(target))
+
+    def _place_g(self, target: Target):
         s = 0.0
         pos, ratios = [0.0], []
         factor = 1.0
         full = np.nan
         ks, kd = [], []                            # exact first-order steps at placed lines
         count = LOOKAHEAD[0]
+        ahead = None                               # the batch measured with the last secant
         while True:
-            d0 = self.first_order_at(s, target)
+            d0 = yield from self._first_order_at_g(s, target)
             if not np.isfinite(d0) or d0 <= 0:
                 raise GeometryError(f"{self.frame.patch.name}: no side step from the line at s = {s:.6f}")
             if not ks or s > ks[-1]:
                 ks.append(s), kd.append(d0)
-            S, D, R, geoms, th = self._run(s, factor, target, count, (ks, kd))
+            if ahead is not None:
+                S, D, R, geoms, th = ahead
+                ahead = None
+            else:
+                S, D, R, geoms, th = yield from self._run_g(s, factor, target, count, (ks, kd))
             done = False
             missed = None
             for j, (d, r_) in enumerate(zip(D, R)):
@@ -714,7 +926,8 @@ class Placer:
                 ratios.append(float(r_))
                 pos.append(S[j + 1])
                 if S[j + 1] > ks[-1]:
-                    ks.append(S[j + 1]), kd.append(self.first_order_at(S[j + 1], target))
+                    ks.append(S[j + 1])
+                    kd.append((yield from self._first_order_at_g(S[j + 1], target)))
             if done:
                 break
             if missed is None:
@@ -722,7 +935,8 @@ class Placer:
                 count = min(2 * count, LOOKAHEAD[1])
             else:
                 s = S[missed]
-                d, r_, full, f = self.step(s, factor, target, first=(D[missed], float(R[missed])))
+                (d, r_, full, f), ahead = yield from self._secant_g(s, factor, target, (D[missed], float(R[missed])),
+                                                                    (ks, kd))
                 factor = float(min(max(f, 0.25), 4.0))
                 count = LOOKAHEAD[0]
                 ratios.append(r_)
@@ -756,14 +970,33 @@ class Placer:
 
     def tuned(self, parity: int | None, balance: bool = True) -> LinePlacement:
         """Positions whose count has the given parity (0 even, 1 odd; None: any), by the
-        paper's scallop tuning."""
+        paper's scallop tuning.
+
+        The trials are the paper's, in its order (:func:`_tuning_next`); a trial the count
+        of the first predicts to be needed after the next one is run together with it
+        (:meth:`_lockstep`, :func:`_tuning_ahead`) and used only if the tuning comes to it."""
         h = self.target.h
         trials = []
         results = []                                      # (factor, result) of every trial
+        ahead_of = {}                                     # factor -> (ok, result) run ahead
 
-        def run(factor):
+        def run(factor, ahead=()):
             tg = self.target.scaled(factor)
-            pos, ratios, full = self.place(tg)
+            if factor in ahead_of:
+                ok, res = ahead_of.pop(factor)
+                if not ok:
+                    raise res
+                pos, ratios, full = res
+            elif any(f not in ahead_of for f in ahead):
+                fs = [factor] + [f for f in ahead if f not in ahead_of]
+                got = self._lockstep([self._place_g(self.target.scaled(f)) for f in fs])
+                ahead_of.update(zip(fs[1:], got[1:]))
+                ok, res = got[0]
+                if not ok:
+                    raise res
+                pos, ratios, full = res
+            else:
+                pos, ratios, full = self.place(tg)
             trials.append((h * factor, len(pos)))
             results.append((factor, (pos, ratios, full, tg)))
             return results[-1][1]
@@ -772,33 +1005,17 @@ class Placer:
         n0 = len(best[0])
         if parity is not None and n0 % 2 != parity:
             found = None
-            hi_f, lo_f = 1.0, None                        # hi_f: count <= n0; lo_f: count > n0+1
-            for j in range(1, 10):
-                f = 1.0 - 0.1 * j
-                res = run(f)
-                n = len(res[0])
-                if n == n0 + 1:
+            gaps0 = _gaps(best[0], best[2])
+            state = ("down", 1, 1.0, None)
+            while True:
+                f = _tuning_next(state)
+                if f is None:
+                    break
+                res = run(f, _tuning_ahead(state, n0, gaps0))
+                state = _tuning_after(state, f, len(res[0]), n0)
+                if state is None:
                     found = res
                     break
-                if n > n0 + 1:
-                    lo_f = f
-                    break
-                hi_f = f
-            if found is None and lo_f is not None:
-                # bisect between the last scallop with n0 lines or fewer and the overshoot
-                for _ in range(MAX_TUNING):
-                    if hi_f - lo_f < 1e-6:
-                        break
-                    f = 0.5 * (hi_f + lo_f)
-                    res = run(f)
-                    n = len(res[0])
-                    if n == n0 + 1:
-                        found = res
-                        break
-                    if n <= n0:
-                        hi_f = f
-                    else:
-                        lo_f = f
             if found is None:
                 # the count jumped over n0 + 1 (the accepted steps move in steps too): take
                 # the largest scallop whose count has the needed parity (not the first trial's)
@@ -815,6 +1032,68 @@ class Placer:
             if b is not None:
                 out.s, out.ratio, out.balanced = b
         return out
+
+
+# The parity tuning (section 3.5) as states: ("down", j, hi, None) before the descent's trial
+# j (h (1 - 0.1 j)), ("bisect", k, hi, lo) before bisection step k between the last scallop
+# with n0 lines or fewer (hi) and an overshoot (lo).
+
+def _tuning_next(state) -> float | None:
+    """The factor of h the tuning tries next in ``state``; None when it has no more."""
+    phase, j, hi_f, lo_f = state
+    if phase == "down":
+        return 1.0 - 0.1 * j if j < 10 else None
+    if j >= MAX_TUNING or hi_f - lo_f < 1e-6:
+        return None
+    return 0.5 * (hi_f + lo_f)
+
+
+def _tuning_after(state, f: float, n: int, n0: int):
+    """The state after trial ``f`` gave ``n`` lines (None: n0 + 1, found)."""
+    if n == n0 + 1:
+        return None
+    phase, j, hi_f, lo_f = state
+    if phase == "down":
+        return ("bisect", 0, hi_f, f) if n > n0 + 1 else ("down", j + 1, f, None)
+    return ("bisect", j + 1, f, lo_f) if n <= n0 else ("bisect", j + 1, hi_f, f)
+
+
+AHEAD_MARGIN = 0.75      # gaps the predicted count must clear a decision by to run a trial ahead
+AHEAD_POWER = 0.55       # the count of gaps goes as the scallop to the power -AHEAD_POWER
+AHEAD_MAX = 3            # trials run ahead of the next at most
+
+
+def _gaps(pos: np.ndarray, full: float) -> float:
+    """A trial's count of gaps as a real number: the last one as the part of the uncapped step
+    it uses."""
+    n = len(pos)
+    if n < 3 or not np.isfinite(full) or full <= 0:
+        return float(n - 1)
+    return (n - 2) + min((1.0 - float(pos[-2])) / full, 1.0)
+
+
+def _tuning_ahead(state, n0: int, gaps0: float) -> tuple:
+    """The factors the tuning would try after the next one if each trial's count were the one
+    the first trial predicts (``gaps0`` / f^AHEAD_POWER gaps), as long as the prediction
+    clears its decision by AHEAD_MARGIN (at most AHEAD_MAX). Whatever runs ahead only saves
+    calls: the tuning's path is decided by the counts it measures. (On the sample models, six
+    jobs, the prediction gave the measured count of 37 of 40 tuning trials, one line too many
+    in the others.)"""
+    out = []
+    f = _tuning_next(state)
+    while f is not None and len(out) < AHEAD_MAX:
+        x = gaps0 * f ** -AHEAD_POWER
+        if x > n0 + AHEAD_MARGIN:
+            n = n0 + 2                           # an overshoot
+        elif x <= n0 - 1 - AHEAD_MARGIN:
+            n = n0                               # still n0 lines or fewer
+        else:
+            break                                # n0 + 1 (the tuning ends) or too close to call
+        state = _tuning_after(state, f, n, n0)
+        f = _tuning_next(state)
+        if f is not None:
+            out.append(f)
+    return tuple(out)
 
 
 def parity_for(frame: LineFrame, finish: int | None) -> int | None:

@@ -375,3 +375,25 @@ class SameBytesAsNumpy(unittest.TestCase):
         got = _interp_many(np.concatenate(q), qc, np.concatenate(xs), np.concatenate(fps), first, num)
         for j in range(k):
             self.assertTrue(same(got[qc == j], np.interp(q[j], xs[j], fps[j])), j)
+
+    def test_split_points_merged_in_sorted_order(self):
+        """place_curves puts each segment's middle between its ends (``_merge_rows``): the
+        order the sort by (curve, x) it replaces gives, payload rows included."""
+        from tsplcam.toolpath.chord import _merge_rows
+        rng = np.random.default_rng(11)
+        num = rng.integers(1, 30, 25)
+        x = np.concatenate([np.sort(rng.random(k)) for k in num])
+        cid = np.repeat(np.arange(len(num)), num)
+        P = rng.standard_normal((len(x), 3))
+        for _ in range(4):                                       # a few splitting rounds
+            seg = np.flatnonzero(cid[1:] == cid[:-1])
+            split = np.sort(rng.choice(seg, len(seg) // 2, replace=False))
+            xm = 0.5 * (x[split] + x[split + 1])
+            Pm = rng.standard_normal((len(split), 3))
+            order = np.lexsort((np.concatenate([x, xm]), np.concatenate([cid, cid[split]])))
+            ref = [np.concatenate(a)[order] for a in ((x, xm), (cid, cid[split]), (P, Pm))]
+            new = np.zeros(len(x) + len(split), bool)
+            new[split + 1 + np.arange(len(split))] = True
+            x, cid, P = _merge_rows(x, xm, new), _merge_rows(cid, cid[split], new), _merge_rows(P, Pm, new)
+            for got, want in zip((x, cid, P), ref):
+                self.assertTrue(same(got, want))

@@ -104,15 +104,18 @@ def _first_points(frame, curves: list[Curve], r, tol_in, tol_out, max_step):
         pts = _interp_many(q, kk[qcid], cum, xa, bounds, num)
         pts[qfirst] = lo[kk]
         pts[qfirst + nseg] = hi[kk]
-        # np.unique per curve: sorted, repeats dropped
-        order = np.lexsort((pts, qcid))
-        pts, qc = pts[order], qcid[order]
+        # np.unique per curve: sorted, repeats dropped (the points of a curve mostly come
+        # sorted: then the stable sort would leave them as they are)
+        qc = qcid
+        if not ((pts[1:] >= pts[:-1]) | (qc[1:] > qc[:-1])).all():
+            order = np.lexsort((pts, qcid))
+            pts, qc = pts[order], qcid[order]
         keep = np.ones(len(pts), bool)
         keep[1:] = (pts[1:] != pts[:-1]) | (qc[1:] != qc[:-1])
         pts, qc = pts[keep], qc[keep]
-        cuts = np.flatnonzero(qc[1:] != qc[:-1]) + 1
-        for k, part in zip(kk.tolist(), np.split(pts, cuts)):
-            out[k] = part
+        cuts = [0] + (np.flatnonzero(qc[1:] != qc[:-1]) + 1).tolist() + [len(pts)]
+        for i, k in enumerate(kk.tolist()):
+            out[k] = pts[cuts[i]:cuts[i + 1]]
     for k in np.flatnonzero(~ok).tolist():               # as one curve alone (rare)
         if hi[k] - lo[k] <= 0:
             out[k] = np.array([curves[k].x0])
@@ -184,6 +187,15 @@ def _interp_many(x: np.ndarray, xcid: np.ndarray, xp: np.ndarray, fp: np.ndarray
     return res
 
 
+def _merge_rows(old: np.ndarray, add: np.ndarray, is_new: np.ndarray) -> np.ndarray:
+    """The rows of ``old`` and ``add`` in one array: ``add``'s where ``is_new``, ``old``'s in
+    their order elsewhere."""
+    out = np.empty((len(is_new),) + old.shape[1:], old.dtype)
+    out[is_new] = add
+    out[~is_new] = old
+    return out
+
+
 def place_curves(frame, curves: list[Curve], r: float, tol_in: float, tol_out: float, max_step: float):
     """Parameters along every curve and the surface geometry there: per curve (x, P, n, u,
     v), ordered from x0 to x1, ends included exactly (a curve of zero length: one point)."""
@@ -213,15 +225,18 @@ def place_curves(frame, curves: list[Curve], r: float, tol_in: float, tol_out: f
         bad = ~ok
         if not bad.any():
             break
-        x = _concatenate([x, xm[bad]])
-        cid = _concatenate([cid, cid[idx[bad]]])
-        P = _concatenate([P, gm.P[bad]])
-        n = _concatenate([n, gm.n[bad]])
-        u = _concatenate([u, gm.u[bad]])
-        v = _concatenate([v, gm.v[bad]])
-        new = _concatenate([np.zeros(len(x) - bad.sum(), bool), np.ones(bad.sum(), bool)])
-        order = np.lexsort((x, cid))
-        x, cid, P, n, u, v, new = x[order], cid[order], P[order], n[order], u[order], v[order], new[order]
+        # each new point goes between its segment's ends: the points stay sorted by curve
+        # and parameter (a split segment is at least ``tiny`` long, so its middle lies
+        # strictly inside), the order a sort by (curve, x) would give, without sorting
+        split = idx[bad]
+        new = np.zeros(len(x) + len(split), bool)
+        new[split + 1 + np.arange(len(split))] = True
+        x = _merge_rows(x, xm[bad], new)
+        cid = _merge_rows(cid, cid[split], new)
+        P = _merge_rows(P, gm.P[bad], new)
+        n = _merge_rows(n, gm.n[bad], new)
+        u = _merge_rows(u, gm.u[bad], new)
+        v = _merge_rows(v, gm.v[bad], new)
         same = cid[1:] == cid[:-1]
         pending = same & (new[1:] | new[:-1])
     bounds = _concatenate([[0], np.cumsum(np.bincount(cid, minlength=len(curves)))])

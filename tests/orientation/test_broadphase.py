@@ -571,9 +571,66 @@ class Geometry(unittest.TestCase):
         """Slots by a centre's exact bytes: the same centre (also -0.0 against 0.0: other
         bytes, another slot) gets the same slot in every batch, new centres new slots; keyed by
         a hash, the slots are those of the byte-ordered table up to their numbering, and when
-        two centres share a hash (forced here) the table goes over to the bytes, slots kept."""
+        two centres share a hash (forced here) the table goes over to the bytes, slots kept
+        (numpy's form; the kernel's: :meth:`test_centre_table_kernel`)."""
         from unittest import mock
+        from tsplcam.orientation import compiled
         from tsplcam.orientation.broadphase import CentreTable
+        with mock.patch.object(compiled, "loaded", lambda: None):
+            self._centre_table(CentreTable)
+
+    def test_centre_table_kernel(self):
+        """The kernel's slots (``compiled.centre_slots``, open addressing) give the numpy
+        table's partition of the rows in every batch and the same slot to the same bytes
+        across batches (the numpy form, taking over from the kernel and handing back, keeps
+        them); on a table filled to 300 of 512 places (long probe runs) the kernel numbers
+        the distinct centres in the order they come."""
+        from unittest import mock
+        from tsplcam.orientation import compiled
+        from tsplcam.orientation.broadphase import CentreTable
+        k = compiled.kernels()
+        if k is None:
+            self.skipTest("numba not available (or TSPLCAM_COMPILED=0)")
+        rng = np.random.default_rng(6)
+        pool = np.round(rng.normal(size=(300, 3)), 1)
+        pool[0], pool[1] = [0.0, 1.0, 2.0], [-0.0, 1.0, 2.0]
+        batches = [pool[np.repeat(rng.integers(0, m, 400), rng.integers(1, 4, 400))] for m in (30, 100, 200, 300, 300)]
+        with mock.patch.object(compiled, "loaded", lambda: None):
+            ref = CentreTable(ordered=False)
+            want = [ref.slots(C)[0] for C in batches]
+        t, seen = CentreTable(ordered=False), {}
+        for b, C in enumerate(batches):
+            fresh = {bytes(r) for r in C} - set(seen)
+            if b == 2:                          # numpy's form in between
+                with mock.patch.object(compiled, "loaded", lambda: None):
+                    slot, first = t.slots(C)
+                self.assertEqual(t._keyed, t.size)
+            else:
+                slot, first = t.slots(C)
+                self.assertEqual(t._tabbed, t.size)
+            self.assertEqual({bytes(r) for r in C[first]}, fresh)
+            self.assertEqual(len(first), len(fresh))
+            pairs = {(int(a), int(h)) for a, h in zip(want[b], slot)}
+            self.assertEqual(len({a for a, _ in pairs}), len(pairs))
+            self.assertEqual(len({h for _, h in pairs}), len(pairs))
+            for row, s in zip(map(bytes, C), slot):
+                self.assertEqual(seen.setdefault(row, int(s)), int(s))
+        self.assertEqual(len(seen), t.size)
+        self.assertEqual({bytes(t.rows[s]): s for s in seen.values()}, seen)      # each slot's centre
+        # the kernel alone on a crowded table: slots in order of first appearance
+        keys = np.ascontiguousarray(pool[rng.permutation(np.repeat(np.arange(300), 3))]).view(np.int64)
+        tab, rows = np.full(512, -1, np.int64), np.zeros((300, 3), np.int64)
+        slot, first = np.empty(len(keys), np.int64), np.empty(len(keys), np.int64)
+        _, idx, inv = np.unique(keys.view(np.dtype((np.void, 24))).ravel(), return_index=True, return_inverse=True)
+        m = len(idx)
+        self.assertEqual(k["centre_slots"](keys, tab, rows, np.int64(0), slot, first), m)
+        order = np.argsort(idx)
+        np.testing.assert_array_equal(first[:m], idx[order])
+        np.testing.assert_array_equal(slot, np.argsort(order)[inv])
+        np.testing.assert_array_equal(rows[:m], keys[first[:m]])
+
+    def _centre_table(self, CentreTable):
+        from unittest import mock
         rng = np.random.default_rng(5)
         pool = np.round(rng.normal(size=(300, 3)), 1)
         pool[0], pool[1] = [0.0, 1.0, 2.0], [-0.0, 1.0, 2.0]

@@ -200,6 +200,53 @@ def nonzero_pairs(a: np.ndarray, rows: np.ndarray | None = None, cols: np.ndarra
     return r[i], j
 
 
+class SampleTree:
+    """``cKDTree.query`` on the samples, the same answers bit for bit, about four times faster
+    where they lie on a surface (a cavity's wide bounds: 16 us a point, 4 here).
+
+    Its answers are those of the tree ``ref`` (leaves of ``LEAFSIZE``, median splits, nodes
+    shrunk to their points: scipy's default, which the broad phase has always asked). The
+    points are asked first of a second tree over the same samples (sliding-midpoint splits,
+    nodes not shrunk), for their k + 1 nearest within the bound widened by a hair. Both trees
+    sum each squared distance alike (the same bits) and search exactly up to the rounding of
+    their boxes' distances (a few ulps of the bound squared), so where the k + 1 nearest lie
+    apart by more than ``tol`` (1e-9 mm, and as much per mm of the bound) and none lies that
+    close to the bound, the k nearest within the bound are one set in one order, whichever
+    tree walks: the second tree's answer is ``ref``'s. The few points where they do not (two
+    samples at one distance, as where neighbouring triangles' subdivisions share an edge) are
+    asked of ``ref`` (its order of ties is its walk's)."""
+
+    def __init__(self, samples: np.ndarray):
+        self.ref = cKDTree(samples, leafsize=LEAFSIZE)
+        self.fast = cKDTree(samples, leafsize=LEAFSIZE, balanced_tree=False, compact_nodes=False)
+        self.n = self.ref.n
+        self.data = self.ref.data
+        self.asked_ref = 0                   # points the fast tree left to ref (ties)
+
+    def query(self, x, k: int = 1, distance_upper_bound: float = np.inf, workers: int = 1):
+        """``cKDTree.query(x, k, distance_upper_bound=..., workers=...)`` of ``ref``, for x
+        (m, 3) and an integer k: distances (m,) or (m, k), indices ``n`` where none."""
+        x = np.asarray(x, float)
+        u = float(distance_upper_bound)
+        tol = 1e-9 * (1.0 + (u if np.isfinite(u) else 0.0))
+        wide = u + 2.0 * tol
+        D, J = self.fast.query(x, k=k + 1, distance_upper_bound=wide, workers=workers)
+        # ambiguous: two of the k + 1 nearest (found) within tol, or one within tol of the bound
+        with np.errstate(invalid="ignore"):                 # (inf - inf: none found, not a tie)
+            amb = np.abs(D[:, 0] - u) <= tol
+            for t in range(1, k + 1):
+                amb |= (np.abs(D[:, t] - u) <= tol) | (D[:, t] - D[:, t - 1] <= tol)
+        D, J = D[:, :k], J[:, :k]
+        out = D >= u                          # (found between the bound and the widened one)
+        D[out], J[out] = np.inf, self.n
+        a = np.nonzero(amb)[0]
+        if len(a):
+            self.asked_ref += len(a)
+            d, j = self.ref.query(x[a], k=k, distance_upper_bound=u)
+            D[a], J[a] = np.reshape(d, (len(a), k)), np.reshape(j, (len(a), k))
+        return (D[:, 0], J[:, 0]) if k == 1 else (D, J)
+
+
 def min_into(out: np.ndarray, idx: np.ndarray, vals: np.ndarray) -> None:
     """``np.minimum.at(out, idx, vals)``: the same values (a minimum does not round, so the
     order it is taken in does not matter), by ``np.minimum.reduceat`` over the runs of equal
@@ -581,6 +628,11 @@ class CentreTable:
         centres numbered in the order they come (the numpy form numbers them in its hash's
         order: only which rows share a slot matters to the callers)."""
         end = self.size + len(C)
+        if self._tab is None or self._tabbed != self.size or 2 * end > len(self._tab):
+            # (room for the runs of equal rows only: a batch asks several axes per centre)
+            bits = C.view(np.uint64)
+            b0, b1, b2 = bits[:, 0], bits[:, 1], bits[:, 2]
+            end = self.size + 1 + int(np.count_nonzero((b0[1:] != b0[:-1]) | (b1[1:] != b1[:-1]) | (b2[1:] != b2[:-1])))
         self._room(end)
         rows = self._rows.view(np.int64)
         if self._tab is None or self._tabbed != self.size or 2 * end > len(self._tab):
@@ -713,7 +765,7 @@ class BroadPhase:
             e_cap = max(0.1, float(np.quantile(edge, 0.5)))
         self.samples, tri_of, self.e = mesh_samples(V, T, e_cap)
         self.e2 = self.e * self.e / 3.0
-        self.tree = cKDTree(self.samples, leafsize=LEAFSIZE)
+        self.tree = SampleTree(self.samples)
         # triangles to measure exactly per sample: a vertex's incident ones, else its own
         nv = len(V)
         inc_n = np.bincount(T.ravel(), minlength=nv) if len(T) else np.zeros(nv, int)

@@ -567,6 +567,28 @@ class Geometry(unittest.TestCase):
             self.assertGreater(int(alone.sum()), 10)
             self.assertTrue(np.all(far[alone]))
 
+    def test_sample_tree_answers_as_default_tree(self):
+        """SampleTree's queries give scipy's default tree's answers bit for bit (distances and
+        indices, k = 1, 3, 8, bounds finite and not): on samples of a surface with exact
+        duplicates (ties: the default tree's own choice, asked of it) and points among them,
+        on them, and at a sample's exact distance as the bound."""
+        from scipy.spatial import cKDTree
+        from tsplcam.orientation.broadphase import LEAFSIZE, SampleTree
+        rng = np.random.default_rng(9)
+        u, v = rng.random((2, 3000))
+        S = np.column_stack([u * 10, v * 10, np.sin(u * 3) + 0.5 * np.cos(v * 4)])
+        S = np.concatenate([S, S[:300]])[rng.permutation(3300)]          # 300 duplicates
+        tree, ref = SampleTree(S), cKDTree(S, leafsize=LEAFSIZE)
+        x = np.concatenate([S[:200] + rng.normal(scale=0.3, size=(200, 3)), S[200:300],
+                            rng.random((200, 3)) * [10, 10, 4] - [0, 0, 2]])
+        for k in (1, 3, 8):
+            for ub in (0.2, 0.7, 3.0, np.inf, float(np.linalg.norm(x[0] - S[5]))):
+                got, want = tree.query(x, k=k, distance_upper_bound=ub), ref.query(x, k=k, distance_upper_bound=ub)
+                for g, w in zip(got, want):
+                    self.assertEqual(g.shape, w.shape)
+                    self.assertEqual(g.tobytes(), w.tobytes(), (k, ub))
+        self.assertGreater(tree.asked_ref, 100)             # the ties went to the default tree
+
     def test_centre_table(self):
         """Slots by a centre's exact bytes: the same centre (also -0.0 against 0.0: other
         bytes, another slot) gets the same slot in every batch, new centres new slots; keyed by

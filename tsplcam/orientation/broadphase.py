@@ -87,10 +87,19 @@ of ``KD_THREADS`` points or more are split between two threads (each point's ans
 one a single thread gives). Every thread ends before the call returns, so none is
 alive when the path or fcl workers fork.
 
+**KD queries.** The samples' KD-tree (:class:`SampleTree`) answers as scipy's default tree
+(median splits, nodes shrunk to their points) always has, bit for bit, but asks a
+sliding-midpoint tree first (its k + 1 nearest; where two of them, or one and the bound, lie
+within 1e-9 mm the default tree is asked): the keycap_mold job's wide exact bounds (R 3-6 mm
+in the cavity) cost 16 us a point in the default tree, 4 in the other.
+
 **Per centre.** The free cones are kept per ball centre, found by the centre's bytes
-(:class:`CentreTable`): through a 64-bit hash of them, sorted about ten times faster than the
-24-byte keys, each slot checked against its centre's bytes. The witness cells keep the bytes'
-order, which decides what a cell keeps.
+(:class:`CentreTable`): with the kernels, in an open-addressing table of the centres' words
+(``centre_slots``, slots numbered as the centres come: the keycap replay's 24k centres 0.6 ms
+against 3.8 ms in numpy); in numpy through a 64-bit hash of them, sorted about ten times
+faster than the 24-byte keys, each slot checked against its centre's bytes. The witness cells
+keep the bytes' order, which decides what a cell keeps (the kernel finds their distinct rows,
+numpy orders only those).
 """
 from __future__ import annotations
 

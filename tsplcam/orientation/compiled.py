@@ -31,6 +31,9 @@ broad phase's other passes too (keycap_mold: 0.32 CPU-s in numpy). The side pass
 are bounded by the grids in ``side_bounds`` (each ball's slab and centre and its grid reads,
 the same operations; only the balls left open are listed), and the free cones are stored row
 by row in ``store_cones`` (the rounds of numpy's gathers and masks, the same cones kept).
+The ball centres' slots come from ``centre_slots`` (an open-addressing table on the centres'
+three 64-bit words, each slot checked against its centre's: which rows share a slot, as the
+numpy form's sorted hashes give it).
 
 The banded Cholesky solve of the smoothing's polish (``_Banded.solve_box``, 215 solves on
 the keycap) is latency-bound in LAPACK as here; the kernel takes LAPACK's operations in

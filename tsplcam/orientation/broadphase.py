@@ -90,7 +90,7 @@ alive when the path or fcl workers fork.
 **KD queries.** The samples' KD-tree (:class:`SampleTree`) answers as scipy's default tree
 (median splits, nodes shrunk to their points) always has, bit for bit, but asks a
 sliding-midpoint tree first (its k + 1 nearest; where two of them, or one and the bound, lie
-within 1e-9 mm the default tree is asked): the keycap_mold job's wide exact bounds (R 3-6 mm
+closer in squared distance than 1e-9 (1 + bound)^2, the default tree is asked): the keycap_mold job's wide exact bounds (R 3-6 mm
 in the cavity) cost 16 us a point in the default tree, 4 in the other.
 
 **Per centre.** The free cones are kept per ball centre, found by the centre's bytes
@@ -219,33 +219,81 @@ class SampleTree:
     nodes not shrunk), for their k + 1 nearest within the bound widened by a hair. Both trees
     sum each squared distance alike (the same bits) and search exactly up to the rounding of
     their boxes' distances (a few ulps of the bound squared), so where the k + 1 nearest lie
-    apart by more than ``tol`` (1e-9 mm, and as much per mm of the bound) and none lies that
-    close to the bound, the k nearest within the bound are one set in one order, whichever
-    tree walks: the second tree's answer is ``ref``'s. The few points where they do not (two
-    samples at one distance, as where neighbouring triangles' subdivisions share an edge) are
-    asked of ``ref`` (its order of ties is its walk's)."""
+    apart by more than a margin and none lies that close to the bound, the k nearest within
+    the bound are one set in one order, whichever tree walks: the second tree's answer is
+    ``ref``'s (:meth:`query`: the margin on squared distances, which the trees compare). The
+    few points where they do not (two samples at one distance, as where neighbouring
+    triangles' subdivisions share an edge) are asked of ``ref`` (its order of ties is its
+    walk's)."""
 
     def __init__(self, samples: np.ndarray):
+        samples = np.ascontiguousarray(samples, float)
         self.ref = cKDTree(samples, leafsize=LEAFSIZE)
-        self.fast = cKDTree(samples, leafsize=LEAFSIZE, balanced_tree=False, compact_nodes=False)
         self.n = self.ref.n
-        self.data = self.ref.data
         self.asked_ref = 0                   # points the fast tree left to ref (ties)
+        # the second tree over the distinct points (a mesh's samples repeat: the mold's 97k
+        # hold 78k points), each standing for the sample ref gives where it is the nearest:
+        # of a point whose samples share one leaf of ref, the first in the leaf (ref's walk
+        # keeps the first of equal distances, and a leaf is read in order); else none (-1)
+        keys = samples.view(np.dtype((np.void, 24))).ravel()
+        _, first, inv, cnt = np.unique(keys, return_index=True, return_inverse=True, return_counts=True)
+        rep = first.astype(np.int64)
+        if (cnt > 1).any():
+            pos = np.empty(self.n, np.int64)
+            pos[self.ref.indices] = np.arange(self.n)
+            leaf = np.empty(self.n, np.int64)
+            stack, nl = [self.ref.tree], 0
+            while stack:
+                node = stack.pop()
+                if node.split_dim == -1:
+                    leaf[node.start_idx:node.end_idx] = nl
+                    nl += 1
+                else:
+                    stack += [node.lesser, node.greater]
+            m = np.nonzero(cnt[inv] > 1)[0]
+            g, lm, pm = inv[m], leaf[pos[m]], pos[m]
+            lo, hi = np.full(len(cnt), -1, np.int64), np.full(len(cnt), -1, np.int64)
+            np.maximum.at(hi, g, lm)
+            lo[:] = hi
+            np.minimum.at(lo, g, lm)
+            best = np.full(len(cnt), self.n, np.int64)
+            np.minimum.at(best, g, pm)
+            dup = np.nonzero(cnt > 1)[0]
+            rep[dup] = np.where(lo[dup] == hi[dup], self.ref.indices[np.minimum(best[dup], self.n - 1)], -1)
+        self.rep, self.mult = rep, cnt
+        self.fast = cKDTree(samples[first], leafsize=LEAFSIZE, balanced_tree=False, compact_nodes=False)
 
     def query(self, x, k: int = 1, distance_upper_bound: float = np.inf, workers: int = 1):
         """``cKDTree.query(x, k, distance_upper_bound=..., workers=...)`` of ``ref``, for x
-        (m, 3) and an integer k: distances (m,) or (m, k), indices ``n`` where none."""
+        (m, 3) and an integer k: distances (m,) or (m, k), indices ``n`` where none. Ties are
+        judged on squared distances (the trees compare those), within ``1e-9 (1 + u)^2``
+        (u the bound; without one, the farthest distance found), where the trees' rounding is
+        below 1e-13 of it."""
         x = np.asarray(x, float)
         u = float(distance_upper_bound)
-        tol = 1e-9 * (1.0 + (u if np.isfinite(u) else 0.0))
-        wide = u + 2.0 * tol
-        D, J = self.fast.query(x, k=k + 1, distance_upper_bound=wide, workers=workers)
-        # ambiguous: two of the k + 1 nearest (found) within tol, or one within tol of the bound
+        if np.isfinite(u):
+            tol2 = 1e-9 * (1.0 + u) ** 2
+            wide = float(np.sqrt(u * u + 2.0 * tol2))
+        else:
+            tol2, wide = None, u
+        D, U = self.fast.query(x, k=k + 1, distance_upper_bound=wide, workers=workers)
+        nu = len(self.rep)
+        Uk = np.minimum(U[:, :k], nu - 1)
+        J = np.where(U[:, :k] < nu, self.rep[Uk], self.n)
+        # a repeated point among the k nearest: its samples' order is ref's walk's (k > 1), or
+        # they lie in several leaves of ref
+        many = (U[:, :k] < nu) & (self.mult[Uk] > 1)
+        amb0 = (J < 0).any(axis=1) | (many.any(axis=1) if k > 1 else False)
         with np.errstate(invalid="ignore"):                 # (inf - inf: none found, not a tie)
-            amb = np.abs(D[:, 0] - u) <= tol
+            D2 = D * D
+            if tol2 is None:
+                far = D2[np.isfinite(D2)]
+                tol2 = 1e-9 * (1.0 + float(np.sqrt(far.max())) if len(far) else 1.0) ** 2
+            # ambiguous: two of the k + 1 nearest found within tol2, or one within tol2 of u^2
+            amb = amb0 | (np.abs(D2[:, 0] - u * u) <= tol2)
             for t in range(1, k + 1):
-                amb |= (np.abs(D[:, t] - u) <= tol) | (D[:, t] - D[:, t - 1] <= tol)
-        D, J = D[:, :k], J[:, :k]
+                amb |= (np.abs(D2[:, t] - u * u) <= tol2) | (D2[:, t] - D2[:, t - 1] <= tol2)
+        D = D[:, :k]
         out = D >= u                          # (found between the bound and the widened one)
         D[out], J[out] = np.inf, self.n
         a = np.nonzero(amb)[0]
@@ -253,7 +301,7 @@ class SampleTree:
             self.asked_ref += len(a)
             d, j = self.ref.query(x[a], k=k, distance_upper_bound=u)
             D[a], J[a] = np.reshape(d, (len(a), k)), np.reshape(j, (len(a), k))
-        return (D[:, 0], J[:, 0]) if k == 1 else (D, J)
+        return (np.ascontiguousarray(D[:, 0]), np.ascontiguousarray(J[:, 0])) if k == 1 else (D, J)
 
 
 def min_into(out: np.ndarray, idx: np.ndarray, vals: np.ndarray) -> None:

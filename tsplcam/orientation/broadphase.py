@@ -235,8 +235,7 @@ class SampleTree:
         # hold 78k points), each standing for the sample ref gives where it is the nearest:
         # of a point whose samples share one leaf of ref, the first in the leaf (ref's walk
         # keeps the first of equal distances, and a leaf is read in order); else none (-1)
-        keys = samples.view(np.dtype((np.void, 24))).ravel()
-        _, first, inv, cnt = np.unique(keys, return_index=True, return_inverse=True, return_counts=True)
+        first, inv, cnt = self._distinct(samples)
         rep = first.astype(np.int64)
         if (cnt > 1).any():
             pos = np.empty(self.n, np.int64)
@@ -262,6 +261,26 @@ class SampleTree:
             rep[dup] = np.where(lo[dup] == hi[dup], self.ref.indices[np.minimum(best[dup], self.n - 1)], -1)
         self.rep, self.mult = rep, cnt
         self.fast = cKDTree(samples[first], leafsize=LEAFSIZE, balanced_tree=False, compact_nodes=False)
+
+    @staticmethod
+    def _distinct(P: np.ndarray):
+        """(first row, group per row, rows per group) of the distinct rows of P (bytes): sorted
+        by a 64-bit hash of each row (a third of the time of sorting the 24-byte rows), each
+        group checked to hold one row's bytes (else the bytes sorted)."""
+        bits = P.view(np.uint64)
+        order = np.argsort(CentreTable._hash(bits), kind="stable")
+        b = bits[order]
+        step = np.concatenate(([True], (b[1:] != b[:-1]).any(axis=1)))
+        h = CentreTable._hash(b)
+        if not np.array_equal(step, np.concatenate(([True], h[1:] != h[:-1]))):
+            # (two rows share a hash: the bytes sorted)
+            _, first, inv, cnt = np.unique(P.view(np.dtype((np.void, 24))).ravel(), return_index=True,
+                                           return_inverse=True, return_counts=True)
+            return first, inv, cnt
+        grp = np.cumsum(step) - 1
+        inv = np.empty(len(P), np.int64)
+        inv[order] = grp
+        return order[step], inv, np.diff(np.append(np.flatnonzero(step), len(P)))
 
     def query(self, x, k: int = 1, distance_upper_bound: float = np.inf, workers: int = 1):
         """``cKDTree.query(x, k, distance_upper_bound=..., workers=...)`` of ``ref``, for x

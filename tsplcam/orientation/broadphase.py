@@ -88,10 +88,12 @@ one a single thread gives). Every thread ends before the call returns, so none i
 alive when the path or fcl workers fork.
 
 **KD queries.** The samples' KD-tree (:class:`SampleTree`) answers as scipy's default tree
-(median splits, nodes shrunk to their points) always has, bit for bit, but asks a
-sliding-midpoint tree first (its k + 1 nearest; where two of them, or one and the bound, lie
-closer in squared distance than 1e-9 (1 + bound)^2, the default tree is asked): the keycap_mold job's wide exact bounds (R 3-6 mm
-in the cavity) cost 16 us a point in the default tree, 4 in the other.
+(median splits, nodes shrunk to their points) always has, bit for bit, but asks for the
+nearest sample (k = 1) a sliding-midpoint tree over the distinct samples first (its two
+nearest; where they, or one and the bound, lie closer in squared distance than
+1e-9 (1 + bound)^2, or a repeated sample's copies lie in several of the default tree's
+leaves, the default tree is asked): the keycap_mold job's wide exact bounds (R 3-6 mm in the
+cavity) cost 16 us a point in the default tree, 4 in the other.
 
 **Per centre.** The free cones are kept per ball centre, found by the centre's bytes
 (:class:`CentreTable`): with the kernels, in an open-addressing table of the centres' words
@@ -105,7 +107,6 @@ from __future__ import annotations
 
 import os
 import threading
-import time
 from dataclasses import dataclass
 
 import numpy as np
@@ -262,23 +263,17 @@ class SampleTree:
             rep[dup] = np.where(lo[dup] == hi[dup], self.ref.indices[np.minimum(best[dup], self.n - 1)], -1)
         self.rep, self.mult = rep, cnt
         self.fast = cKDTree(samples[first], leafsize=LEAFSIZE, balanced_tree=False, compact_nodes=False)
-        self.mode = None                     # "fast" or "ref": always that tree; None: the cheaper
-        self._cost: dict = {}                # per (k > 1, fast): [seconds, points] of calls timed
-        self._calls = 0
+        self.mode = None                     # "fast" or "ref": always that tree; None: by k
 
     def _use_fast(self, k: int) -> bool:
-        """Which tree answers a call (the same answers either way): the one whose calls of
-        this kind (k = 1 or more) cost less a point so far, the other every 16th call, each
-        tried first (the fast tree wins in a cavity, 16 us a point against 4; on an open
-        surface its checks cost about a sixth more than the default tree alone)."""
+        """Which tree answers a call (the same answers either way): the fast one for the
+        nearest sample alone (k = 1: the wide exact bounds and the side grid's nodes; in the
+        keycap_mold's cavity 16 us a point in the default tree, 4 in the fast one, on the
+        keycap's open surface about a sixth more with its checks), the default tree for
+        the k nearest (the narrow bands: about even, the checks over k + 1 columns cost more)."""
         if self.mode is not None:
             return self.mode == "fast"
-        self._calls += 1
-        f, r = self._cost.get((k > 1, True)), self._cost.get((k > 1, False))
-        if f is None or r is None:
-            return f is None
-        best = f[0] * r[1] <= r[0] * f[1]
-        return best != (self._calls % 16 == 0)
+        return k == 1
 
     @staticmethod
     def _distinct(P: np.ndarray):
@@ -308,15 +303,9 @@ class SampleTree:
         below 1e-13 of it."""
         x = np.asarray(x, float)
         u = float(distance_upper_bound)
-        fast = self._use_fast(k)
-        t0 = time.perf_counter()
-        out = self._query_fast(x, k, u, workers) if fast else self.ref.query(x, k=k, distance_upper_bound=u,
-                                                                             workers=workers)
-        if len(x) >= 64:
-            c = self._cost.setdefault((k > 1, fast), [0.0, 0])
-            c[0] += time.perf_counter() - t0
-            c[1] += len(x)
-        return out
+        if self._use_fast(k):
+            return self._query_fast(x, k, u, workers)
+        return self.ref.query(x, k=k, distance_upper_bound=u, workers=workers)
 
     def _query_fast(self, x, k: int, u: float, workers: int):
         """:meth:`query` by the fast tree (ambiguous points by ``ref``)."""

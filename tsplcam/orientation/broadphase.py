@@ -89,7 +89,8 @@ alive when the path or fcl workers fork.
 
 **KD queries.** The samples' KD-tree (:class:`SampleTree`) answers as scipy's default tree
 (median splits, nodes shrunk to their points) always has, bit for bit, but asks for the
-nearest sample (k = 1) a sliding-midpoint tree over the distinct samples first (its two
+nearest sample (k = 1), where it proves faster on the mesh (both timed on the first 512
+points), a sliding-midpoint tree over the distinct samples first (its two
 nearest; where they, or one and the bound, lie closer in squared distance than
 1e-9 (1 + bound)^2, or a repeated sample's copies lie in several of the default tree's
 leaves, the default tree is asked): the keycap_mold job's wide exact bounds (R 3-6 mm in the
@@ -107,6 +108,7 @@ from __future__ import annotations
 
 import os
 import threading
+import time
 from dataclasses import dataclass
 
 import numpy as np
@@ -263,17 +265,36 @@ class SampleTree:
             rep[dup] = np.where(lo[dup] == hi[dup], self.ref.indices[np.minimum(best[dup], self.n - 1)], -1)
         self.rep, self.mult = rep, cnt
         self.fast = cKDTree(samples[first], leafsize=LEAFSIZE, balanced_tree=False, compact_nodes=False)
-        self.mode = None                     # "fast" or "ref": always that tree; None: by k
+        self.mode = None                     # "fast" or "ref": always that tree; None: by k, timed
+        self._probe = [0.0, 0.0, 0]          # seconds of the fast tree, of ref, points timed (k = 1)
 
-    def _use_fast(self, k: int) -> bool:
-        """Which tree answers a call (the same answers either way): the fast one for the
-        nearest sample alone (k = 1: the wide exact bounds and the side grid's nodes; in the
-        keycap_mold's cavity 16 us a point in the default tree, 4 in the fast one, on the
-        keycap's open surface about a sixth more with its checks), the default tree for
-        the k nearest (the narrow bands: about even, the checks over k + 1 columns cost more)."""
+    PROBE = 512                              # points timed on both trees before k = 1 calls choose
+
+    def _use_fast(self, k: int, x: np.ndarray, u: float) -> bool:
+        """Which tree answers a call (the same answers either way): the default tree for
+        the k nearest (the narrow bands: about even, the checks over k + 1 columns cost
+        more); for the nearest sample alone (the wide exact bounds, the side grid's nodes)
+        the one that took less time on the first ``PROBE`` points asked, both trees asked
+        the first 64 of each call until then (in keycap_mold's cavity 16 us a point in
+        the default tree, 4 in the fast one; on the keycap's open surface about a sixth
+        more in the fast one with its checks)."""
         if self.mode is not None:
             return self.mode == "fast"
-        return k == 1
+        if k != 1:
+            return False
+        pr = self._probe
+        if pr[2] < self.PROBE and len(x) >= 64:
+            p = np.ascontiguousarray(x[:64])
+            first = pr[2] // 64 % 2                # (which tree goes first alternates)
+            for which in (first, 1 - first):
+                t0 = time.perf_counter()
+                if which == 0:
+                    self._query_fast(p, 1, u, 1)
+                else:
+                    self.ref.query(p, k=1, distance_upper_bound=u)
+                pr[which] += time.perf_counter() - t0
+            pr[2] += len(p)
+        return pr[2] < self.PROBE or pr[0] <= pr[1]
 
     @staticmethod
     def _distinct(P: np.ndarray):
@@ -303,7 +324,7 @@ class SampleTree:
         below 1e-13 of it."""
         x = np.asarray(x, float)
         u = float(distance_upper_bound)
-        if self._use_fast(k):
+        if self._use_fast(k, x, u):
             return self._query_fast(x, k, u, workers)
         return self.ref.query(x, k=k, distance_upper_bound=u, workers=workers)
 

@@ -579,16 +579,19 @@ class Geometry(unittest.TestCase):
         S = np.column_stack([u * 10, v * 10, np.sin(u * 3) + 0.5 * np.cos(v * 4)])
         S = np.concatenate([S, S[:300]])[rng.permutation(3300)]          # 300 duplicates
         tree, ref = SampleTree(S), cKDTree(S, leafsize=LEAFSIZE)
-        tree.mode = "fast"                                  # (else the cheaper tree, by the clock)
         x = np.concatenate([S[:200] + rng.normal(scale=0.3, size=(200, 3)), S[200:300],
                             rng.random((200, 3)) * [10, 10, 4] - [0, 0, 2]])
-        for k in (1, 3, 8):
-            for ub in (0.2, 0.7, 3.0, np.inf, float(np.linalg.norm(x[0] - S[5]))):
-                got, want = tree.query(x, k=k, distance_upper_bound=ub), ref.query(x, k=k, distance_upper_bound=ub)
-                for g, w in zip(got, want):
-                    self.assertEqual(g.shape, w.shape)
-                    self.assertEqual(g.tobytes(), w.tobytes(), (k, ub))
-        self.assertGreater(tree.asked_ref, 100)             # the ties went to the default tree
+        for mode in ("fast", None):             # the fast tree always; the tree chosen by the clock
+            tree.mode = mode
+            for k in (1, 3, 8):
+                for ub in (0.2, 0.7, 3.0, np.inf, float(np.linalg.norm(x[0] - S[5]))):
+                    got, want = tree.query(x, k=k, distance_upper_bound=ub), ref.query(x, k=k, distance_upper_bound=ub)
+                    for g, w in zip(got, want):
+                        self.assertEqual(g.shape, w.shape)
+                        self.assertEqual(g.tobytes(), w.tobytes(), (k, ub))
+            if mode == "fast":
+                self.assertGreater(tree.asked_ref, 100)     # the ties went to the default tree
+        self.assertGreaterEqual(tree._probe[2], tree.PROBE)
 
     def test_centre_table(self):
         """Slots by a centre's exact bytes: the same centre (also -0.0 against 0.0: other

@@ -591,7 +591,7 @@ class Geometry(unittest.TestCase):
                         self.assertEqual(g.tobytes(), w.tobytes(), (k, ub))
             if mode == "fast":
                 self.assertGreater(tree.asked_ref, 100)     # the ties went to the default tree
-        self.assertGreaterEqual(tree._probe[2], tree.PROBE)
+        self.assertGreater(tree._probe[2], 0)                # both trees timed on k = 1 calls
 
     def test_centre_table(self):
         """Slots by a centre's exact bytes: the same centre (also -0.0 against 0.0: other

@@ -567,13 +567,96 @@ class Geometry(unittest.TestCase):
             self.assertGreater(int(alone.sum()), 10)
             self.assertTrue(np.all(far[alone]))
 
+    def test_sample_tree_answers_as_default_tree(self):
+        """SampleTree's queries give scipy's default tree's answers bit for bit (distances and
+        indices, k = 1, 3, 8, bounds finite and not): on samples of a surface with exact
+        duplicates (ties: the default tree's own choice, asked of it) and points among them,
+        on them, and at a sample's exact distance as the bound."""
+        from scipy.spatial import cKDTree
+        from tsplcam.orientation.broadphase import LEAFSIZE, SampleTree
+        rng = np.random.default_rng(9)
+        u, v = rng.random((2, 3000))
+        S = np.column_stack([u * 10, v * 10, np.sin(u * 3) + 0.5 * np.cos(v * 4)])
+        S = np.concatenate([S, S[:300]])[rng.permutation(3300)]          # 300 duplicates
+        tree, ref = SampleTree(S), cKDTree(S, leafsize=LEAFSIZE)
+        x = np.concatenate([S[:200] + rng.normal(scale=0.3, size=(200, 3)), S[200:300],
+                            rng.random((200, 3)) * [10, 10, 4] - [0, 0, 2]])
+        for mode in ("fast", None):             # the fast tree always; the tree chosen by the clock
+            tree.mode = mode
+            for k in (1, 3, 8):
+                for ub in (0.2, 0.7, 3.0, np.inf, float(np.linalg.norm(x[0] - S[5]))):
+                    got, want = tree.query(x, k=k, distance_upper_bound=ub), ref.query(x, k=k, distance_upper_bound=ub)
+                    for g, w in zip(got, want):
+                        self.assertEqual(g.shape, w.shape)
+                        self.assertEqual(g.tobytes(), w.tobytes(), (k, ub))
+            if mode == "fast":
+                self.assertGreater(tree.asked_ref, 100)     # the ties went to the default tree
+        self.assertGreater(tree._probe[2], 0)                # both trees timed on k = 1 calls
+
     def test_centre_table(self):
         """Slots by a centre's exact bytes: the same centre (also -0.0 against 0.0: other
         bytes, another slot) gets the same slot in every batch, new centres new slots; keyed by
         a hash, the slots are those of the byte-ordered table up to their numbering, and when
-        two centres share a hash (forced here) the table goes over to the bytes, slots kept."""
+        two centres share a hash (forced here) the table goes over to the bytes, slots kept
+        (numpy's form; the kernel's: :meth:`test_centre_table_kernel`)."""
         from unittest import mock
+        from tsplcam.orientation import compiled
         from tsplcam.orientation.broadphase import CentreTable
+        with mock.patch.object(compiled, "loaded", lambda: None):
+            self._centre_table(CentreTable)
+
+    def test_centre_table_kernel(self):
+        """The kernel's slots (``compiled.centre_slots``, open addressing) give the numpy
+        table's partition of the rows in every batch and the same slot to the same bytes
+        across batches (the numpy form, taking over from the kernel and handing back, keeps
+        them); on a table filled to 300 of 512 places (long probe runs) the kernel numbers
+        the distinct centres in the order they come."""
+        from unittest import mock
+        from tsplcam.orientation import compiled
+        from tsplcam.orientation.broadphase import CentreTable
+        k = compiled.kernels()
+        if k is None:
+            self.skipTest("numba not available (or TSPLCAM_COMPILED=0)")
+        rng = np.random.default_rng(6)
+        pool = np.round(rng.normal(size=(300, 3)), 1)
+        pool[0], pool[1] = [0.0, 1.0, 2.0], [-0.0, 1.0, 2.0]
+        batches = [pool[np.repeat(rng.integers(0, m, 400), rng.integers(1, 4, 400))] for m in (30, 100, 200, 300, 300)]
+        with mock.patch.object(compiled, "loaded", lambda: None):
+            ref = CentreTable(ordered=False)
+            want = [ref.slots(C)[0] for C in batches]
+        t, seen = CentreTable(ordered=False), {}
+        for b, C in enumerate(batches):
+            fresh = {bytes(r) for r in C} - set(seen)
+            if b == 2:                          # numpy's form in between
+                with mock.patch.object(compiled, "loaded", lambda: None):
+                    slot, first = t.slots(C)
+                self.assertEqual(t._keyed, t.size)
+            else:
+                slot, first = t.slots(C)
+                self.assertEqual(t._tabbed, t.size)
+            self.assertEqual({bytes(r) for r in C[first]}, fresh)
+            self.assertEqual(len(first), len(fresh))
+            pairs = {(int(a), int(h)) for a, h in zip(want[b], slot)}
+            self.assertEqual(len({a for a, _ in pairs}), len(pairs))
+            self.assertEqual(len({h for _, h in pairs}), len(pairs))
+            for row, s in zip(map(bytes, C), slot):
+                self.assertEqual(seen.setdefault(row, int(s)), int(s))
+        self.assertEqual(len(seen), t.size)
+        self.assertEqual({bytes(t.rows[s]): s for s in seen.values()}, seen)      # each slot's centre
+        # the kernel alone on a crowded table: slots in order of first appearance
+        keys = np.ascontiguousarray(pool[rng.permutation(np.repeat(np.arange(300), 3))]).view(np.int64)
+        tab, rows = np.full(512, -1, np.int64), np.zeros((300, 3), np.int64)
+        slot, first = np.empty(len(keys), np.int64), np.empty(len(keys), np.int64)
+        _, idx, inv = np.unique(keys.view(np.dtype((np.void, 24))).ravel(), return_index=True, return_inverse=True)
+        m = len(idx)
+        self.assertEqual(k["centre_slots"](keys, tab, rows, np.int64(0), slot, first), m)
+        order = np.argsort(idx)
+        np.testing.assert_array_equal(first[:m], idx[order])
+        np.testing.assert_array_equal(slot, np.argsort(order)[inv])
+        np.testing.assert_array_equal(rows[:m], keys[first[:m]])
+
+    def _centre_table(self, CentreTable):
+        from unittest import mock
         rng = np.random.default_rng(5)
         pool = np.round(rng.normal(size=(300, 3)), 1)
         pool[0], pool[1] = [0.0, 1.0, 2.0], [-0.0, 1.0, 2.0]

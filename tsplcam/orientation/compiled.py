@@ -31,6 +31,9 @@ broad phase's other passes too (keycap_mold: 0.32 CPU-s in numpy). The side pass
 are bounded by the grids in ``side_bounds`` (each ball's slab and centre and its grid reads,
 the same operations; only the balls left open are listed), and the free cones are stored row
 by row in ``store_cones`` (the rounds of numpy's gathers and masks, the same cones kept).
+The ball centres' slots come from ``centre_slots`` (an open-addressing table on the centres'
+three 64-bit words, each slot checked against its centre's: which rows share a slot, as the
+numpy form's sorted hashes give it).
 
 The banded Cholesky solve of the smoothing's polish (``_Banded.solve_box``, 215 solves on
 the keycap) is latency-bound in LAPACK as here; the kernel takes LAPACK's operations in
@@ -1048,10 +1051,53 @@ def _define(jit):
                 cone_f[s, worst] = from_fcl != 0
                 taken[s] += 1
 
+    @jit
+    def centre_slots(keys, tab, rows, size, slot, first):
+        """:class:`~tsplcam.orientation.broadphase.CentreTable`'s slots by open addressing:
+        row i's three 64-bit words ``keys[i]`` (a centre's bytes) looked up in ``tab`` (-1
+        empty, else a slot; its length a power of two, at least twice the slots) by a hash of
+        them, each slot found checked against its centre's words ``rows[slot]``; a centre not
+        there gets the next slot (``size``, then counted on), its words put in ``rows`` and its
+        row in ``first``. Returns the new size."""
+        mask = np.uint64(tab.shape[0] - 1)
+        size0 = size
+        for i in range(keys.shape[0]):
+            a, b, c = keys[i, 0], keys[i, 1], keys[i, 2]
+            if i > 0 and a == keys[i - 1, 0] and b == keys[i - 1, 1] and c == keys[i - 1, 2]:
+                slot[i] = slot[i - 1]
+                continue
+            # (each word folded in by a multiply-xorshift mix: a float's low bits are often all
+            # zero, its high ones carry it)
+            h = np.uint64(0)
+            for w in (a, b, c):
+                h ^= np.uint64(w)
+                h ^= h >> np.uint64(33)
+                h *= np.uint64(0xFF51AFD7ED558CCD)
+                h ^= h >> np.uint64(29)
+                h *= np.uint64(0xC4CEB9FE1A85EC53)
+                h ^= h >> np.uint64(32)
+            p = np.int64(h & mask)
+            while True:
+                s = tab[p]
+                if s < 0:
+                    tab[p] = size
+                    rows[size, 0] = a
+                    rows[size, 1] = b
+                    rows[size, 2] = c
+                    first[size - size0] = i
+                    slot[i] = size
+                    size += 1
+                    break
+                if rows[s, 0] == a and rows[s, 1] == b and rows[s, 2] == c:
+                    slot[i] = s
+                    break
+                p = np.int64((np.uint64(p) + np.uint64(1)) & mask)
+        return size
+
     return {"hit_pairs": hit_pairs, "viterbi_steps": viterbi_steps, "joint_steps": joint_steps, "viterbi_path": viterbi_path,
             "banded_solve": banded_solve, "grid_read": grid_read, "two_states": two_states,
             "solve_box": solve_box, "sphere_loop": sphere_loop, "side_bounds": side_bounds,
-            "store_cones": store_cones}
+            "store_cones": store_cones, "centre_slots": centre_slots}
 
 
 #: each kernel's types for the ahead-of-time module, as the callers pass them (numba's JIT
@@ -1076,6 +1122,7 @@ SIGNATURES = {
                    " f8[2], f8[1], i8[2], i8[2], i8[2], i8[1], f8[1], i8[1], f8, f8[1]w, i8[1]w, f8[1]w, f8[1]w,"
                    " f8[2]w, f8[1]w)",
     "store_cones": "void(i8[1], i8[1], f8[2], f8[1], i8, i8, f8[3]w, f8[2]w, b1[2]w)",
+    "centre_slots": "i8(i8[2], i8[1]w, i8[2]w, i8, i8[1]w, i8[1]w)",
 }
 #: the ahead-of-time module's name (beside this file, built by :func:`build_aot`)
 AOT_MODULE = "_aot_kernels"

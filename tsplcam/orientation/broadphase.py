@@ -176,6 +176,33 @@ def threads() -> int:
     return 2 if busy < cores - 0.5 else 1
 
 
+def on_threads(fn, n: int) -> list:
+    """``[fn(0), ..., fn(n - 1)]`` with ``fn(1)`` on a second thread when n is 2 (n is 1 or 2:
+    the callers split their rows in two where :func:`threads` allows). For kernels that
+    release the GIL and write only their own rows; the thread is joined before this returns
+    (none alive when workers fork), and an exception of either is raised here."""
+    out: list = [None] * n
+
+    def run(i):
+        try:
+            out[i] = fn(i)
+        except BaseException as exc:                  # raised again in the calling thread
+            out[i] = exc
+    if n > 1:
+        other = threading.Thread(target=run, args=(1,))
+        other.start()
+        try:
+            run(0)
+        finally:
+            other.join()
+    else:
+        run(0)
+    for got in out:
+        if isinstance(got, BaseException):
+            raise got
+    return out
+
+
 def any_row(a: np.ndarray) -> np.ndarray:
     """``a.any(axis=1)`` of a 2-d array, column by column (numpy's reduction over a short row
     costs about 10 ns a row, or 1.6 ms for the all-candidates batch's 182k poses; the ors of
@@ -1367,25 +1394,7 @@ class BroadPhase:
         while True:
             st, un, ph = status.copy(), unresolved.copy(), phi.copy()
             hits = [np.empty((rows, 3), np.int64) for _ in halves]
-            nh: list = [None] * len(halves)
-
-            def run(i):
-                try:
-                    nh[i] = kern(C, A, halves[i], *args, st, un, ph, hits[i])
-                except BaseException as exc:          # raised again in the calling thread
-                    nh[i] = exc
-            if len(halves) > 1:
-                other = threading.Thread(target=run, args=(1,))
-                other.start()
-                try:
-                    run(0)
-                finally:
-                    other.join()
-            else:
-                run(0)
-            for got in nh:
-                if isinstance(got, BaseException):
-                    raise got
+            nh = on_threads(lambda i: kern(C, A, halves[i], *args, st, un, ph, hits[i]), len(halves))
             if min(nh) >= 0:
                 break
             rows *= 4
@@ -1457,26 +1466,8 @@ class BroadPhase:
         for a, b in zip(cut[:-1], cut[1:]):
             m = (b - a) * nseg
             outs.append((np.empty(m, np.int64), np.empty(m), np.empty(m), np.empty((m, 3)), np.empty(m)))
-        nf: list = [0] * len(outs)
-
-        def run(i):
-            try:
-                a, b = cut[i], cut[i + 1]
-                nf[i] = k["side_bounds"](C, A, pose[a:b], part[a:b], seg[a:b], *args, *outs[i])
-            except BaseException as exc:              # raised again in the calling thread
-                nf[i] = exc
-        if len(outs) > 1:
-            other = threading.Thread(target=run, args=(1,))
-            other.start()
-            try:
-                run(0)
-            finally:
-                other.join()
-        else:
-            run(0)
-        for got in nf:
-            if isinstance(got, BaseException):
-                raise got
+        nf = on_threads(lambda i: k["side_bounds"](C, A, pose[cut[i]:cut[i + 1]], part[cut[i]:cut[i + 1]],
+                                                   seg[cut[i]:cut[i + 1]], *args, *outs[i]), len(outs))
         ball = np.concatenate([o[0][:m] + cut[i] * nseg for i, (o, m) in enumerate(zip(outs, nf))])
         t, R, x, bound = (np.concatenate([o[j][:m] for o, m in zip(outs, nf)]) for j in range(1, 5))
         row = ball // nseg

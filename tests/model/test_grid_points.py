@@ -14,6 +14,7 @@ from tsplcam.model.cage import cage_model
 from tsplcam.model.cells import BezierCells
 from tsplcam.model.patch import Patch
 from tsplcam.model.tspline import tspline_model
+from tsplcam.orientation import collision
 from tsplcam.orientation.collision import tessellate_patch
 from test_stars import random_intervals, star_disc
 
@@ -82,6 +83,26 @@ class GridPoints(unittest.TestCase):
         self.assertEqual(len(uv), len(V))
         np.testing.assert_allclose(patch.evaluate(uv[:, 0], uv[:, 1]).P, V, atol=1e-9, rtol=0)
         self.assertLessEqual(err, 0.05)
+
+    def test_coarse_first_grid_skips_only_what_cannot_change_the_grid(self):
+        """A first grid whose edge errors alone give the factor's cap is refined without its
+        cells' points measured: the kept grid, its points and measured error are those of the
+        full measurement on every grid (exact: the same grids evaluated by the same calls).
+        ``_capped_error`` is the least error the factor's formula caps, in floats."""
+        for tol in (0.005, 0.0123):
+            e = collision._capped_error(tol)
+            self.assertGreaterEqual(1.1 * np.sqrt(e / tol), 4.0)
+            self.assertLess(1.1 * np.sqrt(np.nextafter(e, 0.0) / tol), 4.0)
+        patch = self.keycap.patches[4]
+        full = collision._patch_grid_error
+        try:
+            collision._patch_grid_error = lambda p, gu, gv, coarse=np.inf: full(p, gu, gv)
+            ref = tessellate_patch(patch, 0.005)
+        finally:
+            collision._patch_grid_error = full
+        new = tessellate_patch(patch, 0.005)
+        for a, b in zip(ref, new):
+            self.assertTrue(np.array_equal(a, b))
 
 
 if __name__ == "__main__":

@@ -96,9 +96,12 @@ def _plane_distance(P, A, B, C):
     return np.abs(np.einsum("ij,ij->i", P - A, nrm)) / np.where(ln > 0, ln, 1.0)
 
 
-def _patch_grid_error(patch, gu: np.ndarray, gv: np.ndarray) -> tuple[float, float, np.ndarray]:
+def _patch_grid_error(patch, gu: np.ndarray, gv: np.ndarray,
+                      coarse: float = np.inf) -> tuple[float, float, np.ndarray]:
     """Chordal error of the grid gu x gv measured on the patch: (along u, along v) maxima,
     and the grid's own points ((nu+1)(nv+1), 3), the tessellation's vertices once it is fine.
+    Where both edge maxima reach ``coarse`` the cells' points are not measured and the edge
+    maxima are returned (lower bounds: the caller refines by its largest factor either way).
 
     Sampled at edge midpoints (distance from the chord) and at the quarter points of each
     cell's diagonals (distance from the triangle planes): the error of a smooth surface
@@ -111,17 +114,33 @@ def _patch_grid_error(patch, gu: np.ndarray, gv: np.ndarray) -> tuple[float, flo
     # the points of every cell at 1/3 along both triangles' barycentres form tensor grids
     thirds = [(gu[:-1] + fa * np.diff(gu), gv[:-1] + fb * np.diff(gv))
               for fa, fb in ((2 / 3, 1 / 3), (1 / 3, 2 / 3))]
-    Pu, grid, Pv, *Pc = patch.grids_points([(mu, gv), (gu, gv), (gu, mv)] + thirds)
+    # (the grids' values do not depend on which are asked together: ``Patch.grids_points``)
+    Pu, grid, Pv = patch.grids_points([(mu, gv), (gu, gv), (gu, mv)])
     G = grid.reshape(nu + 1, nv + 1, 3)
     # u-edges: (mu, gv), v-edges: (gu, mv)
     eu = np.linalg.norm(Pu.reshape(nu, nv + 1, 3) - 0.5 * (G[:-1] + G[1:]), axis=2).max()
     ev = np.linalg.norm(Pv.reshape(nu + 1, nv, 3) - 0.5 * (G[:, :-1] + G[:, 1:]), axis=2).max()
+    if eu >= coarse and ev >= coarse:
+        return eu, ev, grid
+    Pc = patch.grids_points(thirds)
     # inside the cells: distance from the planes of the cell's two triangles
     A, B, C, D = G[:-1, :-1], G[1:, :-1], G[1:, 1:], G[:-1, 1:]
     ec = 0.0
     for P, tri in zip(Pc, ((A, B, C), (A, C, D))):
         ec = max(ec, _plane_distance(P, *(t.reshape(-1, 3) for t in tri)).max())
     return max(eu, ec), max(ev, ec), grid
+
+
+def _capped_error(tolerance: float) -> float:
+    """The least error e with ``1.1 * sqrt(e / tolerance) >= 4`` (``tessellate_patch``'s factor
+    at its cap), found in floats: any error from it up gets the factor 4 (the formula's
+    operations are monotone)."""
+    e = (4.0 / 1.1) ** 2 * tolerance
+    while 1.1 * np.sqrt(e / tolerance) < 4.0:
+        e = np.nextafter(e, np.inf)
+    while 1.1 * np.sqrt(np.nextafter(e, 0.0) / tolerance) >= 4.0:
+        e = np.nextafter(e, 0.0)
+    return float(e)
 
 
 def tessellate_patch(patch, tolerance: float, max_cells: int = 4000) -> tuple:
@@ -137,7 +156,13 @@ def tessellate_patch(patch, tolerance: float, max_cells: int = 4000) -> tuple:
     for _ in range(12):
         gu = np.linspace(0.0, 1.0, nu + 1)
         gv = np.linspace(0.0, 1.0, nv + 1)
-        eu, ev, P = _patch_grid_error(patch, gu, gv)
+        # a first grid far too coarse (the keycap's: edge errors 20 times the tolerance) is
+        # refined by the factor 4 along both directions whatever its cells' errors add (the
+        # error only grows with them, and the factor's formula with the error): those points
+        # are measured only on grids that may be kept or refined by less (or where the grid
+        # would outgrow max_cells, whose message gives the whole error)
+        grow = 4 * max(nu, nv) <= max_cells
+        eu, ev, P = _patch_grid_error(patch, gu, gv, _capped_error(tolerance) if grow else np.inf)
         if eu <= tolerance and ev <= tolerance:
             break
         if eu > tolerance:

@@ -251,8 +251,9 @@ class Patch:
                     continue
                 # their points are evaluated point by point (LevelCells' nets, _LevelSet), the
                 # few below the nets' deepest level per cell and level: the same values together
+                # (positions alone: no second derivatives, the same positions by the same products)
                 P = self.evaluate(_concatenate([b[3] for _, b in blocks]),
-                                  _concatenate([b[4] for _, b in blocks])).P.T
+                                  _concatenate([b[4] for _, b in blocks]), second=False).P.T
                 start = 0
                 for k, (rows, ni, nj, _, _) in blocks:
                     outs[k][(slice(None),) + tuple(rows)] = P[:, start:start + ni * nj].reshape(3, ni, nj)
@@ -316,7 +317,7 @@ class Patch:
                     if type(group) is LevelCells:
                         level_blocks.append((rows, ni, nj, U.ravel(), V.ravel()))
                         continue
-                    P = self.evaluate(U.ravel(), V.ravel()).P.T
+                    P = self.evaluate(U.ravel(), V.ravel(), second=False).P.T
                 out[(slice(None),) + tuple(rows)] = P.reshape(3, ni, nj)
         return out, level_blocks
 

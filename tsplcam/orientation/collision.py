@@ -115,14 +115,16 @@ def _patch_grid_error(patch, gu: np.ndarray, gv: np.ndarray,
     thirds = [(gu[:-1] + fa * np.diff(gu), gv[:-1] + fb * np.diff(gv))
               for fa, fb in ((2 / 3, 1 / 3), (1 / 3, 2 / 3))]
     # (the grids' values do not depend on which are asked together: ``Patch.grids_points``)
-    Pu, grid, Pv = patch.grids_points([(mu, gv), (gu, gv), (gu, mv)])
+    edges = [(mu, gv), (gu, gv), (gu, mv)]
+    Pu, grid, Pv, *Pc = patch.grids_points(edges if np.isfinite(coarse) else edges + thirds)
     G = grid.reshape(nu + 1, nv + 1, 3)
     # u-edges: (mu, gv), v-edges: (gu, mv)
     eu = np.linalg.norm(Pu.reshape(nu, nv + 1, 3) - 0.5 * (G[:-1] + G[1:]), axis=2).max()
     ev = np.linalg.norm(Pv.reshape(nu + 1, nv, 3) - 0.5 * (G[:, :-1] + G[:, 1:]), axis=2).max()
     if eu >= coarse and ev >= coarse:
         return eu, ev, grid
-    Pc = patch.grids_points(thirds)
+    if not Pc:
+        Pc = patch.grids_points(thirds)
     # inside the cells: distance from the planes of the cell's two triangles
     A, B, C, D = G[:-1, :-1], G[1:, :-1], G[1:, 1:], G[:-1, 1:]
     ec = 0.0
@@ -153,6 +155,7 @@ def tessellate_patch(patch, tolerance: float, max_cells: int = 4000) -> tuple:
     """
     nu = max(4, 2 * (len(patch.ubreaks) - 1))
     nv = max(4, 2 * (len(patch.vbreaks) - 1))
+    coarse, capped = _capped_error(tolerance), True
     for _ in range(12):
         gu = np.linspace(0.0, 1.0, nu + 1)
         gv = np.linspace(0.0, 1.0, nv + 1)
@@ -160,9 +163,12 @@ def tessellate_patch(patch, tolerance: float, max_cells: int = 4000) -> tuple:
         # refined by the factor 4 along both directions whatever its cells' errors add (the
         # error only grows with them, and the factor's formula with the error): those points
         # are measured only on grids that may be kept or refined by less (or where the grid
-        # would outgrow max_cells, whose message gives the whole error)
-        grow = 4 * max(nu, nv) <= max_cells
-        eu, ev, P = _patch_grid_error(patch, gu, gv, _capped_error(tolerance) if grow else np.inf)
+        # would outgrow max_cells, whose message gives the whole error); tried while the grid
+        # is the first or was refined so (else the five grids in one call: their extraordinary
+        # cells' points in one evaluation)
+        grow = capped and 4 * max(nu, nv) <= max_cells
+        eu, ev, P = _patch_grid_error(patch, gu, gv, coarse if grow else np.inf)
+        capped = eu >= coarse and ev >= coarse
         if eu <= tolerance and ev <= tolerance:
             break
         if eu > tolerance:

@@ -106,7 +106,8 @@ def _patch_grid_error(patch, gu: np.ndarray, gv: np.ndarray,
     Sampled at edge midpoints (distance from the chord) and at the quarter points of each
     cell's diagonals (distance from the triangle planes): the error of a smooth surface
     between grid lines peaks near those places. Positions only (``Patch.grids_points``, the
-    same values as ``evaluate_grid``'s, the five grids in one call): no derivative is needed.
+    same values as ``evaluate_grid``'s, the five grids in one call, or with ``coarse`` the edges'
+    three first): no derivative is needed.
     """
     nu, nv = len(gu) - 1, len(gv) - 1
     mu = 0.5 * (gu[:-1] + gu[1:])

@@ -724,17 +724,10 @@ class Placer:
             d0 = self._first[key] = self.first_order(g, th)
         return d0
 
-    def step(self, s: float, guess_factor: float, target: Target, first=None):
-        """(ds, ratio, estimate of the uncapped step, correction factor) from line s;
-        ``first``: a trial (ds, ratio) already measured, where the secant starts."""
-        return self._drive(self._step_g(s, guess_factor, target, first))
-
-    def _step_g(self, s: float, guess_factor: float, target: Target, first=None):
-        step, _ = yield from self._secant_g(s, guess_factor, target, first)
-        return step
-
     def _secant_g(self, s: float, guess_factor: float, target: Target, first=None, known=None):
-        """:meth:`step` as a step of a trial, and the batch measured ahead (None if not).
+        """(ds, ratio, estimate of the uncapped step, correction factor) from line s, as a step
+        of a trial, and the batch measured ahead (None if not); ``first``: a trial (ds, ratio)
+        already measured, where the secant starts.
         ``known``: the (s values, first-order steps) of the placed lines when the trial goes on
         with a batch after this step (``first`` given): the secant's first candidate is then
         measured together with that batch's gaps (:meth:`_measure_ahead_g`)."""
@@ -887,7 +880,7 @@ class Placer:
 
         Lines are placed a batch at a time (:meth:`_run`): the predicted steps are kept up to
         the first whose cusp misses [ACCEPT, FIT] of the target; that one is corrected by the
-        secant of :meth:`step` from the measured trial, and the next batch starts after it."""
+        secant (:meth:`_secant_g`) from the measured trial, and the next batch starts after it."""
         return self._drive(self._place_g(target))
 
     def _place_g(self, target: Target):

@@ -19,6 +19,9 @@ FC_ENV=(env HOME="$REPO/build/home" FREECAD_USER_HOME="$FREECAD_USER_HOME" QTWEB
 cd "$REPO"
 
 SECONDS=0
+# the machine, for reading a log's times (and last bits) later
+echo "== machine:$(grep -m1 'model name' /proc/cpuinfo | cut -d: -f2-), $(nproc) cores, AVX-512" \
+     "$(grep -qw avx512f /proc/cpuinfo && echo yes || echo no), load $(cut -d' ' -f1-3 /proc/loadavg)"
 # 1 in the background, its output shown when it is done: two pytest processes, each test in
 # one of them (shard a: the model, the light stages and verify; shard b: everything else, so
 # a new test file lands there), about 268 s and 227 s beside the FreeCAD runners on a

@@ -244,6 +244,7 @@ class Determinism(unittest.TestCase):
     """The same command twice, under different PYTHONHASHSEED: the program, CL data,
     processing list, report.json (apart from its timing block), report.html and its pictures
     are the same bytes."""
+    maxDiff = None                   # (a failure shows every line that differs)
     JOB = ["job", "--out", "out", "--scallop", "0.2", "--chord-tol", "0.01", "--max-step", "2",
            "--machine", "linuxcnc_xyzac_trt"]
     PATH = ["path", "keycap", "--tool-radius", "0.5", "--scallop", "0.2", "--chord-tol", "0.01", "--tool",
@@ -314,8 +315,14 @@ class Determinism(unittest.TestCase):
             self.assertNotIn("built meanwhile", results[0].stdout)
             self.assertIn("collision checker built meanwhile", results[1].stdout)
             one, two = (os.path.join(cwd, "out") for cwd, _, _, _ in runs)
-            self.assert_same_files(one, two, ["keycap.cl", "keycap.ngc", "processing-list.json", "report.json"],
-                                   "report.json")
+            try:
+                self.assert_same_files(one, two, ["keycap.cl", "keycap.ngc", "processing-list.json", "report.json"],
+                                       "report.json")
+            except AssertionError:         # keep both runs' files for a look
+                keep = artifact_path("determinism-workers-failure")
+                shutil.rmtree(keep, ignore_errors=True)
+                shutil.copytree(tmp, keep)
+                raise
 
 
 class FusionSampleJob(unittest.TestCase):

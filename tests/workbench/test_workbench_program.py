@@ -72,10 +72,12 @@ class ProgramObject(unittest.TestCase):
         self.assertGreater(obj.RotaryTravel, 360.0)               # a float: no angle range clips it
 
         # the main job with the same settings: the same program, through the same builder
+        # (without the measurements and the HTML report, which do not touch the program)
         from tsplcam.job import run_job
         settings = obj.Proxy.settings(obj)
         self.assertEqual((settings.tool, settings.tool_radius, settings.scallop), ("ball1_keycap", 0.5, 0.05))
         settings.model, settings.out = "keycap", os.path.join(self.tmp, "job")
+        settings.verify, settings.html_report = False, False
         run_job(settings, log=lambda *a: None, progress=lambda stage, done, total: None)
         with open(os.path.join(self.tmp, "job", obj.ProgramName), encoding="ascii") as f:
             self.assertEqual(text, f.read())

@@ -709,21 +709,34 @@ class ListFile(unittest.TestCase):
 
 
 class CommandLine(unittest.TestCase):
+    """The plan command: the refusal in its own process (exit code, stderr), the runs that
+    succeed through the same entry point (tsplcam.cli.main) in this process."""
+
     def run_cli(self, *args):
         env = dict(os.environ, PYTHONPATH=REPO_DIR)
         return subprocess.run([SYSTEM_PYTHON, "-m", "tsplcam", "plan", *args],
                               capture_output=True, text=True, env=env, cwd=REPO_DIR)
 
+    def run_here(self, *args):
+        """(exit code, stdout, stderr) of ``tsplcam plan ARGS`` run by tsplcam.cli.main here."""
+        import contextlib
+        import io
+        from tsplcam.cli import main
+        out, err = io.StringIO(), io.StringIO()
+        with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+            code = main(["plan", *args])
+        return code, out.getvalue(), err.getvalue()
+
     def test_plan_writes_and_checks_a_list(self):
         tmp = tempfile.mkdtemp()
         self.addCleanup(shutil.rmtree, tmp, True)
         out = os.path.join(tmp, "keycap.json")
-        res = self.run_cli("--example", "keycap", "--out", out)
-        self.assertEqual(res.returncode, 0, res.stderr)
-        self.assertIn("0 corner links, 0 retractions", res.stdout)
+        code, stdout, stderr = self.run_here("--example", "keycap", "--out", out)
+        self.assertEqual(code, 0, stderr)
+        self.assertIn("0 corner links, 0 retractions", stdout)
         self.assertEqual(len(load(out, ex.keycap()).steps), 5)
-        res = self.run_cli("--example", "keycap", "--check", out)
-        self.assertEqual(res.returncode, 0, res.stderr)
+        code, stdout, stderr = self.run_here("--example", "keycap", "--check", out)
+        self.assertEqual(code, 0, stderr)
         res = self.run_cli("--example", "head", "--check", out)
         self.assertEqual(res.returncode, 2)
         self.assertIn("another model", res.stderr)

@@ -31,6 +31,8 @@ class AgainstEnumeration(unittest.TestCase):
         phis = 2 * np.pi * np.arange(M) / M
         seqs = np.array(list(itertools.product(range(M), repeat=n)))
         D = np.abs(np.pi - np.mod(np.pi - (phis[None, :] - phis[:, None]), 2 * np.pi))
+        steps = D[seqs[:, :-1], seqs[:, 1:]]                       # every sequence's moves, once
+        big = steps > IN_PLACE[1] + 1e-9
         for case in range(30):
             ok = rng.random((n, M)) < 0.5
             ok[:, rng.integers(M)] |= rng.random() < 0.3           # sometimes one value always open
@@ -40,9 +42,8 @@ class AgainstEnumeration(unittest.TestCase):
             travel, states = forced_rotary_travel(grid_of(ok, M), status, ds, air=air)
             allowed = ok & (status != 2)
             legal = allowed[np.arange(n)[None, :], seqs].all(axis=1)
-            steps = D[seqs[:, :-1], seqs[:, 1:]]
             short = (ds < IN_PLACE[0]) & ~air[1:]
-            legal &= ~((steps > IN_PLACE[1] + 1e-9) & short[None, :]).any(axis=1)
+            legal &= ~(big & short[None, :]).any(axis=1)
             if not legal.any():
                 self.assertTrue(np.isnan(travel), case)
                 self.assertIsNone(states)

@@ -55,41 +55,63 @@ def ref_pairs(p, pins):
     return out
 
 
-def ref_transition(layout, pins, p, vec, q):
+class RefMemo:
+    """ref_pairs, ref_kind and the corner nodes of one (layout, pins), each worked out once:
+    the brute force over orders asks them hundreds of thousands of times (the same answers)."""
+
+    def __init__(self, layout, pins):
+        self.layout, self.pins = layout, pins
+        self.nodes = np.asarray(layout.corner_nodes).tolist()
+        self._pairs, self._kinds = {}, {}
+
+    def pairs(self, p):
+        if p not in self._pairs:
+            self._pairs[p] = ref_pairs(p, self.pins)
+        return self._pairs[p]
+
+    def kind(self, p, q):
+        if (p, q) not in self._kinds:
+            self._kinds[p, q] = ref_kind(self.layout, p, q)
+        return self._kinds[p, q]
+
+
+def ref_transition(layout, pins, p, vec, q, memo=None):
     """Best (retractions, corner links) per start corner of q after p (vec: per start of p)."""
-    kind = ref_kind(layout, p, q)
+    memo = memo or RefMemo(layout, pins)
+    kind = memo.kind(p, q)
     out = [None] * 4
-    q_starts = {s for s, _ in ref_pairs(q, pins)}
+    q_starts = {s for s, _ in memo.pairs(q)}
     for s, cost in enumerate(vec):
         if cost is None:
             continue
-        for s1, f in ref_pairs(p, pins):
+        for s1, f in memo.pairs(p):
             if s1 != s:
                 continue
             for s2 in q_starts:
-                same = layout.corner_nodes[p, f] == layout.corner_nodes[q, s2]
+                same = memo.nodes[p][f] == memo.nodes[q][s2]
                 c = (cost[0], cost[1] + (kind == "corner")) if same else (cost[0] + 1, cost[1])
                 if out[s2] is None or c < out[s2]:
                     out[s2] = c
     return out
 
 
-def ref_first(p, pins):
-    starts = {s for s, _ in ref_pairs(p, pins)}
+def ref_first(p, pins, memo=None):
+    starts = {s for s, _ in (memo.pairs(p) if memo else ref_pairs(p, pins))}
     return [(0, 0) if s in starts else None for s in range(4)]
 
 
-def ref_close(vec, p, pins):
-    starts = {s for s, _ in ref_pairs(p, pins)}
+def ref_close(vec, p, pins, memo=None):
+    starts = {s for s, _ in (memo.pairs(p) if memo else ref_pairs(p, pins))}
     vals = [c for s, c in enumerate(vec) if c is not None and s in starts]
     return min(vals) if vals else None
 
 
 def ref_order_cost(layout, order, pins):
-    vec = ref_first(order[0], pins)
+    memo = RefMemo(layout, pins)
+    vec = ref_first(order[0], pins, memo)
     for p, q in zip(order, order[1:]):
-        vec = ref_transition(layout, pins, p, vec, q)
-    return ref_close(vec, order[-1], pins)
+        vec = ref_transition(layout, pins, p, vec, q, memo)
+    return ref_close(vec, order[-1], pins, memo)
 
 
 def ref_enumerate(layout, order, pins):
@@ -118,11 +140,12 @@ def ref_best(layout, pins):
         pos[pins.finish_patch] = n - 1
     at = {k: p for p, k in pos.items()}
     best = [None]
+    memo = RefMemo(layout, pins)
 
     def rec(order, vec):
         k = len(order)
         if k == n:
-            c = ref_close(vec, order[-1], pins)
+            c = ref_close(vec, order[-1], pins, memo)
             if c is not None and (best[0] is None or c < best[0]):
                 best[0] = c
             return
@@ -130,7 +153,7 @@ def ref_best(layout, pins):
         for q in cands:
             if q in order:
                 continue
-            v = ref_first(q, pins) if k == 0 else ref_transition(layout, pins, order[-1], vec, q)
+            v = ref_first(q, pins, memo) if k == 0 else ref_transition(layout, pins, order[-1], vec, q, memo)
             rec(order + [q], v)
 
     rec([], None)
@@ -709,21 +732,34 @@ class ListFile(unittest.TestCase):
 
 
 class CommandLine(unittest.TestCase):
+    """The plan command: the refusal in its own process (exit code, stderr), the runs that
+    succeed through the same entry point (tsplcam.cli.main) in this process."""
+
     def run_cli(self, *args):
         env = dict(os.environ, PYTHONPATH=REPO_DIR)
         return subprocess.run([SYSTEM_PYTHON, "-m", "tsplcam", "plan", *args],
                               capture_output=True, text=True, env=env, cwd=REPO_DIR)
 
+    def run_here(self, *args):
+        """(exit code, stdout, stderr) of ``tsplcam plan ARGS`` run by tsplcam.cli.main here."""
+        import contextlib
+        import io
+        from tsplcam.cli import main
+        out, err = io.StringIO(), io.StringIO()
+        with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+            code = main(["plan", *args])
+        return code, out.getvalue(), err.getvalue()
+
     def test_plan_writes_and_checks_a_list(self):
         tmp = tempfile.mkdtemp()
         self.addCleanup(shutil.rmtree, tmp, True)
         out = os.path.join(tmp, "keycap.json")
-        res = self.run_cli("--example", "keycap", "--out", out)
-        self.assertEqual(res.returncode, 0, res.stderr)
-        self.assertIn("0 corner links, 0 retractions", res.stdout)
+        code, stdout, stderr = self.run_here("--example", "keycap", "--out", out)
+        self.assertEqual(code, 0, stderr)
+        self.assertIn("0 corner links, 0 retractions", stdout)
         self.assertEqual(len(load(out, ex.keycap()).steps), 5)
-        res = self.run_cli("--example", "keycap", "--check", out)
-        self.assertEqual(res.returncode, 0, res.stderr)
+        code, stdout, stderr = self.run_here("--example", "keycap", "--check", out)
+        self.assertEqual(code, 0, stderr)
         res = self.run_cli("--example", "head", "--check", out)
         self.assertEqual(res.returncode, 2)
         self.assertIn("another model", res.stderr)

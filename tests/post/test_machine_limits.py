@@ -117,9 +117,22 @@ class Post(unittest.TestCase):
 
 
 class CommandLine(unittest.TestCase):
+    """The refusals in their own process (exit code 2, the one line on stderr); the program
+    that is written through the same entry point (tsplcam.cli.main) in this process."""
+
     def run_cli(self, *args):
         return subprocess.run(["/usr/bin/python3", "-m", "tsplcam", *args], cwd=REPO_DIR,
                               capture_output=True, text=True, timeout=600)
+
+    def run_here(self, *args):
+        """(exit code, stderr) of ``tsplcam ARGS`` run by tsplcam.cli.main in this process."""
+        import contextlib
+        import io
+        from tsplcam.cli import main
+        out, err = io.StringIO(), io.StringIO()
+        with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+            code = main(list(args))
+        return code, err.getvalue()
 
     def test_feed_and_spindle_refused_before_the_work_with_no_file(self):
         with tempfile.TemporaryDirectory() as tmp:
@@ -143,9 +156,9 @@ class CommandLine(unittest.TestCase):
     def test_the_spindle_option_reaches_the_program(self):
         with tempfile.TemporaryDirectory() as tmp:
             out = os.path.join(tmp, "keycap.h")
-            run = self.run_cli("path", "keycap", "--tool-radius", "0.5", "--scallop", "0.2", "--machine", MIKRON,
-                               "--spindle", "15000", "--feed", "1200", "--gcode", out)
-            self.assertEqual(run.returncode, 0, run.stderr)
+            code, err = self.run_here("path", "keycap", "--tool-radius", "0.5", "--scallop", "0.2",
+                                      "--machine", MIKRON, "--spindle", "15000", "--feed", "1200", "--gcode", out)
+            self.assertEqual(code, 0, err)
             with open(out) as f:
                 text = f.read()
             self.assertIn("TOOL CALL 1 Z S15000", text)

@@ -95,6 +95,12 @@ class PlaneClearance(unittest.TestCase):
         self.assertEqual(at, int(np.argmin(every)))
         self.assertAlmostEqual(got, float(every.min()), delta=1e-12)
         self.assertAlmostEqual(got, float(want.min()), delta=self.checker.margin + 1e-3)
+        # the shortcut the mold's tests take: every pose within reach measured as here
+        first = np.argsort(every, kind="stable")[:4]
+        near = fcl_distances_up_to(self.checker, self.centers, self.axes, only,
+                                   float(every[first[-1]] - margin) + 1e-6) + margin
+        self.assertTrue(np.array_equal(near[first], every[first]))
+        self.assertTrue(np.all(near >= every))
 
 
 
@@ -179,10 +185,51 @@ if __name__ == "__main__":
     unittest.main()
 
 
+def fcl_distances_up_to(checker, centers, axes, only: int, reach: float, slices: int = 16) -> np.ndarray:
+    """fcl.distance of every pose (``checker.clearance_of``, the parts in the bit mask
+    ``only``) wherever it may be at most ``reach``, inf where fcl.collide proves it larger:
+    the smallest value and its first pose are those of clearance_of at every pose whenever
+    that smallest value is below ``reach`` (else the smallest here is larger than it, or inf).
+
+    Every point within ``reach`` of a part's primitive (a cylinder, or a frustum's
+    circumscribed polygon, its corners within ``polygon_tolerance`` of the circle) lies in one
+    of the cylinders of ``slices`` slices of its length, each of the slice's largest radius
+    (plus the polygon's excess) and ``reach`` more, and ``2 reach`` longer; where none of them
+    touches the workpiece, the part lies farther (a distance query costs about a hundred
+    collision queries: on the mold, 20 poses of 542 are measured, 0.7 s instead of 10 s)."""
+    Q = axis_quaternions(axes)
+    req = fcl.CollisionRequest()
+    near = np.zeros(len(centers), np.int64)                  # per pose: the parts within reach
+    for j, p in enumerate(checker.tool.parts()):
+        if not (only >> j) & 1:
+            continue
+        m = checker.cutting_margin if p.name == "flutes" else checker.margin
+        k, excess = (1, 0.0) if abs(p.r1 - p.r0) < 1e-12 else (slices, checker.polygon_tolerance)
+        length = (p.z1 - p.z0) / k
+        cyl = []
+        for i in range(k):
+            rho = max(p.r0 + (p.r1 - p.r0) * i / k, p.r0 + (p.r1 - p.r0) * (i + 1) / k) + m + excess
+            cyl.append((fcl.CollisionObject(fcl.Cylinder(rho + reach, length + 2 * reach), fcl.Transform()),
+                        p.z0 + (i + 0.5) * length))
+        for q in range(len(centers)):
+            for obj, z in cyl:
+                obj.setQuatRotation(Q[q])
+                obj.setTranslation(centers[q] + z * axes[q])
+                if fcl.collide(obj, checker._wp, req, fcl.CollisionResult()):
+                    near[q] |= 1 << j
+                    break
+    out = np.full(len(centers), np.inf)
+    for mask in np.unique(near[near != 0]):
+        sel = near == mask
+        out[sel] = checker.clearance_of(centers[sel], axes[sel], int(mask))
+    return out
+
+
 class MoldSmallestClearance(unittest.TestCase):
     """The smallest clearance over collision-free poses in the keycap mold's cavity (the holder
     near the block): the search that starts from scouts stands where the descent from every pose does,
-    so both give the same pose and value, those of fcl.distance measured at every pose."""
+    so both give the same pose and value, those of fcl.distance measured at every pose (at every
+    pose fcl.collide cannot prove farther: :func:`fcl_distances_up_to`)."""
 
     def assert_scouts_find_fcl_smallest(self, checker, centers, axes):
         """min_clearance from its scouts gives the pose and distance of the search without
@@ -196,7 +243,7 @@ class MoldSmallestClearance(unittest.TestCase):
         self.assertEqual(got[1], plain[1])                        # the same pose
         self.assertAlmostEqual(got[0], plain[0], delta=1e-12)      # and its fcl distance
         self.assertLess(n1 - n0, n2 - n1)
-        every = checker.clearance_of(centers, axes, only) + margin
+        every = fcl_distances_up_to(checker, centers, axes, only, got[0] - margin + 1e-3) + margin
         self.assertEqual(got[1], int(np.argmin(every)))
         self.assertAlmostEqual(got[0], float(every.min()), delta=1e-12)
 

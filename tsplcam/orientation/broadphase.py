@@ -909,19 +909,24 @@ class BroadPhase:
         self.samples, tri_of, self.e = mesh_samples(V, T, e_cap)
         self.e2 = self.e * self.e / 3.0
         self.tree = SampleTree(self.samples)
-        # triangles to measure exactly per sample: a vertex's incident ones, else its own
+        # triangles to measure exactly per sample: a vertex's incident ones, else its own, as
+        # runs of one flat array (sample k's: tris_flat[tris_start[k]:tris_start[k + 1]]; a
+        # table as wide as the most triangles at one vertex costs 0.3 GB and a second to fill
+        # on the impeller, whose hub pole has 180)
         nv = len(V)
         inc_n = np.bincount(T.ravel(), minlength=nv) if len(T) else np.zeros(nv, int)
-        self.sample_tris = np.full((len(self.samples), max(1, int(inc_n.max()) if nv else 1)), -1, np.int64)
-        if len(T):
-            # each vertex's corners in the order of the flat index (triangle * 3 + corner), in
-            # the rows' slots from 0: the sorted corners less where the vertex's run starts
-            flat_v = T.ravel()
-            order = np.argsort(flat_v, kind="stable")
-            fv = flat_v[order]
-            self.sample_tris[fv, np.arange(len(fv)) - (np.cumsum(inc_n) - inc_n)[fv]] = order // 3
         extra = tri_of >= 0
-        self.sample_tris[extra, 0] = tri_of[extra]
+        count = np.zeros(len(self.samples), np.int64)
+        count[:nv] = inc_n
+        count[extra] = 1
+        self.tris_start = np.concatenate([[0], np.cumsum(count)])
+        self.tris_flat = np.empty(int(self.tris_start[-1]), np.int64)
+        if len(T):
+            # each vertex's corners in the order of the flat index (triangle * 3 + corner): the
+            # vertices are the first samples, so their runs are the sorted corners in order
+            order = np.argsort(T.ravel(), kind="stable")
+            self.tris_flat[:len(order)] = order // 3
+        self.tris_flat[self.tris_start[:-1][extra]] = tri_of[extra]
         # unit normals of the triangles (0 for a degenerate one: its plane test never skips it)
         nrm = cross_rows(V[T[:, 1]] - V[T[:, 0]], V[T[:, 2]] - V[T[:, 0]]) if len(T) else np.zeros((0, 3))
         ln = row_norms(nrm)
@@ -1025,10 +1030,12 @@ class BroadPhase:
             out[nw[full]] = np.sqrt(np.maximum(d[full, 0] ** 2 - self.e2, 0.0))
             rows, cols = np.nonzero(inb & ~full[:, None])
             if len(rows):
-                tris = self.sample_tris[j[rows, cols]]
-                r2, t2 = np.nonzero(tris >= 0)
+                js = j[rows, cols]
+                cnt = self.tris_start[js + 1] - self.tris_start[js]
+                r2 = np.repeat(np.arange(len(js)), cnt)
+                at = np.arange(len(r2)) - np.repeat(np.cumsum(cnt) - cnt, cnt) + np.repeat(self.tris_start[js], cnt)
                 # each triangle once per point (neighbouring samples share their triangles)
-                key = np.unique(nw[rows[r2]] * len(self.T) + tris[r2, t2])
+                key = np.unique(nw[rows[r2]] * len(self.T) + self.tris_flat[at])
                 q, ti = key // len(self.T), key % len(self.T)
                 # a triangle whose plane lies PLANE_SLACK farther than R cannot lower the bound
                 # below R: only the others are measured (the same minima, for a fifth of the

@@ -182,33 +182,23 @@ def words(line: str, pattern=re.compile(r"([A-Z]+\d(?==)|[A-Z]+)\s*=?\s*(" + NUM
 
 def pose_of(machine, move: ReadMove, settings: dict, joint_space: bool):
     """Tool tip and unit axis (part frame) a read move commands, via the kinematics."""
-    from ..kinematics import forward, orientation
-    names = machine.axis_names
-    if joint_space:
-        j = np.array([[move.words.get(n, 0.0) for n in names]])
-        tip, axis = forward(machine, j, tool_length=settings.get("tool_length"),
-                            part_origin=settings.get("part_origin"))
-        return tip[0], axis[0]
-    tip = np.array([move.words.get(n, 0.0) for n in "XYZ"])
-    vec = settings.get("vector_words")
-    if settings.get("orientation") == "vector" and vec:
-        axis = np.array([move.words.get(w, 0.0) for w in vec])
-        axis = axis / np.linalg.norm(axis)
-    else:
-        axis = orientation(machine, move.words.get(names[3], 0.0), move.words.get(names[4], 0.0))[0]
-    if settings.get("point") == "center":
-        tip = tip - settings.get("tool_radius", 0.0) * axis
-    return tip, axis
+    tip, axis = _poses(machine, [move], settings, joint_space)
+    return tip[0], axis[0]
 
 
 def poses(machine, moves, settings: dict, joint_space: bool):
     """Tips (m,3) and axes (m,3) of the program moves among ``moves``: :func:`pose_of` of
     every move, the kinematics asked once for all rows (a call per move costs a hundred
     times more)."""
-    from ..kinematics import forward, orientation
     sel = [mv for mv in moves if mv.program]
     if not sel:
         return np.zeros((0, 3)), np.zeros((0, 3))
+    return _poses(machine, sel, settings, joint_space)
+
+
+def _poses(machine, sel: list, settings: dict, joint_space: bool):
+    """Tips and unit axes of the read moves ``sel`` (at least one), one kinematics call."""
+    from ..kinematics import forward, orientation
     names = machine.axis_names
 
     def table(keys):

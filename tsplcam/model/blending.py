@@ -44,6 +44,27 @@ def bezier_1d(knots: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
     return vals @ _TO_BERNSTEIN.T
 
 
+def bezier_1d_many(jobs: list) -> list:
+    """``bezier_1d`` of many (knots (k, 5), lo (c,), hi (c,)) at once: one ``basis5`` over
+    every (function, interval) pair (Cox-de Boor is elementwise, so each value is the one
+    ``bezier_1d`` computes), then each job's change of basis as ``bezier_1d`` does it. Saves
+    the per-call cost of the many small jobs of a Bezier extraction."""
+    if not jobs:
+        return []
+    knots, x, shapes = [], [], []
+    for k, lo, hi in jobs:
+        xs = lo[:, None] + (hi - lo)[:, None] * _NODES[None, :]             # (c, 4)
+        knots.append(np.repeat(k, len(xs), axis=0))
+        x.append(np.tile(xs, (len(k), 1)))
+        shapes.append((len(k), len(xs)))
+    vals = basis5(np.concatenate(knots)[:, None, :], np.concatenate(x))      # (sum k c, 4)
+    out, at = [], 0
+    for k, c in shapes:
+        out.append(vals[at:at + k * c].reshape(k, c, 4) @ _TO_BERNSTEIN.T)
+        at += k * c
+    return out
+
+
 def supports(walker: Walker, knots: LocalKnots, stars: set, zone: dict | None = None) -> list[list]:
     """For every face, the vertices whose blending functions are non-zero on it, with the
     map from the face's frame to the vertex's frame: ``out[f]`` = [(vertex, map), ...].

@@ -77,17 +77,29 @@ def supports(walker: Walker, knots: LocalKnots, stars: set, zone: dict | None = 
     mesh, topo, lex = walker.mesh, walker.topo, walker.lex
     zone = zone or {}
     contrib = [[] for _ in range(topo.nf)]
+    # the walks below run on Python complex numbers (numpy's scalars cost several times more
+    # per operation): the same values, and only sums, negations and comparisons of them
+    crossing = {}
+
+    def cross_map(f, j):
+        key = (f, j)
+        if key not in crossing:
+            hit = walker.cross_map(f, j)
+            crossing[key] = None if hit is None else (hit[0], (hit[1][0], complex(hit[1][1]),
+                                                                complex(hit[1][2])))
+        return crossing[key]
+
     for A in range(mesh.n_vertices):
         if A in stars:
             continue
-        s5, t5 = knots.s[A], knots.t[A]
+        s5, t5 = [complex(k) for k in knots.s[A]], [complex(k) for k in knots.t[A]]
         if s5[4].real - s5[0].real <= walker.tol or t5[4].real - t5[0].real <= walker.tol:
             continue                      # identically zero
         starts = []
         for (f, i), a in zip(topo.fan[A], topo.fan_angle[A]):
             q = (a - topo.out_dir(f, i)) % 4
             px, py = rot(q, *topo.pos[f][i])
-            starts.append((f, (q, -px, -py)))
+            starts.append((f, (q, -complex(px), -complex(py))))
 
         def inside(f, m):
             x0, x1, y0, y1 = walker.face_rect(f, m)
@@ -113,7 +125,7 @@ def supports(walker: Walker, knots: LocalKnots, stars: set, zone: dict | None = 
                 a, b = int(loop[j]), int(loop[(j + 1) % nl])
                 if a in stars or b in stars:
                     continue
-                hit = walker.cross_map(f, j)
+                hit = cross_map(f, j)
                 if hit is None:
                     continue
                 g, mg = hit

@@ -10,13 +10,11 @@ from unittest import mock
 import numpy as np
 
 import tsplcam
-from tsplcam.model.cage import cage_model
 from tsplcam.model.cells import LevelCells
 from tsplcam.model.stars import StarLevels, SumCells
 from tsplcam.model.tmesh import quad_tmesh
 from tsplcam.model.tspline import tspline_model
-from conftest import ngon_prism
-from test_stars import random_intervals, refined, star_disc
+from test_stars import non_uniform_disc, uniform_prism
 
 REL = 1e-12          # positions: of the model size; derivatives: of their own size at the point
 # second derivatives of a star's part: the two routes sum the same terms in another order, and
@@ -138,15 +136,16 @@ class CachedNetsEqualLevels(unittest.TestCase):
         """test_stars' prisms of valence 3, 5, 6, 8: the cage (LevelCells) and the T-spline
         with uniform intervals (StarLevels)."""
         for n in (3, 5, 6, 8):
-            cage = refined(ngon_prism(n, seed=n), 2)
-            self.check(cage_model(cage), f"cage {n}", n)
-            self.check(tspline_model(quad_tmesh(cage.points, cage.mesh.faces, interval=0.7)), f"uniform {n}", n, patches=8)
+            _, _, uniform, cage = uniform_prism(n)          # (built once for test_stars too)
+            self.check(cage, f"cage {n}", n)
+            self.check(uniform, f"uniform {n}", n, patches=8)
 
     def test_non_uniform_and_rational_stars(self):
         rng = np.random.default_rng(12)
         for n in (3, 5, 6, 7, 8):
-            mesh = star_disc(n, random_intervals(n, n))
-            self.check(tspline_model(mesh), f"non-uniform {n}", n)
+            mesh, model = non_uniform_disc(n)                # (built once for test_stars too)
+            self.check(model, f"non-uniform {n}", n)
+            mesh = mesh.copy()
             mesh.weights = rng.uniform(0.5, 2.0, mesh.n_vertices)
             self.check(tspline_model(mesh), f"rational {n}", n)
 

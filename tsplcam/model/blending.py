@@ -80,6 +80,8 @@ def supports(walker: Walker, knots: LocalKnots, stars: set, zone: dict | None = 
     # the walks below run on Python complex numbers (numpy's scalars cost several times more
     # per operation): the same values, and only sums, negations and comparisons of them
     crossing = {}
+    face_rect, lt = walker.face_rect, lex.lt
+    loops = [[int(x) for x in loop] for loop in mesh.faces]
 
     def cross_map(f, j):
         key = (f, j)
@@ -102,8 +104,8 @@ def supports(walker: Walker, knots: LocalKnots, stars: set, zone: dict | None = 
             starts.append((f, (q, -complex(px), -complex(py))))
 
         def inside(f, m):
-            x0, x1, y0, y1 = walker.face_rect(f, m)
-            return lex.lt(x0, s5[4]) and lex.lt(s5[0], x1) and lex.lt(y0, t5[4]) and lex.lt(t5[0], y1)
+            x0, x1, y0, y1 = face_rect(f, m)
+            return lt(x0, s5[4]) and lt(s5[0], x1) and lt(y0, t5[4]) and lt(t5[0], y1)
 
         def allowed(g):
             z = zone.get(g)
@@ -119,10 +121,10 @@ def supports(walker: Walker, knots: LocalKnots, stars: set, zone: dict | None = 
             f = queue.pop()
             m = visited[f]
             contrib[f].append((A, m))
-            loop = mesh.faces[f]
+            loop = loops[f]
             nl = len(loop)
             for j in range(nl):
-                a, b = int(loop[j]), int(loop[(j + 1) % nl])
+                a, b = loop[j], loop[(j + 1) % nl]
                 if a in stars or b in stars:
                     continue
                 hit = cross_map(f, j)

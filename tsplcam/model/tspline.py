@@ -67,8 +67,10 @@ class TSplineModel(Model):
         patch = np.full(n, -1)
         u = np.empty(n)
         v = np.empty(n)
-        for f in np.unique(face):
-            rows = np.nonzero(face == f)[0]
+        # the points of every face (ascending, as np.nonzero(face == f)) from one stable sort
+        order = np.argsort(face, kind="stable")
+        faces, first = np.unique(face[order], return_index=True)
+        for f, rows in zip(faces, np.split(order, first[1:])):
             if f < 0 or f >= len(self.face_pieces):
                 raise InputError(f"face index {f} out of range", path=self.source)
             W, Hh = self.face_size[f]

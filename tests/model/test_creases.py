@@ -158,10 +158,6 @@ class CornerTags(unittest.TestCase):
                 self.assertIn(w, str(cm.exception))
 
 
-if __name__ == "__main__":
-    unittest.main()
-
-
 class NativeFile(unittest.TestCase):
     def test_creases_round_trip_through_the_native_file(self):
         """A creased cage written as .tspl (version 2: creases and corners) reads back to the
@@ -184,3 +180,7 @@ class NativeFile(unittest.TestCase):
         s, t = rng.random(500), rng.random(500)
         a, b = model.evaluate_faces(f, s, t), again.evaluate_faces(f, s, t)
         self.assertEqual(np.abs(a.P - b.P).max(), 0.0)
+
+
+if __name__ == "__main__":
+    unittest.main()

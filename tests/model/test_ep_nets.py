@@ -10,13 +10,11 @@ from unittest import mock
 import numpy as np
 
 import tsplcam
-from tsplcam.model.cage import cage_model
 from tsplcam.model.cells import LevelCells
 from tsplcam.model.stars import StarLevels, SumCells
 from tsplcam.model.tmesh import quad_tmesh
 from tsplcam.model.tspline import tspline_model
-from conftest import ngon_prism
-from test_stars import random_intervals, refined, star_disc
+from test_stars import non_uniform_disc, uniform_prism
 
 REL = 1e-12          # positions: of the model size; derivatives: of their own size at the point
 # second derivatives of a star's part: the two routes sum the same terms in another order, and
@@ -53,16 +51,17 @@ def by_levels():
 
 
 def star_calls(patch, u, v):
-    """The (star, sector, x, y) a patch evaluation hands to its stars' subdivided parts."""
+    """The patch's evaluation at (u, v) and the (star, sector, x, y, what it returned) that
+    evaluation hands to its stars' subdivided parts."""
     calls = []
     nets = StarLevels.evaluate
 
     def spy(self, sector, x, y):
-        calls.append((self, sector.copy(), x.copy(), y.copy()))
-        return nets(self, sector, x, y)
+        out = nets(self, sector, x, y)
+        calls.append((self, sector.copy(), x.copy(), y.copy(), tuple(np.copy(r) for r in out)))
+        return out
     with mock.patch.object(StarLevels, "evaluate", spy):
-        patch.evaluate(u, v)
-    return calls
+        return patch.evaluate(u, v), calls
 
 
 def relative(H, ref, floor):
@@ -94,21 +93,19 @@ class CachedNetsEqualLevels(unittest.TestCase):
             if u is None or done == patches:
                 continue
             done += 1
-            a = patch.evaluate(u, v)
+            a, calls = star_calls(patch, u, v)       # the cached nets' route, its star calls seen
             m1, m2 = by_levels()
             with m1, m2:
                 b = patch.evaluate(u, v)
             checked += len(u)
             self.assertLess(np.abs(a.P - b.P).max(), REL * scale, (label, patch.index))
-            calls = star_calls(patch, u, v)
             if not calls:
                 for ks in (("Pu", "Pv"), ("Puu", "Puv", "Pvv")):
                     size = np.max([np.linalg.norm(getattr(b, k), axis=1) for k in ks], axis=0)
                     err = np.max([np.linalg.norm(getattr(a, k) - getattr(b, k), axis=1) for k in ks], axis=0)
                     self.assertLess((err / np.maximum(size, 1e-300)).max(), REL, (label, patch.index, ks))
                 self.assertLess(np.abs(a.normal - b.normal).max(), 1e-12, (label, patch.index))
-            for star, sector, x, y in calls:
-                H, at = star.evaluate(sector, x, y)
+            for star, sector, x, y, (H, at) in calls:
                 H0, at0 = star.evaluate_levels(sector, x, y)
                 np.testing.assert_array_equal(at, at0)
                 for order, err in enumerate(relative(H, H0, np.linalg.norm(star.limit))):
@@ -138,15 +135,16 @@ class CachedNetsEqualLevels(unittest.TestCase):
         """test_stars' prisms of valence 3, 5, 6, 8: the cage (LevelCells) and the T-spline
         with uniform intervals (StarLevels)."""
         for n in (3, 5, 6, 8):
-            cage = refined(ngon_prism(n, seed=n), 2)
-            self.check(cage_model(cage), f"cage {n}", n)
-            self.check(tspline_model(quad_tmesh(cage.points, cage.mesh.faces, interval=0.7)), f"uniform {n}", n, patches=8)
+            _, _, uniform, cage = uniform_prism(n)          # (built once for test_stars too)
+            self.check(cage, f"cage {n}", n)
+            self.check(uniform, f"uniform {n}", n, patches=8)
 
     def test_non_uniform_and_rational_stars(self):
         rng = np.random.default_rng(12)
         for n in (3, 5, 6, 7, 8):
-            mesh = star_disc(n, random_intervals(n, n))
-            self.check(tspline_model(mesh), f"non-uniform {n}", n)
+            mesh, model = non_uniform_disc(n)                # (built once for test_stars too)
+            self.check(model, f"non-uniform {n}", n)
+            mesh = mesh.copy()
             mesh.weights = rng.uniform(0.5, 2.0, mesh.n_vertices)
             self.check(tspline_model(mesh), f"rational {n}", n)
 

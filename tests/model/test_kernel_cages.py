@@ -1,5 +1,6 @@
 """The surface kernel on Catmull-Clark cages, checked against independent references:
 OpenSubdiv's Hbr refinement baselines, closed-form limit masks, published eigenvalues."""
+import functools
 import os
 import tempfile
 import unittest
@@ -178,10 +179,17 @@ class ExtraordinaryPoints(unittest.TestCase):
 
 
 def all_models():
+    """(name, model) of the cages the continuity checks run on: a fresh list of models built
+    once per run (seven tests read them; none changes them)."""
+    return list(_all_models())
+
+
+@functools.lru_cache(maxsize=None)
+def _all_models():
     names = ["catmark_cube", "catmark_tent", "catmark_edgecorner", "catmark_xord_boundary", "catmark_torus"]
     out = [(n, tsplcam.load(external("opensubdiv", n + ".obj"))) for n in names]
     out += [(f"prism{n}", cage_model(ngon_prism(n, seed=10 + n))) for n in (3, 5, 8)]
-    return out
+    return tuple(out)
 
 
 class LimitSurface(unittest.TestCase):

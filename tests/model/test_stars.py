@@ -10,6 +10,7 @@ to the regular level (tsplcam/model/stars.py), against independent references:
 * non-uniform spoke intervals at stars of valence 3 to 8: closed-form properties (partition of
   unity, the faces on both sides of every edge meet, one normal at the star) and finite
   differences for the derivatives."""
+import functools
 import unittest
 
 import numpy as np
@@ -72,6 +73,24 @@ def random_intervals(n: int, seed: int, k: int = 5):
     return [np.concatenate([rng.uniform(0.5, 2.0, k - 1), [0.0]]) for _ in range(n)]
 
 
+# Models several test files check (test_stars*.py, test_ep_nets.py import these), built once per
+# run: callers must not change them (copy a mesh before changing its points or weights).
+@functools.lru_cache(maxsize=None)
+def uniform_prism(n: int):
+    """The prism of valence n (conftest.ngon_prism, seed n) refined twice: (cage, its T-mesh
+    with every interval 0.7, the T-spline model of that, the cage's Catmull-Clark model)."""
+    cage = refined(ngon_prism(n, seed=n), 2)
+    tmesh = quad_tmesh(cage.points, cage.mesh.faces, interval=0.7)
+    return cage, tmesh, tspline_model(tmesh), cage_model(cage)
+
+
+@functools.lru_cache(maxsize=None)
+def non_uniform_disc(n: int):
+    """star_disc of valence n with random_intervals(n, n): (T-mesh, T-spline model)."""
+    mesh = star_disc(n, random_intervals(n, n))
+    return mesh, tspline_model(mesh)
+
+
 def corner_param(model, mesh, f, v):
     """(s, t) of vertex v as a corner of face f, in the face's unit square."""
     k = [int(x) for x in mesh.faces[f]].index(v)
@@ -103,10 +122,7 @@ class UniformStarsAreCatmullClark(unittest.TestCase):
     def test_valences_3_to_8(self):
         rng = np.random.default_rng(18)
         for n in (3, 5, 6, 8):
-            cage = refined(ngon_prism(n, seed=n), 2)
-            tmesh = quad_tmesh(cage.points, cage.mesh.faces, interval=0.7)
-            model = tspline_model(tmesh)
-            ref = cage_model(cage)
+            cage, tmesh, model, ref = uniform_prism(n)
             self.assertIn(n, [e.valence for e in model.extraordinary])
             scale = np.abs(cage.points).max()
             F = len(cage.mesh.faces)
@@ -173,10 +189,7 @@ class NonUniformStars(unittest.TestCase):
 
     @classmethod
     def setUpClass(cls):
-        cls.models = {}
-        for n in (3, 5, 6, 8):
-            mesh = star_disc(n, random_intervals(n, n))
-            cls.models[n] = (mesh, tspline_model(mesh))
+        cls.models = {n: non_uniform_disc(n) for n in (3, 5, 6, 8)}
 
     def test_spokes_are_non_uniform(self):
         for n, (mesh, _) in self.models.items():

@@ -12,6 +12,7 @@ refinement), against independent references:
   interval 2): its refinement is the uniform cage again, so the surface must be the
   Catmull-Clark limit (the cage path, cage_model) of some points on that cage: found by least
   squares over every face, the fit must be exact (13 points fitted to 1900 samples)."""
+import functools
 import unittest
 
 import numpy as np
@@ -19,8 +20,8 @@ import numpy as np
 from tsplcam.model.cage import Cage, cage_model
 from tsplcam.model.tmesh import TMesh
 from tsplcam.model.tspline import tspline_model
-from conftest import angle_between, brute_force, ngon_prism, split_face, t_junction_mesh
-from test_stars import FAR_TOL, G1_DEG, meet, near_vertex, random_intervals, refined, star_disc
+from conftest import angle_between, brute_force, split_face, t_junction_mesh
+from test_stars import FAR_TOL, G1_DEG, meet, near_vertex, random_intervals, star_disc, uniform_prism
 
 K = 5                                  # faces per sector side in star_disc
 
@@ -58,6 +59,13 @@ def cases(n: int):
         for j in range(n):
             every = split_face(every, face_at(j, 1, p))
         yield f"{where} every spoke", every
+
+
+@functools.lru_cache(maxsize=None)
+def plain_cases4() -> list:
+    """(name, T-mesh, its T-spline model) of every valence-4 case (built once: two classes
+    use them; not to be changed)."""
+    return [(name, mesh, tspline_model(mesh)) for name, mesh in cases(4)]
 
 
 def cell_sums(model, rng, per: int = 6) -> float:
@@ -146,7 +154,9 @@ class RegularVertexNextToTJunctions(unittest.TestCase):
             topo = mesh.topology
             rng = np.random.default_rng(4)
             scale = np.abs(mesh.points).max()
-            checked = 0
+            # the vertices and their points first, the brute-force sum of all points in one
+            # call (its knot vectors and basis functions once, not once per vertex)
+            todo = []
             for v in range(mesh.n_vertices):
                 i, j = mesh.grid_index[v]
                 if topo.boundary[v] or topo.total[v] != 4 or min(X[i] - X[i - 1], X[i + 1] - X[i],
@@ -157,25 +167,30 @@ class RegularVertexNextToTJunctions(unittest.TestCase):
                         topo.total[w] != 4 or any(topo.span(f, k) != 1 for f, k in topo.fan[w])
                         for w in near if not topo.boundary[w]):
                     continue
-                model = tspline_model(mesh, subdivide_at=[v])
-                patch = model.patches[0]
-                W, H = patch.knot_size
+                W, H = X[-1] - X[0], Y[-1] - Y[0]            # the knot size of the one patch
                 x = np.clip(X[i] + rng.uniform(-3, 3, 400) * (X[i + 1] - X[i]), 1e-9 * W, (1 - 1e-9) * W)
                 y = np.clip(Y[j] + rng.uniform(-3, 3, 400) * (Y[j + 1] - Y[j]), 1e-9 * H, (1 - 1e-9) * H)
-                S, Ss, St = brute_force(mesh, X, Y, hsegs, vsegs, x, y)
+                todo.append((v, x, y))
+            S, Ss, St = (r.reshape(len(todo), 400, 3) for r in brute_force(
+                mesh, X, Y, hsegs, vsegs, np.concatenate([x for _, x, _ in todo] or [[]]),
+                np.concatenate([y for _, _, y in todo] or [[]])))
+            for k, (v, x, y) in enumerate(todo):
+                patch = tspline_model(mesh, subdivide_at=[v]).patches[0]
+                W, H = patch.knot_size
+                self.assertAlmostEqual(W, X[-1] - X[0], delta=1e-12 * W)
+                self.assertAlmostEqual(H, Y[-1] - Y[0], delta=1e-12 * H)
                 sp = patch.evaluate(x / W, y / H)
-                self.assertLess(np.abs(sp.P - S).max(), 1e-12 * scale, (seed, v))
-                self.assertLess(np.abs(sp.Pu / W - Ss).max(), 1e-11 * scale, (seed, v))
-                self.assertLess(np.abs(sp.Pv / H - St).max(), 1e-11 * scale, (seed, v))
-                checked += 1
-            self.assertEqual(checked, count, seed)
+                self.assertLess(np.abs(sp.P - S[k]).max(), 1e-12 * scale, (seed, v))
+                self.assertLess(np.abs(sp.Pu / W - Ss[k]).max(), 1e-11 * scale, (seed, v))
+                self.assertLess(np.abs(sp.Pv / H - St[k]).max(), 1e-11 * scale, (seed, v))
+            self.assertEqual(len(todo), count, seed)
 
     def test_star_disc_cases_equal_the_t_spline(self):
         """The valence-4 disc with each second-ring case: the construction at the centre
         against the T-spline evaluated without it, on every face."""
         rng = np.random.default_rng(5)
-        for name, mesh in cases(4):
-            plain, star = tspline_model(mesh), tspline_model(mesh, subdivide_at=[0])
+        for name, mesh, plain in plain_cases4():
+            star = tspline_model(mesh, subdivide_at=[0])
             faces = [f for f in range(len(mesh.faces)) if min(plain.face_size[f]) > 0]
             f = rng.choice(faces, 4000)
             s, t = rng.random(4000), rng.random(4000)
@@ -196,7 +211,7 @@ class StarsNextToTJunctions(unittest.TestCase):
         # T-mesh is not analysis-suitable: its blending functions do not sum to 1 even at a
         # regular vertex (the plain T-spline of the valence-4 disc, 4e-2), nor can they here
         rng = np.random.default_rng(3)
-        cls.suitable = {name for name, mesh in cases(4) if cell_sums(tspline_model(mesh), rng) < 1e-12}
+        cls.suitable = {name for name, _, plain in plain_cases4() if cell_sums(plain, rng) < 1e-12}
 
     def test_partition_of_unity(self):
         rng = np.random.default_rng(8)
@@ -245,7 +260,7 @@ class UniformCageWithAT(unittest.TestCase):
         face (the limit is linear in the points), the fit must be exact."""
         rng = np.random.default_rng(6)
         for n in (3, 5, 6):
-            cage = refined(ngon_prism(n, seed=n), 2)
+            cage, _, _, cage_limit = uniform_prism(n)            # (built once for test_stars too)
             mesh, w, origin = without_second_ring_vertex(cage, 0)
             on_mesh, on_c = on_cage(cage, origin, rng)
             target = tspline_model(mesh).evaluate_faces(*on_mesh).P
@@ -254,7 +269,7 @@ class UniformCageWithAT(unittest.TestCase):
                 near |= {int(x) for f in cage.mesh.faces if near & set(f.tolist()) for x in f}
             near = sorted(near)
             P = cage.points
-            ref = cage_model(cage).evaluate_faces(*on_c).P
+            ref = cage_limit.evaluate_faces(*on_c).P
             cols = []
             for i in range(0, len(near), 3):                  # the limit of a unit move of each point
                 Q = P.copy()

@@ -44,6 +44,27 @@ def bezier_1d(knots: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
     return vals @ _TO_BERNSTEIN.T
 
 
+def bezier_1d_many(jobs: list) -> list:
+    """``bezier_1d`` of many (knots (k, 5), lo (c,), hi (c,)) at once: one ``basis5`` over
+    every (function, interval) pair (Cox-de Boor is elementwise, so each value is the one
+    ``bezier_1d`` computes), then each job's change of basis as ``bezier_1d`` does it. Saves
+    the per-call cost of the many small jobs of a Bezier extraction."""
+    if not jobs:
+        return []
+    knots, x, shapes = [], [], []
+    for k, lo, hi in jobs:
+        xs = lo[:, None] + (hi - lo)[:, None] * _NODES[None, :]             # (c, 4)
+        knots.append(np.repeat(k, len(xs), axis=0))
+        x.append(np.tile(xs, (len(k), 1)))
+        shapes.append((len(k), len(xs)))
+    vals = basis5(np.concatenate(knots)[:, None, :], np.concatenate(x))      # (sum k c, 4)
+    out, at = [], 0
+    for k, c in shapes:
+        out.append(vals[at:at + k * c].reshape(k, c, 4) @ _TO_BERNSTEIN.T)
+        at += k * c
+    return out
+
+
 def supports(walker: Walker, knots: LocalKnots, stars: set, zone: dict | None = None) -> list[list]:
     """For every face, the vertices whose blending functions are non-zero on it, with the
     map from the face's frame to the vertex's frame: ``out[f]`` = [(vertex, map), ...].
@@ -56,21 +77,51 @@ def supports(walker: Walker, knots: LocalKnots, stars: set, zone: dict | None = 
     mesh, topo, lex = walker.mesh, walker.topo, walker.lex
     zone = zone or {}
     contrib = [[] for _ in range(topo.nf)]
+    # the walks below run on Python complex numbers (numpy's scalars cost several times more
+    # per operation): the same values, and only sums, negations and comparisons of them
+    crossing = {}
+    face_rect, tol = walker.face_rect, lex.tol
+    loops = [[int(x) for x in loop] for loop in mesh.faces]
+
+    def cross_map(f, j):
+        key = (f, j)
+        if key not in crossing:
+            hit = walker.cross_map(f, j)
+            crossing[key] = None if hit is None else (hit[0], (hit[1][0], complex(hit[1][1]),
+                                                                complex(hit[1][2])))
+        return crossing[key]
+
     for A in range(mesh.n_vertices):
         if A in stars:
             continue
-        s5, t5 = knots.s[A], knots.t[A]
+        s5, t5 = [complex(k) for k in knots.s[A]], [complex(k) for k in knots.t[A]]
         if s5[4].real - s5[0].real <= walker.tol or t5[4].real - t5[0].real <= walker.tol:
             continue                      # identically zero
         starts = []
         for (f, i), a in zip(topo.fan[A], topo.fan_angle[A]):
             q = (a - topo.out_dir(f, i)) % 4
             px, py = rot(q, *topo.pos[f][i])
-            starts.append((f, (q, -px, -py)))
+            starts.append((f, (q, -complex(px), -complex(py))))
+
+        # lex.lt(a, b) written out (tolerance on the value, then the order part), the sums
+        # with the function's own knots taken once
+        s0r, s0i, t0r, t0i = s5[0].real, s5[0].imag, t5[0].real, t5[0].imag
+        s4m, s4p, s4i = s5[4].real - tol, s5[4].real + tol, s5[4].imag - 1e-7
+        t4m, t4p, t4i = t5[4].real - tol, t5[4].real + tol, t5[4].imag - 1e-7
 
         def inside(f, m):
-            x0, x1, y0, y1 = walker.face_rect(f, m)
-            return lex.lt(x0, s5[4]) and lex.lt(s5[0], x1) and lex.lt(y0, t5[4]) and lex.lt(t5[0], y1)
+            x0, x1, y0, y1 = face_rect(f, m)
+            a = x0.real
+            if not (a < s4m or (not a > s4p and x0.imag < s4i)):
+                return False
+            b = x1.real
+            if not (s0r < b - tol or (not s0r > b + tol and s0i < x1.imag - 1e-7)):
+                return False
+            a = y0.real
+            if not (a < t4m or (not a > t4p and y0.imag < t4i)):
+                return False
+            b = y1.real
+            return t0r < b - tol or (not t0r > b + tol and t0i < y1.imag - 1e-7)
 
         def allowed(g):
             z = zone.get(g)
@@ -86,13 +137,13 @@ def supports(walker: Walker, knots: LocalKnots, stars: set, zone: dict | None = 
             f = queue.pop()
             m = visited[f]
             contrib[f].append((A, m))
-            loop = mesh.faces[f]
+            loop = loops[f]
             nl = len(loop)
             for j in range(nl):
-                a, b = int(loop[j]), int(loop[(j + 1) % nl])
+                a, b = loop[j], loop[(j + 1) % nl]
                 if a in stars or b in stars:
                     continue
-                hit = walker.cross_map(f, j)
+                hit = cross_map(f, j)
                 if hit is None:
                     continue
                 g, mg = hit

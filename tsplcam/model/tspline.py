@@ -30,7 +30,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..errors import InputError
-from .blending import bezier_1d, supports
+from .blending import bezier_1d_many, supports
 from .cells import BezierCells, _chain
 from .decompose import Decomposition, decompose_tmesh, region_links
 from .diffgeom import SurfacePoints
@@ -67,8 +67,10 @@ class TSplineModel(Model):
         patch = np.full(n, -1)
         u = np.empty(n)
         v = np.empty(n)
-        for f in np.unique(face):
-            rows = np.nonzero(face == f)[0]
+        # the points of every face (ascending, as np.nonzero(face == f)) from one stable sort
+        order = np.argsort(face, kind="stable")
+        faces, first = np.unique(face[order], return_index=True)
+        for f, rows in zip(faces, np.split(order, first[1:])):
             if f < 0 or f >= len(self.face_pieces):
                 raise InputError(f"face index {f} out of range", path=self.source)
             W, Hh = self.face_size[f]
@@ -127,8 +129,9 @@ def tspline_model(mesh: TMesh, name: str | None = None, subdivide_at=()) -> TSpl
     """The surface of a T-mesh as patches over Bezier cells (and subdivided cells next to star
     points). ``subdivide_at``: regular interior vertices evaluated by the star construction
     too (valence 4; it must give the same surface: a check of the construction)."""
-    mesh.validate()                   # points and weights may have changed since the topology
-    walker = Walker(mesh)
+    if mesh._topology is not None:
+        mesh.validate()               # points and weights may have changed since the topology
+    walker = Walker(mesh)             # (a mesh without one is validated as it is built)
     Pw = mesh.homogeneous()
     check_clamped(mesh)
     try:
@@ -232,20 +235,10 @@ def _extract(walker: Walker, dec: Decomposition, knots: LocalKnots, support: lis
             mr = (m[0], m[1].real, m[2].real)
             px0, px1, py0, py1 = (c.real for c in dec.rects[p])
             px0, px1, py0, py1 = px0 - X0.real, px1 - X0.real, py0 - Y0.real, py1 - Y0.real
-            fns = []                       # (homogeneous point, u knots, v knots) of the functions on it
-            skip = excluded.get(f, ())
-            for A, ma in support[f]:
-                if A in skip:
-                    continue
-                xk, yk = knots.in_frame(A, ma)
-                uk, vk = map_knots(xk, yk, mr)
-                fns.append((Pw[A], uk, vk))
-            for point, xk, yk in direct.get(f, ()):
-                uk, vk = map_knots(xk, yk, mr)
-                fns.append((point, uk, vk))
-            for _, uk, vk in fns:
-                ub.extend(k for k in uk if px0 < k < px1)
-                vb.extend(k for k in vk if py0 < k < py1)
+            fns = _face_functions(knots, support[f], excluded.get(f, ()), direct.get(f, ()), Pw, mr)
+            _, UK, VK = fns
+            ub.extend(UK[(px0 < UK) & (UK < px1)].tolist())
+            vb.extend(VK[(py0 < VK) & (VK < py1)].tolist())
             ub.extend((px0, px1))
             vb.extend((py0, py1))
             items.append((p, f, mr, (px0, px1, py0, py1), fns))
@@ -258,19 +251,26 @@ def _extract(walker: Walker, dec: Decomposition, knots: LocalKnots, support: lis
         group = np.zeros((nu, nv), dtype=int)
         bez = []                                    # bicubic Bezier cells
         star_entries, star_cells = [], []           # (star, sector, q, shift, widths), (iu, iv, bezier)
-        for n_item, (p, f, m, (px0, px1, py0, py1), fns) in enumerate(items):
+        # every piece's cells, then the Bernstein coefficients of all pieces' functions at once
+        # (bezier_1d_many), then the cells in order; a piece covering cells twice raises
+        # where the loop reaches it, as before
+        spans, jobs, clash = [], [], None
+        for n_item, (p, f, m, (px0, px1, py0, py1), (pts, UK, VK)) in enumerate(items):
             iu0, iu1 = _locate(ub, px0, tol), _locate(ub, px1, tol)
             iv0, iv1 = _locate(vb, py0, tol), _locate(vb, py1, tol)
             if np.any(owner[iu0:iu1, iv0:iv1] >= 0):
-                raise AssertionError("patch cells covered twice")
+                clash = n_item
+                break
             owner[iu0:iu1, iv0:iv1] = n_item
-            lo_u, hi_u = np.array(ub[iu0:iu1]), np.array(ub[iu0 + 1:iu1 + 1])
-            lo_v, hi_v = np.array(vb[iv0:iv1]), np.array(vb[iv0 + 1:iv1 + 1])
-            pts = np.array([pt for pt, _, _ in fns]).reshape(-1, 4)
-            UK = np.array([uk for _, uk, _ in fns]).reshape(-1, 5)
-            VK = np.array([vk for _, _, vk in fns]).reshape(-1, 5)
-            Cu = bezier_1d(UK, lo_u, hi_u)                 # (k, cu, 4)
-            Cv = bezier_1d(VK, lo_v, hi_v)                 # (k, cv, 4)
+            spans.append((iu0, iu1, iv0, iv1))
+            jobs.append((UK, np.array(ub[iu0:iu1]), np.array(ub[iu0 + 1:iu1 + 1])))
+            jobs.append((VK, np.array(vb[iv0:iv1]), np.array(vb[iv0 + 1:iv1 + 1])))
+        coeffs = bezier_1d_many(jobs)
+        for n_item, (p, f, m, _, (pts, _, _)) in enumerate(items):
+            if n_item == clash:
+                raise AssertionError("patch cells covered twice")
+            iu0, iu1, iv0, iv1 = spans[n_item]
+            Cu, Cv = coeffs[2 * n_item], coeffs[2 * n_item + 1]      # (k, cu, 4), (k, cv, 4)
             ctrl = np.einsum("kbj,kai,kc->abjic", Cv, Cu, pts)   # (cu, cv, 4, 4, 4)
             star = first.get(f)
             if star is not None:
@@ -309,6 +309,44 @@ def _extract(walker: Walker, dec: Decomposition, knots: LocalKnots, support: lis
                       knot_size=(PW, PH))
         patches.append(patch)
     return patches, face_pieces
+
+
+def _face_functions(knots: LocalKnots, support: list, skip, direct: list, Pw: np.ndarray, mr) -> tuple:
+    """The blending functions on one face piece, in the patch frame (map ``mr`` face ->
+    patch): homogeneous points (k, 4), u knots (k, 5), v knots (k, 5); first the functions
+    of ``support`` (vertex, map face -> vertex frame) not in ``skip``, then the ``direct``
+    ones (point, x knots, y knots in the face frame). Row by row what ``knots.in_frame`` and
+    ``map_knots`` give (the same sums and negations, on arrays)."""
+    rows = [(A, ma) for A, ma in support if A not in skip]
+    pts, xs, ys = [], [], []
+    if rows:
+        idx = np.array([A for A, _ in rows])
+        back = [inverse(ma) for _, ma in rows]
+        x, y = _map_rows(knots.s[idx], knots.t[idx], np.array([b[0] for b in back]),
+                         np.array([b[1] for b in back], dtype=complex)[:, None],
+                         np.array([b[2] for b in back], dtype=complex)[:, None])
+        pts.append(Pw[idx])
+        xs.append(x.real)
+        ys.append(y.real)
+    if direct:
+        pts.append(np.array([pt for pt, _, _ in direct]).reshape(-1, 4))
+        xs.append(np.array([xk for _, xk, _ in direct]).reshape(-1, 5))
+        ys.append(np.array([yk for _, _, yk in direct]).reshape(-1, 5))
+    if not pts:
+        return np.zeros((0, 4)), np.zeros((0, 5)), np.zeros((0, 5))
+    X, Y = np.concatenate(xs), np.concatenate(ys)
+    U, V = map_knots(X.T, Y.T, mr)            # knots along axis 0: map_knots reverses that one
+    return np.concatenate(pts), np.ascontiguousarray(U.T), np.ascontiguousarray(V.T)
+
+
+def _map_rows(xk: np.ndarray, yk: np.ndarray, q: np.ndarray, tx: np.ndarray, ty: np.ndarray):
+    """``map_knots`` of knot rows (k, 5) with one map (q, tx, ty) per row (k,), (k, 1), (k, 1)."""
+    X, Y = np.empty_like(xk), np.empty_like(yk)
+    for r in np.unique(q % 4):
+        sel = q % 4 == r
+        x, y = map_knots(xk[sel].T, yk[sel].T, (int(r), tx[sel].T, ty[sel].T))
+        X[sel], Y[sel] = x.T, y.T
+    return X, Y
 
 
 def _assemble(walker: Walker, dec: Decomposition, patches: list[Patch], face_pieces: list,

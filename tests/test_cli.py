@@ -1,7 +1,7 @@
 """The command line: ``path`` exits 0 with CL data and a report; every command takes a model
 file or a shipped sample name; bad options, unknown names and unwritable outputs exit 2
 with one line naming the option and leave no file; the same command gives the same bytes
-under any PYTHONHASHSEED."""
+under any PYTHONHASHSEED and any number of workers."""
 import contextlib
 import io
 import json
@@ -17,6 +17,7 @@ from tsplcam.model.samples import sample_path
 from tsplcam.plan import save
 from tsplcam.plan.steps import ProcessingList, Step
 from conftest import REPO_DIR, artifact_path
+from _jobs import MAIN_JOB, MAIN_JOB_SEED, MAIN_JOB_WORKERS, main_job, run_tsplcam
 from tsplcam.toolpath.cldata import read_cl
 from tsplcam.toolpath.path import Move
 
@@ -241,26 +242,23 @@ class ModelArgument(unittest.TestCase):
 
 
 class Determinism(unittest.TestCase):
-    """The same command twice, under different PYTHONHASHSEED: the program, CL data,
+    """The same command in two processes that differ in PYTHONHASHSEED and in the number of
+    path workers (TSPLCAM_WORKERS 1 or 2), both factors at once: the program, CL data,
     processing list, report.json (apart from its timing block), report.html and its pictures
-    are the same bytes."""
+    are the same bytes. (A difference from either shows: the two would have to cancel to the
+    last bit to hide one another.)"""
     maxDiff = None                   # (a failure shows every line that differs)
-    JOB = ["job", "--out", "out", "--scallop", "0.2", "--chord-tol", "0.01", "--max-step", "2",
-           "--machine", "linuxcnc_xyzac_trt"]
     PATH = ["path", "keycap", "--tool-radius", "0.5", "--scallop", "0.2", "--chord-tol", "0.01", "--tool",
             "ball1_keycap", "--orientation", "closest-z", "--machine", "bc_head_table_sinumerik", "--gcode",
             "out/k.mpf", "--cl", "out/k.cl", "--json", "out/k.json"]
+    OTHER_SEED, OTHER_WORKERS = 4242, 2
 
-    def run_in(self, cwd, argv, seed, workers=None):
-        """The same command line (the same relative file names) in its own folder
-        (``workers``: TSPLCAM_WORKERS, when given)."""
-        env = system_python_env()
-        env["PYTHONHASHSEED"] = str(seed)
-        if workers is not None:
-            env["TSPLCAM_WORKERS"] = str(workers)
-        os.makedirs(os.path.join(cwd, "out"))
-        return subprocess.run([SYSTEM_PYTHON, "-m", "tsplcam", *argv], cwd=cwd, env=env, capture_output=True,
-                              text=True, timeout=600)
+    def run_in(self, cwd, argv, seed, workers):
+        """The same command line (the same relative file names) in its own folder, with
+        PYTHONHASHSEED ``seed`` and TSPLCAM_WORKERS ``workers``."""
+        system_python_env()                          # (skips without /usr/bin/python3)
+        os.makedirs(os.path.join(cwd, "out"), exist_ok=True)
+        return run_tsplcam(argv, cwd, seed=seed, workers=workers, timeout=600)
 
     def assert_same_files(self, a, b, names, report):
         self.assertEqual(sorted(os.listdir(a)), names)
@@ -284,44 +282,54 @@ class Determinism(unittest.TestCase):
             self.assertNotIn("seconds", json.dumps(ra))
             self.assertEqual(json.dumps(ra, indent=2, sort_keys=True), json.dumps(rb, indent=2, sort_keys=True))
 
-    def test_job_and_path_bytes_do_not_depend_on_the_hash_seed(self):
+    @staticmethod
+    def keep(name, folders):
+        """Copy the runs' folders (label -> folder) for a look after a failure."""
+        keep = artifact_path(name)
+        shutil.rmtree(keep, ignore_errors=True)
+        for label, folder in folders.items():
+            shutil.copytree(folder, os.path.join(keep, label))
+
+    def test_job_bytes_do_not_depend_on_the_hash_seed_or_the_workers(self):
+        """The main job (tests/_jobs.py: keycap, Heidenhain, verification, baseline, HTML
+        report), run once for the test process with PYTHONHASHSEED 0 in one process (the
+        orientation stage builds the collision checker), against the same command with
+        PYTHONHASHSEED 4242 and two path workers (the checker built beside them, in the main
+        process)."""
         with tempfile.TemporaryDirectory() as tmp:
-            runs = [(os.path.join(tmp, f"{argv[0]}{seed}"), argv, seed)
-                    for argv in (self.JOB, self.PATH) for seed in (0, 4242)]
+            with ThreadPoolExecutor(1) as pool:            # the shared run, when not made yet, beside ours
+                shared = pool.submit(main_job)
+                other = self.run_in(tmp, MAIN_JOB, self.OTHER_SEED, self.OTHER_WORKERS)
+                shared = shared.result()
+            self.assertEqual((MAIN_JOB_SEED, MAIN_JOB_WORKERS), (0, 1))
+            for r in (shared.res, other):
+                self.assertEqual(r.returncode, 0, r.stderr)
+            self.assertNotIn("built meanwhile", shared.res.stdout)
+            self.assertIn("collision checker built meanwhile", other.stdout)
+            try:
+                self.assert_same_files(shared.out, os.path.join(tmp, MAIN_JOB[3]),
+                                       ["keycap.cl", "keycap.h", "processing-list.json", "report.html", "report.json",
+                                        "report_files"], "report.json")
+            except AssertionError:         # keep both runs' files for a look
+                self.keep("determinism-failure", {f"seed{MAIN_JOB_SEED}-workers{MAIN_JOB_WORKERS}": shared.cwd,
+                                                  f"seed{self.OTHER_SEED}-workers{self.OTHER_WORKERS}": tmp})
+                raise
+
+    def test_path_bytes_do_not_depend_on_the_hash_seed_or_the_workers(self):
+        """The path command with closest-z axes and a Sinumerik program: PYTHONHASHSEED 0 and
+        one process against PYTHONHASHSEED 4242 and two path workers."""
+        with tempfile.TemporaryDirectory() as tmp:
+            runs = [(os.path.join(tmp, f"seed{seed}-workers{workers}"), self.PATH, seed, workers)
+                    for seed, workers in ((0, 1), (self.OTHER_SEED, self.OTHER_WORKERS))]
             with ThreadPoolExecutor(2) as pool:
                 results = list(pool.map(lambda r: self.run_in(*r), runs))
             for r in results:
                 self.assertEqual(r.returncode, 0, r.stderr)
-            job_a, job_b, path_a, path_b = (os.path.join(cwd, "out") for cwd, _, _ in runs)
             try:
-                self.assert_same_files(job_a, job_b, ["keycap.cl", "keycap.ngc", "processing-list.json",
-                                                      "report.html", "report.json", "report_files"], "report.json")
-                self.assert_same_files(path_a, path_b, ["k.cl", "k.json", "k.mpf"], "k.json")
-            except AssertionError:         # keep both runs' files for a look
-                keep = artifact_path("determinism-failure")
-                shutil.rmtree(keep, ignore_errors=True)
-                shutil.copytree(tmp, keep)
-                raise
-
-    def test_job_bytes_do_not_depend_on_the_workers(self):
-        """Two path workers (the collision checker then built beside them, in the main process)
-        or one process (built by the orientation stage): the same files."""
-        argv = self.JOB + ["--no-html-report"]
-        with tempfile.TemporaryDirectory() as tmp:
-            runs = [(os.path.join(tmp, f"w{workers}"), argv, 0, workers) for workers in (1, 2)]
-            results = [self.run_in(*r) for r in runs]
-            for r in results:
-                self.assertEqual(r.returncode, 0, r.stderr)
-            self.assertNotIn("built meanwhile", results[0].stdout)
-            self.assertIn("collision checker built meanwhile", results[1].stdout)
-            one, two = (os.path.join(cwd, "out") for cwd, _, _, _ in runs)
-            try:
-                self.assert_same_files(one, two, ["keycap.cl", "keycap.ngc", "processing-list.json", "report.json"],
-                                       "report.json")
-            except AssertionError:         # keep both runs' files for a look
-                keep = artifact_path("determinism-workers-failure")
-                shutil.rmtree(keep, ignore_errors=True)
-                shutil.copytree(tmp, keep)
+                self.assert_same_files(*(os.path.join(cwd, "out") for cwd, _, _, _ in runs),
+                                       ["k.cl", "k.json", "k.mpf"], "k.json")
+            except AssertionError:
+                self.keep("determinism-path-failure", {os.path.basename(cwd): cwd for cwd, _, _, _ in runs})
                 raise
 
 
@@ -329,16 +337,22 @@ class FusionSampleJob(unittest.TestCase):
     def test_fusion_tsm_job_end_to_end(self):
         """The Fusion-dialect sample (a .tsm: stars of valence 3 and 5, a crease) through the
         one reader registry: path, tool axes and program in one run, no retraction, no
-        collision or gouge."""
+        collision or gouge, the scallop measured on the surface under the limit. (No HTML
+        report: its pictures would double the run, and the main job's are checked in
+        tests/test_pipeline.py and tests/report.)"""
         with tempfile.TemporaryDirectory(prefix="tsplcam-fusion-job-") as out:
             code, stdout, err = run(["job", "--model", sample_path("fusion_mold"), "--tool-radius", "0.5",
-                                     "--scallop", "0.1", "--max-step", "2", "--out", out])
+                                     "--scallop", "0.1", "--max-step", "2", "--no-html-report", "--out", out])
             self.assertEqual(code, 0, err)
+            self.assertEqual(sorted(os.listdir(out)), ["fusion_mold.cl", "fusion_mold.h", "processing-list.json",
+                                                       "report.json"])
             with open(os.path.join(out, "report.json")) as fh:
                 report = json.load(fh)
             self.assertEqual(report["path"]["patches"], 32)
             self.assertEqual(report["path"]["retractions"], 0)
             self.assertEqual((report["orientation"]["collisions"], report["orientation"]["gouges"]), (0, 0))
+            self.assertLessEqual(report["verification"]["max_scallop"], 0.1 * (1 + 1e-9))
+            self.assertLess(report["verification"]["gouge_points"], 1e-6)
             with open(os.path.join(out, "fusion_mold.h")) as fh:
                 blocks = fh.read().splitlines()
             self.assertGreater(len(blocks), report["path"]["points"])

@@ -12,14 +12,16 @@ import time
 import unittest
 
 from conftest import REPO_DIR
+from _jobs import MAIN_JOB_FILE, MAIN_JOB_SEED, MAIN_JOB_WORKERS, assert_same_files, keep_for_a_look, main_job
 from tsplcam.errors import InputError
 from tsplcam.model.samples import sample_path
 
 PY = "/usr/bin/python3"
 COARSE = {"scallop": 0.2, "chord_tol": 0.01, "max_step": 2.0}
 JOBS = {
-    # the main job's machine and strategy, with the report and the surface verification
-    "cap_heidenhain": dict(model="keycap", **COARSE),
+    # the main job of tests/_jobs.py as a job file: the main machine and strategy, the surface
+    # verification, the baseline and the report (compared with the job's command line)
+    "cap_heidenhain": dict(MAIN_JOB_FILE),
     # another machine, closest axes, no report; the model a file beside the job file
     "cap_linuxcnc": dict(model="parts/cap.obj", machine="linuxcnc_xyzac_trt", orientation="closest",
                          verify=False, html_report=False, **COARSE),
@@ -32,6 +34,9 @@ JOBS = {
     "too_big": dict(model="keycap_mold", tool=None, tool_radius=1.0, orientation="normal", scallop=0.05),
 }
 OK = ("cap_heidenhain", "cap_linuxcnc", "mold_fanuc")
+#: the batch's PYTHONHASHSEED and engine workers (one process per job): other than the main
+#: job's shared run (tests/_jobs.py), so that their comparison covers both
+BATCH_SEED, BATCH_WORKERS = 4242, 1
 
 
 def tsplcam(*args, cwd=None, env=None):
@@ -57,6 +62,8 @@ def by_name(rows):
 
 
 class Batch(unittest.TestCase):
+    maxDiff = None                   # (a failure shows every line that differs)
+
     @classmethod
     def setUpClass(cls):
         cls.root = tempfile.mkdtemp(prefix="tsplcam-batch-")
@@ -70,7 +77,8 @@ class Batch(unittest.TestCase):
             cls.files.append(path)
         cls.out = os.path.join(cls.root, "out")
         t = time.perf_counter()
-        cls.res = tsplcam("batch", *cls.files, "--workers", "2", "--out", cls.out)
+        cls.res = tsplcam("batch", *cls.files, "--workers", "2", "--out", cls.out,
+                          env={"PYTHONHASHSEED": str(BATCH_SEED), "TSPLCAM_WORKERS": str(BATCH_WORKERS)})
         cls.wall = time.perf_counter() - t
         with open(os.path.join(cls.out, "summary.json")) as fh:
             cls.rows = json.load(fh)
@@ -129,15 +137,26 @@ class Batch(unittest.TestCase):
         self.assertFalse(os.path.exists(os.path.join(self.out, "cap_linuxcnc", "report.html")))
 
     def test_a_batch_job_is_the_job_command(self):
-        """The same job file through `job --config`, with the batch's one BLAS thread: the same
-        program and CL data, byte for byte."""
-        single = os.path.join(self.root, "single")
-        res = tsplcam("job", "--config", self.files[1], "--out", single, env={"OPENBLAS_NUM_THREADS": "1"})
-        self.assertEqual(res.returncode, 0, res.stderr)
-        for name in ("cap.ngc", "cap.cl", "processing-list.json"):
-            with open(os.path.join(single, name), "rb") as a, \
-                    open(os.path.join(self.out, "cap_linuxcnc", name), "rb") as b:
-                self.assertEqual(a.read(), b.read(), name)
+        """The main job's command line (tests/_jobs.py, run once for the test process:
+        PYTHONHASHSEED 0, two path workers, the collision checker built meanwhile) and its job
+        file here (PYTHONHASHSEED 4242, one process per job, the batch's one BLAS thread): the
+        same program, CL data and processing list, report.html and its pictures, and
+        report.json apart from its timing block, byte for byte. This is also the job's check
+        that its bytes depend neither on the hash seed nor on the workers (tests/test_cli.py,
+        Determinism, checks the path command so)."""
+        self.assertNotEqual((MAIN_JOB_SEED, MAIN_JOB_WORKERS), (BATCH_SEED, BATCH_WORKERS))
+        self.assertEqual((MAIN_JOB_SEED, MAIN_JOB_WORKERS), (0, 2))
+        job = main_job()
+        self.assertEqual(job.res.returncode, 0, job.res.stderr)
+        self.assertIn("collision checker built meanwhile", job.res.stdout)
+        here = os.path.join(self.out, "cap_heidenhain")
+        try:
+            assert_same_files(self, job.out, here, ["keycap.cl", "keycap.h", "processing-list.json", "report.html",
+                                                    "report.json", "report_files"], "report.json",
+                              also_in_b=("batch.json",))
+        except AssertionError:         # keep both runs' files for a look
+            keep_for_a_look("batch-job-failure", {"job-command": job.out, "batch": here})
+            raise
 
     def test_rerun_skips_unchanged_jobs(self):
         """Three reruns through the command line's entry point in this process (setUpClass

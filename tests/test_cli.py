@@ -1,12 +1,11 @@
 """The command line: ``path`` exits 0 with CL data and a report; every command takes a model
 file or a shipped sample name; bad options, unknown names and unwritable outputs exit 2
 with one line naming the option and leave no file; the same command gives the same bytes
-under any PYTHONHASHSEED."""
+under any PYTHONHASHSEED and any number of workers."""
 import contextlib
 import io
 import json
 import os
-import shutil
 import subprocess
 import tempfile
 import unittest
@@ -16,7 +15,8 @@ from tsplcam.cli import main
 from tsplcam.model.samples import sample_path
 from tsplcam.plan import save
 from tsplcam.plan.steps import ProcessingList, Step
-from conftest import REPO_DIR, artifact_path
+from conftest import REPO_DIR
+from _jobs import assert_same_files, keep_for_a_look, run_tsplcam
 from tsplcam.toolpath.cldata import read_cl
 from tsplcam.toolpath.path import Move
 
@@ -241,87 +241,41 @@ class ModelArgument(unittest.TestCase):
 
 
 class Determinism(unittest.TestCase):
-    """The same command twice, under different PYTHONHASHSEED: the program, CL data,
-    processing list, report.json (apart from its timing block), report.html and its pictures
-    are the same bytes."""
+    """The same command in two processes that differ in PYTHONHASHSEED and in the number of
+    path workers (TSPLCAM_WORKERS 1 or 2), both factors at once: the program, CL data and
+    report are the same bytes (report.json apart from its timing block). (A difference from
+    either shows: the two would have to cancel to the last bit to hide one another.) The
+    job's program, CL data, processing list, report.json, report.html and pictures are
+    compared so in tests/test_batch.py (Batch.test_a_batch_job_is_the_job_command: the main
+    job's command line, PYTHONHASHSEED 0 and two path workers, against its job file through
+    `batch`, PYTHONHASHSEED 4242 and one process)."""
     maxDiff = None                   # (a failure shows every line that differs)
-    JOB = ["job", "--out", "out", "--scallop", "0.2", "--chord-tol", "0.01", "--max-step", "2",
-           "--machine", "linuxcnc_xyzac_trt"]
     PATH = ["path", "keycap", "--tool-radius", "0.5", "--scallop", "0.2", "--chord-tol", "0.01", "--tool",
             "ball1_keycap", "--orientation", "closest-z", "--machine", "bc_head_table_sinumerik", "--gcode",
             "out/k.mpf", "--cl", "out/k.cl", "--json", "out/k.json"]
 
-    def run_in(self, cwd, argv, seed, workers=None):
-        """The same command line (the same relative file names) in its own folder
-        (``workers``: TSPLCAM_WORKERS, when given)."""
-        env = system_python_env()
-        env["PYTHONHASHSEED"] = str(seed)
-        if workers is not None:
-            env["TSPLCAM_WORKERS"] = str(workers)
-        os.makedirs(os.path.join(cwd, "out"))
-        return subprocess.run([SYSTEM_PYTHON, "-m", "tsplcam", *argv], cwd=cwd, env=env, capture_output=True,
-                              text=True, timeout=600)
+    def run_in(self, cwd, argv, seed, workers):
+        """The same command line (the same relative file names) in its own folder, with
+        PYTHONHASHSEED ``seed`` and TSPLCAM_WORKERS ``workers``."""
+        system_python_env()                          # (skips without /usr/bin/python3)
+        os.makedirs(os.path.join(cwd, "out"), exist_ok=True)
+        return run_tsplcam(argv, cwd, seed=seed, workers=workers, timeout=600)
 
-    def assert_same_files(self, a, b, names, report):
-        self.assertEqual(sorted(os.listdir(a)), names)
-        self.assertEqual(sorted(os.listdir(b)), names)
-        for name in names:
-            if os.path.isdir(os.path.join(a, name)):         # the report's pictures
-                inner = sorted(os.listdir(os.path.join(a, name)))
-                self.assertGreater(len(inner), 0, name)
-                self.assert_same_files(os.path.join(a, name), os.path.join(b, name), inner, None)
-                continue
-            with open(os.path.join(a, name), "rb") as fa, open(os.path.join(b, name), "rb") as fb:
-                da, db = fa.read(), fb.read()
-            if name != report:
-                self.assertEqual(da, db, name)
-                continue
-            ra, rb = json.loads(da), json.loads(db)
-            ta, tb = ra.pop("timing"), rb.pop("timing")
-            self.assertEqual(set(ta), set(tb))
-            self.assertTrue(all(isinstance(v, float) and v >= 0 for v in ta.values()), ta)
-            # the run times live in the timing block only; the rest is the same, byte for byte
-            self.assertNotIn("seconds", json.dumps(ra))
-            self.assertEqual(json.dumps(ra, indent=2, sort_keys=True), json.dumps(rb, indent=2, sort_keys=True))
-
-    def test_job_and_path_bytes_do_not_depend_on_the_hash_seed(self):
+    def test_path_bytes_do_not_depend_on_the_hash_seed_or_the_workers(self):
+        """The path command with closest-z axes and a Sinumerik program: PYTHONHASHSEED 0 and
+        one process against PYTHONHASHSEED 4242 and two path workers."""
         with tempfile.TemporaryDirectory() as tmp:
-            runs = [(os.path.join(tmp, f"{argv[0]}{seed}"), argv, seed)
-                    for argv in (self.JOB, self.PATH) for seed in (0, 4242)]
+            runs = [(os.path.join(tmp, f"seed{seed}-workers{workers}"), self.PATH, seed, workers)
+                    for seed, workers in ((0, 1), (4242, 2))]
             with ThreadPoolExecutor(2) as pool:
                 results = list(pool.map(lambda r: self.run_in(*r), runs))
             for r in results:
                 self.assertEqual(r.returncode, 0, r.stderr)
-            job_a, job_b, path_a, path_b = (os.path.join(cwd, "out") for cwd, _, _ in runs)
             try:
-                self.assert_same_files(job_a, job_b, ["keycap.cl", "keycap.ngc", "processing-list.json",
-                                                      "report.html", "report.json", "report_files"], "report.json")
-                self.assert_same_files(path_a, path_b, ["k.cl", "k.json", "k.mpf"], "k.json")
+                assert_same_files(self, *(os.path.join(cwd, "out") for cwd, _, _, _ in runs),
+                                  ["k.cl", "k.json", "k.mpf"], "k.json")
             except AssertionError:         # keep both runs' files for a look
-                keep = artifact_path("determinism-failure")
-                shutil.rmtree(keep, ignore_errors=True)
-                shutil.copytree(tmp, keep)
-                raise
-
-    def test_job_bytes_do_not_depend_on_the_workers(self):
-        """Two path workers (the collision checker then built beside them, in the main process)
-        or one process (built by the orientation stage): the same files."""
-        argv = self.JOB + ["--no-html-report"]
-        with tempfile.TemporaryDirectory() as tmp:
-            runs = [(os.path.join(tmp, f"w{workers}"), argv, 0, workers) for workers in (1, 2)]
-            results = [self.run_in(*r) for r in runs]
-            for r in results:
-                self.assertEqual(r.returncode, 0, r.stderr)
-            self.assertNotIn("built meanwhile", results[0].stdout)
-            self.assertIn("collision checker built meanwhile", results[1].stdout)
-            one, two = (os.path.join(cwd, "out") for cwd, _, _, _ in runs)
-            try:
-                self.assert_same_files(one, two, ["keycap.cl", "keycap.ngc", "processing-list.json", "report.json"],
-                                       "report.json")
-            except AssertionError:         # keep both runs' files for a look
-                keep = artifact_path("determinism-workers-failure")
-                shutil.rmtree(keep, ignore_errors=True)
-                shutil.copytree(tmp, keep)
+                keep_for_a_look("determinism-failure", {os.path.basename(cwd): cwd for cwd, _, _, _ in runs})
                 raise
 
 
@@ -329,11 +283,16 @@ class FusionSampleJob(unittest.TestCase):
     def test_fusion_tsm_job_end_to_end(self):
         """The Fusion-dialect sample (a .tsm: stars of valence 3 and 5, a crease) through the
         one reader registry: path, tool axes and program in one run, no retraction, no
-        collision or gouge."""
+        collision or gouge. Without the surface verification and the HTML report, which come
+        after the program (they took two thirds of the run; the main job's are checked in
+        tests/test_pipeline.py and tests/report)."""
         with tempfile.TemporaryDirectory(prefix="tsplcam-fusion-job-") as out:
             code, stdout, err = run(["job", "--model", sample_path("fusion_mold"), "--tool-radius", "0.5",
-                                     "--scallop", "0.1", "--max-step", "2", "--out", out])
+                                     "--scallop", "0.1", "--max-step", "2", "--no-verify", "--no-html-report",
+                                     "--out", out])
             self.assertEqual(code, 0, err)
+            self.assertEqual(sorted(os.listdir(out)), ["fusion_mold.cl", "fusion_mold.h", "processing-list.json",
+                                                       "report.json"])
             with open(os.path.join(out, "report.json")) as fh:
                 report = json.load(fh)
             self.assertEqual(report["path"]["patches"], 32)

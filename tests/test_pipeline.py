@@ -10,6 +10,7 @@ import unittest
 import numpy as np
 
 from conftest import REPO_DIR, needs_freecad
+from _jobs import main_job
 
 PY = "/usr/bin/python3"
 
@@ -18,6 +19,22 @@ def run(*args, cwd=None):
     env = dict(os.environ, PYTHONPATH=REPO_DIR)
     return subprocess.run([PY, "-m", "tsplcam", *args], capture_output=True, text=True, env=env,
                           cwd=cwd or REPO_DIR, timeout=900)
+
+
+def run_here(*args):
+    """``tsplcam.cli.main(args)`` in this process: (returncode, stdout, stderr) as ``run``'s
+    CompletedProcess has them."""
+    import contextlib
+    import io
+    from types import SimpleNamespace
+    from tsplcam.cli import main
+    out, err = io.StringIO(), io.StringIO()
+    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+        try:
+            code = main(list(args))
+        except SystemExit as exc:             # argparse refusals
+            code = exc.code
+    return SimpleNamespace(returncode=code, stdout=out.getvalue(), stderr=err.getvalue())
 
 
 class PathCommand(unittest.TestCase):
@@ -64,17 +81,19 @@ class PathCommand(unittest.TestCase):
                 self.assertLessEqual(angle[near_pole].max(), cone + 1e-9)
 
     def test_bad_arguments_exit_2_with_a_message(self):
+        """The first in a process of its own, as the shell sees it; the others through the
+        same entry point in this process (tests/test_cli.py runs every refusal so)."""
         res = run("path", "keycap", "--tool-radius", "0.5", "--scallop", "0.05", "--gcode", "/tmp/x.ngc")
         self.assertEqual(res.returncode, 2)
         self.assertIn("--gcode: needs --machine", res.stderr)
-        res = run("path", "keycap", "--tool-radius", "0.5", "--scallop", "0.05", "--orientation", "smooth")
+        res = run_here("path", "keycap", "--tool-radius", "0.5", "--scallop", "0.05", "--orientation", "smooth")
         self.assertEqual(res.returncode, 2)
         self.assertIn("needs a tool", res.stderr)
-        res = run("path", "keycap", "--tool-radius", "0.7", "--scallop", "0.05", "--tool", "ball1_keycap",
-                  "--orientation", "smooth")
+        res = run_here("path", "keycap", "--tool-radius", "0.7", "--scallop", "0.05", "--tool", "ball1_keycap",
+                       "--orientation", "smooth")
         self.assertEqual(res.returncode, 2)
         self.assertIn("differs from the ball radius", res.stderr)
-        res = run("path", "no_such_model.obj", "--tool-radius", "0.5", "--scallop", "0.05")
+        res = run_here("path", "no_such_model.obj", "--tool-radius", "0.5", "--scallop", "0.05")
         self.assertEqual(res.returncode, 2)
         self.assertIn("no_such_model.obj", res.stderr)
 
@@ -97,13 +116,16 @@ def number(text: str) -> float:
 
 class MainJob(unittest.TestCase):
     """`job MODEL --out DIR` writes the program, CL data, processing list, report.json and
-    report.html with its pictures; the page carries report.json's measured figures."""
+    report.html with its pictures; the page carries report.json's measured figures. The run
+    is tests/_jobs.py's main job (`job keycap --out new/job --scallop 0.2 --chord-tol 0.01
+    --baseline`: two folders to make), made once for the test process and shared with
+    tests/test_cli.py (read only)."""
 
     @classmethod
     def setUpClass(cls):
         cls.tmp = tempfile.mkdtemp(prefix="tsplcam-job-")
-        cls.out = os.path.join(cls.tmp, "new", "job")          # two folders to make
-        cls.res = run("job", "keycap", "--out", cls.out, "--scallop", "0.2", "--chord-tol", "0.01", "--baseline")
+        job = main_job()
+        cls.out, cls.res = job.out, job.res
 
     @classmethod
     def tearDownClass(cls):
@@ -210,7 +232,9 @@ class OneProgramBuilder(unittest.TestCase):
     """Fast settings (a coarse path on the keycap): the main job's program and the `path`
     command's program are the same bytes, both made by tsplcam.program.make_program (the
     workbench's program object is compared with the job in
-    tests/workbench/test_workbench_program.py)."""
+    tests/workbench/test_workbench_program.py). The job runs without the surface
+    verification and the HTML report: both come after the program and change none of its
+    bytes (measured once: the same program and CL data with and without them)."""
 
     def test_job_and_path_command_agree(self):
         import contextlib
@@ -221,8 +245,8 @@ class OneProgramBuilder(unittest.TestCase):
         options = dict(scallop=0.2, chord_tol=0.01, max_step=2.0, feed=800.0, holder_clearance=0.25,
                        smoothing_length=4.0, machine="bc_head_table_sinumerik", dialect="fanuc")
         with tempfile.TemporaryDirectory() as tmp:
-            figures = run_job(JobSettings(out=os.path.join(tmp, "job"), **options), log=lambda *a: None,
-                              progress=lambda stage, done, total: None)
+            figures = run_job(JobSettings(out=os.path.join(tmp, "job"), verify=False, html_report=False, **options),
+                              log=lambda *a: None, progress=lambda stage, done, total: None)
             with open(os.path.join(tmp, "job", "keycap.nc"), "rb") as fh:
                 job_program = fh.read()
             argv = ["path", "keycap", "--tool-radius", "0.5", "--tool", "ball1_keycap", "--orientation", "smooth",

@@ -148,12 +148,6 @@ class ProgramBeside(unittest.TestCase):
         with mock.patch.dict(os.environ, {"TSPLCAM_WORKERS": "1"}):
             cls.path = make_path(cls.model, cls.plist, s, tool_radius(s, tool))
         cls.checker = collision_checker(cls.model, tool, cls.stock, s.holder_clearance)
-        # the kernels loaded from the start, as a job has them (program.CheckerAhead): a
-        # process that has not asked enough work of them yet smooths this small path in
-        # numpy, whose banded solves (LAPACK's) differ from the kernels' in the last bits,
-        # which the active set carries to the 8th digit of a few axes
-        from tsplcam.orientation import compiled
-        compiled.kernels()
 
     def program(self, workers: str):
         from tsplcam.program import make_program

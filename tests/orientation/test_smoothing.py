@@ -200,6 +200,28 @@ class BoxSolve(unittest.TestCase):
             self.assertLessEqual(f(x), ref.fun + 1e-10)
             self.assertTrue(np.all(x >= lo - 1e-12) and np.all(x <= hi + 1e-12))
 
+    def test_same_bits_whatever_the_process_ran_before(self):
+        """A box solve in a process that has asked the kernels for no work yet (a job's first
+        smoothing) gives the bits of one whose kernels are loaded (a second job in the same
+        FreeCAD session): LAPACK's banded solve rounds otherwise, and the active set carried
+        that to the 7th digit of a job's axes."""
+        from unittest import mock
+
+        from tsplcam.orientation import compiled
+        rng = np.random.default_rng(3)
+        n = 200
+        ds = rng.uniform(0.05, 0.9, n - 1)
+
+        def solve():
+            B = _Banded(n, 2)
+            B.ab[:] = _quadratic(n, ds, np.ones(n - 1, bool), 5.0, 1.0, 1.25).ab
+            B.add(np.full(n, 0.1), np.arange(n)[:, None], np.ones((n, 1)), -np.sin(np.arange(n) * 0.1))
+            return B.solve_box(np.full(n, -0.5), np.full(n, 0.4))
+        with mock.patch.dict(compiled._STATE, {"work": 0.0}, clear=True):
+            first = solve()
+        compiled.kernels()
+        self.assertEqual(first.tobytes(), solve().tobytes())
+
 
 if __name__ == "__main__":
     unittest.main()

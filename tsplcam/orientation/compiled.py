@@ -65,7 +65,10 @@ without numba and no module) or when ``TSPLCAM_COMPILED=0`` is set, and the call
 their numpy version. A process asks for them only once the work it has asked for reaches
 ``LOAD_WORK`` (about half numba's load in numpy's time: small paths stay in numpy; the
 threshold is kept with the module, so that which paths run compiled, and so the bytes, do
-not depend on where the kernels come from).
+not depend on where the kernels come from). The callers whose numpy version gives the
+kernel's bits (minima, booleans, sums in one order) use that threshold; the smoothing's
+banded solve, whose numpy version is LAPACK's, loads the kernels at its first call, so a
+job's bytes do not depend on the work its process did before it.
 """
 from __future__ import annotations
 

@@ -697,8 +697,14 @@ class _Banded:
 def _solve_banded(ab: np.ndarray, rhs: np.ndarray) -> np.ndarray:
     """scipy's ``solveh_banded`` (upper form) for the system :meth:`_Banded.solve_box` builds,
     in the compiled kernel when numba is there (LAPACK's reference order of operations);
-    ``ab`` and ``rhs`` are overwritten."""
-    k = compiled.kernels(work=8.0 * ab.shape[1])     # LAPACK: about 70 ns a row
+    ``ab`` and ``rhs`` are overwritten.
+
+    The kernels are loaded for the first solve of a process, not once its work reaches
+    ``compiled.LOAD_WORK`` as elsewhere: OpenBLAS's LAPACK rounds differently from the
+    kernel, and the active set of the box-constrained problem carries that to the 7th digit
+    of some axes, so a job's program would depend on what the process ran before it (a
+    second job in a FreeCAD session or a test process differed from the first)."""
+    k = compiled.kernels()
     if k is None or len(ab) < 3:        # (one off-diagonal: scipy takes LAPACK's LDL^T, ptsv)
         return solveh_banded(ab, rhs, lower=False, check_finite=False)
     ab = np.require(ab, np.float64, ("C", "W"))

@@ -289,8 +289,9 @@ class JobUnderFreecadcmd(unittest.TestCase):
                                                        "report.html", "report.json", "report_files"])
             self.assertEqual(len(os.listdir(os.path.join(out, "report_files"))), 7)
             here = os.path.join(tmp, "here")
-            run_job(JobSettings(out=here, scallop=0.2, chord_tol=0.01, machine="linuxcnc_xyzac_trt"), log=None,
-                    progress=lambda stage, done, total: None)
+            # (its HTML report left out: the page is compared nowhere; the files and figures are)
+            run_job(JobSettings(out=here, scallop=0.2, chord_tol=0.01, machine="linuxcnc_xyzac_trt",
+                                html_report=False), log=None, progress=lambda stage, done, total: None)
             for name in ("keycap.ngc", "keycap.cl", "processing-list.json"):
                 with open(os.path.join(out, name), "rb") as a, open(os.path.join(here, name), "rb") as b:
                     self.assertEqual(a.read(), b.read(), name)

@@ -23,10 +23,10 @@ SECONDS=0
 echo "== machine:$(grep -m1 'model name' /proc/cpuinfo | cut -d: -f2-), $(nproc) cores, AVX-512" \
      "$(grep -qw avx512f /proc/cpuinfo && echo yes || echo no), load $(cut -d' ' -f1-3 /proc/loadavg)"
 # 1 in the background, its output shown when it is done: two pytest processes, each test in
-# one of them (shard a: the model, the light stages and verify; shard b: everything else, so
-# a new test file lands there), about 268 s and 227 s beside the FreeCAD runners on a
-# 2-core AMD EPYC with the post's tests in a; they are in b now (about 9 s alone).
-SHARD_A=(tests/model tests/plan tests/toolpath tests/verify tests/workbench
+# one of them (shard a: the model, the plan, verify and the workbench's engine side; shard b:
+# everything else, so a new test file lands there). On a 2-core AMD EPYC beside the FreeCAD
+# runners: a 157 s and b 128 s with the toolpath tests in a; they are in b now (about 15 s).
+SHARD_A=(tests/model tests/plan tests/verify tests/workbench
          tests/test_foundation.py tests/test_architecture.py)
 /usr/bin/python3 -m pytest -q -p no:cacheprovider --durations=10 "${SHARD_A[@]}" \
     > "$LOGS/pytest-a.log" 2>&1 &

@@ -269,8 +269,11 @@ def measure(path: ToolPath, model, scallop: float | None = None, spacing: float 
     ``scallop``: the limit the path was made for (default: the path's settings); it sets
     the default grid ``spacing`` (a quarter of the flat side step) and capsule ``piece``
     length. ``patches`` / ``region`` restrict the sampled surface (tests on parts of a model).
-    The surface is measured one patch at a time, so memory stays bounded by the largest
-    patch's grid however big the model; ``progress(done, total)`` is called after each.
+    The surface is measured one patch at a time, in forked processes where more than one
+    is allowed (:func:`~tsplcam.toolpath.parallel.map_pieces`; the same figures: each patch's
+    are its own, gathered in patch order), so memory stays bounded by the largest patches'
+    grids, one per process, however big the model; ``progress(done, total)`` is called
+    after each.
     ``heights``: keep every sample's height in the report (:class:`HeightSamples`, for maps).
     """
     r = path.tool_radius
@@ -286,13 +289,13 @@ def measure(path: ToolPath, model, scallop: float | None = None, spacing: float 
     for ln, pt in zip(path.line[sel], path.patch[sel]):
         line_patch.setdefault(int(ln), int(pt))
     todo = list(range(len(model.patches)) if patches is None else patches)
-    parts = []
-    for k, p in enumerate(todo):
-        part = _measure_patches(sw, model, spacing, [p], region, line_patch, r, heights)
-        if part is not None:
-            parts.append(part)
-        if progress is not None:
-            progress(k + 1, len(todo))
+    from ..toolpath.parallel import map_pieces, worker_count
+    # the patches with the most path points (about the largest grids) first: the processes
+    # end together
+    size = np.array([np.count_nonzero(path.patch == p) for p in todo])
+    parts = [x for x in map_pieces(_patch_piece, (sw, model, spacing, region, line_patch, r, heights, todo),
+                                   len(todo), worker_count(None, len(todo)), order=np.argsort(-size, kind="stable"),
+                                   tick=progress) if x is not None]
     samples = sum(x["samples"] for x in parts)
     uncovered = sum(x["uncovered"] for x in parts)
     cusp = np.concatenate([x["cusp"] for x in parts]) if parts else np.zeros(0)
@@ -316,6 +319,12 @@ def _height_samples(parts) -> HeightSamples:
     if not kept:
         return HeightSamples(np.zeros(0, int), np.zeros((0, 2)), np.zeros(0), np.zeros(0, bool))
     return HeightSamples(*(np.concatenate([k[i] for k in kept]) for i in range(4)))
+
+
+def _patch_piece(sw: "Swept", model, spacing: float, region, line_patch: dict, r: float, keep: bool,
+                 todo: list, i: int):
+    """:func:`_measure_patches` of the i-th patch of ``todo`` (a piece of ``map_pieces``)."""
+    return _measure_patches(sw, model, spacing, [todo[i]], region, line_patch, r, keep)
 
 
 def _measure_patches(sw: "Swept", model, spacing: float, patches, region, line_patch: dict, r: float,

@@ -150,15 +150,39 @@ def write_report(out_dir: str, *, model, path, processing_list=None, oriented=No
     model takes as long as the orientation's did); ``progress``: a tsplcam.progress callback
     told after each picture (stage "report").
     The same inputs give the same bytes."""
+    if checker is None:
+        checker = getattr(oriented, "checker", None)     # the orientation's, when it keeps it
+    if tool is None and checker is not None:
+        tool = checker.tool
+    final = oriented.path if oriented is not None else path
+    clearance = None
+    if tool is not None and any(p.name != "flutes" for p in tool.parts()):
+        if checker is None:
+            from ..orientation import CollisionChecker
+            meshes = [] if stock is None else [("stock", stock[0], stock[1])]
+            checker = CollisionChecker(model, tool, meshes=meshes, tolerance=CLEARANCE_TESSELLATION)
+        # measured in a forked process while the other pictures are drawn (the keycap's: 180
+        # grown tools' BVHs and their fcl queries, about 2 s), or here at once with one process
+        from ..orientation.aside import Aside
+        clearance = Aside(clearance_series, checker, final)
+    try:
+        return _write(out_dir, model=model, path=path, processing_list=processing_list, oriented=oriented,
+                      machine=machine, posted=posted, verification=verification, baseline=baseline,
+                      settings=settings, tool=tool, checker=checker, clearance=clearance, progress=progress)
+    finally:
+        if clearance is not None:
+            clearance.close()
+
+
+def _write(out_dir: str, *, model, path, processing_list, oriented, machine, posted, verification, baseline,
+           settings, tool, checker, clearance, progress) -> str:
+    """:func:`write_report` once the tool and checker are known; ``clearance``: the Aside
+    measuring :func:`clearance_series` (None: no clearance section)."""
     os.makedirs(os.path.join(out_dir, FILES), exist_ok=True)
     final = oriented.path if oriented is not None else path
     metrics = oriented.metrics if oriented is not None else None
     if machine is None and posted is not None:
         machine = posted.machine
-    if checker is None:
-        checker = getattr(oriented, "checker", None)     # the orientation's, when it keeps it
-    if tool is None and checker is not None:
-        tool = checker.tool
     colours = style.patch_colours(len(model.patches))
     pm = path_metrics(final)
     limit = float(path.info.get("settings", {}).get("scallop", float("nan")))   # unknown for a path read from CL data
@@ -291,17 +315,13 @@ def write_report(out_dir: str, *, model, path, processing_list=None, oriented=No
                       f"{info['singular_points']}, {posted.reorientations} retract-reorient-approach sequences.")))
 
     # -- clearance ------------------------------------------------------------------------------
-    if tool is not None and any(p.name != "flutes" for p in tool.parts()):
-        if checker is None:
-            from ..orientation import CollisionChecker
-            meshes = [] if stock is None else [("stock", stock[0], stock[1])]
-            checker = CollisionChecker(model, tool, meshes=meshes, tolerance=CLEARANCE_TESSELLATION)
+    if clearance is not None:
         kept = None
         if oriented is not None and oriented.report is not None:
             kept = oriented.report.settings.get("clearance")
         if kept is None:
             kept = checker.clearance
-        series = clearance_series(checker, final)
+        series = clearance.result()
         src, figs = rep.picture("clearance", figures.clearance_figure, final, series, float(kept), colours,
                                 CLEARANCE_TOP)
         rows = [(name, _f(d["min"], 3), d["at"]) for name, d in figs.items()]

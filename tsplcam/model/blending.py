@@ -13,6 +13,7 @@ import numpy as np
 
 from .basis import bernstein
 from .knots import LocalKnots
+from .tmesh import ORDER_TOL
 from .twalk import Walker, compose, rot
 
 _NODES = np.array([1.0, 3.0, 5.0, 7.0]) / 8.0
@@ -80,7 +81,7 @@ def supports(walker: Walker, knots: LocalKnots, stars: set, zone: dict | None = 
     # the walks below run on Python complex numbers (numpy's scalars cost several times more
     # per operation): the same values, and only sums, negations and comparisons of them
     crossing = {}
-    face_rect, tol = walker.face_rect, lex.tol
+    face_rect, tol, otol = walker.face_rect, lex.tol, ORDER_TOL
     loops = [[int(x) for x in loop] for loop in mesh.faces]
 
     def cross_map(f, j):
@@ -106,8 +107,8 @@ def supports(walker: Walker, knots: LocalKnots, stars: set, zone: dict | None = 
         # lex.lt(a, b) written out (tolerance on the value, then the order part), the sums
         # with the function's own knots taken once
         s0r, s0i, t0r, t0i = s5[0].real, s5[0].imag, t5[0].real, t5[0].imag
-        s4m, s4p, s4i = s5[4].real - tol, s5[4].real + tol, s5[4].imag - 1e-7
-        t4m, t4p, t4i = t5[4].real - tol, t5[4].real + tol, t5[4].imag - 1e-7
+        s4m, s4p, s4i = s5[4].real - tol, s5[4].real + tol, s5[4].imag - otol
+        t4m, t4p, t4i = t5[4].real - tol, t5[4].real + tol, t5[4].imag - otol
 
         def inside(f, m):
             x0, x1, y0, y1 = face_rect(f, m)
@@ -115,13 +116,13 @@ def supports(walker: Walker, knots: LocalKnots, stars: set, zone: dict | None = 
             if not (a < s4m or (not a > s4p and x0.imag < s4i)):
                 return False
             b = x1.real
-            if not (s0r < b - tol or (not s0r > b + tol and s0i < x1.imag - 1e-7)):
+            if not (s0r < b - tol or (not s0r > b + tol and s0i < x1.imag - otol)):
                 return False
             a = y0.real
             if not (a < t4m or (not a > t4p and y0.imag < t4i)):
                 return False
             b = y1.real
-            return t0r < b - tol or (not t0r > b + tol and t0i < y1.imag - 1e-7)
+            return t0r < b - tol or (not t0r > b + tol and t0i < y1.imag - otol)
 
         def allowed(g):
             z = zone.get(g)

@@ -217,6 +217,10 @@ class TMesh:
                      self.edge_labels)
 
 
+#: order parts of knot positions (:class:`Lex`) within this of each other are one
+ORDER_TOL = 1e-7
+
+
 class Lex:
     """Comparisons of knot positions value + i*order: values with the tolerance ``tol``, ties
     broken by the order part (see the module docstring)."""
@@ -229,9 +233,9 @@ class Lex:
             return -1
         if a.real > b.real + self.tol:
             return 1
-        if a.imag < b.imag - 1e-7:
+        if a.imag < b.imag - ORDER_TOL:
             return -1
-        if a.imag > b.imag + 1e-7:
+        if a.imag > b.imag + ORDER_TOL:
             return 1
         return 0
 
@@ -241,12 +245,12 @@ class Lex:
             return True
         if a.real > b.real + self.tol:
             return False
-        return a.imag < b.imag - 1e-7
+        return a.imag < b.imag - ORDER_TOL
 
     def eq(self, a, b) -> bool:
         """``cmp(a, b) == 0``, written out."""
         return not (a.real < b.real - self.tol or a.real > b.real + self.tol
-                    or a.imag < b.imag - 1e-7 or a.imag > b.imag + 1e-7)
+                    or a.imag < b.imag - ORDER_TOL or a.imag > b.imag + ORDER_TOL)
 
     def key(self):
         """A sort key: ``sorted(values, key=lex.key())``."""

@@ -44,3 +44,19 @@ def one_blas_thread() -> None:
 def blas_environment() -> None:
     """Ask for one BLAS thread through the environment (read when numpy loads its BLAS)."""
     os.environ.update(BLAS_THREADS)
+
+
+def components(V):
+    """The components of vectors ``V`` (..., k) as k contiguous arrays (...).
+
+    numpy 1.24 computes arctan2, arccos, arcsin, power and other transcendental ufuncs in
+    SVML's AVX-512 code unless an input may overlap the output, and it judges a strided input
+    by its step times its length: a column ``V[:, 2]`` of an (n, 3) array then reaches 16
+    bytes past the array's end, where the next heap block, a new output, can start. Such a
+    call runs libm's scalar code instead, whose results differ in the last bit (469 of 1,351
+    arctan2 values on the keycap's constraints), as the heap happens to be laid out: about one
+    job in two hundred. Contiguous inputs never look overlapping, so they always take the
+    same code."""
+    import numpy as np
+    C = np.ascontiguousarray(np.moveaxis(np.asarray(V, float), -1, 0))
+    return tuple(C)

@@ -23,6 +23,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..numerics import components
+
 DEG = np.pi / 180.0
 Z_AXIS = np.array([0.0, 0.0, 1.0])
 
@@ -107,7 +109,8 @@ class Reach:
     def ok(self, axes: np.ndarray) -> np.ndarray:
         """Mask of reachable unit axes (..., 3)."""
         A = np.asarray(axes, float)
-        th = np.arctan2(np.hypot(A[..., 0], A[..., 1]), A[..., 2])
+        ax, ay, az = components(A)           # (contiguous: the same ufunc code whatever the heap)
+        th = np.arctan2(np.hypot(ax, ay), az)
         branch_ok = [(th >= a - 1e-9) & (th <= b + 1e-9) for a, b in self.intervals]
         m = self.machine
         if m is None or m.rotary.continuous or m.rotary.min is None or \
@@ -121,7 +124,7 @@ class Reach:
         ec = (-1.0 if m.on_table(r) else 1.0) * r.sign
         t = m.tilt
         et = (-1.0 if m.on_table(t) else 1.0) * t.sign
-        phi = np.arctan2(A[..., 0], -A[..., 1]) if t.about == "X" else np.arctan2(A[..., 1], A[..., 0])
+        phi = np.arctan2(ax, -ay) if t.about == "X" else np.arctan2(ay, ax)
         out = np.zeros(th.shape, bool)
         for s, ph in ((1.0, phi), (-1.0, phi + np.pi)):
             tilt = t.zero + s * th / DEG * et

@@ -25,6 +25,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..numerics import components
 from .viterbi import viterbi
 
 DEG = np.pi / 180.0
@@ -130,12 +131,12 @@ class Rotary:
     def angles(self, K):
         """The pose with ``theta >= 0`` of unit axes K (…,3): ``theta, phi`` (rad; phi in
         (-pi, pi], 0 at the pole)."""
-        K = np.asarray(K, float)
-        theta = np.arctan2(np.hypot(K[..., 0], K[..., 1]), K[..., 2])
+        kx, ky, kz = components(K)        # (contiguous: the same ufunc code whatever the heap)
+        theta = np.arctan2(np.hypot(kx, ky), kz)
         if self.about == "X":
-            phi = np.arctan2(K[..., 0], -K[..., 1] + 0.0)
+            phi = np.arctan2(kx, -ky + 0.0)
         else:
-            phi = np.arctan2(K[..., 1], K[..., 0])
+            phi = np.arctan2(ky, kx)
         return theta, phi
 
     def best_theta(self, K, phi, m=None) -> np.ndarray:
@@ -143,7 +144,7 @@ class Rotary:
         (``m``: ``meridian(phi)`` when the caller has it)."""
         K = np.asarray(K, float)
         m = self.meridian(phi) if m is None else m
-        return np.arctan2(np.einsum("...i,...i->...", K, m), K[..., 2])
+        return np.arctan2(np.einsum("...i,...i->...", K, m), components(K)[2])
 
     def theta_ok(self, theta) -> np.ndarray:
         t = np.asarray(theta, float)

@@ -51,8 +51,10 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+
 from scipy.linalg import solveh_banded
 
+from ..numerics import components
 from . import compiled
 from .rotary import DEG, Rotary, angle_between
 from .viterbi import BLOCK, from_blocks, viterbi
@@ -523,7 +525,8 @@ def theta_interval(rot: Rotary, phi, constraints, ref, m=None):
     lo = np.full(phi.shape, -np.inf)
     hi = np.full(phi.shape, np.inf)
     for h, b in constraints:
-        hz = h[:, 2][:, None] if grid else h[:, 2]
+        hz = components(h)[2]               # (contiguous: the same arctan2 code whatever the heap)
+        hz = hz[:, None] if grid else hz
         if not grid:
             hm = np.einsum("ij,ij->i", h, m)
         elif m.ndim == 2:
@@ -563,11 +566,12 @@ def _latitude_terms(rot: Rotary, constraints) -> list:
     arctan2(B, A), with ``h_z`` and ``b``."""
     out = []
     for h, b in constraints:
+        hx, hy, hz = components(h)          # (contiguous: the same ufunc code whatever the heap)
         if rot.about == "X":
-            A_, B_ = -h[:, 1], h[:, 0]
+            A_, B_ = -hy, hx
         else:
-            A_, B_ = h[:, 0], h[:, 1]
-        out.append((np.hypot(A_, B_), np.arctan2(B_, A_), h[:, 2], np.asarray(b, float)))
+            A_, B_ = hx, hy
+        out.append((np.hypot(A_, B_), np.arctan2(B_, A_), hz, np.asarray(b, float)))
     return out
 
 

@@ -29,6 +29,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..numerics import components
 from ..toolpath.path import Move, ToolPath
 
 DEG = np.pi / 180.0
@@ -385,9 +386,9 @@ def clearance_profile(checker, centers, axes, parts=None, top: float = 10.0, ste
 
 def _simple_ac(axis):
     """ISO A/C angles (deg) (docs/post.md section 1), C unwound, held through the pole."""
-    K = np.asarray(axis, float)
-    A = np.degrees(np.arctan2(np.hypot(K[:, 0], K[:, 1]), K[:, 2]))
-    C = np.degrees(np.arctan2(K[:, 0], -K[:, 1]))
+    kx, ky, kz = components(axis)        # (contiguous: the same ufunc code whatever the heap)
+    A = np.degrees(np.arctan2(np.hypot(kx, ky), kz))
+    C = np.degrees(np.arctan2(kx, -ky))
     pole = A < 1e-6
     if pole.all():
         C = np.zeros(len(K))

@@ -162,10 +162,9 @@ class ProgramBeside(unittest.TestCase):
         beside, alone = self.program("2"), self.program("1")
         a, b = beside.metrics.as_dict(), alone.metrics.as_dict()
         self.assertEqual(set(a), set(b))
-        # the same figures; a real number to 1e-12 of itself: about one run in twenty, under
-        # load, a few axes of a run with the fork differ from the other's in their last bit
-        # (1e-16, cause not found: see the README's "Same input, same bytes"), which a sum
-        # of a thousand steps shows in its 15th digit
+        # the same figures; a real number to 1e-12 of itself: a few axes differed in their
+        # last bit now and then (numpy's arctan2 code chosen by the heap's layout, see
+        # numerics.components), which a sum of a thousand steps shows in its 15th digit
         def same(x, y, key):
             if isinstance(x, dict):
                 self.assertEqual(set(x), set(y), key)

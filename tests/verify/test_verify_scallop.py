@@ -168,18 +168,22 @@ class CylinderCusps(unittest.TestCase):
 class NearSearch(unittest.TestCase):
     """The KD-tree search over capsule pieces against all capsules (brute force)."""
 
-    def test_kdtree_never_hides_material(self):
+    @classmethod
+    def setUpClass(cls):
         r = 0.5
-        model = one_patch_model(cylinder_patch(8.0, 4.0, outward=False))
+        cls.model = one_patch_model(cylinder_patch(8.0, 4.0, outward=False))
         rng = np.random.default_rng(1)
         ang = np.sort(rng.uniform(-0.69, 0.69, 60))
         ang[0], ang[-1] = -np.radians(40), np.radians(40)
         z = np.linspace(0, 4.0, 9)
         lines = [np.column_stack([8 * np.cos(a) + 0 * z, 8 * np.sin(a) + 0 * z, z]) for a in ang]
         normals = [np.tile([-np.cos(a), -np.sin(a), 0.0], (len(z), 1)) for a in ang]
-        path = zigzag_by_hand(lines, normals, r)
-        sw = Swept(path, piece=0.1)
-        grid = surface_grid(model, 0.2)
+        cls.sw = Swept(zigzag_by_hand(lines, normals, r), piece=0.1)
+        cls.grid = surface_grid(cls.model, 0.2)
+
+    def test_kdtree_never_hides_material(self):
+        sw, grid = self.sw, self.grid
+        rng = np.random.default_rng(1)
         sel = rng.choice(len(grid), 400, replace=False)
         p, n = grid.P[sel], grid.n[sel]
         h_kd, _ = sw.height(p, n)
@@ -191,6 +195,36 @@ class NearSearch(unittest.TestCase):
             brute[e] = lam.min(axis=1)
         self.assertTrue(np.all(h_kd >= brute - 1e-12))
         np.testing.assert_allclose(h_kd, brute, atol=1e-12)
+
+    def test_ridge_candidates_hide_no_material(self):
+        # a ridge's candidates, asked at the ends and middle of its parameter segment, give
+        # every point of the segment each owner's height as all that owner's capsules do
+        sw, grid, patch = self.sw, self.grid, self.model.patches[0]
+        _, own = sw.height(grid.P, grid.n)
+        pid, off, nu, nv = grid.shapes[0]
+        ids = np.arange(nu * nv).reshape(nu, nv)
+        pairs = np.concatenate([np.column_stack([ids[:-1].ravel(), ids[1:].ravel()]),
+                                np.column_stack([ids[:, :-1].ravel(), ids[:, 1:].ravel()])])
+        pairs = pairs[own[pairs[:, 0]] != own[pairs[:, 1]]]
+        A, B = own[pairs[:, 0]], own[pairs[:, 1]]
+        ends = [grid.uv[pairs[:, 0]], grid.uv[pairs[:, 1]]]
+
+        def at(t):
+            uv = ends[0] + t * (ends[1] - ends[0])
+            sp = patch.evaluate(uv[:, 0], uv[:, 1])
+            return sp.P, sp.normal
+
+        idx = sw.ridge_candidates((at(0.0), at(1.0), at(0.5)), A, B)
+        self.assertGreater(len(pairs), 100)
+        lam_all = None
+        for t in (0.0, 0.3, 0.5, 0.85, 1.0):
+            p, n = at(t)
+            la, lb = sw.heights_among(p, n, idx, A, B)
+            lam_all = np.concatenate([sw.entry(p[s:s + 20], n[s:s + 20], np.tile(np.arange(len(sw.a)), (len(p[s:s + 20]), 1)))
+                                      for s in range(0, len(p), 20)])
+            for got, owner in ((la, A), (lb, B)):
+                brute = np.where(sw.owner[None, :] == owner[:, None], lam_all, np.inf).min(axis=1)
+                np.testing.assert_allclose(got, brute, atol=1e-12)
 
 
 class Metrics(unittest.TestCase):

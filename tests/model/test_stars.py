@@ -406,3 +406,36 @@ class NextToTJunctions(unittest.TestCase):
 
 if __name__ == "__main__":
     unittest.main()
+
+
+class SameStarWhateverWasBuiltBefore(unittest.TestCase):
+    """A star's subdivided pieces are kept per process for stars with the same spoke
+    intervals: a star whose intervals differ in the last bit must not reuse another's (its
+    model's values would depend on which models the process read first)."""
+
+    def test_last_bit_apart_stars_keep_their_own_values(self):
+        from tsplcam.model import stars
+        a = random_intervals(5, 5)
+        b = [x.copy() for x in a]
+        b[0][0] = np.nextafter(b[0][0], 2.0)
+        # the faces of the star's two rings in every sector (star_disc numbers sector j's faces
+        # j * 25 + 5 p + q)
+        f = np.repeat([25 * j + 5 * p + q for j in range(5) for p in (0, 1) for q in (0, 1)], 6)
+        s, t = np.tile(np.linspace(0.01, 0.9, 6), len(f) // 6), np.tile(np.linspace(0.9, 0.02, 6), len(f) // 6)
+
+        def values():
+            model = tspline_model(star_disc(5, b))
+            sp = model.evaluate_faces(f, s, t)
+            return np.concatenate([sp.P, sp.Pu, sp.Puv], axis=1)
+
+        saved = dict(stars._PIECES)
+        try:
+            stars._PIECES.clear()
+            alone = values()
+            stars._PIECES.clear()
+            tspline_model(star_disc(5, a))              # its star first, one bit apart
+            after = values()
+        finally:
+            stars._PIECES.clear()
+            stars._PIECES.update(saved)
+        np.testing.assert_array_equal(after, alone)

@@ -1382,15 +1382,18 @@ class _Pieces:
     Zinf: np.ndarray
 
 
+#: the pieces of stars built in this process, by valence and spoke intervals' exact bits: a
+#: star whose intervals differ from a cached one in the last bit gets its own (a model's
+#: values must not depend on which models the process read before)
 _PIECES: dict = {}
 
 
 def _pieces(zone: StarZone) -> _Pieces:
     n = zone.n
-    key = (n, tuple(np.round(zone.d / zone.d.max(), 13)))
+    key = (n, np.ascontiguousarray(zone.d, float).tobytes())
     hit = _PIECES.get(key)
-    if hit is not None and abs(hit[0] - zone.d.max()) <= 1e-13 * zone.d.max():
-        return hit[1]
+    if hit is not None:
+        return hit
     from .blending import bezier_1d
     from .eigen import _tangent_masks
     A, fns = zone.stationary()
@@ -1440,7 +1443,7 @@ def _pieces(zone: StarZone) -> _Pieces:
     out = _Pieces(A, xinf, masks, spectrum, face_index, breaks, first_cell, Z, Z @ xinf)
     if len(_PIECES) > 64:
         _PIECES.clear()
-    _PIECES[key] = (float(zone.d.max()), out)
+    _PIECES[key] = out
     return out
 
 

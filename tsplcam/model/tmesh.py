@@ -112,6 +112,11 @@ class TMesh:
             self._topology = Topology(self)
         return self._topology
 
+    @property
+    def topology_built(self) -> bool:
+        """Whether :attr:`topology` was made (the mesh was validated then, as it was)."""
+        return self._topology is not None
+
     # -- validation -----------------------------------------------------------------------
     def validate(self) -> None:
         """Raise InputError naming the face or vertex for anything the kernel cannot use."""

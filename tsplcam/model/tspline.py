@@ -129,7 +129,7 @@ def tspline_model(mesh: TMesh, name: str | None = None, subdivide_at=()) -> TSpl
     """The surface of a T-mesh as patches over Bezier cells (and subdivided cells next to star
     points). ``subdivide_at``: regular interior vertices evaluated by the star construction
     too (valence 4; it must give the same surface: a check of the construction)."""
-    if mesh._topology is not None:
+    if mesh.topology_built:
         mesh.validate()               # points and weights may have changed since the topology
     walker = Walker(mesh)             # (a mesh without one is validated as it is built)
     Pw = mesh.homogeneous()

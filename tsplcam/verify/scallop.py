@@ -319,16 +319,18 @@ def measure(path: ToolPath, model, scallop: float | None = None, spacing: float 
     spacing = spacing or 0.25 * g
     piece = piece or 0.5 * g
     sw = Swept(path, piece)
+    # each line's patch (where the line first appears; -1 for numbers no line has), to tell
     # consecutive lines of one patch
-    line_patch = {}
     sel = path.line >= 0
-    for ln, pt in zip(path.line[sel], path.patch[sel]):
-        line_patch.setdefault(int(ln), int(pt))
+    lines, first = np.unique(path.line[sel], return_index=True)
+    line_patch = np.full(int(lines[-1]) + 1 if len(lines) else 0, -1, np.int64)
+    line_patch[lines] = path.patch[sel][first]
     todo = list(range(len(model.patches)) if patches is None else patches)
     from ..toolpath.parallel import map_pieces, worker_count
     # the patches with the most path points (about the largest grids) first: the processes
     # end together
-    size = np.array([np.count_nonzero(path.patch == p) for p in todo])
+    on = path.patch[path.patch >= 0]
+    size = np.bincount(on, minlength=len(model.patches))[np.asarray(todo, int)] if len(todo) else np.zeros(0, int)
     parts = [x for x in map_pieces(_patch_piece, (sw, model, spacing, region, line_patch, r, heights, todo),
                                    len(todo), worker_count(None, len(todo)), order=np.argsort(-size, kind="stable"),
                                    tick=progress) if x is not None]
@@ -357,13 +359,13 @@ def _height_samples(parts) -> HeightSamples:
     return HeightSamples(*(np.concatenate([k[i] for k in kept]) for i in range(4)))
 
 
-def _patch_piece(sw: "Swept", model, spacing: float, region, line_patch: dict, r: float, keep: bool,
+def _patch_piece(sw: "Swept", model, spacing: float, region, line_patch: np.ndarray, r: float, keep: bool,
                  todo: list, i: int):
     """:func:`_measure_patches` of the i-th patch of ``todo`` (a piece of ``map_pieces``)."""
     return _measure_patches(sw, model, spacing, [todo[i]], region, line_patch, r, keep)
 
 
-def _measure_patches(sw: "Swept", model, spacing: float, patches, region, line_patch: dict, r: float,
+def _measure_patches(sw: "Swept", model, spacing: float, patches, region, line_patch: np.ndarray, r: float,
                      keep: bool = False):
     """The figures of one grid (one patch), to be aggregated by :func:`measure`."""
     grid = surface_grid(model, spacing, patches, region)
@@ -393,8 +395,7 @@ def _measure_patches(sw: "Swept", model, spacing: float, patches, region, line_p
             parts_uv.append(ww)
         ridge_h = np.concatenate(parts_h)
         ridge_uv = np.concatenate(parts_uv)
-    lp = np.array([line_patch.get(int(x), -1) if x < LINK_OWNER else -2 for x in ra]) if len(ra) else np.zeros(0)
-    lq = np.array([line_patch.get(int(x), -1) if x < LINK_OWNER else -3 for x in rb]) if len(rb) else np.zeros(0)
+    lp, lq = _owner_patch(ra, line_patch, -2), _owner_patch(rb, line_patch, -3)
     neighbours = (np.abs(ra - rb) == 1) & (ra < LINK_OWNER) & (rb < LINK_OWNER) & (lp == lq) & (lp >= 0)
     cusp = ridge_h[neighbours & np.isfinite(ridge_h)]
     all_h = np.concatenate([hgt[np.isfinite(hgt)], ridge_h[np.isfinite(ridge_h)]])
@@ -421,6 +422,17 @@ def _measure_patches(sw: "Swept", model, spacing: float, patches, region, line_p
     return {"heights": kept, "samples": len(grid), "uncovered": uncovered, "cusp": cusp, "hmax": hmax, "at": at,
             "finite": len(finite), "material_sum": float(np.sum(np.maximum(finite, 0.0))),
             "ridges": int(len(ridge_h)), "gouge": gouges(sw.path, model, grid)}
+
+
+def _owner_patch(owner: np.ndarray, line_patch: np.ndarray, link: int) -> np.ndarray:
+    """The patch of each capsule owner that is a line (-1 for a line of no patch), ``link``
+    for the owners that are links."""
+    out = np.full(len(owner), link, np.int64)
+    is_line = owner < LINK_OWNER
+    o = owner[is_line]
+    known = o < len(line_patch)
+    out[is_line] = np.where(known, line_patch[np.where(known, o, 0)] if len(line_patch) else -1, -1)
+    return out
 
 
 def project(model, patch: np.ndarray, uv: np.ndarray, x: np.ndarray, iterations: int = 5):

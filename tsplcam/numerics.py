@@ -60,3 +60,10 @@ def components(V):
     import numpy as np
     C = np.ascontiguousarray(np.moveaxis(np.asarray(V, float), -1, 0))
     return tuple(C)
+
+
+def component(V, k: int):
+    """Component ``k`` of vectors ``V`` (..., k) as one contiguous array (see
+    :func:`components`), for a caller that needs only that one."""
+    import numpy as np
+    return np.ascontiguousarray(np.asarray(V, float)[..., k])

@@ -25,7 +25,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..numerics import components
+from ..numerics import component, components
 from .viterbi import viterbi
 
 DEG = np.pi / 180.0
@@ -144,7 +144,7 @@ class Rotary:
         (``m``: ``meridian(phi)`` when the caller has it)."""
         K = np.asarray(K, float)
         m = self.meridian(phi) if m is None else m
-        return np.arctan2(np.einsum("...i,...i->...", K, m), components(K)[2])
+        return np.arctan2(np.einsum("...i,...i->...", K, m), component(K, 2))
 
     def theta_ok(self, theta) -> np.ndarray:
         t = np.asarray(theta, float)

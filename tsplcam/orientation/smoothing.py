@@ -54,7 +54,7 @@ import numpy as np
 
 from scipy.linalg import solveh_banded
 
-from ..numerics import components
+from ..numerics import component, components
 from . import compiled
 from .rotary import DEG, Rotary, angle_between
 from .viterbi import BLOCK, from_blocks, viterbi
@@ -525,7 +525,7 @@ def theta_interval(rot: Rotary, phi, constraints, ref, m=None):
     lo = np.full(phi.shape, -np.inf)
     hi = np.full(phi.shape, np.inf)
     for h, b in constraints:
-        hz = components(h)[2]               # (contiguous: the same arctan2 code whatever the heap)
+        hz = component(h, 2)                # (contiguous: the same arctan2 code whatever the heap)
         hz = hz[:, None] if grid else hz
         if not grid:
             hm = np.einsum("ij,ij->i", h, m)

@@ -319,14 +319,26 @@ def path_distance(points: np.ndarray) -> np.ndarray:
 
 
 def _coloured_line(ax, x, y, patch, colours, lw: float = 1.0) -> None:
-    """y over x, each piece in its patch's colour (grey off the surface)."""
+    """y over x, each piece in its patch's colour (grey off the surface); ``patch[i]`` colours
+    the piece from point i - 1 to point i.
+
+    Drawn as one polyline per run of pieces of one colour, not piece by piece: a
+    LineCollection of tens of thousands of two-point lines cost a tenth of a second to build
+    and as much to draw per plot, and its butt-ended pieces overlap at every joint."""
     from matplotlib.collections import LineCollection
-    x, y = np.asarray(x, float), np.asarray(y, float)
-    pts = np.column_stack([x, y])
-    segs = np.stack([pts[:-1], pts[1:]], axis=1)
-    ok = np.isfinite(segs).all(axis=(1, 2))
-    ax.add_collection(LineCollection(segs[ok], colors=style.band_colours(np.asarray(patch)[1:], colours)[ok],
-                                     linewidths=lw))
+    pts = np.column_stack([np.asarray(x, float), np.asarray(y, float)])
+    key = np.asarray(patch, int)[1:]
+    key = np.where((key >= 0) & (key < len(colours)), key, -1)
+    good = np.isfinite(pts).all(axis=1)
+    ok = good[:-1] & good[1:]
+    m = len(key)
+    if m:
+        same = np.concatenate([[False], ok[:-1] & (key[1:] == key[:-1])])     # piece i continues i - 1
+        start = np.nonzero(ok & ~same)[0]
+        end = np.nonzero(ok & ~np.concatenate([same[1:], [False]]))[0]       # last piece of each run
+        runs = [pts[a:b + 2] for a, b in zip(start, end)]
+        if runs:
+            ax.add_collection(LineCollection(runs, colors=style.band_colours(key[start], colours), linewidths=lw))
     ax.autoscale_view()
 
 

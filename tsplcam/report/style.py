@@ -115,7 +115,7 @@ def arrange(fig, grid, widths=None, heights=None, *, top: float = 0.0, bottom: f
     (:func:`title`) above them and ``top``/``bottom``/``left``/``right`` more pixels free.
 
     A one-pass stand-in for matplotlib's constrained layout, which measures every axes
-    twice (a third of the pictures' time): here each axes is measured once, in a first
+    twice (a quarter of the pictures' time): here each axes is measured once, in a first
     placement with room for the usual overhangs (:func:`_guess`), then placed for good, so
     that the box it is measured in and the one it is drawn in have about the same size and
     hold the same ticks."""

@@ -124,6 +124,10 @@ class KeycapReport(unittest.TestCase):
             self.assertEqual((int(im["width"]), int(im["height"])), (w, h), name)
             ink = np.count_nonzero((px < 235).any(axis=2)) / (w * h)
             self.assertGreater(ink, 0.05, f"{name}: only {ink:.1%} of the picture is drawn")
+            # laid out inside the picture: its outer two pixels blank, no label cut at an edge
+            edge = np.concatenate([px[:2].reshape(-1, 3), px[-2:].reshape(-1, 3), px[:, :2].reshape(-1, 3),
+                                   px[:, -2:].reshape(-1, 3)])
+            self.assertTrue((edge >= 250).all(), f"{name}: drawn up to its edge")
             self.assertTrue(im.get("alt"), name)
 
     def colour_pixels(self, name, rgba, tol=40):

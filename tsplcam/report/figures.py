@@ -155,8 +155,9 @@ def layout_figure(out: str, model, plist=None, colours=None) -> dict:
                           label=f"extraordinary point ({len(eps)})")]
         axes[1].legend(handles=handles, loc="lower right", frameon=False)
         style.patch_legend(axes[1], colours, range(n), loc="upper left", bbox_to_anchor=(1.0, 1.0))
-        fig.suptitle(f"{model.name}: {n} patches, {len(eps)} extraordinary points, "
+        style.title(fig, f"{model.name}: {n} patches, {len(eps)} extraordinary points, "
                      f"{len(boundary_pairs)} boundary links, {len(corner_pairs)} corner links")
+        style.arrange(fig, [axes])
         style.save(fig, out)
     return {"patches": n, "extraordinary": len(eps), "boundary_links": len(boundary_pairs),
             "corner_links": len(corner_pairs)}
@@ -209,8 +210,9 @@ def path_figure(out: str, model, path, colours=None) -> dict:
         style.patch_legend(axes[1], colours, order, title="patch\n(in order)", loc="upper left",
                            bbox_to_anchor=(1.0, 1.0))
         lines = len(np.unique(path.line[path.line >= 0]))
-        fig.suptitle(f"Tool path coloured by patch: {len(path):,} points, {lines} lines, "
+        style.title(fig, f"Tool path coloured by patch: {len(path):,} points, {lines} lines, "
                      f"{path.retractions} retractions")
+        style.arrange(fig, [axes])
         style.save(fig, out)
     return {"cut_segments": int(cut.sum()), "link_segments": int(link.sum()), "air_segments": int(air.sum()),
             "patch_order": order}
@@ -268,8 +270,8 @@ def scallop_figure(out: str, model, verification, limit: float, tool_radius: flo
             scene.plain_axes(ax, v, "Top view" if v is scene.TOP else "3D view")
             _triad(ax, v)
         from matplotlib.cm import ScalarMappable
-        cb = fig.colorbar(ScalarMappable(norm, cmap), ax=axes[:2], orientation="horizontal", extend="both",
-                          fraction=0.05, shrink=0.6, aspect=40)
+        cax = fig.add_axes([0.25, 0.1, 0.4, 0.025])
+        cb = fig.colorbar(ScalarMappable(norm, cmap), cax=cax, orientation="horizontal", extend="both")
         cb.set_label(f"largest scallop height in a {cell:.2f} mm cell (µm); red above the {limit * um:g} µm "
                      "limit, blue a gouge" if known else
                      f"largest scallop height in a {cell:.2f} mm cell (µm); blue a gouge")
@@ -294,8 +296,14 @@ def scallop_figure(out: str, model, verification, limit: float, tool_radius: flo
         ax.set_title("Measured heights")
         ax.legend(loc="upper left", fontsize=8, framealpha=0.92)
         ratio = f" = {verification.max_scallop / limit:.2f} of the {limit * um:g} µm limit" if known else ""
-        fig.suptitle(f"Scallop height measured on the surface: largest {verification.max_scallop * um:.2f} µm"
+        style.title(fig, f"Scallop height measured on the surface: largest {verification.max_scallop * um:.2f} µm"
                      f"{ratio}, mean cusp {verification.cusp_mean * um:.2f} µm")
+        # the colour bar under the two views, centred, 55 % of their width; its ticks and label below it
+        bar = 15.0
+        below = style.overhang(cax)[2]
+        style.arrange(fig, [axes], widths=[1.0, 1.0, 0.62], bottom=below + bar + style.GAP)
+        x0, x1 = axes[0].bbox.x0, axes[1].bbox.x1
+        style.place(cax, 0.5 * (x0 + x1) - 0.275 * (x1 - x0), style.PAD + below, 0.55 * (x1 - x0), bar)
         style.save(fig, out)
     finite = value[np.isfinite(value)]
     return {"cells": int(len(value)), "cells_measured": int(len(finite)), "cell_mm": cell,
@@ -311,14 +319,26 @@ def path_distance(points: np.ndarray) -> np.ndarray:
 
 
 def _coloured_line(ax, x, y, patch, colours, lw: float = 1.0) -> None:
-    """y over x, each piece in its patch's colour (grey off the surface)."""
+    """y over x, each piece in its patch's colour (grey off the surface); ``patch[i]`` colours
+    the piece from point i - 1 to point i.
+
+    Drawn as one polyline per run of pieces of one colour, not piece by piece: a
+    LineCollection of tens of thousands of two-point lines cost a tenth of a second to build
+    and as much to draw per plot, and its butt-ended pieces overlap at every joint."""
     from matplotlib.collections import LineCollection
-    x, y = np.asarray(x, float), np.asarray(y, float)
-    pts = np.column_stack([x, y])
-    segs = np.stack([pts[:-1], pts[1:]], axis=1)
-    ok = np.isfinite(segs).all(axis=(1, 2))
-    ax.add_collection(LineCollection(segs[ok], colors=style.band_colours(np.asarray(patch)[1:], colours)[ok],
-                                     linewidths=lw))
+    pts = np.column_stack([np.asarray(x, float), np.asarray(y, float)])
+    key = np.asarray(patch, int)[1:]
+    key = np.where((key >= 0) & (key < len(colours)), key, -1)
+    good = np.isfinite(pts).all(axis=1)
+    ok = good[:-1] & good[1:]
+    m = len(key)
+    if m:
+        same = np.concatenate([[False], ok[:-1] & (key[1:] == key[:-1])])     # piece i continues i - 1
+        start = np.nonzero(ok & ~same)[0]
+        end = np.nonzero(ok & ~np.concatenate([same[1:], [False]]))[0]       # last piece of each run
+        runs = [pts[a:b + 2] for a, b in zip(start, end)]
+        if runs:
+            ax.add_collection(LineCollection(runs, colors=style.band_colours(key[start], colours), linewidths=lw))
     ax.autoscale_view()
 
 
@@ -355,6 +375,7 @@ def axis_figure(out: str, path, colours) -> dict:
         a2.set_xlim(s[0], s[-1])
         style.patch_legend(a1, colours, list(dict.fromkeys(int(p) for p in path.patch[path.patch >= 0])),
                            loc="upper left", bbox_to_anchor=(1.0, 1.0))
+        style.arrange(fig, [[a1], [a2]])
         style.save(fig, out)
     return {"max_step_deg": float(step.max()) if len(step) else 0.0, "max_tilt_deg": float(tilt.max()),
             "max_to_normal_deg": float(lead.max()), "length_mm": float(s[-1])}
@@ -388,6 +409,7 @@ def machine_figure(out: str, path, posted, colours) -> dict:
         fig = style.figure(*SIZES["machine"])
         gs = fig.add_gridspec(5, 2, width_ratios=[1.0, 0.045])
         first = None
+        grid = []
         for j, (name, ax_def) in enumerate(zip(names, axes_def)):
             ax = fig.add_subplot(gs[j, 0], sharex=first)
             first = first or ax
@@ -440,10 +462,12 @@ def machine_figure(out: str, path, posted, colours) -> dict:
                 g.set_title(f"{100 * frac:.0f} %", fontsize=7)
             g.yaxis.tick_right()
             g.tick_params(labelsize=7)
+            grid.append([ax, g])
             used[name] = {"min": lo, "max": hi, "limit_min": None if endless else lim_lo,
                           "limit_max": None if endless else lim_hi, "fraction": frac}
         first.set_xlim(t[0], t[-1])
-        fig.suptitle(f"Machine axes along the program: {m.name} ({m.kind})")
+        style.title(fig, f"Machine axes along the program: {m.name} ({m.kind})")
+        style.arrange(fig, grid, widths=[1.0, 0.045])
         style.save(fig, out)
     return used
 
@@ -481,6 +505,7 @@ def clearance_figure(out: str, path, series: dict, required: float, colours, top
         ax.set_ylabel("distance to the part (mm, log scale)")
         ax.set_title("Clearance along the path: shank and holder to the workpiece (part, stock, fixtures)")
         ax.legend(loc="lower right", ncol=1, framealpha=0.9)
+        style.arrange(fig, [[ax]])
         style.save(fig, out)
     return res
 
@@ -522,8 +547,9 @@ def time_figure(out: str, path, posted, colours) -> dict:
         a2.set_ylabel("tool-tip speed (mm/min)")
         a2.set_title("Tool-tip speed in feed blocks (coloured by patch)")
         a2.legend(loc="lower right")
-        fig.suptitle(f"Machining time {tr.total_s:.1f} s (cutting {tr.cut_s:.1f} s, air {tr.air_s:.1f} s) "
+        style.title(fig, f"Machining time {tr.total_s:.1f} s (cutting {tr.cut_s:.1f} s, air {tr.air_s:.1f} s) "
                      f"against {tr.feed_only_s:.1f} s of length over feed")
+        style.arrange(fig, [[a1, a2]], widths=[0.55, 1.0])
         style.save(fig, out)
     return {"by_limit": by, "mean_feed_speed": float(np.nanmean(speed)) if ok.any() else float("nan")}
 
@@ -568,6 +594,7 @@ def baseline_figure(out: str, rows: dict) -> dict:
         for ax in axes:
             ax.set_xticks(x, [lb.replace(" ", "\n", 1) for lb in labels])
             ax.grid(axis="x", visible=False)
-        fig.suptitle("T-spline path against the compound-NURBS baseline (each face cut on its own)")
+        style.title(fig, "T-spline path against the compound-NURBS baseline (each face cut on its own)")
+        style.arrange(fig, [list(axes)])
         style.save(fig, out)
     return {n: dict(rows[n]) for n in labels}

@@ -315,7 +315,11 @@ def _write(out_dir: str, *, model, path, processing_list, oriented, machine, pos
                       f"{info['singular_points']}, {posted.reorientations} retract-reorient-approach sequences.")))
 
     # -- clearance ------------------------------------------------------------------------------
-    if clearance is not None:
+    # its section stands here, but its picture is drawn last: the series is measured in a
+    # forked process while the time and baseline pictures are drawn
+    clearance_at, collisions_card = len(rep.sections), len(cards) - 1
+
+    def clearance_section() -> None:
         kept = None
         if oriented is not None and oriented.report is not None:
             kept = oriented.report.settings.get("clearance")
@@ -326,7 +330,7 @@ def _write(out_dir: str, *, model, path, processing_list, oriented, machine, pos
                                 CLEARANCE_TOP)
         rows = [(name, _f(d["min"], 3), d["at"]) for name, d in figs.items()]
         measured = sum(len(i) for i, _ in series.values())
-        rep.sections.append(page.section(
+        rep.sections.insert(clearance_at, page.section(
             "clearance", "Clearance",
             page.picture(src, "clearance along the path", f"Distance from the shank and from the holder to the "
                          f"workpiece along the path (log scale), measured by growing the tool part until it "
@@ -338,9 +342,9 @@ def _write(out_dir: str, *, model, path, processing_list, oriented, machine, pos
                            numeric=(1, 2))))
         if metrics is not None:
             close = ", ".join(f"{k} {d['min']:.2f} mm" for k, d in figs.items())
-            cards[-1] = page.card("collisions", _n(metrics.collisions + metrics.gouges),
-                                  f"closest: {close}", bad=(metrics.collisions + metrics.gouges) > 0,
-                                  ident="h-collisions")
+            cards[collisions_card] = page.card("collisions", _n(metrics.collisions + metrics.gouges),
+                                               f"closest: {close}", bad=(metrics.collisions + metrics.gouges) > 0,
+                                               ident="h-collisions")
 
     # -- time ---------------------------------------------------------------------------------
     if posted is not None:
@@ -409,6 +413,9 @@ def _write(out_dir: str, *, model, path, processing_list, oriented, machine, pos
                          figures.pixel_size("baseline")),
             page.row_table(("", *labels), rows, ident="baseline", numeric=(1, 2)),
             page.note("Times: " + "; ".join(notes) + "." + tail)))
+
+    if clearance is not None:
+        clearance_section()
 
     # -- header -------------------------------------------------------------------------------
     eps = [e for e in model.extraordinary if not e.boundary]

@@ -9,7 +9,8 @@
 #  1. Debian packages: FreeCAD 0.20 (freecad-python3, freecad), numpy, scipy, pip, pytest,
 #     Xvfb + xauth for GUI tests, linuxcnc-uspace for LinuxCNC's own G-code interpreter (rs274),
 #     matplotlib for the report's pictures (Debian 12's 3.6.3, built against Debian's numpy:
-#     no wheel, so pip never replaces numpy; the check below asks for 3.5 or newer).
+#     no wheel, so pip never replaces numpy; the check below asks for 3.5 or newer) with its
+#     Pillow (python3-pil, a dependency of python3-matplotlib), which writes the pictures.
 #  2. python-fcl and elkai, and for the tests hypothesis (with sortedcontainers, its one
 #     dependency), into the system Python (/usr/bin/python3) that FreeCAD runs, pinned,
 #     with --no-deps so pip never replaces Debian's numpy. For `batch --scheduler` (Dask):
@@ -68,8 +69,8 @@ done
 $PY -c "import numpy, scipy, fcl, elkai, hypothesis, distributed, numba" || { say "a Python dependency does not import"; exit 1; }
 $PY -c "import numpy, sys; sys.exit(not numpy.__file__.startswith('/usr/lib/python3/dist-packages/'))" \
   || { say "numpy is not Debian's python3-numpy any more (a wheel replaced it)"; exit 1; }
-$PY -c "import matplotlib, sys; sys.exit(tuple(map(int, matplotlib.__version__.split('.')[:2])) < (3, 5))" \
-  || { say "matplotlib 3.5 or newer is needed for the report (python3-matplotlib)"; exit 1; }
+$PY -c "import matplotlib, PIL, sys; sys.exit(tuple(map(int, matplotlib.__version__.split('.')[:2])) < (3, 5))" \
+  || { say "matplotlib 3.5 or newer with Pillow is needed for the report (python3-matplotlib)"; exit 1; }
 
 # 3. Link the workbench -----------------------------------------------------------------
 link_into() {  # $1 = a FreeCAD Mod directory

@@ -64,13 +64,15 @@ def settings_rows(settings) -> list:
     return rows
 
 
-def clearance_series(checker, path, poses: int = CLEARANCE_POSES, top: float = CLEARANCE_TOP) -> dict:
+def clearance_series(checker, path, poses: int | None = None, top: float = CLEARANCE_TOP) -> dict:
     """Shank and holder clearance along ``path``: name -> (point indices, mm).
 
     Measured (:class:`tsplcam.verify.orientation.ClearanceGauge`) at about ``poses`` poses
-    spread evenly over the path, and then at every pose next to the ten closest ones, so the
-    smallest value is that of the closest pose, not of the nearest sample."""
+    (default :data:`CLEARANCE_POSES`, read when called) spread evenly over the path, and then
+    at every pose next to the ten closest ones, so the smallest value is that of the closest
+    pose, not of the nearest sample."""
     from ..verify.orientation import ClearanceGauge
+    poses = CLEARANCE_POSES if poses is None else int(poses)
     names = [p.name for p in checker.tool.parts()]
     groups = {"shank": [n for n in names if n == "shank"],
               "holder": [n for n in names if n.startswith("holder")]}

@@ -256,7 +256,8 @@ def _evaluate_at(model, pat, uv):
     Nn = np.empty((len(pat), 3))
     for p in np.unique(pat):
         sel = pat == p
-        sp = model.patches[p].evaluate(uv[sel, 0], uv[sel, 1])
+        # (positions and normals: no second derivatives, the same values)
+        sp = model.patches[p].evaluate(uv[sel, 0], uv[sel, 1], second=False)
         P[sel], Nn[sel] = sp.P, sp.normal
     return P, Nn
 

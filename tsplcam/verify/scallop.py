@@ -40,6 +40,7 @@ GRID_EPS = 1e-7
 K_RIDGE = 10
 ENTRY_ROWS = 4096
 LINK_OWNER = 1 << 40
+RIDGE_ROWS = 20000      # ridges refined at once (their candidates' data: at most 2.4 kB a ridge)
 
 
 @dataclass
@@ -389,8 +390,8 @@ def _measure_patches(sw: "Swept", model, spacing: float, patches, region, line_p
     if len(pairs):
         ra, rb = own[pairs[:, 0]], own[pairs[:, 1]]
         parts_h, parts_uv = [], []
-        for s in range(0, len(pairs), 50000):
-            e = slice(s, s + 50000)
+        for s in range(0, len(pairs), RIDGE_ROWS):
+            e = slice(s, s + RIDGE_ROWS)
             hh, ww = _refine_ridges(sw, model, grid, pairs[e, 0], pairs[e, 1], ra[e], rb[e])
             parts_h.append(hh)
             parts_uv.append(ww)

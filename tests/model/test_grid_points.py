@@ -107,3 +107,25 @@ class GridPoints(unittest.TestCase):
 
 if __name__ == "__main__":
     unittest.main()
+
+
+class PointByPoint(unittest.TestCase):
+    """Patch.evaluate gives a point the same values whatever else is in the call: alone, twice,
+    or among others (a cell's points are contracted in one BLAS product, and numpy hands a
+    one-column product to gemv, which rounds otherwise than gemm: a point alone in its cell
+    is computed as a two-column product). The verification's ridges and the line placement's
+    batched trials rely on it."""
+
+    def test_alone_or_among_others(self):
+        rng = np.random.default_rng(5)
+        keycap = cage_model(samples.keycap())
+        star = tspline_model(star_disc(5, random_intervals(5, 5)))
+        for patch in list(keycap.patches) + [rational_patch(rng)] + list(star.patches)[:3]:
+            uv = rng.random((40, 2))
+            others = rng.random((40, 7, 2))
+            for (u, v), o in zip(uv, others):
+                one = patch.evaluate(np.array([u]), np.array([v]))
+                among = patch.evaluate(np.append(o[:3, 0], [u, *o[3:, 0]]), np.append(o[:3, 1], [v, *o[3:, 1]]))
+                for k in ("P", "Pu", "Pv", "Puu", "Puv", "Pvv", "normal"):
+                    np.testing.assert_array_equal(getattr(one, k)[0], getattr(among, k)[3],
+                                                  err_msg=f"{patch.name} {k} at ({u}, {v})")

@@ -22,7 +22,9 @@ def same(a, b) -> bool:
 
 
 def bezier_run_by_run(cells: BezierCells, idx, a, b):
-    """BezierCells.evaluate as it was written before issue 16: the sum along b run by run."""
+    """BezierCells.evaluate as it was written before issue 16: the sum along b run by run (a
+    run of one point as a two-column product, as the cells compute it since gemv's rounding
+    made a point's values depend on the other points of its call)."""
     n = len(a)
     q1, nc = cells.q + 1, cells.nc
     bs, bt = bernstein_rows(cells.p, a), bernstein_rows(cells.q, b)
@@ -35,7 +37,7 @@ def bezier_run_by_run(cells: BezierCells, idx, a, b):
     for s0, e0 in zip(np.concatenate([[0], cuts]).tolist(), np.concatenate([cuts, [n]]).tolist()):
         m = e0 - s0
         cj = cells._cj[idx[s0]]
-        T = [(cj @ bs[d, :, s0:e0]).reshape(q1, nc, m) for d in range(3)]
+        T = [(cj @ bs[d][:, [s0, s0] if m == 1 else slice(s0, e0)])[:, :m].reshape(q1, nc, m) for d in range(3)]
         t = tmp[:, :m]
         for k, (ds, dt) in enumerate(DERIVS):
             o = out[k, :nc, s0:e0]

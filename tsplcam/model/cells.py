@@ -150,7 +150,13 @@ class BezierCells:
         # of one point, gemm otherwise), written into T
         T = np.empty((no, q1 * nc, n))
         for s0, e0 in zip(starts, ends):
-            np.matmul(self._cj[idx[s0]], bs[:no, :, s0:e0], out=T[:, :, s0:e0])
+            if e0 - s0 == 1:
+                # a run of one point as a product with two columns (the point twice): numpy
+                # hands a one-column product to gemv, which rounds otherwise than gemm, and a
+                # point's values would depend on whether others share its cell in the call
+                T[:, :, s0] = np.matmul(self._cj[idx[s0]], bs[:no, :, (s0, s0)])[:, :, 0]
+            else:
+                np.matmul(self._cj[idx[s0]], bs[:no, :, s0:e0], out=T[:, :, s0:e0])
         T = T.reshape(no, q1, nc, n)
         if out is None:
             out = np.empty((nd, 4, n))

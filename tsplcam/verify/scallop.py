@@ -18,10 +18,10 @@ centres plus the balls at its ends). No densification error.
   samples. A grid cannot see the top of a cusp (a cusp is a sharp ridge: with a spacing d
   the sampled maximum can be low by about 2 h d / g), so every pair of neighbouring samples
   cut by different lines is refined: bisection on the parameter segment between them for
-  the point where both lines leave the same height, i.e. the ridge. A ridge's bisection compares the capsules of its two owners among the nearest
-  at the segment's ends and middle, asked once (tested against every capsule). The cusp
-  heights are those ridge heights; between consecutive lines of one patch they give the
-  cusp mean.
+  the point where both lines leave the same height, i.e. the ridge. A ridge's bisection
+  compares the capsules of its two owners among the nearest at the segment's ends and
+  middle, asked once (tested against every capsule). The cusp heights are those ridge
+  heights; between consecutive lines of one patch they give the cusp mean.
 * Gouge: for ball centres at every path point, at the middle of every move on the surface
   (the chord) and along air moves, the distance to the surface (nearest grid samples, then
   Newton on the squared distance) compared with r.
@@ -115,7 +115,8 @@ class Swept:
         self.length = np.linalg.norm(e, axis=1)
         self.unit = e / np.where(self.length > 0, self.length, 1.0)[:, None]
         # the capsules' start, unit axis and end by component (contiguous: entry() gathers them)
-        self._soa = tuple(tuple(np.ascontiguousarray(x[:, c]) for c in range(3)) for x in (self.a, self.unit, self.b))
+        self._soa = tuple(tuple(np.ascontiguousarray(x[:, c]) for c in range(3))
+                          for x in (self.a, self.unit, self.b))
 
     def candidates(self, p: np.ndarray, n: np.ndarray, k: int = K_NEAR):
         kk = min(k, len(self.a))

@@ -141,18 +141,16 @@ def arrange(fig, grid, widths=None, heights=None, *, top: float = 0.0, bottom: f
                 if ax is not None:
                     place(ax, x[j], y[i], cw[j], rh[i])
 
-    g = np.zeros((nr, nc, 4))
-    for i, r in enumerate(rows):
-        for j, ax in enumerate(r):
-            if ax is not None:
-                g[i, j] = _guess(ax)
-    put(g[:, :, 0].max(axis=0), g[:, :, 1].max(axis=0), g[:, :, 2].max(axis=1), g[:, :, 3].max(axis=1))
-    o = np.zeros((nr, nc, 4))
-    for i, r in enumerate(rows):
-        for j, ax in enumerate(r):
-            if ax is not None:
-                o[i, j] = overhang(ax)
-    put(o[:, :, 0].max(axis=0), o[:, :, 1].max(axis=0), o[:, :, 2].max(axis=1), o[:, :, 3].max(axis=1))
+    def fit(measure) -> None:
+        m = np.zeros((nr, nc, 4))
+        for i, r in enumerate(rows):
+            for j, ax in enumerate(r):
+                if ax is not None:
+                    m[i, j] = measure(ax)
+        put(m[:, :, 0].max(axis=0), m[:, :, 1].max(axis=0), m[:, :, 2].max(axis=1), m[:, :, 3].max(axis=1))
+
+    fit(_guess)          # room for the usual overhangs
+    fit(overhang)        # each axes measured where that put it, then placed for good
 
 
 #: zlib level of the PNG pictures: 3 writes them in about half the time of the usual 6 (the

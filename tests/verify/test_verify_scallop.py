@@ -214,12 +214,12 @@ class NearSearch(unittest.TestCase):
             sp = patch.evaluate(uv[:, 0], uv[:, 1])
             return sp.P, sp.normal
 
-        idx = sw.ridge_candidates((at(0.0), at(1.0), at(0.5)), A, B)
+        near = sw.ridge_candidates((at(0.0), at(1.0), at(0.5)), A, B)
         self.assertGreater(len(pairs), 100)
         lam_all = None
         for t in (0.0, 0.3, 0.5, 0.85, 1.0):
             p, n = at(t)
-            la, lb = sw.heights_among(p, n, idx, A, B)
+            la, lb = sw.heights_among(p, n, near)
             lam_all = np.concatenate([sw.entry(p[s:s + 20], n[s:s + 20], np.tile(np.arange(len(sw.a)), (len(p[s:s + 20]), 1)))
                                       for s in range(0, len(p), 20)])
             for got, owner in ((la, A), (lb, B)):

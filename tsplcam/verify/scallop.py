@@ -186,10 +186,12 @@ class Swept:
         return out, own
 
     def ridge_candidates(self, points, A, B):
-        """Per row, the capsules of owner A or B among the ``K_RIDGE`` nearest at each of
-        ``points`` ((p, n) pairs, the same rows): the candidates of a ridge's bisection,
-        asked once at its ends and middle rather than at every step (the ridge points lie
-        between them, a few hundredths of a mm apart). (Q, w) capsule indices, -1 padding."""
+        """The candidates of ridges' bisections: per row, the capsules of owner A or B among
+        the ``K_RIDGE`` nearest at each of ``points`` ((p, n) pairs, the same rows), asked once
+        at a ridge's ends and middle rather than at every step (its points lie between them, a
+        few hundredths of a mm apart). Returns what :meth:`heights_among` reads: the
+        candidates' :meth:`gather` (Q, w) and whether each is owner A's and owner B's (the
+        padding neither's)."""
         idx = np.concatenate([self.candidates(p, n, K_RIDGE) for p, n in points], axis=1)
         own = self.owner[idx]
         keep = (own == A[:, None]) | (own == B[:, None])
@@ -199,17 +201,18 @@ class Swept:
         s.sort(axis=1)
         w = max(1, int(np.count_nonzero(s < big, axis=1).max())) if len(s) else 1
         s = s[:, :w]
-        return np.where(s < big, s, -1)
+        real = s < big
+        idx = np.where(real, s, 0)
+        own = np.where(real, self.owner[idx], -1)
+        return self.gather(idx), own == A[:, None], own == B[:, None]
 
-    def heights_among(self, p, n, idx, A, B, caps=None):
-        """Heights at p of the material left by owner A and by owner B alone, over the
-        candidates ``idx`` (Q, w; -1: none; inf where no candidate of that owner is hit);
-        ``caps``: their :meth:`gather` of ``max(idx, 0)``, when the caller has it."""
-        lam = self.entry(p, n, np.maximum(idx, 0), caps)
-        own = np.where(idx >= 0, self.owner[np.maximum(idx, 0)], -1)
-        la = np.where(own == A[:, None], lam, np.inf).min(axis=1)
-        lb = np.where(own == B[:, None], lam, np.inf).min(axis=1)
-        return la, lb
+    def heights_among(self, p, n, candidates):
+        """Heights at p of the material left by owner A and by owner B alone over
+        ``candidates`` (:meth:`ridge_candidates`); inf where no candidate of that owner is
+        hit."""
+        caps, of_a, of_b = candidates
+        lam = self.entry(p, n, caps=caps)
+        return np.where(of_a, lam, np.inf).min(axis=1), np.where(of_b, lam, np.inf).min(axis=1)
 
 
 @dataclass
@@ -275,15 +278,14 @@ def _refine_ridges(sw: Swept, model, grid: SurfaceGrid, i, j, A, B, iterations: 
     Pb, Nb = _evaluate_at(model, pat, ub)
     um = 0.5 * (ua + ub)
     Pm, Nm = _evaluate_at(model, pat, um)
-    idx = sw.ridge_candidates(((Pa, Na), (Pb, Nb), (Pm, Nm)), A, B)
-    caps = sw.gather(np.maximum(idx, 0))
-    a_a, b_a = sw.heights_among(Pa, Na, idx, A, B, caps)
-    a_b, b_b = sw.heights_among(Pb, Nb, idx, A, B, caps)
+    near = sw.ridge_candidates(((Pa, Na), (Pb, Nb), (Pm, Nm)), A, B)
+    a_a, b_a = sw.heights_among(Pa, Na, near)
+    a_b, b_b = sw.heights_among(Pb, Nb, near)
     for it in range(iterations):
         if it:
             um = 0.5 * (ua + ub)
             Pm, Nm = _evaluate_at(model, pat, um)
-        la, lb = sw.heights_among(Pm, Nm, idx, A, B, caps)
+        la, lb = sw.heights_among(Pm, Nm, near)
         left = la <= lb                         # A still lower at the middle: ridge nearer j
         ua = np.where(left[:, None], um, ua)
         ub = np.where(left[:, None], ub, um)

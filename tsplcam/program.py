@@ -317,8 +317,8 @@ def _orient(path, model, settings: JobSettings, tool, machine, stock, progress, 
     from .progress import report as tick
     # with the program posted here after the axes: the ball gouge check in a forked process
     # that then measures the axes' smallest clearance (most of the metrics' time) while this
-    # one posts; it builds the checker's BVH for both (the broad phase answers this process's
-    # questions without it on most parts)
+    # one posts; it builds the checker's BVH between the two (the broad phase answers this
+    # process's questions without it on most parts)
     companion = None
     if beside and len(path) >= MIN_POINTS and Aside.can_fork():
         companion = ball_check(path, checker, then=(min_clearance, checker))

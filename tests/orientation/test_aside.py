@@ -94,6 +94,23 @@ class SecondPiece(unittest.TestCase):
                     self.assertEqual(b.result(), ("b", 11, (3, pid), pid))
         self.assertEqual(_KEPT, {})                          # nothing of it here
 
+    def test_meanwhile_runs_there_between_the_pieces(self):
+        """``meanwhile`` runs in the forked process after the first piece and before the
+        second (the job builds the checker's BVH there); its failure is left alone."""
+        if not FORK:
+            self.skipTest("no forked workers here")
+        with mock.patch.dict(os.environ, {"TSPLCAM_WORKERS": "2"}):
+            with Aside(_build, 3, then=(_then, "b"), meanwhile=lambda: _build(4)) as a:
+                pid = a.result()
+                with a.follow(11) as b:
+                    self.assertEqual(b.result(), ("b", 11, (4, pid), pid))
+            with Aside(_build, 3, then=(_then, "b"), meanwhile=lambda: _fails(0)) as a:
+                pid = a.result()
+                with a.follow(12) as b:
+                    self.assertTrue(b.forked)
+                    self.assertEqual(b.result(), ("b", 12, (3, pid), pid))
+        self.assertEqual(_KEPT, {})
+
     def test_second_piece_error_raised_here(self):
         if not FORK:
             self.skipTest("no forked workers here")

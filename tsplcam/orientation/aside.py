@@ -14,11 +14,12 @@ is out asks for the result first (:meth:`Aside.first`): the piece's error, when 
 is the one a single process would have met first.
 
 An Aside may have a second piece (``then``) that its forked process runs after the first,
-on arguments given later (:meth:`Aside.follow`), keeping what the first built there: the
-ball gouge check builds the checker's BVH in it while the axes are searched here, and the
-same process then measures the axes' smallest clearance while this one posts the program
-(the main process, whose questions the broad phase answers alone on most parts, never builds
-it).
+on arguments given later (:meth:`Aside.follow`), keeping what the first built there, and
+work to do while it waits for them (``meanwhile``): the ball gouge check (which the broad
+phase answers without fcl) is followed there by building the checker's BVH while the axes
+are searched here, and the same process then measures the axes' smallest clearance with it
+while this one posts the program (the main process, whose questions the broad phase answers
+alone on most parts, never builds it; its BVH, when it does, is not the fork's).
 
 A fork of the job's process costs it about 5 ms, and its pages, shared with the child until
 written, cost its next work more (the keycap's post: 0.091 -> 0.109 s beside an idle
@@ -46,7 +47,7 @@ class Aside:
     whether it runs in another process. Use as a context manager: leaving it stops a process
     still running."""
 
-    def __init__(self, fn, *args, beside: bool = True, then=None):
+    def __init__(self, fn, *args, beside: bool = True, then=None, meanwhile=None):
         self.fn, self.args = fn, args
         self.then = then
         self._proc = self._conn = self._ask = None
@@ -57,7 +58,8 @@ class Aside:
             recv, send = ctx.Pipe(duplex=False)
             ask_r, ask_w = ctx.Pipe(duplex=False) if then is not None else (None, None)
             try:
-                self._proc = ctx.Process(target=_child, args=(send, fn, args, then, ask_r), daemon=True)
+                self._proc = ctx.Process(target=_child, args=(send, fn, args, then, ask_r, meanwhile),
+                                         daemon=True)
                 self._proc.start()
             except OSError:                      # no process to be had: here, at once
                 self._proc, self.forked = None, False
@@ -158,13 +160,19 @@ class Aside:
             self.close()
 
 
-def _child(conn, fn, args, then=None, ask=None) -> None:
+def _child(conn, fn, args, then=None, ask=None, meanwhile=None) -> None:
     """The forked process: ``fn(*args)`` with one process, (True, value) or (False, None) back;
-    with ``then``, once that went well, the second piece on the arguments read from ``ask``
-    (none: the caller closed it, nothing more to do)."""
+    with ``then``, once that went well, ``meanwhile()`` (its failure left to the second piece
+    to meet again), then the second piece on the arguments read from ``ask`` (none: the caller
+    closed it, nothing more to do)."""
     os.environ["TSPLCAM_WORKERS"] = "1"
     ok = _send(conn, fn, args)
     if then is not None and ok:
+        if meanwhile is not None:
+            try:
+                meanwhile()
+            except Exception:                    # noqa: BLE001  (the second piece meets it)
+                pass
         try:
             extra = pickle.loads(ask.recv_bytes())
         except (EOFError, OSError, pickle.PickleError):

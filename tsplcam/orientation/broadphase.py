@@ -64,7 +64,14 @@ and the *witnesses* of earlier hits near the same ball centre (a wall that stops
 stops its neighbours).
 
 The gouge check's ball B(c, r0) is proven clear by the same exact bound, once per ball
-centre and only when asked (:meth:`BroadPhase.ball_free`).
+centre and only when asked (:meth:`BroadPhase.ball_free`); where more than ``BAND`` samples
+lie in its band (next to the surface the ball touches), by the *band pass*
+(:meth:`BroadPhase.band_distance`): every sample in the band, and the triangles a sample can
+bring within r0 (its distance below sqrt(r0^2 + e_t^2/3) with e_t the triangle's own
+subtriangle edge; in a crease's strip of small triangles few can), measured exactly. On the
+keycap job it decides the 206 of 14,734 balls the exact bound left (3 ms, where fcl and its
+workpiece BVH took 0.14 s), on the Fusion mold 5,583 of 11,110 (0.08 s against 0.85 s): the
+ball check asks fcl only of balls that come within r0 + EPS of the mesh.
 
 Every comparison keeps ``EPS`` (1e-6 mm) on the safe side, for fcl's own rounding. The tests
 compare the decisions with fcl on random poses (tests/orientation).
@@ -106,6 +113,7 @@ numpy orders only those).
 """
 from __future__ import annotations
 
+import itertools
 import os
 import threading
 import time
@@ -138,6 +146,7 @@ EXACT_COST = 3                # spheres of the exact pass that cost about as muc
 EXACT_PROBE = 2000            # spheres the exact pass is tried on before its gain counts
 PLANE_SLACK = 1e-9            # mm: a triangle's plane distance counts only this much beyond R (rounding)
 GRID_ROWS = 16384             # points a distance grid reads at a time
+BAND_ROWS = 4096              # points the band pass (BroadPhase.band_distance) takes at a time
 READ_WORK = 30.0              # a grid read in numpy costs about as much as this many Viterbi elements
 HIT_WORK = 100.0              # a sample tried as a hit in numpy: about this many Viterbi elements
 SPHERE_WORK = 300.0           # a pose's part in the numpy sphere loop: about this many Viterbi elements
@@ -468,15 +477,17 @@ def mesh_samples(V: np.ndarray, T: np.ndarray, e_cap: float):
     """Points on the triangles: the vertices, and for every triangle longer than ``e_cap``
     the inner vertices of its uniform barycentric subdivision into k^2 triangles
     (k = ceil(edge / e_cap)). Returns (points, triangle of each extra point (-1 for the
-    vertices), e = longest (sub)triangle edge)."""
+    vertices), e = longest (sub)triangle edge, per triangle the longest edge of its
+    subtriangles)."""
     V = np.asarray(V, float)
     T = np.asarray(T, np.int64)
     if len(T) == 0:
-        return V.copy(), np.full(len(V), -1), 0.0
+        return V.copy(), np.full(len(V), -1), 0.0, np.zeros(0)
     edge = longest_edges(V, T)
     k = np.maximum(1, np.ceil(edge / e_cap - 1e-9)).astype(int)
     pts, tri_of = [V], [np.full(len(V), -1)]
-    e = float((edge / k).max())
+    sub = edge / k
+    e = float(sub.max())
     for kk in np.unique(k[k > 1]):
         sel = np.nonzero(k == kk)[0]
         i, j = np.meshgrid(np.arange(kk + 1), np.arange(kk + 1), indexing="ij")
@@ -486,7 +497,7 @@ def mesh_samples(V: np.ndarray, T: np.ndarray, e_cap: float):
         P = A[:, None] * (1 - a - b)[None, :, None] + B[:, None] * a[None, :, None] + C[:, None] * b[None, :, None]
         pts.append(P.reshape(-1, 3))
         tri_of.append(np.repeat(sel, len(a)))
-    return np.concatenate(pts), np.concatenate(tri_of), e
+    return np.concatenate(pts), np.concatenate(tri_of), e, sub
 
 
 def mesh_components(nv: int, T: np.ndarray) -> np.ndarray:
@@ -906,8 +917,9 @@ class BroadPhase:
         if e_cap is None:
             edge = longest_edges(V, T) if len(T) else np.ones(1)
             e_cap = max(0.1, float(np.quantile(edge, 0.5)))
-        self.samples, tri_of, self.e = mesh_samples(V, T, e_cap)
+        self.samples, tri_of, self.e, sub = mesh_samples(V, T, e_cap)
         self.e2 = self.e * self.e / 3.0
+        self.tri_e2 = sub * sub / 3.0             # per triangle: its own e^2 / 3 (the band pass)
         self.tree = SampleTree(self.samples)
         # triangles to measure exactly per sample: a vertex's incident ones, else its own, as
         # runs of one flat array (sample k's: tris_flat[tris_start[k]:tris_start[k + 1]]; a
@@ -965,8 +977,9 @@ class BroadPhase:
         self._wit_cells = CentreTable()
         self._wit = np.zeros((0, WITNESSES), np.int64)
         self._exact_gain = (0.0, 0.0)             # poses decided, spheres asked (_exact_pass)
+        self._sample_e2 = None                    # per sample: its triangles' largest e_t^2 / 3
         self.stats = {"poses": 0, "free": 0, "hit": 0, "unknown": 0, "cone": 0, "witness": 0,
-                      "queries": 0, "exact": 0, "cone_fcl": 0}
+                      "queries": 0, "exact": 0, "cone_fcl": 0, "band": 0}
 
     # --- distances ------------------------------------------------------------------------
     def lower_bound(self, x: np.ndarray, need=None):
@@ -1052,6 +1065,51 @@ class BroadPhase:
         """True where the ball B(o, R) is shown to hold no part of the mesh."""
         return self.exact_bound(o, R + EPS) >= R + EPS
 
+    def band_distance(self, o: np.ndarray, R: np.ndarray) -> np.ndarray:
+        """The distance from points o to the mesh where it is below R (exact), else R: every
+        sample of the band sqrt(R^2 + e^2/3), however many (:meth:`exact_bound` stops at
+        ``BAND``), and of their triangles those that can reach within R measured exactly. A
+        triangle reaches within R of o only through a sample of it (a corner, or a point of its
+        subdivision) at most sqrt(R^2 + e_t^2/3) from o, e_t its own subtriangles' longest edge
+        (module doc), so a sample farther than that from o is passed over for triangle t: next
+        to the dense strips of small triangles at a crease nearly all of them are."""
+        o = np.asarray(o, float).reshape(-1, 3)
+        R = np.broadcast_to(np.asarray(R, float), (len(o),))
+        out = R.copy()
+        if len(o) == 0 or len(self.T) == 0:
+            return out
+        if self._sample_e2 is None:                # per sample the largest e_t^2 / 3 of its triangles
+            cnt = self.tris_start[1:] - self.tris_start[:-1]
+            self._sample_e2 = np.zeros(len(self.samples))
+            has = np.nonzero(cnt > 0)[0]
+            if len(has):
+                self._sample_e2[has] = np.maximum.reduceat(self.tri_e2[self.tris_flat], self.tris_start[has])
+        for lo in range(0, len(o), BAND_ROWS):
+            x, r = o[lo:lo + BAND_ROWS], R[lo:lo + BAND_ROWS]
+            r2 = r * r + 1e-9 * (1.0 + r * r)      # (a hair wider: rounding of the squares)
+            lists = self.tree.ref.query_ball_point(x, np.sqrt(r * r + self.e2) * (1.0 + 1e-9), return_sorted=False)
+            cnt = np.fromiter(map(len, lists), np.int64, len(lists))
+            js = np.fromiter(itertools.chain.from_iterable(lists), np.int64, int(cnt.sum()))
+            row = np.repeat(np.arange(len(x)), cnt)
+            w = self.samples[js] - x[row]
+            d2 = w[:, 0] * w[:, 0] + w[:, 1] * w[:, 1] + w[:, 2] * w[:, 2]
+            near = np.nonzero(d2 <= r2[row] + self._sample_e2[js])[0]
+            js, row, d2 = js[near], row[near], d2[near]
+            c2 = self.tris_start[js + 1] - self.tris_start[js]
+            at = np.arange(int(c2.sum())) - np.repeat(np.cumsum(c2) - c2, c2) + np.repeat(self.tris_start[js], c2)
+            ti = self.tris_flat[at]
+            row, d2 = np.repeat(row, c2), np.repeat(d2, c2)
+            keep = np.nonzero(d2 <= r2[row] + self.tri_e2[ti])[0]
+            key = np.unique(row[keep] * len(self.T) + ti[keep])        # each triangle once per point
+            q, ti = key // len(self.T), key % len(self.T)
+            tt = self.T[ti]
+            gap = np.abs(_dot(x[q] - self.V[tt[:, 0]], self.tri_normal[ti]))
+            plane = np.nonzero(gap < r[q] + PLANE_SLACK)[0]
+            q, tt = q[plane], tt[plane]
+            P = closest_on_triangles(x[q], self.V[tt[:, 0]], self.V[tt[:, 1]], self.V[tt[:, 2]])
+            min_into(out[lo:lo + BAND_ROWS], q, np.linalg.norm(P - x[q], axis=1))
+        return out
+
     # --- per ball centre: gouge check, cones ----------------------------------------------------
     def _slots(self, C: np.ndarray) -> np.ndarray:
         """Slots of the centres C, with the gouge verdicts of the new ones."""
@@ -1080,7 +1138,13 @@ class BroadPhase:
         if ask.any():                             # measured once per centre, when first asked
             su, first = np.unique(slot[ask], return_index=True)
             Cn = C[np.nonzero(ask)[0][first]]
-            self._gouge[su] = self._clear_exact(Cn, np.full(len(Cn), self.r0))
+            clear = self._clear_exact(Cn, np.full(len(Cn), self.r0))
+            if not clear.all():                   # next to a surface: every sample of the band
+                rest = np.nonzero(~clear)[0]
+                R = np.full(len(rest), self.r0 + EPS)
+                clear[rest] = self.band_distance(Cn[rest], R) >= R
+                self.stats["band"] += len(rest)
+            self._gouge[su] = clear
         return self._gouge[slot] == 1
 
     # --- poses ---------------------------------------------------------------------------------

@@ -118,9 +118,11 @@ def ball_check(path, checker: CollisionChecker, then=None) -> Aside:
     """The ball gouge check of ``path`` (its ball centres, which do not move with the axes:
     :func:`orient` raises its error) beside this process where the path is long enough to
     pay for a fork (:class:`~tsplcam.orientation.aside.Aside`); ``then``: a second piece the
-    same process runs after it on arguments given later (:meth:`Aside.follow`: it keeps the
-    checker's BVH that the check built there)."""
-    return Aside(_check_ball, path, checker, beside=len(path) >= MIN_POINTS, then=then)
+    same process runs after it on arguments given later (:meth:`Aside.follow`), with the
+    checker's BVH built there meanwhile (the broad phase answers the check itself without
+    it)."""
+    return Aside(_check_ball, path, checker, beside=len(path) >= MIN_POINTS, then=then,
+                 meanwhile=None if then is None else checker.build_bvh)
 
 
 def _check_ball(path, checker: CollisionChecker) -> None:

@@ -218,7 +218,7 @@ def search_figures(name, scallop, machine_name, stock, repeat, fcl_calls=None):
           f"load {os.getloadavg()[0]:.1f}; decided by the broad phase "
           f"{(st['free'] + st['hit']) / poses:.0%}: free cones {st['cone'] / poses:.0%}, hit witnesses "
           f"{st['witness'] / poses:.0%}, {st.get('exact', 0)} spheres of the exact pass; fcl {ch.fcl_checks} "
-          f"queries incl. swing cones)")
+          f"queries)")
     print(f"    fcl alone           {ref_poses / t_fcl:10.0f} poses/s  ({t_fcl:.2f} s"
           f"{'' if fcl_calls is None else f' on the first {len(ref_calls)} batches, {ref_poses} poses'})")
     print(f"    ratio {poses / t_bp / (ref_poses / t_fcl):.1f}")

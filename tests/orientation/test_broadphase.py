@@ -6,8 +6,8 @@ normal, several tool growths. Every pose the broad phase calls free must be free
 (the tool mesh and the primitives), every pose it calls a hit must collide for fcl, and
 every gouge ball it proves clear must be clear for fcl. It must also decide most poses, or
 it is no broad phase; near the walls too, where the exact pass (samples and triangles)
-decides what the distance grids cannot. The free cones (axes within the swing of a pose fcl
-passed with the grown tool) hold for random axes inside them.
+decides what the distance grids cannot. Later batches at the same centres, which the free
+cones and hit witnesses of earlier ones decide, still agree with fcl.
 """
 import unittest
 
@@ -17,7 +17,6 @@ from tsplcam.model import samples
 from tsplcam.model.cage import cage_model
 from tsplcam.orientation import CollisionChecker, load_tool
 from tsplcam.orientation.broadphase import FREE, HIT, UNKNOWN, closest_on_triangles, mesh_samples
-from tsplcam.orientation.collision import SWING
 from tsplcam.orientation.testpaths import zigzag
 
 try:
@@ -135,7 +134,7 @@ class AgreesWithFcl(unittest.TestCase):
         finally:
             del ch.broad._side_pass
         self.assertIs(ch.broad._side_pass.__func__, plain.__func__)
-        ref = ch._fcl(C, A, "tool", 0.0, np.full(len(C), cone))
+        ref = ch._fcl(C, A, 0.0, np.full(len(C), cone))
         near = before & ~ref                               # free cones the spheres could not clear
         self.assertGreater(int(near.sum()), 200)
         st = ch.broad.decide(C, A, 0.0, cone)
@@ -281,22 +280,22 @@ class AgreesWithFcl(unittest.TestCase):
                 self.assertGreater(int((runs[0][-1] < phi).sum()), 50)     # and cones narrowed
         # store_cones: slots in runs, some twice, from empty and from kept cones
         from tsplcam.orientation.broadphase import CONES
-        for from_fcl in (False, True):
+        for as_rows in (False, True):
             slot = np.repeat(rng.integers(0, 40, 300), rng.integers(1, 6, 300))
             Ax = rng.normal(size=(len(slot), 3))
             c = np.round(rng.random(len(slot)) * 8) / 8           # ties
             start = (rng.normal(size=(40, CONES, 3)), np.where(rng.random((40, CONES)) < 0.3, 2.0,
-                     np.round(rng.random((40, CONES)) * 8) / 8), rng.random((40, CONES)) < 0.5)
+                     np.round(rng.random((40, CONES)) * 8) / 8))
+            big = np.concatenate([rng.normal(size=(30, 3)), Ax])
             out = []
             for kern in (None, k):
-                b._cone_a[9.0], b._cone_c[9.0], b._cone_fcl[9.0] = (x.copy() for x in start)
+                b._cone_a[9.0], b._cone_c[9.0] = (x.copy() for x in start)
                 with mock.patch.object(compiled, "loaded", lambda: kern):
-                    if from_fcl:                                  # the axes as rows of a larger array
-                        big = np.concatenate([rng.normal(size=(30, 3)), Ax])
-                        b._store_cones(slot, big[::-1], c, 9.0, from_fcl, rows=len(Ax) - 1 - np.arange(len(Ax)))
+                    if as_rows:                                   # the axes as rows of a larger array
+                        b._store_cones(slot, big[::-1], c, 9.0, rows=len(Ax) - 1 - np.arange(len(Ax)))
                     else:
-                        b._store_cones(slot, Ax, c, 9.0, from_fcl)
-                out.append((b._cone_a.pop(9.0), b._cone_c.pop(9.0), b._cone_fcl.pop(9.0)))
+                        b._store_cones(slot, Ax, c, 9.0)
+                out.append((b._cone_a.pop(9.0), b._cone_c.pop(9.0)))
             for r, g in zip(*out):
                 np.testing.assert_array_equal(g, r)
             self.assertGreater(int((out[0][1] != start[1]).sum()), 20)
@@ -342,20 +341,6 @@ class AgreesWithFcl(unittest.TestCase):
         checker._ball.setTranslation(c)
         return checker._ball
 
-    def test_swing_cones(self):
-        """Axes within the swing of a pose the grown tool passes are free."""
-        rng = np.random.default_rng(7)
-        C, A = random_poses(self.mold_path, 1500, rng)
-        ch = self.mold
-        free = ~ch._fcl(C, A, "swung")
-        C, A = C[free], A[free]
-        v = rng.normal(size=A.shape)
-        v -= np.einsum("ij,ij->i", v, A)[:, None] * A
-        v /= np.linalg.norm(v, axis=1, keepdims=True)
-        ang = SWING * rng.random(len(A)) ** 0.5
-        B = np.cos(ang)[:, None] * A + np.sin(ang)[:, None] * v
-        self.assertFalse(ch.collides_fcl(C, B).any())
-
     def test_some_parts(self):
         """A question about some parts (shank and holder, the clearance's): the broad phase's
         answers and collides_parts's (also below a growth, with that growth's masks) equal
@@ -366,7 +351,7 @@ class AgreesWithFcl(unittest.TestCase):
             self.assertEqual(only, 0b1110)                  # every part but the flutes
             C, A = random_poses(path, 1500, rng, spread=0.1, tilt=np.radians(75))
             for grow in (0.2, 0.5):
-                ref = checker._fcl(C, A, "tool", grow, np.full(len(C), only))
+                ref = checker._fcl(C, A, grow, np.full(len(C), only))
                 st = checker.broad.decide(C, A, grow, only)
                 self.assertEqual(int(((st == FREE) & ref).sum()), 0)
                 self.assertEqual(int(((st == HIT) & ~ref).sum()), 0)
@@ -374,56 +359,16 @@ class AgreesWithFcl(unittest.TestCase):
                 np.testing.assert_array_equal(hit, ref)
                 self.assertFalse((masks & ~only).any())
             below, _ = checker.collides_parts(C, A, 0.35, parts=(0.5, masks), only=only)
-            np.testing.assert_array_equal(below, checker._fcl(C, A, "tool", 0.35, np.full(len(C), only)))
+            np.testing.assert_array_equal(below, checker._fcl(C, A, 0.35, np.full(len(C), only)))
 
     def test_batches_agree_with_fcl(self):
-        """collides (broad phase, swing cones, fcl) returns fcl's answers, batch after batch."""
+        """collides (broad phase, free cones, fcl) returns fcl's answers, batch after batch."""
         rng = np.random.default_rng(8)
         C, A = random_poses(self.mold_path, 3000, rng, spread=0.05, tilt=np.radians(50))
         for k in range(3):                     # later batches reuse cones and witnesses
             got = self.mold.collides(C[k * 1000:(k + 1) * 1000], A[k * 1000:(k + 1) * 1000])
             np.testing.assert_array_equal(got, self.mold.collides_fcl(C[k * 1000:(k + 1) * 1000],
                                                                        A[k * 1000:(k + 1) * 1000]))
-
-    def test_swing_check_only_while_it_pays(self):
-        """The swung tool is asked before the mesh only while its record says it pays (the poses
-        it passed and those its cones decided later at least as many as it asked): with a
-        record of nothing decided it is not asked (and the record halves), with a good one it
-        is; the answers are fcl's either way."""
-        from tsplcam.orientation.collision import SWING_PROBE
-        ch = self.mold
-        rng = np.random.default_rng(11)
-        C, A = random_poses(self.mold_path, 1200, rng, spread=0.05, tilt=np.radians(50))
-        ch.collides(C, A)                                  # the centres are known from now on
-        kinds = []
-        plain = ch._fcl
-        ch._fcl = lambda C_, A_, tool="tool", *a: (kinds.append((tool, len(C_))), plain(C_, A_, tool, *a))[1]
-        try:
-            for gain, asked in ((0.0, False), (20.0 * SWING_PROBE, True)):
-                ch._swing_gain = (gain, 10.0 * SWING_PROBE, ch.broad.stats["cone_fcl"])
-                kinds.clear()
-                _, B = random_poses(self.mold_path, 1200, rng, spread=0.05, tilt=np.radians(50))
-                got = ch.collides(C, B)
-                self.assertEqual(any(k == "swung" for k, _ in kinds), asked)
-                if not asked:
-                    self.assertAlmostEqual(ch._swing_gain[1], 5.0 * SWING_PROBE)   # halved
-                np.testing.assert_array_equal(got, plain(C, B))
-        finally:
-            del ch._fcl
-            ch._swing_gain = (0.0, 0.0, ch.broad.stats["cone_fcl"])
-
-    def test_fcl_cones_counted(self):
-        """A pose decided by a cone the swing check left counts in ``stats["cone_fcl"]``."""
-        ch = self.keycap
-        A = self.keycap_path.normal[:200]
-        C = self.keycap_path.center[:200] + 0.0137 * A      # centres no other test asks about
-        free = ~ch._fcl(C, A, "swung")
-        self.assertGreater(int(free.sum()), 100)
-        ch.broad.add_cones(C[free], A[free], SWING)
-        before = ch.broad.stats["cone_fcl"]
-        st = ch.broad.decide(C[free], A[free])
-        self.assertTrue(np.all(st == FREE))
-        self.assertEqual(ch.broad.stats["cone_fcl"] - before, int(free.sum()))
 
 
 class Geometry(unittest.TestCase):

@@ -50,10 +50,9 @@ each, 5.7k of them read, where bricks of 6^3 cells made whole had cost 24.7k).
 
 **Free cones.** Turning the axis by an angle phi about the ball centre moves a point at
 distance l from it by at most l phi. A pose cleared with that much to spare leaves a cone of
-free axes at its centre: from the spheres above (phi = min_j (bound_j - radius_j) / z_j), or
-from fcl with every part grown by phi times its farthest distance from the ball centre
-(:func:`~tsplcam.orientation.collision.tool_mesh`'s ``swing``). Later poses at the same
-centre inside a cone are free without further work: the smoothing's small moves.
+free axes at its centre, from the spheres above (phi = min_j (bound_j - radius_j) / z_j).
+Later poses at the same centre inside a cone are free without further work: the smoothing's
+small moves.
 
 **Hit.** A sample of the mesh lies strictly inside a part's inscribed circular frustum (the
 polygon's inradius is the grown radius), and a point of the same connected piece of the mesh
@@ -973,13 +972,12 @@ class BroadPhase:
         self._gouge = np.zeros(0, np.int8)        # per centre: 1 clear, 0 not proven, -1 not asked yet
         self._cone_a = {}                         # per grow: (slots, CONES, 3) axes
         self._cone_c = {}                         # per grow: (slots, CONES) cos of the cone angle
-        self._cone_fcl = {}                       # per grow: (slots, CONES) the cone came from fcl
         self._wit_cells = CentreTable()
         self._wit = np.zeros((0, WITNESSES), np.int64)
         self._exact_gain = (0.0, 0.0)             # poses decided, spheres asked (_exact_pass)
         self._sample_e2 = None                    # per sample: its triangles' largest e_t^2 / 3
         self.stats = {"poses": 0, "free": 0, "hit": 0, "unknown": 0, "cone": 0, "witness": 0,
-                      "queries": 0, "exact": 0, "cone_fcl": 0, "band": 0}
+                      "queries": 0, "exact": 0, "band": 0}
 
     # --- distances ------------------------------------------------------------------------
     def lower_bound(self, x: np.ndarray, need=None):
@@ -1123,12 +1121,10 @@ class BroadPhase:
     def _grow_cones(self, grow: float):
         a = self._cone_a.setdefault(grow, np.zeros((0, CONES, 3)))
         c = self._cone_c.setdefault(grow, np.zeros((0, CONES)))
-        f = self._cone_fcl.setdefault(grow, np.zeros((0, CONES), bool))
         m = self.centres.size - len(a)
         if m > 0:
             self._cone_a[grow] = np.concatenate([a, np.zeros((m, CONES, 3))])
             self._cone_c[grow] = np.concatenate([c, np.full((m, CONES), 2.0)])   # cos > 1: none
-            self._cone_fcl[grow] = np.concatenate([f, np.zeros((m, CONES), bool)])
 
     def ball_free(self, C: np.ndarray) -> np.ndarray:
         """True where the gouge check's ball (radius r0) at C is proven clear of the mesh."""
@@ -1270,26 +1266,16 @@ class BroadPhase:
         lb, _, _ = self.lower_bound(x)
         return np.maximum(lb - s, 0.0).reshape(len(C), K, nseg).min(axis=2)
 
-    def add_cones(self, C: np.ndarray, A: np.ndarray, phi: float, grow: float = 0.0):
-        """Remember that every axis within ``phi`` of the axes A is free at the centres C."""
-        if len(C) == 0:
-            return
-        slot = self._slots(C)
-        self._grow_cones(grow)
-        self._store_cones(slot, A, np.full(len(A), np.cos(phi)), grow, True)
-
-    def _store_cones(self, slot, A, c, grow, from_fcl: bool = False, rows=None):
+    def _store_cones(self, slot, A, c, grow, rows=None):
         """Keep cone (axis A, cos of its angle c) at each slot, replacing the slot's narrowest;
-        ``from_fcl``: the cones come from fcl's swing check (:meth:`add_cones`), counted apart
-        when they decide a pose (``stats["cone_fcl"]``); ``rows``: the axes are ``A[rows]``
-        (taken there by the kernel, not gathered)."""
-        cone_a, cone_c, cone_f = self._cone_a[grow], self._cone_c[grow], self._cone_fcl[grow]
+        ``rows``: the axes are ``A[rows]`` (taken there by the kernel, not gathered)."""
+        cone_a, cone_c = self._cone_a[grow], self._cone_c[grow]
         k = compiled.loaded()
         if k is not None and len(slot):
             # row by row, each slot at most twice (the kernel's doc: the same cones, in place)
             rows = np.arange(len(slot)) if rows is None else np.ascontiguousarray(rows, np.int64)
             k["store_cones"](np.ascontiguousarray(slot, np.int64), rows, np.ascontiguousarray(A, float),
-                             np.ascontiguousarray(c, float), np.int64(2), np.int64(from_fcl), cone_a, cone_c, cone_f)
+                             np.ascontiguousarray(c, float), np.int64(2), cone_a, cone_c)
             return
         if rows is not None:
             A = A[rows]
@@ -1306,7 +1292,6 @@ class BroadPhase:
             sel = np.nonzero(better)[0][first_of_each(slot[better])]
             cone_a[slot[sel], worst[sel]] = A[sel]
             cone_c[slot[sel], worst[sel]] = c[sel]
-            cone_f[slot[sel], worst[sel]] = from_fcl
             keep = np.ones(len(slot), bool)
             keep[sel] = False
             slot, A, c = slot[keep], A[keep], c[keep]
@@ -1612,26 +1597,21 @@ class BroadPhase:
         status = np.full(n, UNKNOWN, np.int8)
         cov = self._cover(grow)
         self.open_parts = np.ones((n, len(cov.prof.z0)), bool)
-        self.open_phi = np.zeros(n)
-        self.revisit = np.zeros(n, bool)
         if n == 0:
             return status
         prof = cov.prof
         known = self.centres.size
         slot = self._slots(C)
-        self.revisit = slot < known              # centres asked about in an earlier batch
         self._grow_cones(grow)
         cone_a, cone_c = self._cone_a[grow], self._cone_c[grow]
         # free cones of earlier free poses at the same centre (only centres known before this
         # call have any)
-        old = np.nonzero(self.revisit)[0]
+        old = np.nonzero(slot < known)[0]
         within = np.einsum("nki,ni->nk", cone_a[slot[old]], A[old]) >= cone_c[slot[old]]
         inc = np.zeros(n, bool)
         inc[old] = any_row(within)
         status[inc] = FREE
         self.stats["cone"] += int(inc.sum())
-        # (those only fcl's swing check's cones decide: what that check is worth later)
-        self.stats["cone_fcl"] += int((inc[old] & ~(within & ~self._cone_fcl[grow][slot[old]]).any(axis=1)).sum())
         # witnesses of earlier hits near the same centre (in cells that have any)
         cell = self._witness_cells(C)
         todo = np.nonzero(~inc & any_row(self._wit >= 0)[cell])[0]
@@ -1661,10 +1641,8 @@ class BroadPhase:
         opened = any_row(unresolved)
         free &= (status != HIT) & ~opened
         status[free] = FREE
-        # what fcl still has to answer for the poses left open: their unresolved parts, and
-        # the cone the cleared parts leave free
+        # what fcl still has to answer for the poses left open: their unresolved parts
         self.open_parts = unresolved
-        self.open_phi = np.where(opened, phi, np.inf)
         # remember the new free cones (replacing each centre's narrower one)
         fi = np.nonzero(free & (phi > 0))[0] if parts == -1 or parts == (1 << K) - 1 else np.zeros(0, int)
         if len(fi):

@@ -276,14 +276,10 @@ def _part_margin(name: str, margin: float, cutting_margin: float | None) -> floa
 
 
 def tool_mesh(tool: Tool, margin: float = 0.0, polygon_tolerance: float = 0.01,
-              cutting_margin: float | None = None, swing: float = 0.0):
+              cutting_margin: float | None = None):
     """Closed triangle mesh of the tool parts (tool frame: ball centre at the origin, axis +z),
     each radius grown by ``margin`` (the flutes by ``cutting_margin`` when given) and
-    circumscribed. ``swing`` (rad) grows every part further, radially and at both ends, by
-    ``swing`` times its farthest distance from the ball centre: turning the axis by up to
-    ``swing`` about the ball centre keeps the part inside (a point at distance l moves at
-    most l swing), so a pose this tool passes is passed by every axis in that cone.
-    Returns (V, T, part_of_triangle, names)."""
+    circumscribed. Returns (V, T, part_of_triangle, names)."""
     parts = tool.parts()
     V, T, owner = [], [], []
     names = [p.name for p in parts]
@@ -291,10 +287,6 @@ def tool_mesh(tool: Tool, margin: float = 0.0, polygon_tolerance: float = 0.01,
         g = _part_margin(p.name, margin, cutting_margin)
         r0, r1 = p.r0 + g, p.r1 + g
         z0, z1 = p.z0, p.z1
-        if swing > 0.0:
-            n = polygon_segments(max(r0, r1), polygon_tolerance)
-            d = swing * np.hypot(max(abs(z0), abs(z1)), max(r0, r1) / np.cos(np.pi / n))
-            r0, r1, z0, z1 = r0 + d, r1 + d, z0 - d, z1 + d
         n = polygon_segments(max(r0, r1), polygon_tolerance)
         a = np.arange(n) * 2 * np.pi / n
         s = 1.0 / np.cos(np.pi / n)                       # circumscribed: edge midpoints on the circle
@@ -354,8 +346,6 @@ def axis_quaternions(axes: np.ndarray) -> np.ndarray:
     return q / np.linalg.norm(q, axis=1, keepdims=True)
 
 
-SWING = np.radians(1.0)        # cone of axes a pose decided by fcl certifies (see tool_mesh)
-SWING_PROBE = 2000             # poses the swing check is tried on before its record counts
 POOL_MIN = 400                 # fcl batches at least twice this long go to worker processes
 _POOL_CHECKER = None           # the checker forked workers inherit
 
@@ -447,7 +437,6 @@ class CollisionChecker:
         self._req = fcl.CollisionRequest()
         self.checks = 0                    # poses checked so far (for reports and benchmarks)
         self.fcl_checks = 0                # of those, asked of fcl
-        self._swing_gain = (0.0, 0.0, 0)   # swing check: poses decided, asked, cone_fcl seen
         self.broad = BroadPhase(self.mesh.vertices, self.mesh.triangles, self.profile,
                                 tool.ball_radius - self.gouge_tolerance, e_cap) if broad_phase else None
 
@@ -487,24 +476,20 @@ class CollisionChecker:
         return len(self.mesh.triangles)
 
     # --- batches -----------------------------------------------------------------------
-    def _tool_object(self, tool: str = "tool", grow: float = 0.0, parts: int = -1):
-        """The fcl object of the tool mesh: 'tool' grown radially (and at its top) by
-        ``grow`` mm more, or 'swung' (grown for a swing of ``SWING``, see tool_mesh); only the
-        parts in the bit mask ``parts`` (-1: all). A pose collides when some part does, and a
-        part's triangles are the same in every subset, so asking only the parts the broad
-        phase could not clear gives the same answer."""
-        key = (tool, float(grow), int(parts))
+    def _tool_object(self, grow: float = 0.0, parts: int = -1):
+        """The fcl object of the tool mesh grown radially (and at its top) by ``grow`` mm
+        more; only the parts in the bit mask ``parts`` (-1: all). A pose collides when some
+        part does, and a part's triangles are the same in every subset, so asking only the
+        parts the broad phase could not clear gives the same answer."""
+        key = (float(grow), int(parts))
         cache = self.__dict__.setdefault("_tool_objects", {})
         if key not in cache:
-            if tool == "swung":
-                V, T, own, _ = tool_mesh(self.tool, self.margin, self.polygon_tolerance, self.cutting_margin, SWING)
-            else:
-                V, T, own, _ = tool_mesh(self.tool, self.margin + grow, self.polygon_tolerance,
-                                         self.cutting_margin + grow)
-                if grow:
-                    V = V.copy()
-                    top = V[:, 2].max()
-                    V[:, 2] = np.where(V[:, 2] >= top - 1e-12, V[:, 2] + grow, V[:, 2])
+            V, T, own, _ = tool_mesh(self.tool, self.margin + grow, self.polygon_tolerance,
+                                     self.cutting_margin + grow)
+            if grow:
+                V = V.copy()
+                top = V[:, 2].max()
+                V[:, 2] = np.where(V[:, 2] >= top - 1e-12, V[:, 2] + grow, V[:, 2])
             keep = ((int(parts) >> own) & 1).astype(bool) if parts != -1 else np.ones(len(T), bool)
             cache[key] = fcl.CollisionObject(_bvh(V, T[keep]), fcl.Transform())
         return cache[key]
@@ -512,74 +497,43 @@ class CollisionChecker:
     def _decided(self, C, A, grow, ask=None):
         """Broad-phase decisions, with fcl for the poses it leaves open: ``ask(C, A, parts)``
         (``parts``: per pose the bit mask of the parts the broad phase could not clear), or by
-        default the tool mesh reduced to the parts the broad phase could not clear. At zero
-        growth those are first tried with the tool grown for a swing of ``SWING``: the ones it
-        passes are free and leave a cone of free axes at their centre; only at centres asked
-        about before (a new centre's cone would serve nobody), and reduced to the open parts
-        where the cleared ones keep that swing to spare, and only while that pays
-        (:meth:`_swing_share`). ``ask`` is asked only about the poses the tool mesh does not
-        clear either: the mesh's circumscribed polygons contain the primitives (the same
-        polygons for a ``Convex``, a polygon around a ``Cylinder``), so what the mesh clears
-        they clear, and a mesh query costs a tenth of a primitive one against a large
-        workpiece (the holder's cylinder)."""
+        default the tool mesh reduced to the parts the broad phase could not clear. ``ask`` is
+        asked only about the poses the tool mesh does not clear either: the mesh's
+        circumscribed polygons contain the primitives (the same polygons for a ``Convex``, a
+        polygon around a ``Cylinder``), so what the mesh clears they clear, and a mesh query
+        costs a tenth of a primitive one against a large workpiece (the holder's cylinder).
+
+        (A check of the open poses with the tool grown for a 1 deg swing, whose passes left
+        cones of free axes for later poses at the same centre, was tried before the mesh while
+        it paid; once the broad phase's side and exact passes decided most poses it never did:
+        on the keycap_mold, deep_mold and Fusion mold searches it cost 12-24 % of their time,
+        so it is gone.)"""
         if self.broad is None:
-            return ask(C, A) if ask is not None else self._fcl(C, A, "tool", grow)
+            return ask(C, A) if ask is not None else self._fcl(C, A, grow)
         st = self.broad.decide(C, A, grow)
         out = st == HIT
         open_ = np.nonzero(st == UNKNOWN)[0]
         mask = row_bits(self.broad.open_parts)
-        again = open_[self.broad.revisit[open_]]
-        if len(again) and grow == 0.0:
-            again = self._swing_share(again)
-        if len(again) and grow == 0.0:
-            sw = np.where(self.broad.open_phi[again] >= SWING, mask[again], -1)
-            free = ~self._fcl(C[again], A[again], "swung", 0.0, sw)
-            self.broad.add_cones(C[again[free]], A[again[free]], SWING)
-            open_ = np.setdiff1d(open_, again[free])
-            d, a, seen = self._swing_gain
-            self._swing_gain = (d + int(free.sum()), a + len(again), seen)
         if len(open_):
-            out[open_] = self._fcl(C[open_], A[open_], "tool", grow, mask[open_])
+            out[open_] = self._fcl(C[open_], A[open_], grow, mask[open_])
         if ask is not None:
             sub = open_[out[open_]]
             out[sub] = ask(C[sub], A[sub], mask[sub])
         return out
 
-    def _swing_share(self, again: np.ndarray) -> np.ndarray:
-        """The poses of ``again`` to try with the swung tool before the tool mesh. A swung
-        query costs about as much as the mesh query it stands for, so it pays only where the
-        poses it passes and the later poses its cones decide (``stats["cone_fcl"]``) are at
-        least as many as the queries: all poses while its record (decayed sums) says so, the
-        first few up to ``SWING_PROBE`` queries while the record is short, none otherwise (the
-        record then halves each call, so it is tried again later). The answers are the same
-        either way: only which proof decides a pose changes."""
-        decided, asked, seen = self._swing_gain
-        cones = self.broad.stats["cone_fcl"]
-        decided += cones - seen
-        if asked > SWING_PROBE and decided < asked:
-            self._swing_gain = (0.5 * decided, 0.5 * asked, cones)
-            return again[:0]
-        self._swing_gain = (decided, asked, cones)
-        return again if asked > SWING_PROBE else again[:int(np.ceil(SWING_PROBE - asked)) + 1]
-
-    def swung(self):
-        """The tool mesh grown for a swing of ``SWING`` (tool_mesh), as an fcl object."""
-        return self._tool_object("swung")
-
-    def _fcl(self, C, A, tool="tool", grow: float = 0.0, parts=None) -> np.ndarray:
-        """One fcl BVH-BVH query per pose with the tool mesh ``tool`` ('tool' grown by
-        ``grow``, or 'swung'), each pose with its own part mask ``parts`` (default all);
-        large batches are shared among forked worker processes (each asks fcl the same
-        question of the same objects)."""
+    def _fcl(self, C, A, grow: float = 0.0, parts=None) -> np.ndarray:
+        """One fcl BVH-BVH query per pose with the tool mesh grown by ``grow``, each pose with
+        its own part mask ``parts`` (default all); large batches are shared among forked
+        worker processes (each asks fcl the same question of the same objects)."""
         self.fcl_checks += len(C)
         parts = np.full(len(C), -1) if parts is None else np.asarray(parts)
         workers = worker_count(None, len(C) // POOL_MIN) if len(C) >= 2 * POOL_MIN else 1
         if workers > 1:
             pool = self._pool(workers)
             chunks = np.array_split(np.arange(len(C)), 2 * workers)
-            got = pool.map(_pool_fcl, [(C[i], A[i], tool, grow, parts[i]) for i in chunks])
+            got = pool.map(_pool_fcl, [(C[i], A[i], grow, parts[i]) for i in chunks])
             return np.concatenate(got)
-        return self._fcl_here(C, A, tool, grow, parts)
+        return self._fcl_here(C, A, grow, parts)
 
     def _pool(self, workers: int):
         """Forked workers that inherit this checker."""
@@ -592,14 +546,14 @@ class CollisionChecker:
             weakref.finalize(self, pool.terminate)
         return pool
 
-    def _fcl_here(self, C, A, tool, grow, parts) -> np.ndarray:
+    def _fcl_here(self, C, A, grow, parts) -> np.ndarray:
         Q = axis_quaternions(A).tolist()
         out = np.zeros(len(Q), bool)
         if len(Q) == 0:
             return out
         wp, req, collide, Res = self._wp, self._req, fcl.collide, fcl.CollisionResult
         for m in np.unique(parts):
-            obj = self._tool_object(tool, float(grow), int(m))
+            obj = self._tool_object(float(grow), int(m))
             for k in np.nonzero(parts == m)[0]:
                 obj.setQuatRotation(Q[k])
                 obj.setTranslation(C[k])
@@ -650,7 +604,7 @@ class CollisionChecker:
         out = known.copy()
         ask = np.nonzero((masks != 0) & ~known)[0]
         if len(ask):
-            out[ask] = self._fcl(C[ask], A[ask], "tool", grow, masks[ask])
+            out[ask] = self._fcl(C[ask], A[ask], grow, masks[ask])
         return out, masks
 
     def clearance_parts(self) -> tuple[int, float]:
@@ -677,7 +631,7 @@ class CollisionChecker:
         C = np.asarray(centers, float).reshape(-1, 3)
         A = np.asarray(axes, float).reshape(-1, 3)
         C, A = np.broadcast_arrays(C, A) if len(C) != len(A) else (C, A)
-        return self._fcl(C, A, "tool", float(grow))
+        return self._fcl(C, A, float(grow))
 
     def collides_exact(self, centers, axes) -> np.ndarray:
         """The same question asked of fcl primitives (``Cylinder``/``Convex``) part by part,

@@ -1026,7 +1026,7 @@ def _define(jit):
         return nf
 
     @jit
-    def store_cones(slot, rows, A, c, rounds, from_fcl, cone_a, cone_c, cone_f):
+    def store_cones(slot, rows, A, c, rounds, cone_a, cone_c):
         """:meth:`~tsplcam.orientation.broadphase.BroadPhase._store_cones` row by row (row i's
         axis ``A[rows[i]]``): its
         ``rounds`` rounds each put, per slot, the first row (in row order) whose cone is wider
@@ -1051,7 +1051,6 @@ def _define(jit):
                 cone_a[s, worst, 1] = A[rows[i], 1]
                 cone_a[s, worst, 2] = A[rows[i], 2]
                 cone_c[s, worst] = c[i]
-                cone_f[s, worst] = from_fcl != 0
                 taken[s] += 1
 
     @jit
@@ -1124,7 +1123,7 @@ SIGNATURES = {
     "side_bounds": "i8(f8[2], f8[2], i8[1], i8[1], i8[1], i8, i8, f8[1], f8[1], f8[1], f8[1], f8[1], f8[1],"
                    " f8[2], f8[1], i8[2], i8[2], i8[2], i8[1], f8[1], i8[1], f8, f8[1]w, i8[1]w, f8[1]w, f8[1]w,"
                    " f8[2]w, f8[1]w)",
-    "store_cones": "void(i8[1], i8[1], f8[2], f8[1], i8, i8, f8[3]w, f8[2]w, b1[2]w)",
+    "store_cones": "void(i8[1], i8[1], f8[2], f8[1], i8, f8[3]w, f8[2]w)",
     "centre_slots": "i8(i8[2], i8[1]w, i8[2]w, i8, i8[1]w, i8[1]w)",
 }
 #: the ahead-of-time module's name (beside this file, built by :func:`build_aot`)

@@ -1041,23 +1041,30 @@ class BroadPhase:
             out[nw[full]] = np.sqrt(np.maximum(d[full, 0] ** 2 - self.e2, 0.0))
             rows, cols = np.nonzero(inb & ~full[:, None])
             if len(rows):
-                js = j[rows, cols]
-                cnt = self.tris_start[js + 1] - self.tris_start[js]
-                r2 = np.repeat(np.arange(len(js)), cnt)
-                at = np.arange(len(r2)) - np.repeat(np.cumsum(cnt) - cnt, cnt) + np.repeat(self.tris_start[js], cnt)
-                # each triangle once per point (neighbouring samples share their triangles)
-                key = np.unique(nw[rows[r2]] * len(self.T) + self.tris_flat[at])
-                q, ti = key // len(self.T), key % len(self.T)
-                # a triangle whose plane lies PLANE_SLACK farther than R cannot lower the bound
-                # below R: only the others are measured (the same minima, for a fifth of the
-                # work next to the gouge check's balls)
-                tt = self.T[ti]
-                gap = np.abs(_dot(o[q] - self.V[tt[:, 0]], self.tri_normal[ti]))
-                near_plane = np.nonzero(gap < R[q] + PLANE_SLACK)[0]
-                q, tt = q[near_plane], tt[near_plane]
-                P = closest_on_triangles(o[q], self.V[tt[:, 0]], self.V[tt[:, 1]], self.V[tt[:, 2]])
-                min_into(out, q, np.linalg.norm(P - o[q], axis=1))
+                r2, ti = self._triangles_of(j[rows, cols])
+                self._measure_into(out, o, R, nw[rows[r2]], ti)
         return (out, near) if nearest else out
+
+    def _triangles_of(self, js: np.ndarray):
+        """The triangles of samples ``js`` (a vertex's incident ones, another sample's own):
+        (position in ``js``, triangle) pairs."""
+        cnt = self.tris_start[js + 1] - self.tris_start[js]
+        at = np.arange(int(cnt.sum())) - np.repeat(np.cumsum(cnt) - cnt, cnt) + np.repeat(self.tris_start[js], cnt)
+        return np.repeat(np.arange(len(js)), cnt), self.tris_flat[at]
+
+    def _measure_into(self, out: np.ndarray, x: np.ndarray, R: np.ndarray, row: np.ndarray, ti: np.ndarray) -> None:
+        """Lower ``out[row]`` to the exact distance from ``x[row]`` to triangle ``ti``, each pair
+        once (neighbouring samples share their triangles). A triangle whose plane lies
+        PLANE_SLACK farther than ``R[row]`` cannot lower a bound below R: only the others are
+        measured (the same minima, for a fifth of the work next to the gouge check's balls)."""
+        key = np.unique(row * len(self.T) + ti)
+        q, ti = key // len(self.T), key % len(self.T)
+        tt = self.T[ti]
+        gap = np.abs(_dot(x[q] - self.V[tt[:, 0]], self.tri_normal[ti]))
+        near_plane = np.nonzero(gap < R[q] + PLANE_SLACK)[0]
+        q, tt = q[near_plane], tt[near_plane]
+        P = closest_on_triangles(x[q], self.V[tt[:, 0]], self.V[tt[:, 1]], self.V[tt[:, 2]])
+        min_into(out, q, np.linalg.norm(P - x[q], axis=1))
 
     def _clear_exact(self, o: np.ndarray, R: np.ndarray) -> np.ndarray:
         """True where the ball B(o, R) is shown to hold no part of the mesh."""
@@ -1092,20 +1099,10 @@ class BroadPhase:
             w = self.samples[js] - x[row]
             d2 = w[:, 0] * w[:, 0] + w[:, 1] * w[:, 1] + w[:, 2] * w[:, 2]
             near = np.nonzero(d2 <= r2[row] + self._sample_e2[js])[0]
-            js, row, d2 = js[near], row[near], d2[near]
-            c2 = self.tris_start[js + 1] - self.tris_start[js]
-            at = np.arange(int(c2.sum())) - np.repeat(np.cumsum(c2) - c2, c2) + np.repeat(self.tris_start[js], c2)
-            ti = self.tris_flat[at]
-            row, d2 = np.repeat(row, c2), np.repeat(d2, c2)
+            k, ti = self._triangles_of(js[near])
+            row, d2 = row[near][k], d2[near][k]
             keep = np.nonzero(d2 <= r2[row] + self.tri_e2[ti])[0]
-            key = np.unique(row[keep] * len(self.T) + ti[keep])        # each triangle once per point
-            q, ti = key // len(self.T), key % len(self.T)
-            tt = self.T[ti]
-            gap = np.abs(_dot(x[q] - self.V[tt[:, 0]], self.tri_normal[ti]))
-            plane = np.nonzero(gap < r[q] + PLANE_SLACK)[0]
-            q, tt = q[plane], tt[plane]
-            P = closest_on_triangles(x[q], self.V[tt[:, 0]], self.V[tt[:, 1]], self.V[tt[:, 2]])
-            min_into(out[lo:lo + BAND_ROWS], q, np.linalg.norm(P - x[q], axis=1))
+            self._measure_into(out[lo:lo + BAND_ROWS], x, r, row[keep], ti[keep])
         return out
 
     # --- per ball centre: gouge check, cones ----------------------------------------------------

@@ -335,6 +335,11 @@ class AgreesWithFcl(unittest.TestCase):
             self.assertGreater(int(inside.sum()), 10)
             np.testing.assert_allclose(got[inside], ref[inside], rtol=0, atol=1e-12)   # the same distances
             np.testing.assert_array_equal(got[~inside], R[~inside])
+            np.testing.assert_array_equal(b.band_clear(C, R), ~inside)
+            # a wide ball (3 mm) through the mesh is refused at its first sample inside
+            wide = b.band_clear(C, np.full(len(C), 3.0))
+            ref3 = ref >= 3.0
+            np.testing.assert_array_equal(wide, ref3)
 
     @staticmethod
     def _ball(checker, c):

@@ -65,7 +65,7 @@ stops its neighbours).
 The gouge check's ball B(c, r0) is proven clear by the same exact bound, once per ball
 centre and only when asked (:meth:`BroadPhase.ball_free`); where more than ``BAND`` samples
 lie in its band (next to the surface the ball touches), by the *band pass*
-(:meth:`BroadPhase.band_distance`): every sample in the band, and the triangles a sample can
+(:meth:`BroadPhase.band_clear`): every sample in the band, and the triangles a sample can
 bring within r0 (its distance below sqrt(r0^2 + e_t^2/3) with e_t the triangle's own
 subtriangle edge; in a crease's strip of small triangles few can), measured exactly. On the
 keycap job it decides the 206 of 14,734 balls the exact bound left (3 ms, where fcl and its
@@ -145,7 +145,8 @@ EXACT_COST = 3                # spheres of the exact pass that cost about as muc
 EXACT_PROBE = 2000            # spheres the exact pass is tried on before its gain counts
 PLANE_SLACK = 1e-9            # mm: a triangle's plane distance counts only this much beyond R (rounding)
 GRID_ROWS = 16384             # points a distance grid reads at a time
-BAND_ROWS = 4096              # points the band pass (BroadPhase.band_distance) takes at a time
+BAND_ROWS = (256, 4096, 500_000)   # the band pass (BroadPhase.band_distance): points at a time,
+                                   # first and most, and the samples in their bands to aim at
 READ_WORK = 30.0              # a grid read in numpy costs about as much as this many Viterbi elements
 HIT_WORK = 100.0              # a sample tried as a hit in numpy: about this many Viterbi elements
 SPHERE_WORK = 300.0           # a pose's part in the numpy sphere loop: about this many Viterbi elements
@@ -1070,6 +1071,19 @@ class BroadPhase:
         """True where the ball B(o, R) is shown to hold no part of the mesh."""
         return self.exact_bound(o, R + EPS) >= R + EPS
 
+    def band_clear(self, o: np.ndarray, R: np.ndarray) -> np.ndarray:
+        """True where no point of the mesh lies closer than R to o: not where a sample (a point of
+        the mesh) lies inside the ball (its nearest sample, one KD query; a wide ball through a
+        fine mesh holds thousands, none of them worth measuring), else by :meth:`band_distance`,
+        whose band then holds only the samples between R and sqrt(R^2 + e^2/3)."""
+        o = np.asarray(o, float).reshape(-1, 3)
+        R = np.broadcast_to(np.asarray(R, float), (len(o),))
+        d, _ = self.nearest(o, R)
+        rest = np.nonzero(~(d < R))[0]
+        clear = np.zeros(len(o), bool)
+        clear[rest] = self.band_distance(o[rest], R[rest]) >= R[rest]
+        return clear
+
     def band_distance(self, o: np.ndarray, R: np.ndarray) -> np.ndarray:
         """The distance from points o to the mesh where it is below R (exact), else R: every
         sample of the band sqrt(R^2 + e^2/3), however many (:meth:`exact_bound` stops at
@@ -1077,7 +1091,8 @@ class BroadPhase:
         triangle reaches within R of o only through a sample of it (a corner, or a point of its
         subdivision) at most sqrt(R^2 + e_t^2/3) from o, e_t its own subtriangles' longest edge
         (module doc), so a sample farther than that from o is passed over for triangle t: next
-        to the dense strips of small triangles at a crease nearly all of them are."""
+        to the dense strips of small triangles at a crease nearly all of them are. Samples
+        inside the ball are measured too (:meth:`band_clear` asks only where there are none)."""
         o = np.asarray(o, float).reshape(-1, 3)
         R = np.broadcast_to(np.asarray(R, float), (len(o),))
         out = R.copy()
@@ -1089,11 +1104,15 @@ class BroadPhase:
             has = np.nonzero(cnt > 0)[0]
             if len(has):
                 self._sample_e2[has] = np.maximum.reduceat(self.tri_e2[self.tris_flat], self.tris_start[has])
-        for lo in range(0, len(o), BAND_ROWS):
-            x, r = o[lo:lo + BAND_ROWS], R[lo:lo + BAND_ROWS]
+        lo, rows = 0, BAND_ROWS[0]
+        while lo < len(o):
+            x, r = o[lo:lo + rows], R[lo:lo + rows]
             r2 = r * r + 1e-9 * (1.0 + r * r)      # (a hair wider: rounding of the squares)
             lists = self.tree.ref.query_ball_point(x, np.sqrt(r * r + self.e2) * (1.0 + 1e-9), return_sorted=False)
             cnt = np.fromiter(map(len, lists), np.int64, len(lists))
+            # the next points as many as keep the samples' lists about BAND_ROWS[2] long (a wide
+            # ball next to a fine mesh holds thousands)
+            nxt = int(BAND_ROWS[2] * len(x) / max(1, int(cnt.sum())))
             js = np.fromiter(itertools.chain.from_iterable(lists), np.int64, int(cnt.sum()))
             row = np.repeat(np.arange(len(x)), cnt)
             w = self.samples[js] - x[row]
@@ -1102,7 +1121,9 @@ class BroadPhase:
             k, ti = self._triangles_of(js[near])
             row, d2 = row[near][k], d2[near][k]
             keep = np.nonzero(d2 <= r2[row] + self.tri_e2[ti])[0]
-            self._measure_into(out[lo:lo + BAND_ROWS], x, r, row[keep], ti[keep])
+            self._measure_into(out[lo:lo + rows], x, r, row[keep], ti[keep])
+            lo += rows
+            rows = min(max(nxt, BAND_ROWS[0]), BAND_ROWS[1])
         return out
 
     # --- per ball centre: gouge check, cones ----------------------------------------------------
@@ -1135,7 +1156,7 @@ class BroadPhase:
             if not clear.all():                   # next to a surface: every sample of the band
                 rest = np.nonzero(~clear)[0]
                 R = np.full(len(rest), self.r0 + EPS)
-                clear[rest] = self.band_distance(Cn[rest], R) >= R
+                clear[rest] = self.band_clear(Cn[rest], R)
                 self.stats["band"] += len(rest)
             self._gouge[su] = clear
         return self._gouge[slot] == 1

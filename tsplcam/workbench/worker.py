@@ -106,4 +106,6 @@ def _child() -> int:
 
 
 if __name__ == "__main__":
+    from ..allocator import keep_freed_memory
+    keep_freed_memory()
     sys.exit(_child())

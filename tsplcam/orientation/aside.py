@@ -18,8 +18,8 @@ on arguments given later (:meth:`Aside.follow`), keeping what the first built th
 work to do while it waits for them (``meanwhile``): the ball gouge check (which the broad
 phase answers without fcl) is followed there by building the checker's BVH while the axes
 are searched here, and the same process then measures the axes' smallest clearance with it
-while this one posts the program (the main process, whose questions the broad phase answers
-alone on most parts, never builds it; its BVH, when it does, is not the fork's).
+while this one posts the program (the main process builds a BVH of its own only where its
+questions reach fcl, as on the molds).
 
 A fork of the job's process costs it about 5 ms, and its pages, shared with the child until
 written, cost its next work more (the keycap's post: 0.091 -> 0.109 s beside an idle

@@ -96,6 +96,40 @@ class CollisionGeometry(unittest.TestCase):
                 worst = max(worst, fcl.distance(s, wp, fcl.DistanceRequest(), fcl.DistanceResult()))
         self.assertLess(worst, tol * 1.05)
 
+    def test_graded_tessellation_next_to_extraordinary_points(self):
+        """Where one spacing for the whole patch would pass GRADED_LINES lines (figure4's
+        extraordinary corners asked 600-700 lines each way: 5.8 M triangles), the grid is
+        graded: far fewer triangles, and random surface points, crowded toward the corners
+        and edges, stay within the tolerance of the mesh (fcl's distance, independent of how
+        the tessellation measured itself)."""
+        from tsplcam import load_model
+        from tsplcam.orientation import collision
+        model = load_model("figure4")
+        tol = 0.005
+        graded = 0
+        for k in (0, 2, 5):
+            patch = model.patches[k]
+            V, T, uv, err = collision.tessellate_patch(patch, tol)
+            lines = max(len(np.unique(uv[:, 0])), len(np.unique(uv[:, 1])))
+            graded += lines <= collision.GRADED_LINES and np.ptp(np.diff(np.unique(uv[:, 0]))) > 1e-9
+            self.assertLessEqual(err, tol)
+            self.assertLess(len(T), 40000)
+            m = fcl.BVHModel()
+            m.beginModel(len(T), len(V))
+            m.addSubModel(V, T)
+            m.endModel()
+            wp = fcl.CollisionObject(m, fcl.Transform())
+            rng = np.random.default_rng(k)
+            u = np.concatenate([rng.random(150), rng.random(75) ** 4, 1 - rng.random(75) ** 4])
+            v = np.concatenate([rng.random(150), rng.random(75) ** 4, rng.random(75) ** 4])
+            s = fcl.CollisionObject(fcl.Sphere(1e-7), fcl.Transform())
+            worst = 0.0
+            for p in patch.evaluate(u, v, second=False).P:
+                s.setTranslation(p)
+                worst = max(worst, fcl.distance(s, wp, fcl.DistanceRequest(), fcl.DistanceResult()))
+            self.assertLessEqual(worst, tol)
+        self.assertEqual(graded, 2)                     # patches 0 and 5 graded, 2 uniform
+
     def test_tilted_tool_over_plane_closed_form(self):
         """Ball on the plane z = 0, axis tilted by beta: the shank (radius R from height t0
         above the ball centre) touches the plane when r + t0 cos(beta) < R sin(beta)."""

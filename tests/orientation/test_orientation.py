@@ -130,6 +130,33 @@ class CollisionGeometry(unittest.TestCase):
             self.assertLessEqual(worst, tol)
         self.assertEqual(graded, 2)                     # patches 0 and 5 graded, 2 uniform
 
+    def test_tessellation_lines_on_uneven_breaks(self):
+        """A T-spline patch's uneven cell breaks (creases at triple knot lines) are grid lines:
+        random surface points crowded toward the corners stay within the tolerance (evenly
+        spaced lines crossed the breaks and missed it by 10-25 % at a corner)."""
+        from tsplcam import load_model
+        from tsplcam.orientation import collision
+        patch = load_model("tjunction_mold").patches[0]
+        tol = 0.005
+        V, T, uv, err = collision.tessellate_patch(patch, tol)
+        for b, col in ((patch.ubreaks, 0), (patch.vbreaks, 1)):
+            lines = np.unique(uv[:, col])
+            self.assertTrue(all(np.min(np.abs(lines - x)) < 1e-12 for x in b))
+        m = fcl.BVHModel()
+        m.beginModel(len(T), len(V))
+        m.addSubModel(V, T)
+        m.endModel()
+        wp = fcl.CollisionObject(m, fcl.Transform())
+        rng = np.random.default_rng(3)
+        u = np.concatenate([rng.random(400), rng.random(200) ** 4, 1 - rng.random(200) ** 4, rng.random(100) ** 8])
+        v = np.concatenate([rng.random(400), rng.random(200) ** 4, rng.random(200) ** 4, 1 - rng.random(100) ** 8])
+        s = fcl.CollisionObject(fcl.Sphere(1e-7), fcl.Transform())
+        worst = 0.0
+        for p in patch.evaluate(u, v, second=False).P:
+            s.setTranslation(p)
+            worst = max(worst, fcl.distance(s, wp, fcl.DistanceRequest(), fcl.DistanceResult()))
+        self.assertLessEqual(worst, tol)
+
     def test_tilted_tool_over_plane_closed_form(self):
         """Ball on the plane z = 0, axis tilted by beta: the shank (radius R from height t0
         above the ball centre) touches the plane when r + t0 cos(beta) < R sin(beta)."""

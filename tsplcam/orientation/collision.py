@@ -162,6 +162,10 @@ def tessellate_patch(patch, tolerance: float, max_cells: int = 4000) -> tuple:
     in all, 23 s), the grid is refined interval by interval instead (:func:`_graded`).
     Returns (vertices, triangles, uv, error).
     """
+    if not (_even(patch.ubreaks) and _even(patch.vbreaks)):
+        # uneven cell breaks (T-spline knot intervals): evenly spaced lines would cross the
+        # cells' joins, where a crease (a triple knot line) runs; graded lines start on them
+        return _graded(patch, tolerance, _break_lines(patch.ubreaks), _break_lines(patch.vbreaks), max_cells)
     nu = max(4, 2 * (len(patch.ubreaks) - 1))
     nv = max(4, 2 * (len(patch.vbreaks) - 1))
     coarse, capped = _capped_error(tolerance), True
@@ -319,6 +323,23 @@ def _refined(g: np.ndarray, err: np.ndarray, tolerance: float) -> np.ndarray:
     i = np.repeat(np.arange(len(k)), k)                     # the interval of each new line
     f = np.arange(len(i)) - np.repeat(np.cumsum(k) - k, k)  # its place in the interval
     return np.append(g[i] + (g[i + 1] - g[i]) * (f / k[i]), g[-1])
+
+
+def _even(breaks: np.ndarray) -> bool:
+    """Whether cell breaks are evenly spaced over [0, 1] (to rounding)."""
+    b = np.asarray(breaks, float)
+    return bool(np.allclose(b, np.linspace(0.0, 1.0, len(b)), rtol=0.0, atol=1e-12))
+
+
+def _break_lines(breaks: np.ndarray) -> np.ndarray:
+    """First grid lines on uneven cell breaks: every break, each cell split evenly in two (or
+    more, to four intervals at least), as the even grids start."""
+    b = np.asarray(breaks, float)
+    cells = len(b) - 1
+    k = max(2, -(-4 // cells))
+    i = np.repeat(np.arange(cells), k)
+    f = np.tile(np.arange(k), cells) / k
+    return np.append(b[i] + (b[i + 1] - b[i]) * f, b[-1])
 
 
 def _graded(patch, tolerance: float, gu: np.ndarray, gv: np.ndarray, max_cells: int) -> tuple:

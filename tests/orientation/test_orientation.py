@@ -72,6 +72,26 @@ class ToolFiles(unittest.TestCase):
         self.assertTrue(os.path.isdir(shipped_tools_dir()))
 
 
+def _worst_distance(patch, V, T, seed: int, n: int) -> float:
+    """The largest fcl distance from the mesh (V, T) of ``patch``'s points at 2.75 n random
+    (u, v): n spread evenly, the rest crowded toward the corners and edges."""
+    m = fcl.BVHModel()
+    m.beginModel(len(T), len(V))
+    m.addSubModel(V, T)
+    m.endModel()
+    wp = fcl.CollisionObject(m, fcl.Transform())
+    rng = np.random.default_rng(seed)
+    h, q = n // 2, n // 4
+    u = np.concatenate([rng.random(n), rng.random(h) ** 4, 1 - rng.random(h) ** 4, rng.random(q) ** 8])
+    v = np.concatenate([rng.random(n), rng.random(h) ** 4, rng.random(h) ** 4, 1 - rng.random(q) ** 8])
+    s = fcl.CollisionObject(fcl.Sphere(1e-7), fcl.Transform())
+    worst = 0.0
+    for p in patch.evaluate(u, v, second=False).P:
+        s.setTranslation(p)
+        worst = max(worst, fcl.distance(s, wp, fcl.DistanceRequest(), fcl.DistanceResult()))
+    return worst
+
+
 @unittest.skipIf(fcl is None, "python-fcl missing")
 class CollisionGeometry(unittest.TestCase):
     def test_tessellation_error_below_tolerance(self):
@@ -114,20 +134,7 @@ class CollisionGeometry(unittest.TestCase):
             graded += lines <= collision.GRADED_LINES and np.ptp(np.diff(np.unique(uv[:, 0]))) > 1e-9
             self.assertLessEqual(err, tol)
             self.assertLess(len(T), 40000)
-            m = fcl.BVHModel()
-            m.beginModel(len(T), len(V))
-            m.addSubModel(V, T)
-            m.endModel()
-            wp = fcl.CollisionObject(m, fcl.Transform())
-            rng = np.random.default_rng(k)
-            u = np.concatenate([rng.random(150), rng.random(75) ** 4, 1 - rng.random(75) ** 4])
-            v = np.concatenate([rng.random(150), rng.random(75) ** 4, rng.random(75) ** 4])
-            s = fcl.CollisionObject(fcl.Sphere(1e-7), fcl.Transform())
-            worst = 0.0
-            for p in patch.evaluate(u, v, second=False).P:
-                s.setTranslation(p)
-                worst = max(worst, fcl.distance(s, wp, fcl.DistanceRequest(), fcl.DistanceResult()))
-            self.assertLessEqual(worst, tol)
+            self.assertLessEqual(_worst_distance(patch, V, T, k, 150), tol)
         self.assertEqual(graded, 2)                     # patches 0 and 5 graded, 2 uniform
 
     def test_tessellation_lines_on_uneven_breaks(self):
@@ -142,20 +149,7 @@ class CollisionGeometry(unittest.TestCase):
         for b, col in ((patch.ubreaks, 0), (patch.vbreaks, 1)):
             lines = np.unique(uv[:, col])
             self.assertTrue(all(np.min(np.abs(lines - x)) < 1e-12 for x in b))
-        m = fcl.BVHModel()
-        m.beginModel(len(T), len(V))
-        m.addSubModel(V, T)
-        m.endModel()
-        wp = fcl.CollisionObject(m, fcl.Transform())
-        rng = np.random.default_rng(3)
-        u = np.concatenate([rng.random(400), rng.random(200) ** 4, 1 - rng.random(200) ** 4, rng.random(100) ** 8])
-        v = np.concatenate([rng.random(400), rng.random(200) ** 4, rng.random(200) ** 4, 1 - rng.random(100) ** 8])
-        s = fcl.CollisionObject(fcl.Sphere(1e-7), fcl.Transform())
-        worst = 0.0
-        for p in patch.evaluate(u, v, second=False).P:
-            s.setTranslation(p)
-            worst = max(worst, fcl.distance(s, wp, fcl.DistanceRequest(), fcl.DistanceResult()))
-        self.assertLessEqual(worst, tol)
+        self.assertLessEqual(_worst_distance(patch, V, T, 3, 400), tol)
 
     def test_tilted_tool_over_plane_closed_form(self):
         """Ball on the plane z = 0, axis tilted by beta: the shank (radius R from height t0

@@ -159,8 +159,9 @@ def tessellate_patch(patch, tolerance: float, max_cells: int = 4000) -> tuple:
     for the whole patch is set by its worst place; where it would pass ``GRADED_LINES`` lines
     in a direction (next to an extraordinary point, whose second derivatives grow without
     bound: the figure4 sample's patches asked 616 x 615 and 697 x 620 lines, 5.8 M triangles
-    in all, 23 s), the grid is refined interval by interval instead (:func:`_graded`).
-    Returns (vertices, triangles, uv, error).
+    in all, 23 s), the grid is refined interval by interval instead (:func:`_graded`), as
+    it is from the start on uneven cell breaks (a T-spline's knot intervals), whose lines it
+    keeps. Returns (vertices, triangles, uv, error).
     """
     if not (_even(patch.ubreaks) and _even(patch.vbreaks)):
         # uneven cell breaks (T-spline knot intervals): evenly spaced lines would cross the
@@ -320,6 +321,12 @@ def _refined(g: np.ndarray, err: np.ndarray, tolerance: float) -> np.ndarray:
     square of the spacing), 1.1 times that and at most 4 (``tessellate_patch``'s rule, per
     interval)."""
     k = np.where(err > tolerance, np.ceil(np.minimum(4.0, 1.1 * np.sqrt(err / tolerance))), 1.0).astype(int)
+    return _split(g, k)
+
+
+def _split(g: np.ndarray, k: np.ndarray) -> np.ndarray:
+    """Grid lines ``g`` with interval i split evenly into ``k[i]`` parts (the old lines kept
+    exactly)."""
     i = np.repeat(np.arange(len(k)), k)                     # the interval of each new line
     f = np.arange(len(i)) - np.repeat(np.cumsum(k) - k, k)  # its place in the interval
     return np.append(g[i] + (g[i + 1] - g[i]) * (f / k[i]), g[-1])
@@ -336,10 +343,7 @@ def _break_lines(breaks: np.ndarray) -> np.ndarray:
     more, to four intervals at least), as the even grids start."""
     b = np.asarray(breaks, float)
     cells = len(b) - 1
-    k = max(2, -(-4 // cells))
-    i = np.repeat(np.arange(cells), k)
-    f = np.tile(np.arange(k), cells) / k
-    return np.append(b[i] + (b[i + 1] - b[i]) * f, b[-1])
+    return _split(b, np.full(cells, max(2, -(-4 // cells))))
 
 
 def _graded(patch, tolerance: float, gu: np.ndarray, gv: np.ndarray, max_cells: int) -> tuple:

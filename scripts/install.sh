@@ -83,12 +83,13 @@ link_into() {  # $1 = a FreeCAD Mod directory
   ln -sfn "$REPO" "$target"
   say "linked $target -> $REPO"
 }
-# the compiled kernels: ahead of time into tsplcam/orientation/_aot_kernels*.so (kept while it is
-# built from the current kernel source; a job then loads them in about a millisecond, without
-# numba), and into numba's cache (beside the source) for a job that finds no current module
-PYTHONPATH="$REPO" $PY -c "from tsplcam.orientation.compiled import build_aot; build_aot()" \
+# the compiled kernels: ahead of time into tsplcam/_aot_kernels*.so (kept while it is built
+# from the current kernel source, tsplcam/compiled.py; a job then loads them in about a
+# millisecond, without numba), and into numba's cache (beside the source) for a job that finds
+# no current module (warmed by the orientation's calls of them, tsplcam/orientation/warmup.py)
+PYTHONPATH="$REPO" $PY -c "from tsplcam.compiled import build_aot; build_aot()" \
   || say "the kernels do not compile ahead of time (numba.pycc, gcc): jobs load numba's instead"
-PYTHONPATH="$REPO" $PY -c "from tsplcam.orientation.compiled import warm; warm()" \
+PYTHONPATH="$REPO" $PY -c "from tsplcam.compiled import warm; from tsplcam.orientation.warmup import exercise; warm(exercise)" \
   || { say "the compiled kernels do not build (numba)"; exit 1; }
 FC_HOME="${TSPLCAM_FC_HOME:-$REPO/build/fchome}"
 # FreeCAD 0.20 with FREECAD_USER_HOME=$FC_HOME uses $FC_HOME itself as the user data directory.

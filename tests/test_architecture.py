@@ -5,8 +5,9 @@ post: a stage imports its own package and the stages before it. ``verify`` measu
 stages' results, so it may import all of them, and no stage imports it. ``tsplcam`` itself
 (the package's ``load``, ``data_dir``), ``tsplcam.errors`` and the file helpers
 ``tsplcam.outfile`` (atomic writes), ``tsplcam.inputfile`` (reading text and JSON),
-``tsplcam.numtext`` (numbers as text for the CL data and the programs) and ``tsplcam.npfast``
-(numpy's C functions for hot small calls) are below everything. The settings, the program builder, the job, job files, batch runs and the command line
+``tsplcam.numtext`` (numbers as text for the CL data and the programs), ``tsplcam.npfast``
+(numpy's C functions for hot small calls) and ``tsplcam.compiled`` (the numba kernels; the
+orientation's warm-up of them is handed in, so it imports no stage) are below everything. The settings, the program builder, the job, job files, batch runs and the command line
 (``settings``, ``program``, ``job``, ``jobfile``, ``batch``, ``cli``, ``__main__``,
 ``run_in_freecad``) and the FreeCAD workbench sit on top. FreeCAD and its GUI modules are imported under ``tsplcam/workbench`` only.
 
@@ -22,7 +23,8 @@ REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 PACKAGE = "tsplcam"
 STAGES = ("model", "layout", "plan", "toolpath", "orientation", "post")
 BASE = {PACKAGE, f"{PACKAGE}.errors", f"{PACKAGE}.outfile", f"{PACKAGE}.inputfile", f"{PACKAGE}.progress",
-        f"{PACKAGE}.numerics", f"{PACKAGE}.numtext", f"{PACKAGE}.npfast"}  # importable from anywhere
+        f"{PACKAGE}.numerics", f"{PACKAGE}.numtext", f"{PACKAGE}.npfast",
+        f"{PACKAGE}.compiled"}  # importable from anywhere
 TOP = ("settings", "program", "job", "jobfile", "batch", "report", "cli", "__main__", "run_in_freecad",
        "workbench")  # may import anything
 FREECAD_MODULES = {"FreeCAD", "FreeCADGui", "Part", "Path", "CAM", "Mesh", "MeshPart", "Draft",

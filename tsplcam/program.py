@@ -164,11 +164,13 @@ def _load_numba() -> None:
     """Load the orientation's compiled kernels: the ahead-of-time module where it is built
     and current (about 1 ms), else import numba and load its compiler's machinery through a
     throwaway set of the kernels (their first call of a process costs about 0.1 s more than
-    the next kernel's; :func:`tsplcam.orientation.compiled.prepare`). The kernels the
-    orientation uses are not touched: whether it runs them or numpy stays its own choice
-    (:func:`tsplcam.orientation.compiled.kernels`), so the program is the same bytes."""
-    from .orientation import compiled
-    compiled.prepare()
+    the next kernel's; :func:`tsplcam.compiled.prepare`, with the orientation's warm-up
+    :func:`tsplcam.orientation.warmup.exercise`). The kernels the orientation uses are not
+    touched: whether it runs them or numpy stays its own choice
+    (:func:`tsplcam.compiled.kernels`), so the program is the same bytes."""
+    from . import compiled
+    from .orientation.warmup import exercise
+    compiled.prepare(exercise)
 
 
 def make_baseline(model, plist, settings: JobSettings, radius: float):

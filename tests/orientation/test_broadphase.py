@@ -180,7 +180,8 @@ class AgreesWithFcl(unittest.TestCase):
         over all poses) decides: the same hits, unresolved parts, free cones (bit for bit) and
         hit witnesses, on random poses around the mold (walls, stock) and the keycap, with and
         without growth and for some parts only."""
-        from tsplcam.orientation import broadphase as bp, compiled
+        from tsplcam import compiled
+        from tsplcam.orientation import broadphase as bp
         k = compiled.kernels()
         if k is None:
             self.skipTest("numba not available (or TSPLCAM_COMPILED=0)")
@@ -215,7 +216,7 @@ class AgreesWithFcl(unittest.TestCase):
         gives the same witnesses: the samples nearest to points on the axes of random mold
         poses (inside the tool or not), some poses hit already."""
         from unittest import mock
-        from tsplcam.orientation import compiled
+        from tsplcam import compiled
         if compiled.kernels() is None:
             self.skipTest("numba not available (or TSPLCAM_COMPILED=0)")
         rng = np.random.default_rng(22)
@@ -247,7 +248,8 @@ class AgreesWithFcl(unittest.TestCase):
         free cones (bit for bit), at the first level and at a split one; and the compiled
         ``store_cones`` keeps the cones numpy's rounds keep (several axes per centre)."""
         from unittest import mock
-        from tsplcam.orientation import broadphase as bp, compiled
+        from tsplcam import compiled
+        from tsplcam.orientation import broadphase as bp
         k = compiled.kernels()
         if k is None:
             self.skipTest("numba not available (or TSPLCAM_COMPILED=0)")
@@ -570,7 +572,7 @@ class Geometry(unittest.TestCase):
         two centres share a hash (forced here) the table goes over to the bytes, slots kept
         (numpy's form; the kernel's: :meth:`test_centre_table_kernel`)."""
         from unittest import mock
-        from tsplcam.orientation import compiled
+        from tsplcam import compiled
         from tsplcam.orientation.broadphase import CentreTable
         with mock.patch.object(compiled, "loaded", lambda: None):
             self._centre_table(CentreTable)
@@ -582,7 +584,7 @@ class Geometry(unittest.TestCase):
         them); on a table filled to 300 of 512 places (long probe runs) the kernel numbers
         the distinct centres in the order they come."""
         from unittest import mock
-        from tsplcam.orientation import compiled
+        from tsplcam import compiled
         from tsplcam.orientation.broadphase import CentreTable
         k = compiled.kernels()
         if k is None:

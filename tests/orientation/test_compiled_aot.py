@@ -1,4 +1,4 @@
-"""The kernels compiled ahead of time (``orientation.compiled``'s ``_aot_kernels``, built by
+"""The kernels compiled ahead of time (``tsplcam.compiled``'s ``_aot_kernels``, built by
 ``scripts/install.sh``) against numba's JIT kernels of the same source: every call of a small
 workload (each kernel, on tiny and on random inputs with forbidden states, ties and hits)
 made again in the JIT kernel gives the same return value and leaves the same bytes in every
@@ -11,7 +11,8 @@ from unittest import mock
 
 import numpy as np
 
-from tsplcam.orientation import compiled
+from tsplcam import compiled
+from tsplcam.orientation.warmup import exercise
 
 HAVE_NUMBA = importlib.util.find_spec("numba") is not None and os.environ.get("TSPLCAM_COMPILED") != "0"
 
@@ -50,7 +51,7 @@ def workload(rng) -> None:
     from tsplcam.orientation.broadphase import BroadPhase, DistanceGrid, Profile
     from tsplcam.orientation.smoothing import _Banded
     from tsplcam.orientation.viterbi import viterbi
-    compiled._exercise()                                   # each kernel, the job's types
+    exercise()                                             # each kernel, the job's types
     for S, n in ((12, 120), (2, 80)):                      # viterbi_steps / _path, two_states
         node = rng.random((n, S))
         node[rng.random((n, S)) < 0.15] = np.inf

@@ -9,7 +9,7 @@ from unittest import mock
 
 import numpy as np
 
-from tsplcam.orientation import compiled
+from tsplcam import compiled
 
 from tsplcam.orientation.rotary import DEG, Rotary
 from tsplcam.orientation.smoothing import (IN_PLACE, MeridianGrid, cone_halfspaces, forced_rotary_travel,

@@ -207,7 +207,7 @@ class BoxSolve(unittest.TestCase):
         that to the 7th digit of a job's axes."""
         from unittest import mock
 
-        from tsplcam.orientation import compiled
+        from tsplcam import compiled
         rng = np.random.default_rng(3)
         n = 200
         ds = rng.uniform(0.05, 0.9, n - 1)

@@ -1,4 +1,4 @@
-"""The compiled kernels (orientation.compiled, numba) against their references: the Viterbi
+"""The compiled kernels (tsplcam.compiled, numba) against their references: the Viterbi
 kernel against the numpy loop and against enumerating every sequence, the banded solve
 against scipy's ``solveh_banded`` (LAPACK), on random problems with ties and forbidden
 states, and on every problem the keycap main job poses them; the distance grids' read
@@ -13,9 +13,11 @@ from unittest import mock
 import numpy as np
 from scipy.linalg import solveh_banded
 
-from tsplcam.orientation import compiled, smoothing
+from tsplcam import compiled
+from tsplcam.orientation import smoothing
 from tsplcam.orientation.smoothing import _Banded
 from tsplcam.orientation.viterbi import TIE, from_blocks, viterbi
+from tsplcam.orientation.warmup import exercise
 
 def needs_numba(cls):
     """Skip without numba (the numpy versions run); else the kernels loaded for the class."""
@@ -318,11 +320,12 @@ class CompiledJointTransitions(unittest.TestCase):
         self.assertGreater(broken, 0)
 
     def test_prepare_loads_aside(self):
-        """``prepare()`` (the job's, while the path's workers run) loads every kernel into a set
-        kept aside: numba or numpy is still chosen by the work asked, and the set given once
-        the kernels load is that one, every kernel already loaded for the job's types."""
+        """``prepare(exercise)`` (the job's, while the path's workers run) loads every kernel
+        into a set kept aside: numba or numpy is still chosen by the work asked, and the set
+        given once the kernels load is that one, every kernel already loaded for the job's
+        types."""
         with mock.patch.dict(compiled._STATE, {"work": 0.0}, clear=True):
-            compiled.prepare()
+            compiled.prepare(exercise)
             self.assertIsNone(compiled.kernels(work=1.0))
             self.assertIsNone(compiled.loaded())
             k = compiled.kernels()
@@ -333,15 +336,15 @@ class CompiledJointTransitions(unittest.TestCase):
 
     def test_programme_takes_the_set_aside(self):
         """A Viterbi programme whose work is below the load threshold runs in the set
-        ``prepare()`` put aside, where there is one (the same states as numpy's loop), and
-        leaves the process's choice alone: nothing loaded, the work still counted."""
+        ``prepare(exercise)`` put aside, where there is one (the same states as numpy's loop),
+        and leaves the process's choice alone: nothing loaded, the work still counted."""
         rng = np.random.default_rng(23)
         grid, tr = random_programme(rng, 60, 12)
         node = rng.random((60, 12))
         node[rng.random((60, 12)) < 0.2] = np.inf
         want = viterbi(node, tr, kernel=False)
         with mock.patch.dict(compiled._STATE, {"work": 0.0}, clear=True):
-            compiled.prepare()
+            compiled.prepare(exercise)
             calls = []
             spare = {name: (lambda f, name: lambda *a: calls.append(name) or f(*a))(f, name)
                      for name, f in compiled._STATE["spare"].items()}
@@ -354,8 +357,9 @@ class CompiledJointTransitions(unittest.TestCase):
         np.testing.assert_array_equal(want[0], got[0])
 
     def test_warm_compiles_it(self):
-        """``warm()`` (the install script's) compiles numba's kernel for the types the job uses."""
-        compiled.warm()
+        """``warm(exercise)`` (the install script's) compiles numba's kernel for the types the job
+        uses."""
+        compiled.warm(exercise)
         self.assertEqual(len(compiled._jit()["joint_steps"].signatures), 1)
 
 

@@ -75,7 +75,7 @@ ball check asks fcl only of balls that come within r0 + EPS of the mesh.
 Every comparison keeps ``EPS`` (1e-6 mm) on the safe side, for fcl's own rounding. The tests
 compare the decisions with fcl on random poses (tests/orientation).
 
-**Compiled.** With numba (:mod:`~tsplcam.orientation.compiled`) the sphere loop runs pose by
+**Compiled.** With numba (:mod:`~tsplcam.compiled`) the sphere loop runs pose by
 pose in one kernel (``sphere_loop``: each pose's spheres level by level, its grid reads and
 hit tests), with the same operations per sphere as numpy's level-by-level loop
 (:meth:`BroadPhase._sphere_loop`, the fallback): the same decisions, open parts, free cones
@@ -124,7 +124,7 @@ from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
 
 from ..npfast import cross_rows, row_norms
-from . import compiled
+from .. import compiled
 
 FREE, HIT, UNKNOWN = 0, 1, -1
 EPS = 1e-6
@@ -631,7 +631,7 @@ class DistanceGrid:
     def __call__(self, x: np.ndarray):
         """(lower bound, sample index or -1, inside the grid) at points x: the best over the
         eight nodes around x of the node's bound less the distance to it; the sample is the
-        nearest node's. With the compiled kernel (:mod:`~tsplcam.orientation.compiled`, the
+        nearest node's. With the compiled kernel (:mod:`~tsplcam.compiled`, the
         same bits) point by point, else ``GRID_ROWS`` points at a time (the (rows, 8)
         temporaries then stay in the processor's cache)."""
         k = compiled.kernels(work=READ_WORK * len(x))

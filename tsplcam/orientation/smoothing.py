@@ -55,7 +55,7 @@ import numpy as np
 from scipy.linalg import solveh_banded
 
 from ..numerics import component, components
-from . import compiled
+from .. import compiled
 from .rotary import DEG, Rotary, angle_between
 from .viterbi import BLOCK, from_blocks, viterbi
 

@@ -13,7 +13,7 @@ function. Ties, and costs equal up to a relative ``TIE``, go to the lowest state
 sums may differ in the last bits with memory alignment from run to run, and no decision
 (and so no program byte) may hang on them.
 
-The recurrence runs in a compiled kernel (:mod:`tsplcam.orientation.compiled`, numba) when
+The recurrence runs in a compiled kernel (:mod:`tsplcam.compiled`, numba) when
 numba is installed: the same arithmetic, so the same states and costs bit for bit; this
 module's numpy loop is the reference and the fallback. A transition function may bring its
 own compiled steps (:func:`from_blocks`), which compute the transitions inside the kernel.
@@ -25,7 +25,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from . import compiled
+from .. import compiled
 
 TIE = 1e-9
 BLOCK = 32               # transitions fetched this many points at a time (arrays that stay in cache)
@@ -80,7 +80,7 @@ def from_blocks(block, steps=None):
     points i0 .. i1 - 1 as one (i1 - i0, S, S) array, which :func:`viterbi` then calls.
     ``steps(k, acc, node, i0, i1, tie, back)``, if given: the compiled recurrence over those
     points with the transitions computed inside the kernel (the same bits as ``block``'s,
-    see ``viterbi_steps`` in :mod:`~tsplcam.orientation.compiled` for its contract), which
+    see ``viterbi_steps`` in :mod:`~tsplcam.compiled` for its contract), which
     :func:`viterbi` uses instead of the blocks when the kernels are loaded."""
     def trans(i: int) -> np.ndarray:
         return block(i, i + 1)[0]

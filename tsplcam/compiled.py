@@ -1,4 +1,8 @@
-"""Compiled kernels (numba) for the orientation's sequential loops, with numpy as fallback.
+"""Compiled kernels (numba) for the engine's sequential loops, with numpy as fallback.
+
+A module below every stage (it imports none, so any stage may use its kernels); today its
+callers are the orientation's, whose warm-up (every kernel called once through its callers,
+:func:`tsplcam.orientation.warmup.exercise`) :func:`prepare` and :func:`warm` are handed.
 
 The Viterbi recurrence (:mod:`tsplcam.orientation.viterbi`) is sequential along the path:
 numpy spends one sequence of array calls per point, about 11 us for 36 x 36 states, and
@@ -74,6 +78,7 @@ from __future__ import annotations
 
 import os
 import time
+from collections.abc import Callable
 
 import numpy as np
 
@@ -1335,13 +1340,16 @@ def prepared():
     return _STATE.get("spare")
 
 
-def prepare() -> None:
+def prepare(exercise: Callable[[], None] | None = None) -> None:
     """Load the kernels into a set kept aside, leaving :func:`kernels`' own choice (compiled
     or numpy, by the work asked) untouched: :func:`kernels` gives that set once it loads. A
     job does this while it would only wait (``program.CheckerAhead``) and still makes the
     same bytes (the same kernels). The ahead-of-time module loads in about a millisecond;
     numba's kernels cost numba's import and each kernel's first call (about 0.3-0.45 s and
-    7-20 ms a kernel), taken here."""
+    7-20 ms a kernel), taken here: ``exercise`` calls them (the caller's, e.g.
+    :func:`tsplcam.orientation.warmup.exercise`, run with this set as :func:`kernels`'; this
+    module imports no stage). None: numba's set is only loaded, its kernels' first calls left
+    to their callers."""
     if "k" in _STATE or "spare" in _STATE:
         return
     spare = _build()
@@ -1352,50 +1360,20 @@ def prepare() -> None:
         return
     _STATE["k"] = spare               # (kernels() gives this set while the calls below run)
     try:
-        _exercise()
+        if exercise is not None:
+            exercise()
     finally:
         del _STATE["k"]
     _STATE["spare"] = spare
 
 
-def _exercise() -> None:
-    """Call every kernel of the loaded set on a tiny input, with the types the job uses."""
-    import numpy as np
-
-    from .viterbi import viterbi
-    node = np.zeros((3, 3))
-    viterbi(node, np.ones((2, 3, 3)))
-    from .smoothing import MeridianGrid, SmoothingCost, _Banded, joint_transitions
-    from .rotary import Rotary
-    th = np.zeros((3, 3))
-    grid = MeridianGrid(np.zeros(3), th, th, th, th, np.ones((3, 3), bool))
-    viterbi(node, joint_transitions(grid, SmoothingCost(1.0, Rotary()), np.ones(2), 1.0, np.ones(3, bool)))
-    ab = np.array([[0.0, 0.0, 1.0], [0.0, 1.0, 1.0], [2.0, 2.0, 2.0]])
-    kernels()["banded_solve"](ab.copy(), np.ones(3))
-    box = _Banded(3, 2)
-    box.ab[:] = ab
-    box.g[:] = 1.0
-    box.solve_box(-np.ones(3), np.ones(3))
-    viterbi(np.zeros((3, 2)), np.ones((2, 2, 2)))
-    from scipy.spatial import cKDTree
-
-    from .broadphase import DistanceGrid
-    P = np.zeros((1, 3))
-    DistanceGrid(cKDTree(P), 0.0, P[0], P[0] + 1.0, 0.5, 0.5, 1.0, 64)(np.full((2, 3), 0.25))
-    from .broadphase import BroadPhase, Profile
-    one = np.ones(1)
-    # (a cone part, for the side pass's kernel; the pose far off is free: its cone is stored)
-    tri = BroadPhase(np.eye(3), np.array([[0, 1, 2]]), lambda grow: Profile(0.5 * one, 3 * one, one, 2 * one, one, 2 * one), 0.5)
-    C, A = np.array([[0.5, 0.5, 0.5], [0.5, 0.5, 0.5], [9.0, 9.0, 9.0]]), np.array([[0.0, 0.0, 1.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]])
-    tri.decide(C, A)
-    tri._hits(np.full(3, -1, np.int8), tri.samples[[0, 1]], np.arange(2), np.arange(2), C, A, tri._cover(0.0).prof)
-
-
-def warm() -> float:
-    """Compile (or load from numba's cache) every numba kernel on a tiny input; returns the
-    seconds taken (0 without numba, or with ``TSPLCAM_COMPILED=0``). ``scripts/install.sh``
-    calls it (after :func:`build_aot`), so a job that runs numba's kernels (no ahead-of-time
-    module, or a stale one) does not carry their compilation."""
+def warm(exercise: Callable[[], None] | None = None) -> float:
+    """Compile (or load from numba's cache) every numba kernel that ``exercise`` calls on a
+    tiny input (e.g. :func:`tsplcam.orientation.warmup.exercise`, run with numba's set as
+    :func:`kernels`'; None: numba's set only loaded, nothing called); returns the seconds
+    taken (0 without numba, or with ``TSPLCAM_COMPILED=0``). ``scripts/install.sh`` calls it
+    (after :func:`build_aot`), so a job that runs numba's kernels (no ahead-of-time module,
+    or a stale one) does not carry their compilation."""
     t0 = time.perf_counter()
     if os.environ.get("TSPLCAM_COMPILED", "1") == "0" or _jit() is None:
         return 0.0
@@ -1403,7 +1381,8 @@ def warm() -> float:
     k = _STATE.get("k")
     _STATE["k"] = _jit()              # (the calls below run numba's set, whatever kernels() gives)
     try:
-        _exercise()
+        if exercise is not None:
+            exercise()
     finally:
         if had:
             _STATE["k"] = k

@@ -1,0 +1,44 @@
+"""The orientation's kernels warmed: :func:`exercise` calls every kernel of
+:mod:`tsplcam.compiled` that the orientation uses once, through its callers, on a tiny input.
+
+Handed to :func:`tsplcam.compiled.prepare` (the job, ``program._load_numba``) and
+:func:`tsplcam.compiled.warm` (``scripts/install.sh``), which may not import a stage
+themselves (``compiled`` sits below every stage)."""
+from __future__ import annotations
+
+from .. import compiled
+
+
+def exercise() -> None:
+    """Call every kernel the orientation uses once on a tiny input, with the types the job
+    uses, so numba's JIT compiles them (or loads them from its cache); the set called is the
+    one :func:`tsplcam.compiled.kernels` gives (``prepare`` and ``warm`` choose it)."""
+    import numpy as np
+
+    from .viterbi import viterbi
+    node = np.zeros((3, 3))
+    viterbi(node, np.ones((2, 3, 3)))
+    from .rotary import Rotary
+    from .smoothing import MeridianGrid, SmoothingCost, _Banded, joint_transitions
+    th = np.zeros((3, 3))
+    grid = MeridianGrid(np.zeros(3), th, th, th, th, np.ones((3, 3), bool))
+    viterbi(node, joint_transitions(grid, SmoothingCost(1.0, Rotary()), np.ones(2), 1.0, np.ones(3, bool)))
+    ab = np.array([[0.0, 0.0, 1.0], [0.0, 1.0, 1.0], [2.0, 2.0, 2.0]])
+    compiled.kernels()["banded_solve"](ab.copy(), np.ones(3))
+    box = _Banded(3, 2)
+    box.ab[:] = ab
+    box.g[:] = 1.0
+    box.solve_box(-np.ones(3), np.ones(3))
+    viterbi(np.zeros((3, 2)), np.ones((2, 2, 2)))
+    from scipy.spatial import cKDTree
+
+    from .broadphase import DistanceGrid
+    P = np.zeros((1, 3))
+    DistanceGrid(cKDTree(P), 0.0, P[0], P[0] + 1.0, 0.5, 0.5, 1.0, 64)(np.full((2, 3), 0.25))
+    from .broadphase import BroadPhase, Profile
+    one = np.ones(1)
+    # (a cone part, for the side pass's kernel; the pose far off is free: its cone is stored)
+    tri = BroadPhase(np.eye(3), np.array([[0, 1, 2]]), lambda grow: Profile(0.5 * one, 3 * one, one, 2 * one, one, 2 * one), 0.5)
+    C, A = np.array([[0.5, 0.5, 0.5], [0.5, 0.5, 0.5], [9.0, 9.0, 9.0]]), np.array([[0.0, 0.0, 1.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]])
+    tri.decide(C, A)
+    tri._hits(np.full(3, -1, np.int8), tri.samples[[0, 1]], np.arange(2), np.arange(2), C, A, tri._cover(0.0).prof)

@@ -11,6 +11,7 @@ import numpy as np
 
 import tsplcam
 from tsplcam.model.cells import LevelCells
+from tsplcam.model.patch import Patch
 from tsplcam.model.stars import StarLevels, SumCells
 from tsplcam.model.tmesh import quad_tmesh
 from tsplcam.model.tspline import tspline_model
@@ -45,9 +46,11 @@ def ep_cell_points(patch, rng, count=24):
 
 
 def by_levels():
-    """Both evaluators routed through the configuration of every point's level."""
+    """Both evaluators routed through the configuration of every point's level (a patch of
+    bicubic cells then takes its group-by-group route, not cubic_points' one pass)."""
     return (mock.patch.object(LevelCells, "evaluate", LevelCells.evaluate_levels),
-            mock.patch.object(StarLevels, "evaluate", StarLevels.evaluate_levels))
+            mock.patch.object(StarLevels, "evaluate", StarLevels.evaluate_levels),
+            mock.patch.object(Patch, "_cubic_table", lambda self: None))
 
 
 def star_calls(patch, u, v):
@@ -94,8 +97,8 @@ class CachedNetsEqualLevels(unittest.TestCase):
                 continue
             done += 1
             a, calls = star_calls(patch, u, v)       # the cached nets' route, its star calls seen
-            m1, m2 = by_levels()
-            with m1, m2:
+            m1, m2, m3 = by_levels()
+            with m1, m2, m3:
                 b = patch.evaluate(u, v)
             checked += len(u)
             self.assertLess(np.abs(a.P - b.P).max(), REL * scale, (label, patch.index))

@@ -154,7 +154,7 @@ class Signatures(unittest.TestCase):
             self.assertIn(ret, ("i8", "void"), name)
             for code, nd, _ in args:
                 self.assertIn(code, ("f8", "i8", "i4", "i1", "b1"), name)
-                self.assertIn(nd, (0, 1, 2, 3), name)
+                self.assertIn(nd, (0, 1, 2, 3, 4), name)
 
     def test_compiled_off(self):
         """``TSPLCAM_COMPILED=0``: no kernels, numpy runs."""

@@ -1,8 +1,11 @@
 """A four-sided patch of the model with its own (u, v) on the unit square.
 
 The domain is cut by ``ubreaks`` x ``vbreaks`` into a grid of cells; every cell belongs to
-one cell evaluator group (Bezier or extraordinary, see ``cells.py``). Evaluation of any
-number of points is a handful of array calls: locate cells with ``searchsorted``, sort the
+one cell evaluator group (Bezier or extraordinary, see ``cells.py``). A patch whose cells are
+all bicubic (every sample's; Bezier cells and extraordinary cells' nets) evaluates its points
+in one pass, point by point (``cubic_points.py``: the compiled kernel, else the same operations
+in numpy). Any other patch's evaluation of any number of points is a handful of array calls:
+locate cells with ``searchsorted``, sort the
 points by group call and cell, evaluate each group's points at once into their block (a
 patch's extraordinary groups, one per corner configuration, together; their Bernstein values
 and the Bezier cells' in one call), convert homogeneous to Euclidean derivatives (nothing to
@@ -34,6 +37,7 @@ from ..npfast import cross_rows as _cross
 from ..errors import InputError
 from .basis import bernstein, bernstein_rows
 from .cells import SQUARE_MAPS, BezierCells, LevelCells
+from .cubic_points import cubic_table, evaluate_points
 from .diffgeom import SurfacePoints, rational_from_homogeneous
 
 CORNER_UV = np.array([[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]])
@@ -115,7 +119,16 @@ class Patch:
         v = _clip(v, 0.0, 1.0)
         n = len(u)
         ep_rows, ep_normals = [], []
-        if n <= CHUNK:
+        cubic = self._cubic_table()
+        if cubic is not None:
+            # bicubic polynomial cells: every point in one pass (cubic_points)
+            nd = 6 if second else 3
+            H, ep = evaluate_points(cubic, u, v, nd)
+            out = tuple(H[k] for k in range(nd)) + (None,) * (6 - nd)
+            if ep is not None:
+                ep_rows.append(ep[0])
+                ep_normals.append(ep[1])
+        elif n <= CHUNK:
             # a polynomial patch: the weight rows are 1 and 0 (rational_from_homogeneous's test
             # would pass), not gathered back
             tables = self._tables()
@@ -474,6 +487,18 @@ class Patch:
             cached = (gkey, levels, rank.tolist(), table, poly)
             self._calls = cached
         return cached
+
+    def _cubic_table(self):
+        """The patch's :class:`~tsplcam.model.cubic_points.CubicTable` (None when its cells are
+        not all bicubic polynomial ones), made again when its groups or cells change."""
+        now = (self.groups, self.ubreaks, self.vbreaks, self.cell_group, self.cell_local)
+        cached = getattr(self, "_cubic", None)
+        if (cached is None or len(cached[0]) != len(self.groups)
+                or any(x is not y for x, y in zip(cached[0], self.groups))
+                or any(x is not y for x, y in zip(cached[1:5], now[1:]))):
+            cached = (list(self.groups),) + now[1:] + (cubic_table(self),)
+            self._cubic = cached
+        return cached[5]
 
     def _polynomial(self) -> bool:
         """Whether every group gives the weight exactly 1 and its derivatives exactly 0 (each

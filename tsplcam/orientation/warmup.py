@@ -1,5 +1,7 @@
-"""The orientation's kernels warmed: :func:`exercise` calls every kernel of
-:mod:`tsplcam.compiled` that the orientation uses once, through its callers, on a tiny input.
+"""The engine's kernels warmed: :func:`exercise` calls every kernel of :mod:`tsplcam.compiled`
+once, through its callers (the model's surface evaluation, the orientation's loops), on a tiny
+input. It sits in the orientation, the last stage that uses kernels (it imports the stages'
+modules).
 
 Handed to :func:`tsplcam.compiled.prepare` (the job, ``program._load_numba``) and
 :func:`tsplcam.compiled.warm` (``scripts/install.sh``), which may not import a stage
@@ -10,10 +12,17 @@ from .. import compiled
 
 
 def exercise() -> None:
-    """Call every kernel the orientation uses once on a tiny input, with the types the job
-    uses, so numba's JIT compiles them (or loads them from its cache); the set called is the
-    one :func:`tsplcam.compiled.kernels` gives (``prepare`` and ``warm`` choose it)."""
+    """Call every kernel once on a tiny input, with the types the job uses, so numba's JIT
+    compiles them (or loads them from its cache); the set called is the one
+    :func:`tsplcam.compiled.kernels` gives (``prepare`` and ``warm`` choose it)."""
     import numpy as np
+
+    from ..model.cells import BezierCells
+    from ..model.patch import Patch
+    ctrl = np.ones((1, 4, 4, 4))
+    ctrl[0, :, :, 0] = np.arange(4)
+    Patch(0, [0.0, 1.0], [0.0, 1.0], np.zeros((1, 1), int), np.zeros((1, 1), int),
+          [BezierCells(ctrl)]).evaluate(np.array([0.5]), np.array([0.5]))
 
     from .viterbi import viterbi
     node = np.zeros((3, 3))

@@ -1125,13 +1125,9 @@ def _define(jit):
         n = u.shape[0]
         nu, nv = kind.shape[0], kind.shape[1]
         nd = H.shape[0]
-        no = 3 if nd == 6 else 2
         nc = nets.shape[1]
-        h = np.empty((6, 4))
-        bs = np.empty((3, 4))
-        bt = np.empty((3, 4))
-        T = np.empty((3, 4, 4))
         deep = 0
+        inf = math.inf
         for p in range(n):
             x, y = u[p], v[p]
             lo, hi = 0, ub.shape[0]               # searchsorted(side="right") - 1, clipped
@@ -1152,8 +1148,8 @@ def _define(jit):
             iv = min(max(lo - 1, 0), nv - 1)
             wu = ub[iu + 1] - ub[iu]
             wv = vb[iv + 1] - vb[iv]
-            a = (x - ub[iu]) / wu if wu != 0.0 else (x - ub[iu]) * math.copysign(math.inf, wu)
-            b = (y - vb[iv]) / wv if wv != 0.0 else (y - vb[iv]) * math.copysign(math.inf, wv)
+            a = (x - ub[iu]) / wu if wu != 0.0 else (x - ub[iu]) * math.copysign(inf, wu)
+            b = (y - vb[iv]) / wv if wv != 0.0 else (y - vb[iv]) * math.copysign(inf, wv)
             r = ref[iu, iv]
             f = 0
             sc = 1.0
@@ -1191,88 +1187,175 @@ def _define(jit):
             flag[p] = f
             if f == 2:
                 deep += 1
-            for w in range(2):                    # basis._bernstein3, its operations
-                t = a if w == 0 else b
-                B = bs if w == 0 else bt
-                s = 1.0 - t
-                t2 = t * t
-                s2 = s * s
-                ts = t * s
-                B[0, 0] = s2 * s
-                B[0, 1] = (3.0 * t) * s2
-                B[1, 3] = 3.0 * t2
-                B[0, 2] = B[1, 3] * s
-                B[0, 3] = t2 * t
-                tmp = 3.0 * s2
-                B[1, 0] = -tmp
-                ts = 6.0 * ts
-                B[1, 1] = tmp - ts
-                B[1, 2] = ts - B[1, 3]
-                B[2, 0] = 6.0 * s
-                tmp = 18.0 * t
-                B[2, 1] = tmp - 12.0
-                B[2, 2] = 6.0 - tmp
-                B[2, 3] = 6.0 * t
-            for d in range(no):                   # along a: the net's columns in order
-                for j in range(4):
-                    for c in range(nc):
-                        acc = nets[key, c, j, 0] * bs[d, 0]
-                        acc += nets[key, c, j, 1] * bs[d, 1]
-                        acc += nets[key, c, j, 2] * bs[d, 2]
-                        acc += nets[key, c, j, 3] * bs[d, 3]
-                        T[d, j, c] = acc
+            # basis._bernstein3 along a (A..) and b (B..), its operations
+            s = 1.0 - a
+            t2 = a * a
+            s2 = s * s
+            ts = a * s
+            A00 = s2 * s
+            A01 = (3.0 * a) * s2
+            A13 = 3.0 * t2
+            A02 = A13 * s
+            A03 = t2 * a
+            tmp = 3.0 * s2
+            A10 = -tmp
+            ts = 6.0 * ts
+            A11 = tmp - ts
+            A12 = ts - A13
+            A20 = 6.0 * s
+            tmp = 18.0 * a
+            A21 = tmp - 12.0
+            A22 = 6.0 - tmp
+            A23 = 6.0 * a
+            s = 1.0 - b
+            t2 = b * b
+            s2 = s * s
+            ts = b * s
+            B00 = s2 * s
+            B01 = (3.0 * b) * s2
+            B13 = 3.0 * t2
+            B02 = B13 * s
+            B03 = t2 * b
+            tmp = 3.0 * s2
+            B10 = -tmp
+            ts = 6.0 * ts
+            B11 = tmp - ts
+            B12 = ts - B13
+            B20 = 6.0 * s
+            tmp = 18.0 * b
+            B21 = tmp - 12.0
+            B22 = 6.0 - tmp
+            B23 = 6.0 * b
             ss = sc * sc
-            for k in range(nd):                   # along b, the offset, the scales (cells.DERIVS)
-                ds = 1 if k == 1 or k == 4 else (2 if k == 3 else 0)
-                dt = 1 if k == 2 or k == 4 else (2 if k == 5 else 0)
-                for c in range(nc):
-                    acc = bt[dt, 0] * T[ds, 0, c]
-                    acc += bt[dt, 1] * T[ds, 1, c]
-                    acc += bt[dt, 2] * T[ds, 2, c]
-                    acc += bt[dt, 3] * T[ds, 3, c]
-                    if k == 0:
-                        acc += off[c]
-                    elif k < 3:
-                        acc *= sc
-                    else:
-                        acc *= ss
+            d3 = wu * wu
+            d4 = wu * wv
+            d5 = wv * wv
+            W0 = W1 = W2 = W3 = W4 = W5 = 0.0
+            for cc in range(nc):                 # each coordinate (the weight row first)
+                c = (cc + 3) % 4 if nc == 4 else cc
+                # along a, per row j of the net: orders 0, 1 (and 2)
+                q = nets[key, c]
+                T00 = q[0, 0] * A00
+                T00 += q[0, 1] * A01
+                T00 += q[0, 2] * A02
+                T00 += q[0, 3] * A03
+                T01 = q[1, 0] * A00
+                T01 += q[1, 1] * A01
+                T01 += q[1, 2] * A02
+                T01 += q[1, 3] * A03
+                T02 = q[2, 0] * A00
+                T02 += q[2, 1] * A01
+                T02 += q[2, 2] * A02
+                T02 += q[2, 3] * A03
+                T03 = q[3, 0] * A00
+                T03 += q[3, 1] * A01
+                T03 += q[3, 2] * A02
+                T03 += q[3, 3] * A03
+                T10 = q[0, 0] * A10
+                T10 += q[0, 1] * A11
+                T10 += q[0, 2] * A12
+                T10 += q[0, 3] * A13
+                T11 = q[1, 0] * A10
+                T11 += q[1, 1] * A11
+                T11 += q[1, 2] * A12
+                T11 += q[1, 3] * A13
+                T12 = q[2, 0] * A10
+                T12 += q[2, 1] * A11
+                T12 += q[2, 2] * A12
+                T12 += q[2, 3] * A13
+                T13 = q[3, 0] * A10
+                T13 += q[3, 1] * A11
+                T13 += q[3, 2] * A12
+                T13 += q[3, 3] * A13
+                # along b, the offset, the scales (cells.DERIVS)
+                h0 = B00 * T00
+                h0 += B01 * T01
+                h0 += B02 * T02
+                h0 += B03 * T03
+                h0 += off[c]
+                h1 = B00 * T10
+                h1 += B01 * T11
+                h1 += B02 * T12
+                h1 += B03 * T13
+                h1 *= sc
+                h2 = B10 * T00
+                h2 += B11 * T01
+                h2 += B12 * T02
+                h2 += B13 * T03
+                h2 *= sc
+                if f == 1:
+                    h0 = vertex[r, 0, c]
+                    h1 = vertex[r, 1, c]
+                    h2 = vertex[r, 2, c]
+                h1 = h1 / wu if wu != 0.0 else h1 * math.copysign(inf, wu)
+                h2 = h2 / wv if wv != 0.0 else h2 * math.copysign(inf, wv)
+                h3 = h4 = h5 = 0.0
+                if nd == 6:
+                    T20 = q[0, 0] * A20
+                    T20 += q[0, 1] * A21
+                    T20 += q[0, 2] * A22
+                    T20 += q[0, 3] * A23
+                    T21 = q[1, 0] * A20
+                    T21 += q[1, 1] * A21
+                    T21 += q[1, 2] * A22
+                    T21 += q[1, 3] * A23
+                    T22 = q[2, 0] * A20
+                    T22 += q[2, 1] * A21
+                    T22 += q[2, 2] * A22
+                    T22 += q[2, 3] * A23
+                    T23 = q[3, 0] * A20
+                    T23 += q[3, 1] * A21
+                    T23 += q[3, 2] * A22
+                    T23 += q[3, 3] * A23
+                    h3 = B00 * T20
+                    h3 += B01 * T21
+                    h3 += B02 * T22
+                    h3 += B03 * T23
+                    h3 *= ss
+                    h4 = B10 * T10
+                    h4 += B11 * T11
+                    h4 += B12 * T12
+                    h4 += B13 * T13
+                    h4 *= ss
+                    h5 = B20 * T00
+                    h5 += B21 * T01
+                    h5 += B22 * T02
+                    h5 += B23 * T03
+                    h5 *= ss
                     if f == 1:
-                        acc = vertex[r, k, c]
-                    if k > 0:
-                        dv = wu if k == 1 else (wv if k == 2 else (wu * wu if k == 3 else (
-                            wu * wv if k == 4 else wv * wv)))
-                        acc = acc / dv if dv != 0.0 else acc * math.copysign(math.inf, dv)
-                    h[k, c] = acc
-            if nc == 3:
-                for k in range(nd):
-                    for c in range(3):
-                        H[k, c, p] = h[k, c]
-                continue
-            w = h[0, 3]                           # diffgeom.rational_from_homogeneous
-            if w == 0.0:                          # (numpy's x / 0, not numba's error)
-                for c in range(3):
-                    x0 = h[0, c] * math.copysign(math.inf, w)
-                    H[0, c, p] = x0
-                    x1 = (h[1, c] - h[1, 3] * x0) * math.copysign(math.inf, w)
-                    x2 = (h[2, c] - h[2, 3] * x0) * math.copysign(math.inf, w)
-                    H[1, c, p] = x1
-                    H[2, c, p] = x2
-                    if nd > 3:
-                        H[3, c, p] = (h[3, c] - 2.0 * h[1, 3] * x1 - h[3, 3] * x0) * math.copysign(math.inf, w)
-                        H[4, c, p] = (h[4, c] - h[4, 3] * x0 - h[1, 3] * x2 - h[2, 3] * x1) * math.copysign(math.inf, w)
-                        H[5, c, p] = (h[5, c] - 2.0 * h[2, 3] * x2 - h[5, 3] * x0) * math.copysign(math.inf, w)
-                continue
-            for c in range(3):
-                S = h[0, c] / w
-                Su = (h[1, c] - h[1, 3] * S) / w
-                Sv = (h[2, c] - h[2, 3] * S) / w
+                        h3 = vertex[r, 3, c]
+                        h4 = vertex[r, 4, c]
+                        h5 = vertex[r, 5, c]
+                    h3 = h3 / d3 if d3 != 0.0 else h3 * math.copysign(inf, d3)
+                    h4 = h4 / d4 if d4 != 0.0 else h4 * math.copysign(inf, d4)
+                    h5 = h5 / d5 if d5 != 0.0 else h5 * math.copysign(inf, d5)
+                if c == 3:
+                    W0, W1, W2, W3, W4, W5 = h0, h1, h2, h3, h4, h5
+                    continue
+                if nc == 3:
+                    H[0, c, p] = h0
+                    H[1, c, p] = h1
+                    H[2, c, p] = h2
+                    if nd == 6:
+                        H[3, c, p] = h3
+                        H[4, c, p] = h4
+                        H[5, c, p] = h5
+                    continue
+                # diffgeom.rational_from_homogeneous (numpy's x / 0 where the weight is 0)
+                iw = math.copysign(inf, W0)
+                S = h0 / W0 if W0 != 0.0 else h0 * iw
+                Su = (h1 - W1 * S) / W0 if W0 != 0.0 else (h1 - W1 * S) * iw
+                Sv = (h2 - W2 * S) / W0 if W0 != 0.0 else (h2 - W2 * S) * iw
                 H[0, c, p] = S
                 H[1, c, p] = Su
                 H[2, c, p] = Sv
-                if nd > 3:
-                    H[3, c, p] = (h[3, c] - 2.0 * h[1, 3] * Su - h[3, 3] * S) / w
-                    H[4, c, p] = (h[4, c] - h[4, 3] * S - h[1, 3] * Sv - h[2, 3] * Su) / w
-                    H[5, c, p] = (h[5, c] - 2.0 * h[2, 3] * Sv - h[5, 3] * S) / w
+                if nd == 6:
+                    x3 = h3 - 2.0 * W1 * Su - W3 * S
+                    x4 = h4 - W4 * S - W1 * Sv - W2 * Su
+                    x5 = h5 - 2.0 * W2 * Sv - W5 * S
+                    H[3, c, p] = x3 / W0 if W0 != 0.0 else x3 * iw
+                    H[4, c, p] = x4 / W0 if W0 != 0.0 else x4 * iw
+                    H[5, c, p] = x5 / W0 if W0 != 0.0 else x5 * iw
         return deep
 
     return {"hit_pairs": hit_pairs, "viterbi_steps": viterbi_steps, "joint_steps": joint_steps, "viterbi_path": viterbi_path,

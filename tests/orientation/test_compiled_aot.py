@@ -52,6 +52,15 @@ def workload(rng) -> None:
     from tsplcam.orientation.smoothing import _Banded
     from tsplcam.orientation.viterbi import viterbi
     exercise()                                             # each kernel, the job's types
+    from tsplcam.toolpath.lines import END_SAMPLES, _capsule_segments, _end_pass
+    G = 4                                                  # cusp_ends: hits, misses, degenerate
+    ca = rng.normal(size=(G, 2, 2, 1, 3)) * 0.3
+    cb = ca + 2.0 * rng.normal(size=ca.shape) * (rng.random(ca.shape[:-1] + (1,)) < 0.8)
+    E, nE = rng.normal(size=(G, 2 * END_SAMPLES + 3, 3)) * 0.6, rng.normal(size=(G, 2 * END_SAMPLES + 3, 3))
+    nE /= np.linalg.norm(nE, axis=-1, keepdims=True)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        _end_pass(E, nE, 3, ca, cb, 0.5, _capsule_segments(ca, cb), np.zeros((G, 2)), rng.random((G, 2)),
+                  np.ones((G, 2)), compiled.kernels())
     for S, n in ((12, 120), (2, 80)):                      # viterbi_steps / _path, two_states
         node = rng.random((n, S))
         node[rng.random((n, S)) < 0.15] = np.inf

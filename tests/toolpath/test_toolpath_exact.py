@@ -399,3 +399,62 @@ class SameBytesAsNumpy(unittest.TestCase):
             x, cid, P = _merge_rows(x, xm, new), _merge_rows(cid, cid[split], new), _merge_rows(P, Pm, new)
             for got, want in zip((x, cid, P), ref):
                 self.assertTrue(same(got, want))
+
+
+class CompiledEndPass(unittest.TestCase):
+    """The line ends' pass of the cusp heights in the compiled kernel (``cusp_ends``) gives the
+    numpy pass's bytes: ends, bracket and step, on random capsules and edge points with misses
+    (negative discriminants), segments of length 0, grid values, points exactly on the end
+    spheres (entries 0), zero normals, and nan / inf coordinates."""
+
+    def test_kernel_is_numpy(self):
+        from tsplcam import compiled
+        from tsplcam.toolpath.lines import END_SAMPLES, _end_pass
+        kern = compiled.kernels()
+        if kern is None:
+            self.skipTest("no compiled kernels (numba absent or TSPLCAM_COMPILED=0)")
+        rng = np.random.default_rng(21)
+        k, r, G, off = END_SAMPLES, 0.5, 6, 3
+        specials = np.array([0.0, -0.0, np.inf, -np.inf, np.nan, 1e-300])
+        checked, seen = 0, set()
+        for mode in [m for m in range(7) for _ in range(25)]:
+            P = rng.normal(size=(G, off + 2 * k, 3)) * rng.choice([0.3, 0.6, 1.5])
+            n = rng.normal(size=P.shape)
+            n /= np.linalg.norm(n, axis=-1, keepdims=True)
+            ca = rng.normal(size=(G, 2, 2, 1, 3)) * 0.3
+            tin = rng.normal(size=ca.shape)
+            if mode == 1:                                  # degenerate segments (L = 0)
+                tin[rng.random(tin.shape[:-1]) < 0.5] = 0.0
+            cb = ca + 4 * r * tin
+            if mode == 2:                                  # grid values
+                P, n, ca, cb = (np.round(x * 4) / 4 for x in (P, n, ca, cb))
+            if mode == 6:                                  # on line 1's first end sphere, tangent
+                ca, cb = np.round(ca * 4) / 4, np.round(ca * 4) / 4 + np.round(4 * r * tin)
+                ax = np.eye(3)[rng.integers(0, 3, P.shape[:-1])] * rng.choice([1.0, -1.0], P.shape[:-1] + (1,))
+                P, n = ca[:, 0, 0] + r * ax, np.roll(ax, 1, axis=-1)
+            if mode == 3:                                  # nan / inf / 0 coordinates
+                for x in (P, n):
+                    bad = rng.random(x.shape) < 0.02
+                    x[bad] = rng.choice(specials, bad.sum())
+            if mode == 4:                                  # zero normals
+                n[rng.random(n.shape[:-1]) < 0.2] = 0.0
+            if mode == 5:                                  # both lines' capsules alike: d = 0
+                ca[:, 1] = ca[:, 0]
+                cb[:, 1] = cb[:, 0]
+            ends, lo, width = rng.choice([0.0, -0.0, 0.1], size=(G, 2)), rng.random((G, 2)), np.full((G, 2), 1 / 16)
+            with np.errstate(all="ignore"):
+                seg = _capsule_segments(ca, cb)
+                want = _end_pass(P, n, off, ca, cb, r, seg, ends.copy(), lo.copy(), width.copy())
+                h = _capsule_entry(P[:, off:].reshape(G, 1, 2, k, 3), n[:, off:].reshape(G, 1, 2, k, 3), ca, cb, r, seg)
+            got = _end_pass(P, n, off, ca, cb, r, seg, ends.copy(), lo.copy(), width.copy(), kern)
+            # (not compared: the sign of a peak 0 reached by both +0 and -0, which numpy's
+            # vector reduction takes in an order of its own)
+            low = np.minimum(h[:, 0], h[:, 1])
+            zero = low == 0
+            tie = (low.max(axis=2) == 0) & (zero & np.signbit(low)).any(axis=2) & (zero & ~np.signbit(low)).any(axis=2)
+            for a, b in zip(want, got):
+                self.assertTrue(same(a[~tie], b[~tie]), mode)
+            checked += (~tie).sum()
+            seen |= {"inf" if np.isinf(x) else "nan" if np.isnan(x) else "0" if x == 0 else "x" for x in h.ravel()}
+        self.assertEqual(seen, {"inf", "nan", "0", "x"})         # misses, inf inputs, on spheres, hits
+        self.assertGreater(checked, 0.95 * 7 * 25 * G * 2)

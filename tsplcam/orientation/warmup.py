@@ -1,7 +1,7 @@
 """The engine's kernels warmed: :func:`exercise` calls every kernel of :mod:`tsplcam.compiled`
-once, through its callers (the model's surface evaluation, the orientation's loops), on a tiny
-input. It sits in the orientation, the last stage that uses kernels (it imports the stages'
-modules).
+once, through its callers (the model's surface evaluation, the path's cusp heights at the line
+ends, the orientation's loops), on a tiny input. It sits in the orientation, the last stage
+that uses kernels (it imports the stages' modules).
 
 Handed to :func:`tsplcam.compiled.prepare` (the job, ``program._load_numba``) and
 :func:`tsplcam.compiled.warm` (``scripts/install.sh``), which may not import a stage
@@ -23,6 +23,12 @@ def exercise() -> None:
     ctrl[0, :, :, 0] = np.arange(4)
     Patch(0, [0.0, 1.0], [0.0, 1.0], np.zeros((1, 1), int), np.zeros((1, 1), int),
           [BezierCells(ctrl)]).evaluate(np.array([0.5]), np.array([0.5]))
+    from ..toolpath.lines import END_SAMPLES, _capsule_segments, _end_pass
+    ca = np.zeros((1, 2, 2, 1, 3))
+    cb = ca + 1.0
+    E = np.ones((1, 2 * END_SAMPLES, 3))
+    _end_pass(E, E, 0, ca, cb, 0.5, _capsule_segments(ca, cb), np.zeros((1, 2)), np.zeros((1, 2)),
+              np.ones((1, 2)), compiled.kernels())
 
     from .viterbi import viterbi
     node = np.zeros((3, 3))

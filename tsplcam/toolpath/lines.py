@@ -58,6 +58,8 @@ from functools import lru_cache
 
 import numpy as np
 
+from .. import compiled
+
 # numpy's C functions without their Python dispatch wrappers: the same calls, a few
 # microseconds less each on the many small arrays here
 from ..npfast import quiet as _quiet, where as _where, c_einsum as _einsum, concatenate as _concatenate
@@ -456,35 +458,8 @@ def _cusp_heights(frame, g1, ds, r):
     ends = np.zeros((G, 2))
     lo = np.zeros((G, 2))
     width = np.ones((G, 2))
-    gi, li = np.arange(G)[:, None], np.arange(2)[None, :]
-    take = lambda a, i: a[gi, li, i]          # noqa: E731  a[g, l, i[g, l]]
-
-    def end_pass(eP, en, ends, lo, width):
-        """One pass along the edges (a coarse one, then one inside the bracket of the
-        crossing): the ends so far, and the bracket for the next."""
-        h = _capsule_entry(eP.reshape(G, 1, 2, -1, 3), en.reshape(G, 1, 2, -1, 3), ca, cb, r, seg)
-        h1, h2 = h[:, 0], h[:, 1]                                        # (G, 2, k)
-        # the material peaks where the two tubes leave the same height (line 1's lower near
-        # its end, line 2's near the other): bracket that crossing and interpolate, since a
-        # cusp is a corner that samples alone would cut short
-        d = h1 - h2
-        up = d >= 0
-        k = up.argmax(axis=2)
-        k = _where(up.any(axis=2), k, k_end - 1)
-        k = np.minimum(np.maximum(k, 1), k_end - 1)
-        d0, d1 = take(d, k - 1), take(d, k)
-        x = np.minimum(np.maximum(d0 / (d0 - d1), 0.0), 1.0)
-        hk0, hk1 = take(h1, k - 1), take(h1, k)
-        cross = hk0 + x * (hk1 - hk0)
-        low = np.minimum(h1, h2)
-        peak = _max_reduce(low, axis=2)          # np.max's reduction, without its wrapper
-        ok = np.isfinite(cross) & (d0 < 0) & (d1 >= 0)
-        ends = np.maximum(ends, _where(ok, np.maximum(cross, take(low, k)), peak))
-        step = width / (k_end - 1)
-        lo = np.minimum(np.maximum(lo + step * (k - 1), 0.0), 1.0)
-        return ends, lo, step
-
-    ends, lo, width = end_pass(P[:, m + 6:], n[:, m + 6:], ends, lo, width)
+    kern = compiled.kernels()
+    ends, lo, width = _end_pass(P, n, m + 6, ca, cb, r, seg, ends, lo, width, kern)
     ff = lo[..., None] + width[..., None] * f                  # (G, 2, k)
     S = np.empty((G, m + 2 * k_end))
     T = np.empty((G, m + 2 * k_end))
@@ -494,7 +469,7 @@ def _cusp_heights(frame, g1, ds, r):
     T[:, m:] = _END_T
     gb = frame.evaluate(S.ravel(), T.ravel())
     Pb, nb = rs(gb.P), rs(gb.n)
-    ends, _, _ = end_pass(Pb[:, m:], nb[:, m:], ends, lo, width)
+    ends, _, _ = _end_pass(Pb, nb, m, ca, cb, r, seg, ends, lo, width, kern)
     mP, mn, mSs, mSt = Pb[:, :m], nb[:, :m], rs(gb.Ss)[:, :m], rs(gb.St)[:, :m]
     # the fundamental forms at the mid points alone, on a copy of their rows (a form is made
     # row by row: the same values as on all the call's points, for a third of the work)
@@ -522,6 +497,48 @@ def _cusp_heights(frame, g1, ds, r):
     height = _where(meet, height, np.inf)
     height = _where(beyond, np.nan, height)
     return height, ends
+
+
+def _end_pass(P, n, off, ca, cb, r, seg, ends, lo, width, kern=None):
+    """One pass of :func:`_cusp_heights` along the edges between the line ends (a coarse one,
+    then one inside the bracket of the crossing): P[:, off:], n[:, off:] (G, 2 k, 3) the edge
+    points and normals (k = END_SAMPLES on each edge), ca, cb (G, line, end, 1, 3) the lines'
+    end capsules, ``seg`` their :func:`_capsule_segments`; returns the ends so far (G, 2) and
+    the bracket for the next pass (lo, width). ``kern``: the compiled kernels, whose
+    ``cusp_ends`` makes the same operations in the same order (the same bits), updating
+    ends, lo and width in place."""
+    G = len(ends)
+    k_end = END_SAMPLES
+    if kern is not None:
+        L, eh, caps = seg
+        kern["cusp_ends"](np.ascontiguousarray(P), np.ascontiguousarray(n), off, k_end, caps[0].reshape(G, 2, 2, 3),
+                          caps[1].reshape(G, 2, 2, 3), eh.reshape(G, 2, 2, 3), L.reshape(G, 2, 2), float(r),
+                          ends, lo, width)
+        return ends, lo, width
+    eP, en = P[:, off:], n[:, off:]
+    gi, li = np.arange(G)[:, None], np.arange(2)[None, :]
+    take = lambda a, i: a[gi, li, i]          # noqa: E731  a[g, l, i[g, l]]
+    h = _capsule_entry(eP.reshape(G, 1, 2, -1, 3), en.reshape(G, 1, 2, -1, 3), ca, cb, r, seg)
+    h1, h2 = h[:, 0], h[:, 1]                                        # (G, 2, k)
+    # the material peaks where the two tubes leave the same height (line 1's lower near
+    # its end, line 2's near the other): bracket that crossing and interpolate, since a
+    # cusp is a corner that samples alone would cut short
+    d = h1 - h2
+    up = d >= 0
+    k = up.argmax(axis=2)
+    k = _where(up.any(axis=2), k, k_end - 1)
+    k = np.minimum(np.maximum(k, 1), k_end - 1)
+    d0, d1 = take(d, k - 1), take(d, k)
+    x = np.minimum(np.maximum(d0 / (d0 - d1), 0.0), 1.0)
+    hk0, hk1 = take(h1, k - 1), take(h1, k)
+    cross = hk0 + x * (hk1 - hk0)
+    low = np.minimum(h1, h2)
+    peak = _max_reduce(low, axis=2)          # np.max's reduction, without its wrapper
+    ok = np.isfinite(cross) & (d0 < 0) & (d1 >= 0)
+    ends = np.maximum(ends, _where(ok, np.maximum(cross, take(low, k)), peak))
+    step = width / (k_end - 1)
+    lo = np.minimum(np.maximum(lo + step * (k - 1), 0.0), 1.0)
+    return ends, lo, step
 
 
 @dataclass

@@ -1133,29 +1133,28 @@ def _define(jit):
         to the caller); returns the number of those. A division by zero (a weight 0, a cell
         of width 0) gives what numpy's does, x * copysign(inf, 0) (numba's would raise)."""
         n = u.shape[0]
-        nu, nv = kind.shape[0], kind.shape[1]
         nd = H.shape[0]
         nc = nets.shape[1]
         deep = 0
         inf = math.inf
+        B = np.empty((2, 3, 4))
+        T = np.empty((3, 4))
+        h = np.empty(6)
+        cell = np.empty(2, np.int64)
         for p in range(n):
             x, y = u[p], v[p]
-            lo, hi = 0, ub.shape[0]               # searchsorted(side="right") - 1, clipped
-            while lo < hi:
-                mid = (lo + hi) // 2
-                if x < ub[mid]:
-                    hi = mid
-                else:
-                    lo = mid + 1
-            iu = min(max(lo - 1, 0), nu - 1)
-            lo, hi = 0, vb.shape[0]
-            while lo < hi:
-                mid = (lo + hi) // 2
-                if y < vb[mid]:
-                    hi = mid
-                else:
-                    lo = mid + 1
-            iv = min(max(lo - 1, 0), nv - 1)
+            for w in range(2):                    # the cell: searchsorted(side="right") - 1, clipped
+                br = ub if w == 0 else vb
+                z = x if w == 0 else y
+                lo, hi = 0, br.shape[0]
+                while lo < hi:
+                    mid = (lo + hi) // 2
+                    if z < br[mid]:
+                        hi = mid
+                    else:
+                        lo = mid + 1
+                cell[w] = min(max(lo - 1, 0), br.shape[0] - 2)
+            iu, iv = cell[0], cell[1]
             wu = ub[iu + 1] - ub[iu]
             wv = vb[iv + 1] - vb[iv]
             a = (x - ub[iu]) / wu if wu != 0.0 else (x - ub[iu]) * math.copysign(inf, wu)
@@ -1197,172 +1196,75 @@ def _define(jit):
             flag[p] = f
             if f == 2:
                 deep += 1
-            # basis._bernstein3 along a (A..) and b (B..), its operations
-            s = 1.0 - a
-            t2 = a * a
-            s2 = s * s
-            ts = a * s
-            A00 = s2 * s
-            A01 = (3.0 * a) * s2
-            A13 = 3.0 * t2
-            A02 = A13 * s
-            A03 = t2 * a
-            tmp = 3.0 * s2
-            A10 = -tmp
-            ts = 6.0 * ts
-            A11 = tmp - ts
-            A12 = ts - A13
-            A20 = 6.0 * s
-            tmp = 18.0 * a
-            A21 = tmp - 12.0
-            A22 = 6.0 - tmp
-            A23 = 6.0 * a
-            s = 1.0 - b
-            t2 = b * b
-            s2 = s * s
-            ts = b * s
-            B00 = s2 * s
-            B01 = (3.0 * b) * s2
-            B13 = 3.0 * t2
-            B02 = B13 * s
-            B03 = t2 * b
-            tmp = 3.0 * s2
-            B10 = -tmp
-            ts = 6.0 * ts
-            B11 = tmp - ts
-            B12 = ts - B13
-            B20 = 6.0 * s
-            tmp = 18.0 * b
-            B21 = tmp - 12.0
-            B22 = 6.0 - tmp
-            B23 = 6.0 * b
+            for w in range(2):                    # basis._bernstein3 along a, then b: its operations
+                t = a if w == 0 else b
+                s = 1.0 - t
+                t2 = t * t
+                s2 = s * s
+                ts = t * s
+                B[w, 0, 0] = s2 * s
+                B[w, 0, 1] = (3.0 * t) * s2
+                B[w, 1, 3] = 3.0 * t2
+                B[w, 0, 2] = B[w, 1, 3] * s
+                B[w, 0, 3] = t2 * t
+                tmp = 3.0 * s2
+                B[w, 1, 0] = -tmp
+                ts = 6.0 * ts
+                B[w, 1, 1] = tmp - ts
+                B[w, 1, 2] = ts - B[w, 1, 3]
+                B[w, 2, 0] = 6.0 * s
+                tmp = 18.0 * t
+                B[w, 2, 1] = tmp - 12.0
+                B[w, 2, 2] = 6.0 - tmp
+                B[w, 2, 3] = 6.0 * t
             ss = sc * sc
-            d3 = wu * wu
-            d4 = wu * wv
-            d5 = wv * wv
             W0 = W1 = W2 = W3 = W4 = W5 = 0.0
-            for cc in range(nc):                 # each coordinate (the weight row first)
+            for cc in range(nc):                  # each coordinate (the weight row first)
                 c = (cc + 3) % 4 if nc == 4 else cc
-                # along a, per row j of the net: orders 0, 1 (and 2)
                 q = nets[key, c]
-                T00 = q[0, 0] * A00
-                T00 += q[0, 1] * A01
-                T00 += q[0, 2] * A02
-                T00 += q[0, 3] * A03
-                T01 = q[1, 0] * A00
-                T01 += q[1, 1] * A01
-                T01 += q[1, 2] * A02
-                T01 += q[1, 3] * A03
-                T02 = q[2, 0] * A00
-                T02 += q[2, 1] * A01
-                T02 += q[2, 2] * A02
-                T02 += q[2, 3] * A03
-                T03 = q[3, 0] * A00
-                T03 += q[3, 1] * A01
-                T03 += q[3, 2] * A02
-                T03 += q[3, 3] * A03
-                T10 = q[0, 0] * A10
-                T10 += q[0, 1] * A11
-                T10 += q[0, 2] * A12
-                T10 += q[0, 3] * A13
-                T11 = q[1, 0] * A10
-                T11 += q[1, 1] * A11
-                T11 += q[1, 2] * A12
-                T11 += q[1, 3] * A13
-                T12 = q[2, 0] * A10
-                T12 += q[2, 1] * A11
-                T12 += q[2, 2] * A12
-                T12 += q[2, 3] * A13
-                T13 = q[3, 0] * A10
-                T13 += q[3, 1] * A11
-                T13 += q[3, 2] * A12
-                T13 += q[3, 3] * A13
-                # along b, the offset, the scales (cells.DERIVS)
-                h0 = B00 * T00
-                h0 += B01 * T01
-                h0 += B02 * T02
-                h0 += B03 * T03
-                h0 += off[c]
-                h1 = B00 * T10
-                h1 += B01 * T11
-                h1 += B02 * T12
-                h1 += B03 * T13
-                h1 *= sc
-                h2 = B10 * T00
-                h2 += B11 * T01
-                h2 += B12 * T02
-                h2 += B13 * T03
-                h2 *= sc
-                if f == 1:
-                    h0 = vertex[r, 0, c]
-                    h1 = vertex[r, 1, c]
-                    h2 = vertex[r, 2, c]
-                h1 = h1 / wu if wu != 0.0 else h1 * math.copysign(inf, wu)
-                h2 = h2 / wv if wv != 0.0 else h2 * math.copysign(inf, wv)
-                h3 = h4 = h5 = 0.0
-                if nd == 6:
-                    T20 = q[0, 0] * A20
-                    T20 += q[0, 1] * A21
-                    T20 += q[0, 2] * A22
-                    T20 += q[0, 3] * A23
-                    T21 = q[1, 0] * A20
-                    T21 += q[1, 1] * A21
-                    T21 += q[1, 2] * A22
-                    T21 += q[1, 3] * A23
-                    T22 = q[2, 0] * A20
-                    T22 += q[2, 1] * A21
-                    T22 += q[2, 2] * A22
-                    T22 += q[2, 3] * A23
-                    T23 = q[3, 0] * A20
-                    T23 += q[3, 1] * A21
-                    T23 += q[3, 2] * A22
-                    T23 += q[3, 3] * A23
-                    h3 = B00 * T20
-                    h3 += B01 * T21
-                    h3 += B02 * T22
-                    h3 += B03 * T23
-                    h3 *= ss
-                    h4 = B10 * T10
-                    h4 += B11 * T11
-                    h4 += B12 * T12
-                    h4 += B13 * T13
-                    h4 *= ss
-                    h5 = B20 * T00
-                    h5 += B21 * T01
-                    h5 += B22 * T02
-                    h5 += B23 * T03
-                    h5 *= ss
+                for d in range(3 if nd == 6 else 2):      # along a: row j of the net, order d
+                    for j in range(4):
+                        acc = q[j, 0] * B[0, d, 0]
+                        acc += q[j, 1] * B[0, d, 1]
+                        acc += q[j, 2] * B[0, d, 2]
+                        acc += q[j, 3] * B[0, d, 3]
+                        T[d, j] = acc
+                for m in range(nd):               # along b (cells.DERIVS), the offset, the scales
+                    ds = 1 if m == 1 or m == 4 else (2 if m == 3 else 0)
+                    dt = 1 if m == 2 or m == 4 else (2 if m == 5 else 0)
+                    acc = B[1, dt, 0] * T[ds, 0]
+                    acc += B[1, dt, 1] * T[ds, 1]
+                    acc += B[1, dt, 2] * T[ds, 2]
+                    acc += B[1, dt, 3] * T[ds, 3]
+                    if m == 0:
+                        acc += off[c]
+                    else:
+                        acc *= sc if m < 3 else ss
                     if f == 1:
-                        h3 = vertex[r, 3, c]
-                        h4 = vertex[r, 4, c]
-                        h5 = vertex[r, 5, c]
-                    h3 = h3 / d3 if d3 != 0.0 else h3 * math.copysign(inf, d3)
-                    h4 = h4 / d4 if d4 != 0.0 else h4 * math.copysign(inf, d4)
-                    h5 = h5 / d5 if d5 != 0.0 else h5 * math.copysign(inf, d5)
+                        acc = vertex[r, m, c]
+                    if m > 0:
+                        dv = wu if m == 1 else (wv if m == 2 else (wu * wu if m == 3 else (wu * wv if m == 4 else wv * wv)))
+                        acc = acc / dv if dv != 0.0 else acc * math.copysign(inf, dv)
+                    h[m] = acc
                 if c == 3:
-                    W0, W1, W2, W3, W4, W5 = h0, h1, h2, h3, h4, h5
+                    W0, W1, W2, W3, W4, W5 = h[0], h[1], h[2], h[3], h[4], h[5]
                     continue
                 if nc == 3:
-                    H[0, c, p] = h0
-                    H[1, c, p] = h1
-                    H[2, c, p] = h2
-                    if nd == 6:
-                        H[3, c, p] = h3
-                        H[4, c, p] = h4
-                        H[5, c, p] = h5
+                    for m in range(nd):
+                        H[m, c, p] = h[m]
                     continue
                 # diffgeom.rational_from_homogeneous (numpy's x / 0 where the weight is 0)
                 iw = math.copysign(inf, W0)
-                S = h0 / W0 if W0 != 0.0 else h0 * iw
-                Su = (h1 - W1 * S) / W0 if W0 != 0.0 else (h1 - W1 * S) * iw
-                Sv = (h2 - W2 * S) / W0 if W0 != 0.0 else (h2 - W2 * S) * iw
+                S = h[0] / W0 if W0 != 0.0 else h[0] * iw
+                Su = (h[1] - W1 * S) / W0 if W0 != 0.0 else (h[1] - W1 * S) * iw
+                Sv = (h[2] - W2 * S) / W0 if W0 != 0.0 else (h[2] - W2 * S) * iw
                 H[0, c, p] = S
                 H[1, c, p] = Su
                 H[2, c, p] = Sv
                 if nd == 6:
-                    x3 = h3 - 2.0 * W1 * Su - W3 * S
-                    x4 = h4 - W4 * S - W1 * Sv - W2 * Su
-                    x5 = h5 - 2.0 * W2 * Sv - W5 * S
+                    x3 = h[3] - 2.0 * W1 * Su - W3 * S
+                    x4 = h[4] - W4 * S - W1 * Sv - W2 * Su
+                    x5 = h[5] - 2.0 * W2 * Sv - W5 * S
                     H[3, c, p] = x3 / W0 if W0 != 0.0 else x3 * iw
                     H[4, c, p] = x4 / W0 if W0 != 0.0 else x4 * iw
                     H[5, c, p] = x5 / W0 if W0 != 0.0 else x5 * iw

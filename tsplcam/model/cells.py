@@ -73,6 +73,19 @@ def bicubic_nets(X: np.ndarray, a: np.ndarray, b: np.ndarray, B: np.ndarray | No
     return R[:, :, _DT[:nd], _DS[:nd]].transpose(2, 1, 0)
 
 
+def divide_widths(H: np.ndarray, wu, wv) -> np.ndarray:
+    """In place: derivatives (nd, C, n) with respect to a cell's (a, b) taken with respect to
+    the patch's (u, v) = (wu a, wv b) + offset: first derivatives divided by the cell's widths,
+    second ones by their products (each divided once: the same bits wherever it is done)."""
+    H[1] /= wu
+    H[2] /= wv
+    if len(H) > 3:
+        H[3] /= wu * wu
+        H[4] /= wu * wv
+        H[5] /= wv * wv
+    return H
+
+
 def scale_derivatives(H: np.ndarray, sa, sb) -> np.ndarray:
     """In place: derivatives (6, C, n) with respect to (a, b) taken with respect to (a / sa,
     b / sb), i.e. first derivatives times sa or sb, second ones times their products."""

@@ -25,13 +25,14 @@ vertex) are evaluated by their group's configuration route, as before.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from types import SimpleNamespace
 
 import numpy as np
 
 from .. import compiled
 from ..npfast import clip as _clip
 from .basis import _bernstein3
-from .cells import _DS, _DT, BezierCells, LevelCells
+from .cells import _DS, _DT, BezierCells, LevelCells, divide_widths
 
 # the numpy route's points per pass: its temporaries (the nets gathered, 48 values a point)
 # stay a few MB
@@ -48,7 +49,9 @@ class CubicTable:
     ``limit_normal``; its nets from row ``nb + (L * net_levels + level - 1) * 3 + key``).
     ``nets`` (rows, nc, 4 [j along b], 4 [i along a]) with nc 3 coordinates (x, y, z: every
     weight exactly 1) or 4 (w x, w y, w z, w); ``deep_cells``: per L its (LevelCells group,
-    cell in the group) for the points below the nets' levels."""
+    cell in the group) for the points below the nets' levels; ``levels``: the extraordinary
+    cells' corners, swaps and levels as ``LevelCells._net_params`` reads them (the numpy
+    route's)."""
     ubreaks: np.ndarray
     vbreaks: np.ndarray
     kind: np.ndarray
@@ -64,6 +67,7 @@ class CubicTable:
     net_levels: int
     max_level: int
     deep_cells: list
+    levels: object = None
 
 
 def cubic_table(patch) -> CubicTable | None:
@@ -112,7 +116,7 @@ def cubic_table(patch) -> CubicTable | None:
 
     def cat(arrays, shape, axis=0):
         return np.ascontiguousarray(np.concatenate(arrays, axis=axis)) if arrays else np.zeros(shape)
-    return CubicTable(
+    t = CubicTable(
         ubreaks=np.ascontiguousarray(patch.ubreaks, float), vbreaks=np.ascontiguousarray(patch.vbreaks, float),
         kind=np.ascontiguousarray(kind), ref=np.ascontiguousarray(ref),
         nets=cat(nets, (0, nc, 4, 4)), origin=cat(origin, (0, nc)),
@@ -123,6 +127,8 @@ def cubic_table(patch) -> CubicTable | None:
         limit_normal=cat([g.limit_normal for g in groups], (0, 3)),
         nb=nb, net_levels=int(groups[0].NET_LEVELS) if groups else 24,
         max_level=int(groups[0].MAX_LEVEL) if groups else 60, deep_cells=deep_cells)
+    t.levels = SimpleNamespace(_corner=t.corner, _swap=t.swap, NET_LEVELS=t.net_levels, MAX_LEVEL=t.max_level)
+    return t
 
 
 def evaluate_points(t: CubicTable, u: np.ndarray, v: np.ndarray, nd: int = 6):
@@ -174,36 +180,14 @@ def _points_numpy(t: CubicTable, u, v, H, flag) -> int:
     add[:, bz] = t.origin[ref[bz]].T
     lv = np.nonzero(~bz)[0]
     if len(lv):
-        # as LevelCells._net_params
         L = ref[lv]
-        corner = t.corner[:, L]
-        E = np.empty((2, len(lv)))
-        E[0], E[1] = a[lv], b[lv]
-        np.maximum(E, 0.0, out=E)
-        np.minimum(E, 1.0, out=E)
-        E -= corner
-        np.abs(E, out=E)
-        mx = np.maximum(E[0], E[1])
-        _, e = np.frexp(mx)
-        level = np.minimum(np.maximum(1 - e, 1), t.max_level)
-        sc = np.ldexp(1.0, level)
-        E *= sc
-        pq = E >= 1.0
-        low = ~(pq[0] | pq[1])
-        sw = t.swap[L]
-        pq[0] |= low & ~sw
-        pq[1] |= low & sw
-        E -= pq
-        np.maximum(E, 0.0, out=E)
-        np.minimum(E, 1.0, out=E)
-        E -= corner
-        np.abs(E, out=E)
-        key[lv] = t.nb + (L * t.net_levels + np.minimum(level, t.net_levels) - 1) * 3 + pq[0] + 2 * pq[1] - 1
+        E, lkey, sc, atv, deep = LevelCells._net_params(t.levels, L, a[lv], b[lv])
+        key[lv] = t.nb + lkey
         a[lv], b[lv] = E[0], E[1]
         scale[lv] = sc
         add[:, lv] = t.limit[L].T
-        flag[lv[level > t.net_levels]] = 2
-        flag[lv[mx <= 0.0]] = 1
+        flag[lv[deep]] = 2
+        flag[lv[atv]] = 1
     no = 3 if nd == 6 else 2
     nc = t.nets.shape[1]
     Hh = H if nc == 3 else np.empty((nd, 4, n))
@@ -231,12 +215,7 @@ def _points_numpy(t: CubicTable, u, v, H, flag) -> int:
     at = np.nonzero(flag == 1)[0]
     if len(at):
         Hh[:, :, at] = t.vertex[ref[at], :nd].transpose(1, 2, 0)
-    Hh[1] /= wu
-    Hh[2] /= wv
-    if nd > 3:
-        Hh[3] /= wu * wu
-        Hh[4] /= wu * wv
-        Hh[5] /= wv * wv
+    divide_widths(Hh, wu, wv)
     if nc == 4:
         _euclidean(Hh, H)
     return int(np.count_nonzero(flag == 2))
@@ -251,13 +230,7 @@ def _deep_points(t: CubicTable, u, v, H, rows) -> None:
     for k in np.unique(L).tolist():
         sel = np.nonzero(L == k)[0]
         grp, local = t.deep_cells[k]
-        Hd = grp._evaluate(np.full(len(sel), local), a[sel], b[sel])[0][:nd]
-        Hd[1] /= wu[sel]
-        Hd[2] /= wv[sel]
-        if nd > 3:
-            Hd[3] /= wu[sel] * wu[sel]
-            Hd[4] /= wu[sel] * wv[sel]
-            Hd[5] /= wv[sel] * wv[sel]
+        Hd = divide_widths(grp._evaluate(np.full(len(sel), local), a[sel], b[sel])[0][:nd], wu[sel], wv[sel])
         if t.nets.shape[1] == 4:
             E = np.empty((nd, 3, len(sel)))
             _euclidean(Hd, E)

@@ -36,7 +36,7 @@ from ..npfast import cross_rows as _cross
 
 from ..errors import InputError
 from .basis import bernstein, bernstein_rows
-from .cells import SQUARE_MAPS, BezierCells, LevelCells
+from .cells import SQUARE_MAPS, BezierCells, LevelCells, divide_widths
 from .cubic_points import cubic_table, evaluate_points
 from .diffgeom import SurfacePoints, rational_from_homogeneous
 
@@ -419,13 +419,7 @@ class Patch:
                     ep = (rows, ep_normal[at_vertex]) if ep is None else (
                         _concatenate([ep[0], rows]), _concatenate([ep[1], ep_normal[at_vertex]]))
         # from cell (a, b) to patch (u, v) (a polynomial patch's weight rows, 0, stay 0)
-        Hc = H[:, :nc]
-        Hc[1] /= wu
-        Hc[2] /= wv
-        if nd > 3:
-            Hc[3] /= wu * wu
-            Hc[4] /= wu * wv
-            Hc[5] /= wv * wv
+        divide_widths(H[:, :nc], wu, wv)
         return order, H, ep
 
     def _bezier_and_nets(self, calls, blocks, levels, group, local, a, b, H, nd: int = 6, nc: int = 4):

@@ -121,7 +121,7 @@ class Patch:
         ep_rows, ep_normals = [], []
         cubic = self._cubic_table()
         if cubic is not None:
-            # bicubic polynomial cells: every point in one pass (cubic_points)
+            # bicubic cells: every point in one pass (cubic_points)
             nd = 6 if second else 3
             H, ep = evaluate_points(cubic, u, v, nd)
             out = tuple(H[k] for k in range(nd)) + (None,) * (6 - nd)
@@ -484,7 +484,8 @@ class Patch:
 
     def _cubic_table(self):
         """The patch's :class:`~tsplcam.model.cubic_points.CubicTable` (None when its cells are
-        not all bicubic polynomial ones), made again when its groups or cells change."""
+        not all bicubic Bezier or extraordinary ones), made again when its groups or cells
+        change."""
         now = (self.groups, self.ubreaks, self.vbreaks, self.cell_group, self.cell_local)
         cached = getattr(self, "_cubic", None)
         if (cached is None or len(cached[0]) != len(self.groups)

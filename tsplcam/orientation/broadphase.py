@@ -1559,7 +1559,7 @@ class BroadPhase:
         ``grown`` (a grown tool: the clearance measurement): a pose that a cylinder part
         keeps open is left to fcl whole (clearing its cones cannot make it free, and the side
         grid's bounds for balls that large cost the most: figure4's clearance, every pose
-        open by its shank at 3-7 mm, 9.6 s of the side pass for no pose decided)."""
+        open by its shank at 3-7 mm, 7.9 s of the side pass for no pose decided)."""
         cone = np.abs(prof.rout1 - prof.rout0) > 1e-9
         if not cone.any():
             return

@@ -1053,6 +1053,73 @@ def _define(jit):
         return nf
 
     @jit
+    def band_samples(x, ub, pts, items, start, origin, h, shape, k, d0, j0, cnt, lst, tie):
+        """The mesh samples in each point's band (:meth:`~tsplcam.orientation.broadphase.BroadPhase.exact_bound`),
+        from a table of cells (edge ``h``, ``shape`` cells from ``origin``; cell c's samples
+        ``items[start[c]:start[c + 1]]`` at ``pts`` in the same rows), as the sample tree's
+        k-nearest query within ``ub`` gives them: each squared distance summed x, y, z in
+        that order (scipy's kd-tree sums from 0 in the coordinates' order: the same bits),
+        a sample counted where it is below ub^2 as there, and in the band where its square
+        root is below ub. Per point: ``d0`` the nearest distance (inf: none below ub), ``j0``
+        its sample (-1: none), ``tie`` where another sample lies at that distance (the tree's
+        walk picks among those: the caller asks the tree), ``cnt`` the samples in the band up
+        to k, ``lst`` the first k of them (-1 after)."""
+        for i in range(x.shape[0]):
+            u = ub[i]
+            u2 = u * u
+            w = u * (1.0 + 1e-9) + 1e-12        # (the cells' range widened past rounding)
+            lo0 = 0
+            hi0 = 0
+            lo1 = 0
+            hi1 = 0
+            lo2 = 0
+            hi2 = 0
+            for a in range(3):
+                f = (x[i, a] - w - origin[a]) / h
+                g = (x[i, a] + w - origin[a]) / h
+                top = shape[a] - 1
+                # (clamped to the table: a band beyond it scans its border cells for nothing)
+                lo = 0 if not f >= 0.0 else (top if f >= top else np.int64(f))
+                hi = 0 if not g >= 0.0 else (top if g >= top else np.int64(g))
+                if a == 0:
+                    lo0, hi0 = lo, hi
+                elif a == 1:
+                    lo1, hi1 = lo, hi
+                else:
+                    lo2, hi2 = lo, hi
+            best = np.inf
+            jb = -1
+            t = False
+            c = 0
+            for a in range(lo0, hi0 + 1):
+                for b in range(lo1, hi1 + 1):
+                    base = (a * shape[1] + b) * shape[2]
+                    for p in range(start[base + lo2], start[base + hi2 + 1]):
+                        q0 = x[i, 0] - pts[p, 0]
+                        q1 = x[i, 1] - pts[p, 1]
+                        q2 = x[i, 2] - pts[p, 2]
+                        dd = q0 * q0
+                        dd += q1 * q1
+                        dd += q2 * q2
+                        if dd < u2:
+                            if dd < best:
+                                best = dd
+                                jb = items[p]
+                                t = False
+                            elif dd == best:
+                                t = True
+                            if np.sqrt(dd) < u:
+                                if c < k:
+                                    lst[i, c] = items[p]
+                                c += 1
+            d0[i] = np.sqrt(best)
+            j0[i] = jb
+            tie[i] = t
+            cnt[i] = c if c < k else k
+            for m in range(cnt[i], k):
+                lst[i, m] = -1
+
+    @jit
     def store_cones(slot, rows, A, c, rounds, cone_a, cone_c):
         """:meth:`~tsplcam.orientation.broadphase.BroadPhase._store_cones` row by row (row i's
         axis ``A[rows[i]]``): its
@@ -1393,7 +1460,7 @@ def _define(jit):
             "banded_solve": banded_solve, "grid_read": grid_read, "two_states": two_states,
             "solve_box": solve_box, "sphere_loop": sphere_loop, "side_bounds": side_bounds,
             "store_cones": store_cones, "centre_slots": centre_slots,
-            "cubic_points": cubic_points, "cusp_ends": cusp_ends}
+            "cubic_points": cubic_points, "cusp_ends": cusp_ends, "band_samples": band_samples}
 
 
 #: each kernel's types for the ahead-of-time module, as the callers pass them (numba's JIT
@@ -1422,6 +1489,8 @@ SIGNATURES = {
     "cubic_points": "i8(f8[1], f8[1], f8[1], f8[1], i8[2], i8[2], f8[4], f8[2], f8[2], f8[2], b1[1], f8[3], i8, i8,"
                     " i8, f8[3]w, i1[1]w)",
     "cusp_ends": "void(f8[3], f8[3], i8, i8, f8[4], f8[4], f8[4], f8[3], f8, f8[2]w, f8[2]w, f8[2]w)",
+    "band_samples": "void(f8[2], f8[1], f8[2], i8[1], i8[1], f8[1], f8, i8[1], i8, f8[1]w, i8[1]w, i8[1]w, i8[2]w,"
+                    " b1[1]w)",
 }
 #: the ahead-of-time module's name (beside this file, built by :func:`build_aot`)
 AOT_MODULE = "_aot_kernels"

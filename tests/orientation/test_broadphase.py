@@ -241,6 +241,46 @@ class AgreesWithFcl(unittest.TestCase):
         np.testing.assert_array_equal(out[1][1], out[0][1])
         self.assertGreater(int((out[0][0] != start).sum()), 100)
 
+    def test_compiled_band(self):
+        """The exact bounds through the compiled band (``band_samples`` on the table of cells)
+        are the kd-tree's bit for bit, with the same nearest samples: points around the mold
+        (walls, stock, duplicated samples: ties for the nearest) and the keycap, some exactly
+        on samples, bands from empty to over ``BAND`` samples; and the band's sets of samples
+        are the tree's."""
+        from unittest import mock
+        from tsplcam import compiled
+        from tsplcam.orientation.broadphase import BAND
+        if compiled.kernels() is None:
+            self.skipTest("numba not available (or TSPLCAM_COMPILED=0)")
+        rng = np.random.default_rng(24)
+        seen = np.zeros(4, int)
+        for b in (self.mold.broad, self.keycap.broad):
+            S = b.samples
+            n = 6000
+            x = S[rng.integers(0, len(S), n)] + rng.normal(scale=0.5, size=(n, 3)) * (rng.random((n, 1)) < 0.9)
+            R = rng.random(n) * 4.0 * b.e
+            ub = np.sqrt(R * R + b.e2)
+            runs = []
+            for kern in (False, True):
+                if kern:
+                    runs.append(b.exact_bound(x, R, nearest=True) + b._band(x, ub))
+                else:
+                    with mock.patch.object(compiled, "kernels", lambda work=None: None):
+                        runs.append(b.exact_bound(x, R, nearest=True) + b._band(x, ub))
+            ref, got = runs
+            for r, g in zip(ref[:2] + ref[4:5], got[:2] + got[4:5]):      # out, near, full
+                self.assertEqual(g.tobytes(), r.tobytes())
+            inb = ref[2] < ub            # (beyond a point's own bound the tree's group's bound counts)
+            np.testing.assert_array_equal(got[2] < ub, inb)
+            for r, g in zip(ref[2:4], got[2:4]):                 # the nearest: distance, sample
+                self.assertEqual(g[inb].tobytes(), r[inb].tobytes())
+            pairs = [set(zip(r[5].tolist(), r[6].tolist())) for r in runs]
+            self.assertEqual(pairs[1], pairs[0])
+            d, j = b.tree.query(x, k=2)
+            seen += [int((ref[4]).sum()), len(ref[5]), int((ref[2] >= ub).sum()),
+                     int(((d[:, 0] == d[:, 1]) & (d[:, 0] < ub)).sum())]
+        self.assertTrue(np.all(seen > 20), seen)        # full bands, partial ones, empty ones, ties
+
     def test_compiled_side_level_and_cones(self):
         """The side pass's balls bounded by the compiled kernel (``side_bounds``: ball by ball,
         on one thread or the rows cut between poses on two) leave the balls numpy's

@@ -150,6 +150,9 @@ BAND_ROWS = (256, 4096, 500_000)   # the band pass (BroadPhase.band_distance): p
 READ_WORK = 30.0              # a grid read in numpy costs about as much as this many Viterbi elements
 HIT_WORK = 100.0              # a sample tried as a hit in numpy: about this many Viterbi elements
 SPHERE_WORK = 300.0           # a pose's part in the numpy sphere loop: about this many Viterbi elements
+BAND_CELL = 2.0               # the band kernel's cells: this many sample spacings on a side
+BAND_CELLS = 4_000_000        # at most this many cells (a large part: larger cells)
+BAND_WORK = 200.0             # a band asked of the kd-tree: about this many Viterbi elements
 KD_THREADS = 256              # KD-tree queries of at least this many points run on two threads
 KERNEL_THREADS = 1024         # sphere loops of at least this many poses run on two threads
 _CORNERS = np.array([(i, j, k) for i in (0, 1) for j in (0, 1) for k in (0, 1)], np.int64)
@@ -977,6 +980,9 @@ class BroadPhase:
         self._wit = np.zeros((0, WITNESSES), np.int64)
         self._exact_gain = (0.0, 0.0)             # poses decided, spheres asked (_exact_pass)
         self._sample_e2 = None                    # per sample: its triangles' largest e_t^2 / 3
+        self._band_cells = None                   # the samples by cells (_band_table), made with the grids
+        if len(self.samples):
+            self._band_table()
         self.stats = {"poses": 0, "free": 0, "hit": 0, "unknown": 0, "cone": 0, "witness": 0,
                       "queries": 0, "exact": 0, "band": 0}
 
@@ -1035,16 +1041,63 @@ class BroadPhase:
             near[w] = np.where(inb, j1, -1)
         nw = np.nonzero(~wide)[0]
         if len(nw):
-            d, j = self.nearest(o[nw], ub[nw], k=BAND)
-            inb = d < ub[nw, None]
-            near[nw] = np.where(inb[:, 0], j[:, 0], -1)
-            full = inb.all(axis=1)
-            out[nw[full]] = np.sqrt(np.maximum(d[full, 0] ** 2 - self.e2, 0.0))
-            rows, cols = np.nonzero(inb & ~full[:, None])
+            d0, j0, full, rows, js = self._band(o[nw], ub[nw])
+            near[nw] = np.where(d0 < ub[nw], j0, -1)
+            out[nw[full]] = np.sqrt(np.maximum(d0[full] ** 2 - self.e2, 0.0))
             if len(rows):
-                r2, ti = self._triangles_of(j[rows, cols])
+                r2, ti = self._triangles_of(js)
                 self._measure_into(out, o, R, nw[rows[r2]], ti)
         return (out, near) if nearest else out
+
+    def _band(self, x: np.ndarray, ub: np.ndarray):
+        """The samples within ``ub`` of each point x, as :meth:`exact_bound` uses them: (the
+        nearest one's distance, its index, whether ``BAND`` or more lie in the band, and where
+        fewer do, each one as (point, sample) pairs). By the kd-tree's ``BAND`` nearest, or
+        with the kernels by ``compiled.band_samples`` on a table of cells (about 0.3 us a
+        point against 2 on the keycap's exact pass, where most bands hold no sample): the
+        same distances bit for bit, the same sets; where two samples tie for the nearest the
+        tree's choice is taken (asked of it)."""
+        k = compiled.kernels(work=BAND_WORK * len(x)) if len(self.samples) else None
+        if k is None:
+            d, j = self.nearest(x, ub, k=BAND)
+            inb = d < ub[:, None]
+            full = inb.all(axis=1)
+            rows, cols = np.nonzero(inb & ~full[:, None])
+            return d[:, 0], j[:, 0], full, rows, j[rows, cols]
+        origin, h, shape, start, items, pts = self._band_table()
+        m = len(x)
+        self.stats["queries"] += m
+        d0, j0 = np.empty(m), np.empty(m, np.int64)
+        cnt, lst, tie = np.empty(m, np.int64), np.empty((m, BAND), np.int64), np.empty(m, bool)
+        k["band_samples"](np.ascontiguousarray(x, float), np.ascontiguousarray(ub, float), pts, items, start,
+                          origin, h, shape, np.int64(BAND), d0, j0, cnt, lst, tie)
+        t = np.nonzero(tie & (d0 < ub))[0]
+        if len(t):
+            # (asked as nearest() asks: its groups' bounds, so the tree's walk is the same)
+            grp = np.floor(np.log2(np.clip(ub, 1e-9, 1e12))).astype(int)
+            for g in np.unique(grp[t]):
+                sel = t[grp[t] == g]
+                j0[sel] = self.tree.query(x[sel], k=BAND, distance_upper_bound=float(ub[grp == g].max()))[1][:, 0]
+        full = cnt >= BAND
+        rows, cols = np.nonzero(lst >= 0)
+        keep = ~full[rows]
+        return d0, j0, full, rows[keep], lst[rows[keep], cols[keep]]
+
+    def _band_table(self):
+        """The samples sorted into cubic cells of ``BAND_CELL`` sample spacings (fewer, larger
+        cells on a part that would need more than ``BAND_CELLS``), for ``band_samples``:
+        (origin, edge, shape, each cell's first row, the samples' indices, their points)."""
+        if self._band_cells is None:
+            lo, hi = self.box
+            h = max(BAND_CELL * self.e, float(np.prod(hi - lo + 1e-9)) ** (1.0 / 3.0) / BAND_CELLS ** (1.0 / 3.0), 1e-6)
+            shape = np.floor((hi - lo) / h).astype(np.int64) + 1
+            c = np.minimum(np.floor((self.samples - lo) / h).astype(np.int64), shape - 1)
+            key = (c[:, 0] * shape[1] + c[:, 1]) * shape[2] + c[:, 2]
+            order = np.argsort(key, kind="stable")
+            start = np.searchsorted(key[order], np.arange(int(np.prod(shape)) + 1)).astype(np.int64)
+            self._band_cells = (np.ascontiguousarray(lo, float), float(h), shape, start, order.astype(np.int64),
+                                np.ascontiguousarray(self.samples[order]))
+        return self._band_cells
 
     def _triangles_of(self, js: np.ndarray):
         """The triangles of samples ``js`` (a vertex's incident ones, another sample's own):

@@ -56,4 +56,5 @@ def exercise() -> None:
     tri = BroadPhase(np.eye(3), np.array([[0, 1, 2]]), lambda grow: Profile(0.5 * one, 3 * one, one, 2 * one, one, 2 * one), 0.5)
     C, A = np.array([[0.5, 0.5, 0.5], [0.5, 0.5, 0.5], [9.0, 9.0, 9.0]]), np.array([[0.0, 0.0, 1.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]])
     tri.decide(C, A)
+    tri.exact_bound(C, np.full(3, 0.1))
     tri._hits(np.full(3, -1, np.int8), tri.samples[[0, 1]], np.arange(2), np.arange(2), C, A, tri._cover(0.0).prof)

@@ -57,7 +57,10 @@ the same operations; only the balls left open are listed), and the free cones ar
 by row in ``store_cones`` (the rounds of numpy's gathers and masks, the same cones kept).
 The ball centres' slots come from ``centre_slots`` (an open-addressing table on the centres'
 three 64-bit words, each slot checked against its centre's: which rows share a slot, as the
-numpy form's sorted hashes give it).
+numpy form's sorted hashes give it). The exact pass's narrow bands come from ``band_samples``
+(a table of the samples by cubic cells, each point's cells scanned: the nearest sample, the
+count and the set in the band, as the KD-tree's k nearest give them, the squared distances
+summed in its order: about 0.3 us a point on the keycap against 2 us in the tree).
 
 The banded Cholesky solve of the smoothing's polish (``_Banded.solve_box``, 215 solves on
 the keycap) is latency-bound in LAPACK as here; the kernel takes LAPACK's operations in

@@ -83,7 +83,15 @@ and hit witnesses, bit for bit (tests/orientation/test_broadphase.py compares th
 side pass's first read of its balls (``side_bounds``: 155k balls on the all-candidates batch,
 28 ms in numpy, each ball's slab, centre and grid bounds; only the balls the grids leave open
 come back) and the free cones' store (``store_cones``: row by row where numpy takes two rounds
-of gathers and masks over every free pose, 16 ms there).
+of gathers and masks over every free pose, 16 ms there). The exact pass's narrow bands
+(:meth:`BroadPhase._band`, R up to 4 e) come from a table of the samples in cubic cells of
+2 e (``band_samples``, made with the grids), not from the KD-tree's eight nearest: the same
+squared distances (summed x, y, z as scipy's tree sums them), the same strict comparisons
+with the bound, so the same nearest distance, the same count and set of samples in the band,
+and the same bounds bit for bit; where two samples tie for the nearest, the tree is asked
+which it gives. On the keycap's questions most bands hold no sample at all, which the tree
+took about 2 us a point to find (its leaves' boxes reach within the bound) and the table
+0.3 us (the 4,385 spheres 10.7 -> 1.5 ms).
 
 **Threads.** The kernels take the poses one by one, each writing only its own rows; numba's
 JIT kernel and the ahead-of-time module's release the GIL, as scipy's KD-tree queries do:

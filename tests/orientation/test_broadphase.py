@@ -456,6 +456,22 @@ class Geometry(unittest.TestCase):
         self.assertGreater(few.sum(), 20)
         np.testing.assert_allclose(got[few], true[few], atol=1e-12)
         self.assertTrue(np.all((near >= 0) == (d[:, 0] < np.sqrt(R * R + bp.e2))))
+        # the compiled band on its table of cells, also with cells made larger than 2 e (a
+        # part that would need too many): the tree's bounds and nearest samples, bit for bit
+        from unittest import mock
+        from tsplcam import compiled
+        from tsplcam.orientation import broadphase
+        if compiled.kernels() is None:
+            return
+        for cells in (broadphase.BAND_CELLS, 8):
+            with mock.patch.object(broadphase, "BAND_CELLS", cells):
+                b2 = BroadPhase(V, T, lambda grow: Profile(0 * one, one, one, one, one, one), 0.1, 0.3)
+            self.assertEqual(b2._band_cells[1] > 2.5 * b2.e, cells == 8)
+            with mock.patch.object(compiled, "kernels", lambda work=None: None):
+                want = b2.exact_bound(x, R, nearest=True)
+            got2 = b2.exact_bound(x, R, nearest=True)
+            for g, w in zip(got2, want):
+                self.assertEqual(g.tobytes(), w.tobytes())
 
     def test_side_balls(self):
         """A side ball holds its slab (both rings, so their hull) and, on a cone, reaches

@@ -9,6 +9,7 @@ it is no broad phase; near the walls too, where the exact pass (samples and tria
 decides what the distance grids cannot. Later batches at the same centres, which the free
 cones and hit witnesses of earlier ones decide, still agree with fcl.
 """
+import time
 import unittest
 
 import numpy as np
@@ -737,10 +738,24 @@ class Geometry(unittest.TestCase):
             self.assertEqual(bp.threads(), 1)
         with mock.patch.dict(os.environ, {"TSPLCAM_WORKERS": "2"}), \
                 mock.patch.object(os, "sched_getaffinity", lambda pid: {0, 1}, create=True):
-            with mock.patch.object(os, "getloadavg", lambda: (3.9, 4.0, 4.0)):
-                self.assertEqual(bp.threads(), 1)
-            with mock.patch.object(os, "getloadavg", lambda: (1.0, 1.0, 1.0)):
-                self.assertEqual(bp.threads(), 2)
+            # the other processes' use of the cores where measured, else the load average
+            for others, load, want in ((0.2, 3.9, 2), (1.1, 0.5, 1), (None, 3.9, 1), (None, 1.0, 2)):
+                with mock.patch.object(bp, "others_busy", lambda: others), \
+                        mock.patch.object(os, "getloadavg", lambda: (load, load, load)):
+                    self.assertEqual(bp.threads(), want, (others, load))
+        # measured over windows of CPU_WINDOW s at least: a figure in cores (or None without
+        # /proc/stat), the same until the window is over; this process's own CPU is left out
+        bp.others_busy()
+        t0 = time.monotonic()
+        while time.monotonic() - t0 < 2 * bp.CPU_WINDOW:
+            pass
+        t1 = time.monotonic()
+        use = bp.others_busy()
+        again = bp.others_busy()
+        if use is not None:
+            self.assertTrue(0.0 <= use < os.cpu_count() + 0.5, use)
+            if time.monotonic() - t1 < 0.5 * bp.CPU_WINDOW:         # (not held up between the calls)
+                self.assertEqual(again, use)
 
     def test_sample_bound(self):
         """Every point of a triangle lies at least sqrt(d^2 - e^2/3) from a point whose

@@ -161,6 +161,7 @@ SPHERE_WORK = 300.0           # a pose's part in the numpy sphere loop: about th
 BAND_CELL = 2.0               # the band kernel's cells: this many sample spacings on a side
 BAND_CELLS = 4_000_000        # at most this many cells (a large part: larger cells)
 BAND_WORK = 200.0             # a band asked of the kd-tree: about this many Viterbi elements
+CPU_WINDOW = 0.05             # s: the shortest window over which others_busy measures the cores
 KD_THREADS = 256              # KD-tree queries of at least this many points run on two threads
 KERNEL_THREADS = 1024         # sphere loops of at least this many poses run on two threads
 _CORNERS = np.array([(i, j, k) for i in (0, 1) for j in (0, 1) for k in (0, 1)], np.int64)
@@ -175,11 +176,12 @@ def _dot(a, b):
 def threads() -> int:
     """Threads the broad phase may use for work that releases the GIL (KD-tree queries, the
     compiled sphere loop): two where this process may run on two cores (``TSPLCAM_WORKERS``,
-    when set, caps it) and the last minute's load average leaves one of them idle, else one
-    (on cores shared with other work two threads only wait for each other: at load 4 on two
-    cores they were slower), and one while this process's forked workers are busy. The answers
-    are the same either way. Every thread is joined before the call that started it returns,
-    so none is alive when workers fork."""
+    when set, caps it) and the other processes left one of them idle over the last moments
+    (:func:`others_busy`; where that cannot be measured, the last minute's load average
+    leaves one idle), else one (on cores shared with other work two threads only wait for
+    each other: at load 4 on two cores they were slower), and one while this process's
+    forked workers are busy. The answers are the same either way. Every thread is joined
+    before the call that started it returns, so none is alive when workers fork."""
     from ..toolpath import parallel
     if getattr(parallel, "_WAITING", False):
         return 1
@@ -189,11 +191,44 @@ def threads() -> int:
         cores = min(cores, max(1, int(env)))
     if cores < 2:
         return 1
+    others = others_busy()
+    if others is not None:
+        return 2 if others < cores - 1.5 else 1
     try:
         busy = os.getloadavg()[0]
     except OSError:                                   # pragma: no cover - no load average
         busy = 0.0
     return 2 if busy < cores - 0.5 else 1
+
+
+_OTHERS = {"at": None, "busy": 0.0, "own": 0.0, "use": None}
+
+
+def others_busy() -> float | None:
+    """Cores kept busy by everything but this process (other processes, this one's forked
+    children, the hypervisor's steal) over the last window of at least ``CPU_WINDOW``
+    seconds: the machine's busy time in /proc/stat less this process's CPU time, per second
+    of the window; the last window's figure until a new one is complete. None where
+    /proc/stat cannot be read, or before a window is complete (the first call starts one).
+
+    The one-minute load average lags a minute behind (the bench's replay of the keycap's
+    questions, right after the job and OpenCAMLib's two threads, saw 1.5-1.7 on an idle
+    machine), and on this kind of virtual machine it idles near 1 with nothing running."""
+    now = time.monotonic()
+    st = _OTHERS
+    if st["at"] is not None and now - st["at"] < CPU_WINDOW:
+        return st["use"]
+    try:
+        with open("/proc/stat", "rb") as f:
+            v = [int(x) for x in f.readline().split()[1:9]]
+        busy = (sum(v) - v[3] - v[4]) / os.sysconf("SC_CLK_TCK")     # all but idle and iowait
+    except (OSError, ValueError, IndexError):
+        return None
+    own = time.process_time()
+    if st["at"] is not None:
+        st["use"] = max(busy - st["busy"] - (own - st["own"]), 0.0) / (now - st["at"])
+    st.update(at=now, busy=busy, own=own)
+    return st["use"]
 
 
 def on_threads(fn, n: int) -> list:

@@ -110,7 +110,10 @@ def min_clearance(checker, centers, axes, levels=CLEARANCE_LEVELS, exact: int = 
     above of the poses touching there only; where more than ``exact`` of those touch at every
     level above, the search stands where the descent from ``levels[first]`` would stand, with
     the same poses (the same answer, from about half the collision queries), else it runs
-    that descent."""
+    that descent. Where no scout touches at ``levels[first]``, they go up the levels first
+    (:func:`_ascended`): where no pose touches at the level below the first at which a scout
+    does, every pose is asked at those two levels only, and the search stands where the
+    ascent over every pose would (figure4: 4.7 -> 2.9 s)."""
     C = np.asarray(centers, float)
     A = np.asarray(axes, float)
     levels = sorted(levels)
@@ -125,6 +128,10 @@ def min_clearance(checker, centers, axes, levels=CLEARANCE_LEVELS, exact: int = 
     elif got is not None:
         pick, parts, j = got
         hi = top = levels[j]
+    elif (up := _ascended(checker, C, A, levels, start, only, scouts) if scouts else None) is not None:
+        pick, parts, j = up
+        hi = top = levels[j]
+        lo = levels[j - 1] if j > start else 0.0
     else:
         for i in range(start, len(levels)):
             hit, parts = checker.collides_parts(C, A, levels[i], only=only)
@@ -195,6 +202,29 @@ def _bounded(checker, C, A, level: float, only: int, scouts: int, slack: float =
     if not hit.any():                             # (the scout touches: not expected)
         return None
     return np.nonzero(hit)[0], parts[hit], g
+
+
+def _ascended(checker, C, A, levels, start: int, only: int, scouts: int):
+    """Where :func:`min_clearance`'s ascent over every pose from ``levels[start]`` stops,
+    found by its scouts: (poses touching, their part masks, level index) or None. The
+    ``scouts`` poses spread along the path are asked at ``levels[start]`` and up until one
+    touches, at level k; where no pose touches at the level below k (asked of every pose),
+    the ascent stops at k with the poses every pose's ask there gives (a pose that touches at
+    some growth touches at every larger one). None where no scout touches at any level, or
+    some pose touches below k already (the ascent then runs from the start as without this).
+    figure4 (74,774 poses, its clearance found at 7 mm): the scouts first touch at 7 mm, so
+    every pose is asked at 6 and 7 mm only, not at 0.5, 1, 2, 3, 4 and 5 mm as well (about
+    2 s of collision queries, fcl's nearly all: the broad phase proves no pose clear there)."""
+    s = np.unique(np.linspace(0, len(C) - 1, min(scouts, len(C))).astype(int))
+    for k in range(start, len(levels)):
+        if checker.collides_parts(C[s], A[s], levels[k], only=only)[0].any():
+            break
+    else:
+        return None
+    if k > start and checker.collides_parts(C, A, levels[k - 1], only=only)[0].any():
+        return None
+    hit, parts = checker.collides_parts(C, A, levels[k], only=only)
+    return np.nonzero(hit)[0], parts[hit], k
 
 
 def _descent(levels, start: int, stop: int) -> list:

@@ -296,12 +296,15 @@ class MoldSmallestClearance(unittest.TestCase):
         only, _ = checker.clearance_parts()
         levels = sorted(CLEARANCE_LEVELS)
         self.assertIsNone(_bounded(checker, centers, axes, levels[3], only, 32))   # none near at 0.5 mm
-        up = _ascended(checker, centers, axes, levels, 3, only, 32)
-        self.assertIsNotNone(up)
-        self.assertGreater(up[2], 3)                                               # above the start
-        hit, _ = checker.collides_parts(centers, axes, levels[up[2]], only=only)
-        np.testing.assert_array_equal(up[0], np.nonzero(hit)[0])
-        self.assertFalse(checker.collides_parts(centers, axes, levels[up[2] - 1], only=only)[0].any())
+        first = next(i for i in range(3, len(levels))                            # the ascent's level
+                     if checker.collides_parts(centers, axes, levels[i], only=only)[0].any())
+        self.assertGreater(first, 3)                                               # above the start
+        hit, _ = checker.collides_parts(centers, axes, levels[first], only=only)
+        for scouts in (32, 8):          # (8 scouts touch first at 4 mm, above the ascent's 3 mm: a descent)
+            up = _ascended(checker, centers, axes, levels, 3, only, scouts)
+            self.assertIsNotNone(up)
+            self.assertEqual(up[2], first, scouts)
+            np.testing.assert_array_equal(up[0], np.nonzero(hit)[0])
         got = min_clearance(checker, centers, axes)
         plain = min_clearance(checker, centers, axes, scouts=0)
         self.assertEqual(got[1], plain[1])

@@ -212,21 +212,31 @@ def _ascended(checker, C, A, levels, start: int, only: int, scouts: int):
     """Where :func:`min_clearance`'s ascent over every pose from ``levels[start]`` stops,
     found by its scouts: (poses touching, their part masks, level index) or None. The
     ``scouts`` poses spread along the path are asked at ``levels[start]`` and up until one
-    touches, at level k; where no pose touches at the level below k (asked of every pose),
-    the ascent stops at k with the poses every pose's ask there gives (a pose that touches at
-    some growth touches at every larger one). None where no scout touches at any level, or
-    some pose touches below k already (the ascent then runs from the start as without this).
-    figure4 (74,774 poses, its clearance found at 7 mm): the scouts first touch at 7 mm, so
-    every pose is asked at 6 and 7 mm only, not at 0.5, 1, 2, 3, 4 and 5 mm as well (about
-    2 s of collision queries, fcl's nearly all: the broad phase proves no pose clear there)."""
+    touches, at level k. Every pose is asked at the level below k; where none touches there,
+    the ascent stops at k (every pose asked there); else only the poses touching there are
+    asked at the levels below it, down to the last at which some touch (a pose that touches at
+    some growth touches at every larger one, so those are the poses every pose's ask there
+    gives; their part masks come from asks of fewer poses, which only spares fcl questions).
+    None where no scout touches at any level. figure4 (74,774 poses, its clearance found at
+    7 mm): the scouts first touch at 7 mm, so every pose is asked at 6 and 7 mm only, not at
+    0.5, 1, 2, 3, 4 and 5 mm as well (about 2 s of collision queries, fcl's nearly all: the
+    broad phase proves no pose clear there)."""
     s = np.unique(np.linspace(0, len(C) - 1, min(scouts, len(C))).astype(int))
     for k in range(start, len(levels)):
         if checker.collides_parts(C[s], A[s], levels[k], only=only)[0].any():
             break
     else:
         return None
-    if k > start and checker.collides_parts(C, A, levels[k - 1], only=only)[0].any():
-        return None
+    if k > start:
+        hit, parts = checker.collides_parts(C, A, levels[k - 1], only=only)
+        if hit.any():
+            pick, parts, k = np.nonzero(hit)[0], parts[hit], k - 1
+            while k > start:
+                below, masks = checker.collides_parts(C[pick], A[pick], levels[k - 1], only=only)
+                if not below.any():
+                    break
+                pick, parts, k = pick[below], masks[below], k - 1
+            return pick, parts, k
     hit, parts = checker.collides_parts(C, A, levels[k], only=only)
     return np.nonzero(hit)[0], parts[hit], k
 

@@ -115,9 +115,10 @@ def min_clearance(checker, centers, axes, levels=CLEARANCE_LEVELS, exact: int = 
     level above, the search stands where the descent from ``levels[first]`` would stand, with
     the same poses (the same answer, from about half the collision queries), else it runs
     that descent. Where no scout touches at ``levels[first]``, they go up the levels first
-    (:func:`_ascended`): where no pose touches at the level below the first at which a scout
-    does, every pose is asked at those two levels only, and the search stands where the
-    ascent over every pose would (figure4: 4.7 -> 2.9 s)."""
+    (:func:`_ascended`): every pose is asked at the level below the first at which a scout
+    touches, and at that one where none touches below (else only those touching go further
+    down), and the search stands where the ascent over every pose would (figure4: 4.7 -> 2.8
+    s)."""
     C = np.asarray(centers, float)
     A = np.asarray(axes, float)
     levels = sorted(levels)

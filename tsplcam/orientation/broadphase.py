@@ -202,6 +202,8 @@ def threads() -> int:
 
 
 _OTHERS = {"at": None, "busy": 0.0, "own": 0.0, "use": None}
+if hasattr(os, "register_at_fork"):             # (a forked child's CPU time starts again at 0)
+    os.register_at_fork(after_in_child=lambda: _OTHERS.update(at=None, use=None))
 
 
 def others_busy() -> float | None:

@@ -1048,20 +1048,25 @@ class BroadPhase:
         idx[ask] = np.where(idx[ask] >= 0, idx[ask], idc)
         return lb, idx, ins
 
-    def nearest(self, x: np.ndarray, ub: np.ndarray, k: int = 1):
+    def nearest(self, x: np.ndarray, ub: np.ndarray, k: int = 1, rows=None):
         """(distances, indices) of the k nearest samples to each x, inf / n where none is
         closer than ``ub`` (per point; the tree takes one bound per call, so the points are
-        grouped by bounds within a factor of two)."""
+        grouped by bounds within a factor of two, each group asked with its largest).
+        ``rows``: only these points are asked (the others left inf / n), each with its
+        group's bound over every point, so each gets the answer of the call without ``rows``
+        (the tree's choice among ties too)."""
         shape = (len(x),) if k == 1 else (len(x), k)
         d = np.full(shape, np.inf)
         j = np.full(shape, len(self.samples))
-        self.stats["queries"] += len(x)
-        if len(x) == 0:
+        ask = np.arange(len(x)) if rows is None else np.asarray(rows, np.int64)
+        self.stats["queries"] += len(ask)
+        if len(ask) == 0:
             return d, j
         grp = np.floor(np.log2(np.clip(ub, 1e-9, 1e12))).astype(int)
-        for g in np.unique(grp):
-            sel = np.nonzero(grp == g)[0]
-            d[sel], j[sel] = self.tree.query(x[sel], k=k, distance_upper_bound=float(ub[sel].max()),
+        for g in np.unique(grp[ask]):
+            sel = ask[grp[ask] == g]
+            bound = float(ub[sel].max() if rows is None else ub[grp == g].max())
+            d[sel], j[sel] = self.tree.query(x[sel], k=k, distance_upper_bound=bound,
                                              workers=threads() if len(sel) >= KD_THREADS else 1)
         return d, j
 
@@ -1111,18 +1116,14 @@ class BroadPhase:
             return d[:, 0], j[:, 0], full, rows, j[rows, cols]
         origin, h, shape, start, items, pts = self._band_table()
         m = len(x)
-        self.stats["queries"] += m
         d0, j0 = np.empty(m), np.empty(m, np.int64)
         cnt, lst, tie = np.empty(m, np.int64), np.empty((m, BAND), np.int64), np.empty(m, bool)
         k["band_samples"](np.ascontiguousarray(x, float), np.ascontiguousarray(ub, float), pts, items, start,
                           origin, h, shape, np.int64(BAND), d0, j0, cnt, lst, tie)
         t = np.nonzero(tie & (d0 < ub))[0]
+        self.stats["queries"] += m - len(t)                  # (the ties counted by nearest())
         if len(t):
-            # (asked as nearest() asks: its groups' bounds, so the tree's walk is the same)
-            grp = np.floor(np.log2(np.clip(ub, 1e-9, 1e12))).astype(int)
-            for g in np.unique(grp[t]):
-                sel = t[grp[t] == g]
-                j0[sel] = self.tree.query(x[sel], k=BAND, distance_upper_bound=float(ub[grp == g].max()))[1][:, 0]
+            j0[t] = self.nearest(x, ub, k=BAND, rows=t)[1][t, 0]
         full = cnt >= BAND
         rows, cols = np.nonzero(lst >= 0)
         keep = ~full[rows]

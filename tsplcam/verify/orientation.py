@@ -189,6 +189,11 @@ def min_clearance(checker, centers, axes, levels=CLEARANCE_LEVELS, exact: int = 
     return float(d[k]), int(pick[k])
 
 
+def _scout_rows(n: int, scouts: int) -> np.ndarray:
+    """The rows of the ``scouts`` poses spread evenly along a path of ``n`` poses."""
+    return np.unique(np.linspace(0, n - 1, min(scouts, n)).astype(int))
+
+
 def _bounded(checker, C, A, level: float, only: int, scouts: int, slack: float = 1e-4):
     """(poses touching, their part masks, growth) at the smallest clearance of the ``scouts``
     poses spread along the path that touch at ``level`` (measured, :meth:`clearance_of`) and
@@ -196,7 +201,7 @@ def _bounded(checker, C, A, level: float, only: int, scouts: int, slack: float =
     grown primitives), the closest among them, so :func:`min_clearance` bisects below that
     growth instead of descending the levels. None where no scout touches at ``level`` or
     their clearance is not below it."""
-    s = np.unique(np.linspace(0, len(C) - 1, min(scouts, len(C))).astype(int))
+    s = _scout_rows(len(C), scouts)
     hit, _ = checker.collides_parts(C[s], A[s], level, only=only)
     if not hit.any():
         return None
@@ -222,7 +227,7 @@ def _ascended(checker, C, A, levels, start: int, only: int, scouts: int):
     7 mm): the scouts first touch at 7 mm, so every pose is asked at 6 and 7 mm only, not at
     0.5, 1, 2, 3, 4 and 5 mm as well (about 2 s of collision queries, fcl's nearly all: the
     broad phase proves no pose clear there)."""
-    s = np.unique(np.linspace(0, len(C) - 1, min(scouts, len(C))).astype(int))
+    s = _scout_rows(len(C), scouts)
     for k in range(start, len(levels)):
         if checker.collides_parts(C[s], A[s], levels[k], only=only)[0].any():
             break
@@ -263,7 +268,7 @@ def _scouted(checker, C, A, levels, start: int, only: int, exact: int, scouts: i
     touching on the way down is not among the descent's). More than ``exact`` left: the
     descent, which goes on while more than ``exact`` touch (their superset), stands there with
     exactly these poses; else None (the caller descends from the start)."""
-    s = np.unique(np.linspace(0, len(C) - 1, min(scouts, len(C))).astype(int))
+    s = _scout_rows(len(C), scouts)
     low = None
     for j in range(start, -1, -1):
         if not checker.collides_parts(C[s], A[s], levels[j], only=only)[0].any():

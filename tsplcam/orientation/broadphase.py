@@ -85,10 +85,10 @@ side pass's first read of its balls (``side_bounds``: 155k balls on the all-cand
 come back) and the free cones' store (``store_cones``: row by row where numpy takes two rounds
 of gathers and masks over every free pose, 16 ms there). The exact pass's narrow bands
 (:meth:`BroadPhase._band`, R up to 4 e) come from a table of the samples in cubic cells of
-2 e (``band_samples``, made with the grids), not from the KD-tree's eight nearest: the same
-squared distances (summed x, y, z as scipy's tree sums them), the same strict comparisons
-with the bound, so the same nearest distance, the same count and set of samples in the band,
-and the same bounds bit for bit; where two samples tie for the nearest, the tree is asked
+2 e (``band_samples``; made with the grids where the kernels are loaded, else at the first
+band), not from the KD-tree's eight nearest: the same squared distances (summed x, y, z as
+scipy's tree sums them), the same strict comparisons with the bound, so the same nearest
+distance, the same count and set of samples in the band, and the same bounds bit for bit; where two samples tie for the nearest, the tree is asked
 which it gives. On the keycap's questions most bands hold no sample at all, which the tree
 took about 2 us a point to find (its leaves' boxes reach within the bound) and the table
 0.3 us (the 4,385 spheres 10.7 -> 1.5 ms).
@@ -1025,8 +1025,11 @@ class BroadPhase:
         self._wit = np.zeros((0, WITNESSES), np.int64)
         self._exact_gain = (0.0, 0.0)             # poses decided, spheres asked (_exact_pass)
         self._sample_e2 = None                    # per sample: its triangles' largest e_t^2 / 3
-        self._band_cells = None                   # the samples by cells (_band_table), made with the grids
-        if len(self.samples):
+        # the samples by cells (_band_table): made with the grids where this process has the
+        # kernels already, else at the first band they answer (never in numpy alone: 0.8 s
+        # for 2 M samples)
+        self._band_cells = None
+        if len(self.samples) and compiled.loaded() is not None:
             self._band_table()
         self.stats = {"poses": 0, "free": 0, "hit": 0, "unknown": 0, "cone": 0, "witness": 0,
                       "queries": 0, "exact": 0, "band": 0}

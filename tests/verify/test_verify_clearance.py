@@ -103,6 +103,24 @@ class PlaneClearance(unittest.TestCase):
         self.assertTrue(np.all(near >= every))
 
 
+    def test_touching_bound(self):
+        """A pose that touches at a growth lies within ``touching_bound`` of it (fcl.distance
+        on the primitives), and the smallest distance measured against that bound is the
+        same value at the same first pose as measured without it."""
+        only, _ = self.checker.clearance_parts()
+        every = self.checker.clearance_of(self.centers, self.axes, only)
+        for grow in (0.05, 0.2, 0.5, 1.0, 3.0):
+            hit, _ = self.checker.collides_parts(self.centers, self.axes, grow, only=only)
+            bound = self.checker.touching_bound(grow)
+            self.assertTrue(np.all(every[hit] <= bound), (grow, every[hit], bound))
+            if hit.any():
+                rows = np.nonzero(hit)[0]
+                plain = self.checker.clearance_of(self.centers[rows], self.axes[rows], only, smallest=True)
+                bounded = self.checker.clearance_of(self.centers[rows], self.axes[rows], only, smallest=True,
+                                                    below=bound)
+                self.assertEqual(int(np.argmin(plain)), int(np.argmin(bounded)))
+                self.assertEqual(float(plain.min()), float(bounded.min()))   # the same fcl query
+
 
 class CurvedClearance(unittest.TestCase):
     """Poses on a convex and a concave cylinder (R 6 mm), axes tilted up to 45 deg from the

@@ -184,9 +184,20 @@ def min_clearance(checker, centers, axes, levels=CLEARANCE_LEVELS, exact: int = 
                 lo = mid
     if len(pick) > 400:
         pick = pick[np.linspace(0, len(pick) - 1, 400).astype(int)]
-    d = checker.clearance_of(C[pick], A[pick], only, smallest=True) + margin
+    d = _smallest_of(checker, C[pick], A[pick], only, hi) + margin
     k = int(np.argmin(d))
     return float(d[k]), int(pick[k])
+
+
+def _smallest_of(checker, C, A, only: int, touch: float | None) -> np.ndarray:
+    """:meth:`clearance_of` the poses (``smallest``): all touch at growth ``touch`` (None:
+    not known), so their smallest distance lies within :meth:`touching_bound` of it, and a
+    part farther is not measured (the same smallest value and first pose)."""
+    below = np.inf if touch is None else checker.touching_bound(touch)
+    d = checker.clearance_of(C, A, only, smallest=True, below=below)
+    if np.isfinite(below) and not np.isfinite(d).any():      # (the bound is a proof: not expected)
+        d = checker.clearance_of(C, A, only, smallest=True)
+    return d
 
 
 def _scout_rows(n: int, scouts: int) -> np.ndarray:
@@ -205,7 +216,7 @@ def _bounded(checker, C, A, level: float, only: int, scouts: int, slack: float =
     hit, _ = checker.collides_parts(C[s], A[s], level, only=only)
     if not hit.any():
         return None
-    g = float(checker.clearance_of(C[s[hit]], A[s[hit]], only, smallest=True).min()) + slack
+    g = float(_smallest_of(checker, C[s[hit]], A[s[hit]], only, level).min()) + slack
     if not g < level:
         return None
     hit, parts = checker.collides_parts(C, A, g, only=only)

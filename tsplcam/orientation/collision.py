@@ -889,11 +889,13 @@ class CollisionChecker:
         :meth:`touching_bound`), which the first poses are measured against as well (a part
         farther is not measured: the keycap's first pose spent 29 ms on its holder's distance).
 
-        Parts are measured nearest first by the broad phase's lower bound of their distance;
-        a part is skipped when that bound, or a collision query of the part grown by the
-        nearest distance measured so far (it contains every point within that distance), shows
-        it lies farther: it cannot be the smallest, and a distance query against the whole
-        workpiece costs a hundred collision queries (the holder's long cylinder most).
+        Parts are measured bottom up (the lowest are the nearest on most poses and the
+        cheapest: the keycap's shank 0.4-0.8 ms a query, its holder's cone 6-29 ms; in the
+        order of the broad phase's lower bounds, whose spheres on the fat holder's axis bound
+        little, the cone went first); a part is skipped when that bound, or a collision query
+        of the part grown by the nearest distance measured so far (it contains every point
+        within that distance), shows it lies farther: it cannot be the smallest, and a
+        distance query against the whole workpiece costs a hundred collision queries.
         """
         C = np.asarray(centers, float).reshape(-1, 3)
         A = np.asarray(axes, float).reshape(-1, 3)

@@ -255,12 +255,14 @@ def _cmd_path(args) -> int:
             t = time.perf_counter()
             verification = measure(path, model, progress=for_stage(bar, "scallop"))
             timing["verify_s"] = time.perf_counter() - t
+        made = {}
         program = make_program(path, model, s, stock=stock, progress=bar, post=bool(s.gcode), plist=plist,
-                               checker=None if ahead is None else ahead.checker)
+                               checker=None if ahead is None else ahead.checker,
+                               meanwhile=(lambda p: made.update(cl=cl_text(p.path))) if s.cl else None)
         timing.update(program.seconds)
         files = []
         if s.cl:
-            files.append((s.cl, cl_text(program.path), "CL file", "ascii"))
+            files.append((s.cl, made["cl"] if "cl" in made else cl_text(program.path), "CL file", "ascii"))
         if baseline is not None and s.baseline_cl:
             files.append((s.baseline_cl, cl_text(baseline), "CL file", "ascii"))
         if s.report:
@@ -356,6 +358,7 @@ class JobResult:
     verification: object = None
     baseline: object = None
     timing: dict = field(default_factory=dict)
+    cl: str | None = None              # the CL data's text, made while the metrics were measured
 
     def report_inputs(self) -> dict:
         """The keyword arguments of :func:`tsplcam.report.write_report` (the orientation's
@@ -409,13 +412,15 @@ def make_job(s: JobSettings, log=None, progress=None, baseline_axes: str = "job"
         f"; collision checker built meanwhile in {ahead.seconds:.2f} s"
     log(f"path: {m.lines} lines, {m.points} points, {m.length:.1f} mm, {m.retractions} retractions "
         f"({timing['path_s']:.2f} s{meanwhile})")
+    made = {}
     program = make_program(path, model, s, stock=stock, progress=progress, plist=plist,
-                           checker=None if ahead is None else ahead.checker)
+                           checker=None if ahead is None else ahead.checker,
+                           meanwhile=lambda p: made.update(cl=cl_text(p.path)))
     timing.update(program.seconds)
     if program.metrics is not None:
         log(f"tool axes ({s.orientation}): {program.metrics.summary()} ({timing['orientation_s']:.2f} s)")
     log(program.posted.summary())
-    job = JobResult(s, model, plist, tool, machine, stock, path, program, timing=timing)
+    job = JobResult(s, model, plist, tool, machine, stock, path, program, timing=timing, cl=made.get("cl"))
     if s.verify:
         from .verify.scallop import measure
         t = time.perf_counter()
@@ -483,7 +488,8 @@ def run_job(s: JobSettings, log=print, progress=None) -> dict:
     cl_name = os.path.splitext(name)[0] + ".cl"
     figures["files"] = {"program": name, "cl": cl_name}
     files = [(os.path.join(s.out, name), post.text, "program", "ascii"),
-             (os.path.join(s.out, cl_name), cl_text(job.program.path), "CL file", "ascii"),
+             (os.path.join(s.out, cl_name), job.cl if job.cl is not None else cl_text(job.program.path),
+              "CL file", "ascii"),
              (os.path.join(s.out, "processing-list.json"), list_text(job.plist), "processing list")]
     made = make_folders(s.out)
     draft = None

@@ -205,7 +205,7 @@ class Program:
 
 
 def make_program(path, model, settings: JobSettings, stock=None, progress=None, post: bool = True,
-                 plist=None, checker=None) -> Program:
+                 plist=None, checker=None, meanwhile=None) -> Program:
     """Tool axes and machine program of ``path`` (a ToolPath of ``model``) by ``settings``
     (its ``tool``, ``orientation``, ``holder_clearance``, ``smoothing_length``,
     ``rotary_weight``, ``machine`` and ``dialect``). With more than one process the axes are
@@ -220,7 +220,11 @@ def make_program(path, model, settings: JobSettings, stock=None, progress=None, 
     False stops before the machine program; ``plist``: the processing list, whose steps may
     carry tool-axis settings for their patch; ``checker``: a CollisionChecker already built
     for this model, tool, stock and holder clearance (another path of the same job), reused
-    rather than built again. Raises InputError, CollisionError or
+    rather than built again; ``meanwhile(program)``: work of the caller's on the program
+    (e.g. the job's CL text) done once it is posted, before the wait for the metrics the forked
+    process measures (``program.metrics`` is then None; with one process they are there), so
+    in time this process would otherwise wait (the keycap's: 0.03-0.08 s). Raises InputError,
+    CollisionError or
     KinematicsError naming the place; a path that collides is never returned."""
     one_blas_thread()
     machine = load_machine(settings)
@@ -258,6 +262,10 @@ def make_program(path, model, settings: JobSettings, stock=None, progress=None, 
                     pending.first()
                 raise
             program.seconds["post_s"] = time.perf_counter() - t
+        if program.report is not None:
+            program.report.finish()      # (what orient left for this time: a figure of its report)
+        if meanwhile is not None:
+            meanwhile(program)
         if pending is not None:
             t = time.perf_counter()
             program.metrics = pending.result()
@@ -325,8 +333,10 @@ def _orient(path, model, settings: JobSettings, tool, machine, stock, progress, 
     if beside and len(path) >= MIN_POINTS and Aside.can_fork():
         companion = ball_check(path, checker, then=(min_clearance, checker))
     try:
+        # with the companion, the report's forced C travel is left for the wait for its metrics
         oriented, report = orient(path, model, tool, settings=base, per_patch=per_patch, checker=checker,
-                                  machine=machine, progress=for_stage(progress, "tool axes"), ball=companion)
+                                  machine=machine, progress=for_stage(progress, "tool axes"), ball=companion,
+                                  later=companion is not None)
         tick(progress, "checking axes", 0, 1)
     except BaseException:                        # (a process waiting for its second piece)
         if companion is not None:
@@ -339,6 +349,7 @@ def _orient(path, model, settings: JobSettings, tool, machine, stock, progress, 
         clear = companion.follow(oriented.center, oriented.axis)
         if clear.forked:
             return Program(oriented, report, None, checker=checker), _Metrics(measure, clear)
+        report.finish()
         metrics = measure(measured=clear.result)
     else:
         metrics = measure()

@@ -82,6 +82,14 @@ class OrientationReport:
     tolerance: float = 0.0
     triangles: int = 0
     settings: dict = field(default_factory=dict)
+    _later: object = field(default=None, repr=False, compare=False)   # what finish() computes
+
+    def finish(self) -> None:
+        """Compute the figures :func:`orient` left for later (``later``: the forced C travel),
+        into this report and the oriented path's ``info``; nothing when none is left."""
+        later, self._later = self._later, None
+        if later is not None:
+            later()
 
     def summary(self) -> str:
         forced = "" if self.c_travel_forced_deg is None else \
@@ -244,12 +252,14 @@ def _spacing(path) -> np.ndarray:
 
 def orient_smooth(path, checker, preferred, limits: Limits, reach, feed, smoothing_length: float,
                   max_step: float, window: int = 2, cost: SmoothingCost | None = None,
-                  constraints=(), pole_tilt: float = 0.0, tick=None):
+                  constraints=(), pole_tilt: float = 0.0, tick=None, later: bool = False):
     """xu2013 after the module docstring, in the machine's joint space (orientation.smoothing):
     a Viterbi programme over the poses of a grid of rotary values (each with its admissible
     tilt nearest the preferred axis) with lazy collision checks, then the continuous
     joint-space smoothing. ``preferred`` (3,) or (n,3); ``constraints``: more half-spaces
-    ``(h, b)``, ``h . a >= b``, the axes must keep (the controls' cones)."""
+    ``(h, b)``, ``h . a >= b``, the axes must keep (the controls' cones). ``later``: the
+    figure of the forced C travel (info ``c_travel_forced_deg``) comes as a function that
+    computes it, for a caller with time to spare later (it changes no axis)."""
     n = len(path)
     C = path.center
     pref = unit(np.broadcast_to(preferred, (n, 3)).copy())
@@ -285,7 +295,9 @@ def orient_smooth(path, checker, preferred, limits: Limits, reach, feed, smoothi
                              f"axes within the maximum step of {max_step / DEG:.1f} deg (raise max_step "
                              "or the cone limits, or split the path there)") from None
     # the least rotary travel any sequence of the grid's poses known or presumed free can have
-    forced, _ = forced_rotary_travel(grid, status, ds, air=air)
+    def forced_deg() -> float:
+        return forced_rotary_travel(grid, status, ds, air=air)[0] / DEG
+    forced = forced_deg if later else forced_deg()
     theta = grid.theta[np.arange(n), states].copy()
     phi = grid.phi[states]
     phi = phi[0] + np.concatenate([[0.0], np.cumsum(np.pi - np.mod(np.pi - np.diff(phi), 2 * np.pi))])
@@ -294,7 +306,7 @@ def orient_smooth(path, checker, preferred, limits: Limits, reach, feed, smoothi
                                      free_tilt=free_tilts(grid, status), move_free=moving, pole_tilt=pole_tilt, tick=lambda: tick(M))
     return rot.axis(theta, phi), {"dp_rounds": rounds, "resolved_points": 0,
                                   "relaxation_moves": info["joint_checks"], "candidates": M,
-                                  "dp_checks": checks, "c_travel_forced_deg": forced / DEG} | info
+                                  "dp_checks": checks, "c_travel_forced_deg": forced} | info
 
 
 def forced_c_travel(path, checker, machine=None, *, resolution: float = 10.0, lead_max: float = 60.0,
@@ -425,9 +437,11 @@ def orient_target(path, checker, targets, reach, constraints=()):
     return A, {}
 
 
-def _axes(path, s: OrientationSettings, per_patch, checker, machine, reach, limits: Limits, tick):
+def _axes(path, s: OrientationSettings, per_patch, checker, machine, reach, limits: Limits, tick,
+          later: bool = False):
     """The tool axes of :func:`orient` run by run of one strategy: (axes, target axes, the
-    strategies' figures summed, the smooth strategy's cost, the forced C travel)."""
+    strategies' figures summed, the smooth strategy's cost, the forced C travel: None, or with
+    ``later`` a function that computes it)."""
     n = len(path)
     feed = cutting_directions(path)
     # per point: strategy, target axis and the largest-tilt cone
@@ -446,7 +460,7 @@ def _axes(path, s: OrientationSettings, per_patch, checker, machine, reach, limi
     axes = np.zeros((n, 3))
     info: dict = {}
     cost = None
-    forced = 0.0                       # the C travel the cones force, summed over the runs
+    forced = []                        # the C travel the cones force, per run (None: unknown)
     for a, b in runs(strat):
         seg = path if (a, b) == (0, n) else _segment(path, a, b)
         cons = [(lim_h[a:b], lim_b[a:b])] if limited else []
@@ -457,21 +471,29 @@ def _axes(path, s: OrientationSettings, per_patch, checker, machine, reach, limi
             c2 = smoothing_cost(machine, reach, CLOSEST_LENGTH, s.rotary_weight, path.feed)
             ax, inf = orient_smooth(seg, checker, pref[a:b], limits, reach, feed[a:b], CLOSEST_LENGTH,
                                     s.max_step * DEG, cost=c2, constraints=cons, pole_tilt=pole * DEG,
-                                    tick=tick)
+                                    tick=tick, later=later)
         else:
             cost = smoothing_cost(machine, reach, s.smoothing_length, s.rotary_weight, path.feed,
                                   travel=TRAVEL_WEIGHT)
             ax, inf = orient_smooth(seg, checker, pref[a:b], limits, reach, feed[a:b], s.smoothing_length,
                                     s.max_step * DEG, cost=cost, constraints=cons, pole_tilt=pole * DEG,
-                                    tick=tick)
+                                    tick=tick, later=later)
         axes[a:b] = ax
         # the forced C travel from the smooth strategy's checks only: "closest" checks too few
         # poses for its lazy figure to be near the grid's
         f = inf.pop("c_travel_forced_deg", None) if kind == "smooth" else None
-        forced = None if forced is None or f is None else forced + f
+        forced = None if forced is None or f is None else forced + [f]
         for k, v in inf.items():
             info[k] = info.get(k, 0) + v if isinstance(v, (int, float)) else v
-    return axes, pref, info, cost, forced
+    if forced is None:
+        return axes, pref, info, cost, None
+
+    def total() -> float:
+        out = 0.0                                     # (summed in the runs' order, from 0)
+        for f in forced:
+            out = out + (f() if callable(f) else f)
+        return out
+    return axes, pref, info, cost, total if later else total()
 
 
 def orient(path, model=None, tool=None, strategy: str | None = None, *, settings: OrientationSettings | None = None,
@@ -480,7 +502,7 @@ def orient(path, model=None, tool=None, strategy: str | None = None, *, settings
            tilt_max: float | None = None, resolution: float | None = None, max_step: float | None = None,
            smoothing_length: float | None = None, tolerance: float = 0.005, clearance: float = 0.0,
            max_tilt: float | None = None, rotary_weight: float | None = None, pole_tilt: float | None = None,
-           progress=None, ball: Aside | None = None):
+           progress=None, ball: Aside | None = None, later: bool = False):
     """Tool axes for ``path`` (a ToolPath). Angles in degrees at this interface.
 
     ``settings``: an :class:`OrientationSettings` (strategy, target, limits, smoothing; see
@@ -497,6 +519,9 @@ def orient(path, model=None, tool=None, strategy: str | None = None, *, settings
     checked so far against the most there can be; the last call has done == total.
     ``ball``: the caller's :func:`ball_check` of this path and checker, started already (the
     caller keeps it, e.g. for a second piece in its process); by default orient starts its own.
+    ``later``: the report's forced C travel (a figure only: 0.016-0.019 s on the keycap) is
+    computed at :meth:`OrientationReport.finish`, which the caller calls when it has time to
+    spare (e.g. while a forked process measures the axes); till then it is None.
     Returns ``(path_with_axes, OrientationReport)``; raises CollisionError where no
     admissible collision-free axis exists (naming point, patch, (u, v) and the obstacle), or
     where a fixed target collides.
@@ -548,7 +573,8 @@ def orient(path, model=None, tool=None, strategy: str | None = None, *, settings
         if ball is None:
             ball = own.enter_context(ball_check(path, checker))
         try:
-            axes, pref, info, cost, forced = _axes(path, s, per_patch, checker, machine, reach, limits, tick)
+            axes, pref, info, cost, forced = _axes(path, s, per_patch, checker, machine, reach, limits, tick,
+                                                   later=later)
         except Exception:
             ball.first()
             raise
@@ -569,7 +595,13 @@ def orient(path, model=None, tool=None, strategy: str | None = None, *, settings
                             relaxation_moves=info.get("relaxation_moves", 0),
                             max_step_deg=float(steps.max()), mean_step_deg=float(steps.mean()),
                             max_deviation_deg=float((angle(axes, pref) / DEG).max()),
-                            c_travel_forced_deg=None if forced is None else round(float(forced), 6),
+                            c_travel_forced_deg=None if forced is None or callable(forced) else round(float(forced), 6),
                             tolerance=checker.tolerance, triangles=checker.triangles, settings=settings_used)
-    out.info["orientation"] = settings_used | {"report": rep.summary(), "c_travel_forced_deg": rep.c_travel_forced_deg}
+    told = out.info["orientation"] = settings_used | {"report": rep.summary(),
+                                                      "c_travel_forced_deg": rep.c_travel_forced_deg}
+    if callable(forced):
+        def finish() -> None:
+            rep.c_travel_forced_deg = round(float(forced()), 6)
+            told.update(report=rep.summary(), c_travel_forced_deg=rep.c_travel_forced_deg)
+        rep._later = finish
     return out, rep

@@ -249,8 +249,10 @@ class OneProgramBuilder(unittest.TestCase):
                               log=lambda *a: None, progress=lambda stage, done, total: None)
             with open(os.path.join(tmp, "job", "keycap.nc"), "rb") as fh:
                 job_program = fh.read()
+            with open(os.path.join(tmp, "job", "keycap.cl"), "rb") as fh:
+                job_cl = fh.read()
             argv = ["path", "keycap", "--tool-radius", "0.5", "--tool", "ball1_keycap", "--orientation", "smooth",
-                    "--gcode", os.path.join(tmp, "path.nc")]
+                    "--gcode", os.path.join(tmp, "path.nc"), "--cl", os.path.join(tmp, "path.cl")]
             for k, v in options.items():
                 argv += ["--" + k.replace("_", "-"), str(v)]
             err = io.StringIO()
@@ -258,10 +260,19 @@ class OneProgramBuilder(unittest.TestCase):
                 self.assertEqual(main(argv), 0, err.getvalue())
             with open(os.path.join(tmp, "path.nc"), "rb") as fh:
                 self.assertEqual(fh.read(), job_program)
+            # (both CL texts made while the forked process measured the axes' clearance; their
+            # comments and PARTNO name the model as each was given: keycap.obj, keycap)
+            with open(os.path.join(tmp, "path.cl"), "rb") as fh:
+                path_cl = fh.read()
+            body = [[ln for ln in t.splitlines() if not ln.startswith((b"$$", b"PARTNO"))] for t in (path_cl, job_cl)]
+            self.assertGreater(len(body[0]), 1000)
+            self.assertEqual(body[0], body[1])
         self.assertEqual(figures["orientation"]["collisions"], 0)
         self.assertGreaterEqual(figures["orientation"]["min_clearance"], 0.25 - 1e-6)
         self.assertIn(b"G43.4", job_program)             # Fanuc's tool centre point control
         self.assertEqual(figures["settings"]["feed"], 800.0)   # the value given, not computed
+        # the forced C travel, left by the orientation for that wait, is there
+        self.assertIsNotNone(figures["machine_motion"].get("c_travel_forced_deg"))
 
 
 @needs_freecad

@@ -75,6 +75,22 @@ class RotaryTargets:
 class Keycap(RotaryTargets, unittest.TestCase):
     part = "keycap"
 
+    def test_forced_travel_left_for_later(self):
+        """orient(later=True): the same axes; the report's forced C travel (and the path's
+        info) None until finish(), then the figure orient gives at once."""
+        out, rep = orient(self.path, checker=self.checker, strategy="smooth", machine=self.machine, later=True)
+        now_out, now = self.results["smooth"][0], self.results["smooth"][1]["c_travel_forced_deg"]
+        self.assertTrue((out.axis == now_out.axis).all())        # the same code: the same bits
+        self.assertIsNone(rep.c_travel_forced_deg)
+        self.assertIsNone(out.info["orientation"]["c_travel_forced_deg"])
+        rep.finish()
+        self.assertIsNotNone(now)
+        self.assertEqual(rep.c_travel_forced_deg, now)
+        self.assertEqual(out.info["orientation"]["c_travel_forced_deg"], now)
+        self.assertIn(f"force {now:.0f} deg", out.info["orientation"]["report"])
+        rep.finish()                                             # once only: nothing left
+        self.assertEqual(rep.c_travel_forced_deg, now)
+
     def test_c_travel_on_the_convex_part(self):
         f = self.results["smooth"][1]
         self.assertLessEqual(f["c_deg_per_mm"], 1.0, f)

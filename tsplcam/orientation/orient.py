@@ -469,9 +469,10 @@ def _axes(path, s: OrientationSettings, per_patch, checker, machine, reach, limi
             ax, inf = orient_target(seg, checker, pref[a:b], reach, cons)
         elif kind == "closest":
             c2 = smoothing_cost(machine, reach, CLOSEST_LENGTH, s.rotary_weight, path.feed)
+            # (later: its forced C travel is dropped below, so it is never computed)
             ax, inf = orient_smooth(seg, checker, pref[a:b], limits, reach, feed[a:b], CLOSEST_LENGTH,
                                     s.max_step * DEG, cost=c2, constraints=cons, pole_tilt=pole * DEG,
-                                    tick=tick, later=later)
+                                    tick=tick, later=True)
         else:
             cost = smoothing_cost(machine, reach, s.smoothing_length, s.rotary_weight, path.feed,
                                   travel=TRAVEL_WEIGHT)

@@ -117,8 +117,9 @@ class CheckerAhead:
     """The orientation stage's collision checker, built ahead: called as ``while_waiting``
     of :func:`make_path`, it builds the checker (the part's tessellation, the stock, the
     broad phase's distance grids) and loads the compiled kernels (the ahead-of-time module,
-    else numba's machinery) while the path's workers make the points, in the main process
-    that would otherwise only wait for them.
+    else numba's machinery) while the path's worker makes the points, in the main process,
+    which takes the pieces left once it is done (it counts as one of the cores:
+    :func:`tsplcam.toolpath.parallel.map_pieces`).
 
     ``checker``: the CollisionChecker once built (None when not called: one process, or
     failed); its time then counts in the path stage's seconds, not the orientation's

@@ -18,8 +18,9 @@ starts: threads, numba); once it is done the calling process takes pieces too, t
 the results. It counts as one of the processes either way: with two cores, one worker makes
 pieces beside it (a second one made three processes on two cores, and the collision
 checker, which the next stage waits for, then took a third longer than its CPU time: the
-keycap's path stage ended 0.06-0.12 s after the pieces; the keycap_mold's 0.52 -> 0.45 s). Pieces of work asked for meanwhile and inside the pieces it makes
-(:func:`worker_count`) stay in the one process: the cores are taken by the workers.
+keycap's path stage ended 0.06-0.12 s after the pieces; keycap_mold's path 0.52 -> 0.45 s).
+Pieces of work asked for meanwhile and inside the pieces it makes (:func:`worker_count`)
+stay in the one process: the cores are taken by the workers.
 """
 from __future__ import annotations
 

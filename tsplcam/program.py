@@ -117,7 +117,7 @@ class CheckerAhead:
     """The orientation stage's collision checker, built ahead: called as ``while_waiting``
     of :func:`make_path`, it builds the checker (the part's tessellation, the stock, the
     broad phase's distance grids) and loads the compiled kernels (the ahead-of-time module,
-    else numba's machinery) while the path's worker makes the points, in the main process,
+    else numba's machinery) while the path's workers make the points, in the main process,
     which takes the pieces left once it is done (it counts as one of the cores:
     :func:`tsplcam.toolpath.parallel.map_pieces`).
 

@@ -160,6 +160,53 @@ class ExtraordinaryPoints(unittest.TestCase):
             self.assertEqual(scheme.K, 2 * n + 8)
             np.testing.assert_allclose(np.sort(scheme.lam)[::-1], ref, atol=1e-12)
 
+    def test_one_scheme_per_kind_whatever_the_mesh_order(self):
+        """Every irregular face of a kind shares one scheme, built from the kind's canonical
+        faces: its matrices equal (to rounding) those of a template in the mesh's own face
+        order, and its bits do not depend on which face or model came first."""
+        from tsplcam.model import eigen
+        mesh = ngon_prism(5, seed=1).mesh.refine()[0]
+        irregular = [(f, k) for f in range(len(mesh.faces)) for k in range(4)
+                     if len(mesh.fan(int(mesh.faces[f][k]))[0]) != 4]
+        saved = dict(eigen._SCHEMES)
+        try:
+            eigen._SCHEMES.clear()
+            got = [scheme_for(mesh, f, k)[0] for f, k in irregular]
+            kinds = {id(s) for s in got}
+            # valence 5 at both poles, valence 3 at the rims: two kinds for 10 + 10 + 24 faces
+            self.assertEqual(len(kinds), 2, f"{len(irregular)} irregular faces")
+            for (f, k), sch in zip(irregular, got):
+                config = mesh.config(f, k)
+                local = {v: i for i, v in enumerate(config)}
+                faces = mesh.neighbourhood_faces(f)
+                tfaces = np.array([[local[int(v)] for v in mesh.faces[g]] for g in faces])
+                directed = {(int(mesh.faces[h][m]), int(mesh.faces[h][(m + 1) % 4]))
+                            for h in faces for m in range(4)}
+                cut = {(min(local[a], local[b]), max(local[a], local[b]))
+                       for g in faces for a, b in zip(mesh.faces[g], np.roll(mesh.faces[g], -1))
+                       if (int(b), int(a)) not in directed}
+                own = eigen.SubdivisionScheme(QuadMesh(tfaces, len(config), mesh.boundary_rule),
+                                              faces.index(f), k, cut, "mesh order")
+                np.testing.assert_allclose(sch.A, own.A, rtol=0, atol=1e-15)
+                np.testing.assert_allclose(sch.S, own.S, rtol=0, atol=1e-15)
+                np.testing.assert_allclose(sch.limit_mask, own.limit_mask, rtol=0, atol=1e-14)
+            # the same bits when another model's faces of these kinds came first
+            eigen._SCHEMES.clear()
+            other = ngon_prism(5, seed=7).mesh.refine()[0]
+            for f in range(len(other.faces)):
+                for k in range(4):
+                    if len(other.fan(int(other.faces[f][k]))[0]) != 4:
+                        scheme_for(other, f, k)
+            again = [scheme_for(mesh, f, k)[0] for f, k in reversed(irregular)][::-1]
+            for a, b in zip(got, again):
+                np.testing.assert_array_equal(a.A, b.A)
+                np.testing.assert_array_equal(a.S, b.S)
+                for x, y in zip(a.tangent_masks, b.tangent_masks):
+                    np.testing.assert_array_equal(x, y)
+        finally:
+            eigen._SCHEMES.clear()
+            eigen._SCHEMES.update(saved)
+
     def test_convergence_to_the_limit_point(self):
         cage = ngon_prism(5, seed=3)
         model = cage_model(cage)

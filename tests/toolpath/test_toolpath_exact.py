@@ -113,8 +113,10 @@ class SameBytes(unittest.TestCase):
 
     def test_extraordinary_groups_in_one_call(self):
         """The patch's LevelCells groups evaluated together give what each group gives alone,
-        near the irregular corners too (points below the nets' deepest level included)."""
-        p = self.model.patches[4]
+        near the irregular corners too (points below the nets' deepest level included). A
+        group holds the cells of one subdivision scheme, one per kind of irregular vertex
+        (the keycap's patches have one kind each); figure4's first patch has two kinds."""
+        p = load_model("figure4").patches[0]
         levels = p._level_set()
         self.assertIsNotNone(levels)
         n = 300

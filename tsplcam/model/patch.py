@@ -529,8 +529,9 @@ class Patch:
 
 
 class _LevelSet:
-    """Several LevelCells groups of one patch (one per configuration of an extraordinary
-    corner, often one cell each) evaluated from their cached Bezier nets in one call: their
+    """Several LevelCells groups of one patch (one per subdivision scheme, i.e. per kind of
+    extraordinary corner: figure4's first patch has two) evaluated from their cached Bezier
+    nets in one call: their
     per-cell tables one after the other, the same per-point arithmetic
     (``LevelCells._evaluate_nets``; no product spans points). Points below the nets' deepest
     level go to their own group's configuration route, the same points in the same order as

@@ -531,11 +531,10 @@ class Patch:
 class _LevelSet:
     """Several LevelCells groups of one patch (one per subdivision scheme, i.e. per kind of
     extraordinary corner: figure4's first patch has two) evaluated from their cached Bezier
-    nets in one call: their
-    per-cell tables one after the other, the same per-point arithmetic
-    (``LevelCells._evaluate_nets``; no product spans points). Points below the nets' deepest
-    level go to their own group's configuration route, the same points in the same order as
-    the group's own call would give it."""
+    nets in one call: their per-cell tables one after the other, the same per-point
+    arithmetic (``LevelCells._evaluate_nets``; no product spans points). Points below the
+    nets' deepest level go to their own group's configuration route, the same points in the
+    same order as the group's own call would give it."""
 
     def __init__(self, groups: list, members: list[int]):
         gs = [groups[g] for g in members]

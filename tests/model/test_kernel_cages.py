@@ -173,7 +173,7 @@ class ExtraordinaryPoints(unittest.TestCase):
             eigen._SCHEMES.clear()
             got = [scheme_for(mesh, f, k)[0] for f, k in irregular]
             kinds = {id(s) for s in got}
-            # valence 5 at both poles, valence 3 at the rims: two kinds for 10 + 10 + 24 faces
+            # valence 5 at both poles, valence 3 on the rims: two kinds for 10 + 30 faces
             self.assertEqual(len(kinds), 2, f"{len(irregular)} irregular faces")
             for (f, k), sch in zip(irregular, got):
                 config = mesh.config(f, k)

@@ -155,6 +155,30 @@ class AgreesWithFcl(unittest.TestCase):
             self.assertEqual(int(((st == FREE) & ref).sum()), 0)
             self.assertEqual(int(((st == HIT) & ~ref).sum()), 0)
 
+    def test_fcl_workers_answer_as_one_process(self):
+        """fcl batches shared among forked workers (started by a batch of ``POOL_START`` poses
+        or more) give the answers of this process alone."""
+        from tsplcam.orientation import collision
+        from tsplcam.toolpath.parallel import worker_count
+        if worker_count(None, 4) < 2:
+            self.skipTest("one core: no workers")
+        ch = self.mold
+        rng = np.random.default_rng(13)
+        C, A = random_poses(self.mold_path, 1600, rng, spread=0.02, tilt=np.radians(70))
+        alone = ch._fcl_here(C, A, 0.1, np.full(len(C), -1))
+        start = collision.POOL_START
+        try:
+            collision.POOL_START = 1000
+            shared = ch._fcl(C, A, 0.1)
+            self.assertIsNotNone(getattr(ch, "_workers", None), "no workers started")
+        finally:
+            collision.POOL_START = start
+            pool = ch.__dict__.pop("_workers", None)
+            if pool is not None:
+                pool.terminate()
+        np.testing.assert_array_equal(shared, alone)
+        self.assertTrue(alone.any() and not alone.all())
+
     @staticmethod
     def _sphere_loop(b, C, A, grow, parts, kern):
         """(status, unresolved parts, free cones, witness table) of the sphere loop alone on

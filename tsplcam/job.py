@@ -472,7 +472,6 @@ def import_ahead() -> None:
     are (without byte-code caches about 20 ms of compiling, 6.5 ms of it in the forked
     process's clearance search on the keycap job)."""
     import elkai  # noqa: F401
-    import multiprocessing.pool  # noqa: F401
     import multiprocessing.popen_fork  # noqa: F401
     import multiprocessing.queues  # noqa: F401
     import multiprocessing.sharedctypes  # noqa: F401

@@ -157,5 +157,53 @@ class CachedNetsEqualLevels(unittest.TestCase):
         self.check(tspline_model(quad_tmesh(cage.points, cage.mesh.faces)), "head")
 
 
+class PolynomialWhateverTheBlas(unittest.TestCase):
+    """A polynomial cage's cells next to extraordinary points have weights exactly 1 and
+    weight derivatives exactly 0, whatever the rounding of the BLAS's sums (OpenBLAS picks
+    its kernels by processor: with its Haswell kernels the keycap's limit weight came out
+    1 - 2^-53, its vertex's weight derivatives 0.022, and no patch of the keycap evaluated
+    as polynomial; with its SkylakeX kernels all five)."""
+
+    def test_limit_mask_off_by_an_ulp(self):
+        model = tsplcam.load_model("keycap")
+        group = next(g for g in model.patches[0].groups if isinstance(g, LevelCells))
+        scheme = group.scheme
+        C0 = np.column_stack([np.random.default_rng(3).normal(size=(scheme.K, 3)), np.ones(scheme.K)])
+        mask = scheme.limit_mask
+        for off in (np.finfo(float).eps, -np.finfo(float).eps / 2):
+            scheme.limit_mask = mask * (1.0 + off)              # a sum 1 +- an ulp, as another BLAS's
+            try:
+                L, d = scheme.levels(C0, 8)
+            finally:
+                scheme.limit_mask = mask
+            self.assertEqual(L[3], 1.0)
+            self.assertTrue(np.all(d[..., 3] == 0.0))
+            self.assertLess(np.abs(L[:3] - mask @ C0[:, :3]).max(), 1e-14)
+        rational = C0.copy()
+        rational[0, 3] = 1.5                                    # a weight not 1: computed as it is
+        L, d = scheme.levels(rational, 2)
+        self.assertEqual(L[3], mask @ rational[:, 3])
+
+    def test_samples_polynomial_with_every_kernel(self):
+        """The samples' patches evaluate as polynomial with the kernels this processor runs
+        (OPENBLAS_CORETYPE; each in a process of its own, as the variable is read when the
+        library loads)."""
+        import os
+        import subprocess
+        import sys
+        flags = open("/proc/cpuinfo", encoding="utf-8").read() if os.path.exists("/proc/cpuinfo") else ""
+        kinds = [k for k, flag in (("Haswell", " avx2"), ("SkylakeX", " avx512f")) if flag in flags]
+        if not kinds:
+            self.skipTest("no AVX2 here: one BLAS kernel only")
+        code = ("import tsplcam; print([sum(p._polynomial() for p in tsplcam.load_model(m).patches) "
+                "for m in ('keycap', 'figure4')])")
+        root = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+        for kind in kinds:
+            env = dict(os.environ, OPENBLAS_CORETYPE=kind, PYTHONPATH=root)
+            out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True,
+                                 check=True, cwd=root).stdout
+            self.assertEqual(out.strip(), "[5, 12]", kind)
+
+
 if __name__ == "__main__":
     unittest.main()

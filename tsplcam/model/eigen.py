@@ -93,8 +93,16 @@ class SubdivisionScheme:
         """Limit point L (4,) and d_m = A^m (C0 - L) for m < count, (count, K, 4).
 
         Iterating on the difference keeps full relative precision at every level: no O(1)
-        quantities ever cancel, unlike powers of A applied to C0."""
+        quantities ever cancel, unlike powers of A applied to C0. Where every weight of C0 is
+        exactly 1 (a polynomial cage), L's weight is 1 and the differences' weights 0, exactly:
+        the limit mask sums to 1 and A keeps constants (affine invariance). Computed, they
+        are 1 and 0 only up to the rounding of the BLAS's sums, which depends on the kernel
+        it picks for the processor (OpenBLAS's Haswell kernels left 2^-53 on the keycap's
+        limit weight, grown to 0.022 by the deep levels' scaling, SkylakeX's none), and
+        that decides whether the patch is evaluated as polynomial (``Patch._polynomial``)."""
         L = self.limit_mask @ C0
+        if C0.shape[1] == 4 and np.all(C0[:, 3] == 1.0):
+            L[3] = 1.0
         d = np.empty((count, self.K, C0.shape[1]))
         d[0] = C0 - L[None, :]
         for m in range(1, count):

@@ -102,10 +102,17 @@ def _fails_in_workers(how, i):
     return (i, os.getpid())
 
 
-def _own_children() -> list:
+def _own_children(wait: float = 5.0) -> list:
     """This process's children that map_pieces could have left (a collision checker's pool,
-    which tests before may leave to the garbage collector, is not map_pieces')."""
-    return [p for p in multiprocessing.active_children() if not p.name.startswith("ForkPoolWorker")]
+    which tests before may leave to the garbage collector, is not map_pieces'), once they
+    had ``wait`` seconds to exit: workers whose pieces are all in exit by themselves, not
+    waited for."""
+    end = time.monotonic() + wait
+    while True:
+        left = [p for p in multiprocessing.active_children() if not p.name.startswith("ForkPoolWorker")]
+        if not left or time.monotonic() > end:
+            return left
+        time.sleep(0.01)
 
 
 class SharedHandOut(unittest.TestCase):

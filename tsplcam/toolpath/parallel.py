@@ -139,10 +139,14 @@ def map_pieces(fn, shared: tuple, count: int, workers: int, order=None, tick=Non
                     break                     # a worker died: its piece is run again below
         finished = True
     finally:
-        for p in procs:                    # stopped when the work was: an error, a tick raising
-            if not finished and p.exitcode is None:
-                p.terminate()
-            p.join()
+        if not finished:                   # stopped when the work was: an error, a tick raising
+            for p in procs:
+                if p.exitcode is None:
+                    p.terminate()
+                p.join()
+        # (else every piece is in: the workers exit by themselves, reaped at multiprocessing's
+        # next start, as an Aside's process is; their exit, a 400 MB process's teardown,
+        # took 3.3-4.1 ms of the keycap job's path stage when waited for)
         sent.close()
     out = [None] * count
     for index in range(count):                                # the first failure raises

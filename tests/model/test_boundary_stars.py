@@ -303,6 +303,22 @@ def star_normals(model):
 
 
 class BookStars(TempFiles):
+    def test_defective_eigenvalue_at_its_mean(self):
+        """The boundary vertex of four faces: its scheme's eigenvalue 0.5 is defective, which
+        ``eigvals`` gives as a pair 0.5 +- 1e-8 (by the BLAS kernel's rounding); its tangent
+        mask belongs to 0.5 to the rounding (the pair's mean), so the star's normal is the
+        same whatever the kernel (it moved by up to 1.1e-9 with a mask from one of the pair)."""
+        from tsplcam.model import eigen
+        cage, _, _ = book(4)
+        tsm_model(self.write(cage, "book4"))
+        schemes = [s for s in eigen._SCHEMES.values() if s.label.startswith("boundary vertex of 4 faces")]
+        self.assertTrue(schemes)
+        for s in schemes:
+            m = s.tangent_masks[1]
+            lam = float(m @ s.A @ m / (m @ m))                  # its Rayleigh quotient
+            self.assertLess(abs(lam - 0.5), 1e-13, lam)
+            self.assertLess(float(np.abs(m @ s.A - 0.5 * m).max()), 1e-13)
+
     def test_four_and_five_faces_are_the_cage_limit(self):
         """Boundary stars of four and five faces on uniform books through the kernel, unit and
         rational weights: the cage path's surface on every face (measured at most 2.2e-16 of

@@ -168,13 +168,19 @@ def _tangent_masks(A: np.ndarray, label: str) -> tuple[np.ndarray, np.ndarray]:
     """Two left eigenvectors of the largest eigenvalues below 1: masks whose application to
     the control points gives two tangent vectors at the limit point (Halstead et al. 1993
     write them in closed form for interior Catmull-Clark vertices). Found as null spaces of
-    A^T - lambda I by SVD, which works even where A as a whole is defective."""
+    A^T - lambda I by SVD, which works even where A as a whole is defective.
+
+    Eigenvalues within 1e-6 are one, taken at their mean: a defective one (a Jordan block of
+    two) comes out of ``eigvals`` as a pair split by about the square root of the rounding
+    (the boundary vertex of four faces: 0.5 +- 1e-8), whose mean is exact to the rounding
+    while each of the pair is not; with a tolerance of 1e-8 the pair was split or not by
+    the BLAS kernel's rounding, and the normal there moved by up to 1.1e-9 between kernels."""
     K = len(A)
     lam = np.linalg.eigvals(A)
     lam = np.sort(lam.real[np.abs(lam.imag) < 1e-9])[::-1]
     clusters: list[list[float]] = []            # equal eigenvalues, kept unrounded
     for x in lam:
-        if clusters and abs(clusters[-1][-1] - x) < 1e-8:
+        if clusters and abs(clusters[-1][-1] - x) < 1e-6:
             clusters[-1].append(x)
         else:
             clusters.append([x])

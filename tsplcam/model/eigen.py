@@ -171,13 +171,16 @@ def _tangent_masks(A: np.ndarray, label: str) -> tuple[np.ndarray, np.ndarray]:
     A^T - lambda I by SVD, which works even where A as a whole is defective.
 
     Eigenvalues within 1e-6 are one, taken at their mean: a defective one (a Jordan block of
-    two) comes out of ``eigvals`` as a pair split by about the square root of the rounding
-    (the boundary vertex of four faces: 0.5 +- 1e-8), whose mean is exact to the rounding
-    while each of the pair is not; with a tolerance of 1e-8 the pair was split or not by
-    the BLAS kernel's rounding, and the normal there moved by up to 1.1e-9 between kernels."""
+    two) comes out of ``eigvals`` as a pair split by about the square root of the rounding,
+    along the real axis or across it (the boundary vertex of four faces: 0.5 +- 1e-8 with
+    OpenBLAS's Haswell kernels, 0.5 +- 4e-9 i with its Prescott kernels), whose mean is exact
+    to the rounding while each of the pair is not. With real parts kept only below 1e-9 of
+    imaginary part and a tolerance of 1e-8, the pair was split or not by the kernel's
+    rounding (the normal there moved by up to 1.1e-9 between kernels) or dropped as complex,
+    and the second mask came from the next eigenvalue, 0.366: a normal 90 deg off."""
     K = len(A)
     lam = np.linalg.eigvals(A)
-    lam = np.sort(lam.real[np.abs(lam.imag) < 1e-9])[::-1]
+    lam = np.sort(lam.real[np.abs(lam.imag) < 1e-6])[::-1]
     clusters: list[list[float]] = []            # equal eigenvalues, kept unrounded
     for x in lam:
         if clusters and abs(clusters[-1][-1] - x) < 1e-6:

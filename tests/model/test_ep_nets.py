@@ -157,12 +157,13 @@ class CachedNetsEqualLevels(unittest.TestCase):
         self.check(tspline_model(quad_tmesh(cage.points, cage.mesh.faces)), "head")
 
 
-class PolynomialWhateverTheBlas(unittest.TestCase):
-    """A polynomial cage's cells next to extraordinary points have weights exactly 1 and
-    weight derivatives exactly 0, whatever the rounding of the BLAS's sums (OpenBLAS picks
-    its kernels by processor: with its Haswell kernels the keycap's limit weight came out
-    1 - 2^-53, its vertex's weight derivatives 0.022, and no patch of the keycap evaluated
-    as polynomial; with its SkylakeX kernels all five)."""
+class SameWhateverTheBlas(unittest.TestCase):
+    """What must not depend on the rounding of the BLAS's sums (OpenBLAS picks its kernels by
+    processor): a polynomial cage's cells next to extraordinary points have weights exactly 1
+    and weight derivatives exactly 0 (with its Haswell kernels the keycap's limit weight came
+    out 1 - 2^-53, its vertex's weight derivatives 0.022, and no patch of the keycap evaluated
+    as polynomial; with its SkylakeX kernels all five), and the tangent masks of a defective
+    eigenvalue (test_boundary_stars)."""
 
     def test_limit_mask_off_by_an_ulp(self):
         model = tsplcam.load_model("keycap")
@@ -184,26 +185,57 @@ class PolynomialWhateverTheBlas(unittest.TestCase):
         L, d = scheme.levels(rational, 2)
         self.assertEqual(L[3], mask @ rational[:, 3])
 
-    def test_samples_polynomial_with_every_kernel(self):
-        """The samples' patches evaluate as polynomial with the kernels this processor runs
-        (OPENBLAS_CORETYPE; each in a process of its own, as the variable is read when the
-        library loads)."""
+    def test_the_same_with_every_kernel(self):
+        """With the BLAS kernels this processor runs (OPENBLAS_CORETYPE: Prescott, SSE3 only,
+        with numpy's own SIMD loops off too, as on an old processor; Haswell with AVX2;
+        SkylakeX with AVX-512; each in a process of its own, as both are read when the
+        libraries load): the samples' patches evaluate as polynomial (keycap 5 of 5, figure4
+        12 of 12), and the four-face boundary star's defective eigenvalue 0.5 gives its
+        tangent mask to the rounding (eigvals splits it along the real axis or across it by
+        the kernel: Haswell 0.5 +- 1e-8, Prescott 0.5 +- 4e-9 i, which once gave normals
+        90 deg off), so every patch there has one normal."""
+        import json
         import os
         import subprocess
         import sys
-        flags = open("/proc/cpuinfo", encoding="utf-8").read() if os.path.exists("/proc/cpuinfo") else ""
-        kinds = [k for k, flag in (("Haswell", " avx2"), ("SkylakeX", " avx512f")) if flag in flags]
-        if not kinds:
-            self.skipTest("no AVX2 here: one BLAS kernel only")
-        code = ("import tsplcam; print([sum(p._polynomial() for p in tsplcam.load_model(m).patches) "
-                "for m in ('keycap', 'figure4')])")
-        root = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
-        for kind in kinds:
-            env = dict(os.environ, OPENBLAS_CORETYPE=kind, PYTHONPATH=root)
-            out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True,
-                                 check=True, cwd=root).stdout
-            self.assertEqual(out.strip(), "[5, 12]", kind)
-
+        import tempfile
+        if not os.path.exists("/proc/cpuinfo") or os.uname().machine != "x86_64":
+            self.skipTest("OpenBLAS's x86-64 kernels only")
+        with open("/proc/cpuinfo", encoding="utf-8") as fh:
+            flags = fh.read()
+        old = "SSSE3 SSE41 POPCNT SSE42 AVX F16C FMA3 AVX2 AVX512F AVX512CD AVX512_SKX AVX512_CLX " \
+              "AVX512_CNL AVX512_ICL"
+        kinds = [("Prescott", {"NPY_DISABLE_CPU_FEATURES": old})]
+        kinds += [(k, {}) for k, flag in (("Haswell", " avx2"), ("SkylakeX", " avx512f")) if flag in flags]
+        here = os.path.dirname(os.path.abspath(__file__))
+        root = os.path.dirname(os.path.dirname(here))
+        code = """if True:
+            import json, sys, tempfile
+            import numpy as np
+            import tsplcam
+            from tsplcam.model import eigen
+            sys.path[:0] = [sys.argv[1], sys.argv[2]]
+            import test_boundary_stars as B
+            counts = [sum(p._polynomial() for p in tsplcam.load_model(m).patches) for m in ("keycap", "figure4")]
+            path = sys.argv[3] + "/book4.tsm"
+            B.write_fusion_tsm(B.book(4)[0], path, grip_map=True)
+            model = B.tsm_model(path)
+            s = next(s for s in eigen._SCHEMES.values() if s.label.startswith("boundary vertex of 4 faces"))
+            m = s.tangent_masks[1]
+            normals = B.star_normals(model)
+            spread = max(float(np.linalg.norm(np.cross(n, normals[0]))) for n in normals)
+            print(json.dumps([counts, float(m @ s.A @ m / (m @ m)), spread]))
+        """
+        for kind, extra in kinds:
+            env = dict(os.environ, OPENBLAS_CORETYPE=kind, PYTHONPATH=root, **extra)
+            with tempfile.TemporaryDirectory() as tmp:
+                out = subprocess.run([sys.executable, "-c", code, here, os.path.dirname(here), tmp], env=env,
+                                     capture_output=True, text=True, cwd=root)
+            self.assertEqual(out.returncode, 0, (kind, out.stderr[-2000:]))
+            counts, lam, spread = json.loads(out.stdout.strip().splitlines()[-1])
+            self.assertEqual(counts, [5, 12], kind)
+            self.assertLess(abs(lam - 0.5), 1e-13, kind)
+            self.assertLess(spread, 1e-12, kind)
 
 if __name__ == "__main__":
     unittest.main()

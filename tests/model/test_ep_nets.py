@@ -185,12 +185,26 @@ class SameWhateverTheBlas(unittest.TestCase):
         L, d = scheme.levels(rational, 2)
         self.assertEqual(L[3], mask @ rational[:, 3])
 
+    def test_refined_weights_stay_one(self):
+        """A refinement of a polynomial cage keeps its weights exactly 1 (its rows sum to 1:
+        computed, the sums leave 1 - 1e-16 here and there); a rational cage's are R's."""
+        from tsplcam.model.quadmesh import QuadMesh, refined_points
+        mesh = QuadMesh(np.array([[0, 1, 4, 3], [1, 2, 5, 4], [3, 4, 7, 6], [4, 5, 8, 7]]), 9)
+        child, R, _ = mesh.refine()
+        rng = np.random.default_rng(5)
+        H = np.column_stack([rng.normal(size=(9, 3)) * 10.0, np.ones(9)])
+        out = refined_points(R, H)
+        self.assertTrue(np.all(out[:, 3] == 1.0))
+        self.assertEqual(np.abs(out[:, :3] - R @ H[:, :3]).max(), 0.0)
+        H[0, 3] = 1.5
+        self.assertEqual(np.abs(refined_points(R, H) - R @ H).max(), 0.0)
+
     def test_the_same_with_every_kernel(self):
         """With the BLAS kernels this processor runs (OPENBLAS_CORETYPE: Prescott, SSE3 only,
         with numpy's own SIMD loops off too, as on an old processor; Haswell with AVX2;
         SkylakeX with AVX-512; each in a process of its own, as both are read when the
         libraries load): the samples' patches evaluate as polynomial (keycap 5 of 5, figure4
-        12 of 12), and the four-face boundary star's defective eigenvalue 0.5 gives its
+        12 of 12, the Fusion mold 32 of 32, whose cage is refined once first), and the four-face boundary star's defective eigenvalue 0.5 gives its
         tangent mask to the rounding (eigvals splits it along the real axis or across it by
         the kernel: Haswell 0.5 +- 1e-8, Prescott 0.5 +- 4e-9 i, which once gave normals
         90 deg off), so every patch there has one normal."""
@@ -216,7 +230,8 @@ class SameWhateverTheBlas(unittest.TestCase):
             from tsplcam.model import eigen
             sys.path[:0] = [sys.argv[1], sys.argv[2]]
             import test_boundary_stars as B
-            counts = [sum(p._polynomial() for p in tsplcam.load_model(m).patches) for m in ("keycap", "figure4")]
+            counts = [sum(p._polynomial() for p in tsplcam.load_model(m).patches)
+                      for m in ("keycap", "figure4", "fusion_mold")]
             path = sys.argv[3] + "/book4.tsm"
             B.write_fusion_tsm(B.book(4)[0], path, grip_map=True)
             model = B.tsm_model(path)
@@ -233,7 +248,7 @@ class SameWhateverTheBlas(unittest.TestCase):
                                      capture_output=True, text=True, cwd=root)
             self.assertEqual(out.returncode, 0, (kind, out.stderr[-2000:]))
             counts, lam, spread = json.loads(out.stdout.strip().splitlines()[-1])
-            self.assertEqual(counts, [5, 12], kind)
+            self.assertEqual(counts, [5, 12, 32], kind)
             self.assertLess(abs(lam - 0.5), 1e-13, kind)
             self.assertLess(spread, 1e-12, kind)
 

@@ -30,7 +30,7 @@ from .basis import BSPLINE_TO_BEZIER
 from .cells import BezierCells, LevelCells
 from .eigen import NotSelfSimilar, scheme_for
 from .patch import rotation_map
-from .quadmesh import QuadMesh
+from .quadmesh import QuadMesh, refined_points
 
 #: ``patch.rotation_map``, remembered (it tests all eight square maps each call)
 rotation_index = functools.lru_cache(maxsize=None)(rotation_map)
@@ -257,7 +257,7 @@ def resolve(mesh: QuadMesh, H: np.ndarray, roots: list[tuple[int, int]]) -> list
         pos = {f: n for n, f in enumerate(region)}
         sub, verts, cut = _submesh(cur, region)
         child, R, child_tainted = sub.refine(cut, tainted[verts])
-        Hc = R @ Hc[verts]
+        Hc = refined_points(R, Hc[verts])
         tainted = child_tainted
         items = []
         for f, r, L, i, j, rot in todo:

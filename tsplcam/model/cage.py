@@ -21,7 +21,7 @@ from .decompose import QuadDecomposition, decompose
 from .eigen import NotSelfSimilar
 from .model import ExtraordinaryPoint, FaceMap, Model, link_patches
 from .patch import CORNER_UV, Patch
-from .quadmesh import QuadMesh
+from .quadmesh import QuadMesh, refined_points
 
 
 @dataclass
@@ -79,7 +79,7 @@ def _build_patches(mesh: QuadMesh, H0: np.ndarray, dec: QuadDecomposition, level
     emesh, He = mesh, H0
     for _ in range(level):
         emesh, R, _ = emesh.refine()
-        He = R @ He
+        He = refined_points(R, He)
     M = BSPLINE_TO_BEZIER
     patches = []
     for r, reg in enumerate(dec.regions):

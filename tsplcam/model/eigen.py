@@ -26,7 +26,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..errors import InputError
-from .quadmesh import INFINITE, QuadMesh
+from .quadmesh import INFINITE, QuadMesh, unit_weights
 
 # sub-patches of Stam's ring, in the order cells.LevelCells uses:
 # k = 0: s' >= 1/2, t' < 1/2; k = 1: both >= 1/2; k = 2: s' < 1/2, t' >= 1/2.
@@ -101,7 +101,7 @@ class SubdivisionScheme:
         limit weight, grown to 0.022 by the deep levels' scaling, SkylakeX's none), and
         that decides whether the patch is evaluated as polynomial (``Patch._polynomial``)."""
         L = self.limit_mask @ C0
-        if C0.shape[1] == 4 and np.all(C0[:, 3] == 1.0):
+        if unit_weights(C0):
             L[3] = 1.0
         d = np.empty((count, self.K, C0.shape[1]))
         d[0] = C0 - L[None, :]

@@ -65,15 +65,20 @@ def is_semi_sharp(s: float) -> bool:
     return 0.0 < s < INFINITE
 
 
+def unit_weights(H: np.ndarray) -> bool:
+    """Whether homogeneous points (n, 4) all have weight exactly 1 (a polynomial cage's):
+    then so has every point a subdivision makes of them, exactly (its rows sum to 1)."""
+    return H.shape[-1] == 4 and bool(np.all(H[..., 3] == 1.0))
+
+
 def refined_points(R, H: np.ndarray) -> np.ndarray:
     """``R @ H``: homogeneous points (n, 4) through a refinement ``R`` (QuadMesh.refine), with
-    the weights kept exactly 1 where all of H's are (a polynomial cage: every row of R sums
-    to 1, affine invariance). Computed, they are 1 only up to the rounding of the sums (the
-    Fusion mold's cage, refined once for its faces with two irregular corners: 1 - 1e-16,
-    which made 8 of its 32 patches rational: ``Patch._polynomial``)."""
-    out = R @ H
-    if H.shape[1] == 4 and np.all(H[:, 3] == 1.0):
-        out = np.array(out, dtype=float)
+    the weights kept exactly 1 where all of H's are (:func:`unit_weights`). Computed, they
+    are 1 only up to the rounding of the sums (the Fusion mold's cage, refined once for its
+    faces with two irregular corners: 1 - 1e-16, which made 8 of its 32 patches rational:
+    ``Patch._polynomial``)."""
+    out = np.asarray(R @ H, dtype=float)
+    if unit_weights(H):
         out[:, 3] = 1.0
     return out
 

@@ -166,6 +166,9 @@ class SameWhateverTheBlas(unittest.TestCase):
     eigenvalue (test_boundary_stars)."""
 
     def test_limit_mask_off_by_an_ulp(self):
+        """A limit mask summing to 1 +- an ulp (as another kernel's sums may) still gives a
+        polynomial configuration the weight 1 and weight differences 0, exactly; a rational
+        one's weights are computed as they are."""
         model = tsplcam.load_model("keycap")
         group = next(g for g in model.patches[0].groups if isinstance(g, LevelCells))
         scheme = group.scheme
@@ -204,10 +207,11 @@ class SameWhateverTheBlas(unittest.TestCase):
         with numpy's own SIMD loops off too, as on an old processor; Haswell with AVX2;
         SkylakeX with AVX-512; each in a process of its own, as both are read when the
         libraries load): the samples' patches evaluate as polynomial (keycap 5 of 5, figure4
-        12 of 12, the Fusion mold 32 of 32, whose cage is refined once first), and the four-face boundary star's defective eigenvalue 0.5 gives its
-        tangent mask to the rounding (eigvals splits it along the real axis or across it by
-        the kernel: Haswell 0.5 +- 1e-8, Prescott 0.5 +- 4e-9 i, which once gave normals
-        90 deg off), so every patch there has one normal."""
+        12 of 12, the Fusion mold 32 of 32, whose cage is refined once first), and the
+        four-face boundary star's defective eigenvalue 0.5 gives its tangent mask to the
+        rounding (eigvals splits it along the real axis or across it by the kernel: Haswell
+        0.5 +- 1e-8, Prescott 0.5 +- 4e-9 i, which once gave normals 90 deg off), so every
+        patch there has one normal."""
         import json
         import os
         import subprocess
@@ -224,7 +228,7 @@ class SameWhateverTheBlas(unittest.TestCase):
         here = os.path.dirname(os.path.abspath(__file__))
         root = os.path.dirname(os.path.dirname(here))
         code = """if True:
-            import json, sys, tempfile
+            import json, sys
             import numpy as np
             import tsplcam
             from tsplcam.model import eigen
@@ -251,6 +255,7 @@ class SameWhateverTheBlas(unittest.TestCase):
             self.assertEqual(counts, [5, 12, 32], kind)
             self.assertLess(abs(lam - 0.5), 1e-13, kind)
             self.assertLess(spread, 1e-12, kind)
+
 
 if __name__ == "__main__":
     unittest.main()

@@ -174,10 +174,10 @@ def _tangent_masks(A: np.ndarray, label: str) -> tuple[np.ndarray, np.ndarray]:
     two) comes out of ``eigvals`` as a pair split by about the square root of the rounding,
     along the real axis or across it (the boundary vertex of four faces: 0.5 +- 1e-8 with
     OpenBLAS's Haswell kernels, 0.5 +- 4e-9 i with its Prescott kernels), whose mean is exact
-    to the rounding while each of the pair is not. With real parts kept only below 1e-9 of
-    imaginary part and a tolerance of 1e-8, the pair was split or not by the kernel's
-    rounding (the normal there moved by up to 1.1e-9 between kernels) or dropped as complex,
-    and the second mask came from the next eigenvalue, 0.366: a normal 90 deg off."""
+    to the rounding while each of the pair is not. When only eigenvalues with an imaginary
+    part below 1e-9 were kept and clustered within 1e-8, the pair was split or not by the
+    kernel's rounding (the normal there moved by up to 1.1e-9 between kernels) or dropped as
+    complex, and the second mask came from the next eigenvalue, 0.366: a normal 90 deg off."""
     K = len(A)
     lam = np.linalg.eigvals(A)
     lam = np.sort(lam.real[np.abs(lam.imag) < 1e-6])[::-1]

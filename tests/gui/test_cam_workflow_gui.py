@@ -243,7 +243,22 @@ class CamWorkflow(unittest.TestCase):
 
         # -- cancel one run: it stops within a second and the program is not valid meanwhile -------------
         sp.controls.controls["smoothing_length"][1].setValue(7.0)
-        later(1200, lambda: runner.active.cancel())
+        # cancelled once the child is searching tool axes (a fixed 1.2 s came after the end of
+        # the whole run on a fast machine: the child took less)
+        seen, tries = [], [0]
+
+        def cancel_mid_run():
+            run = runner.active
+            tries[0] += 1
+            if run is not None:
+                seen.append(run)
+                if any(p[0] == "tool axes" for p in run.progress):
+                    run.cancel()
+                    return
+            elif seen or tries[0] > 1000:                # (the run is over: nothing to cancel)
+                return
+            later(10, cancel_mid_run)
+        later(10, cancel_mid_run)
         t0 = time.perf_counter()
         self.assertFalse(sp.apply())
         self.assertLess(time.perf_counter() - t0, 8.0)

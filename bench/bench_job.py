@@ -104,14 +104,27 @@ def ocl_run(model, radius: float, points: int):
 
 # --- 2, 3, 6: jobs in their own process --------------------------------------------------------
 # the job run by a wrapper that notes its peak memory (its own and its workers') on exit
-WRAP = """import json, resource, sys
-from tsplcam.cli import main
+# and the CPU seconds of the command (its own, its workers', once they have exited) after its
+# imports (those import_ahead makes before the job's clock starts included)
+WRAP = """import json, multiprocessing, resource, sys
+from tsplcam.cli import build_parser, main
+from tsplcam.job import import_ahead
+build_parser()
+import_ahead()
+def cpu():
+    return [sum(getattr(resource.getrusage(w), f) for f in ('ru_utime', 'ru_stime'))
+            for w in (resource.RUSAGE_SELF, resource.RUSAGE_CHILDREN)]
+before = cpu()
 try:
     main(sys.argv[2:])
 finally:
+    for p in multiprocessing.active_children():    # (the job's processes exit by themselves)
+        p.join(10)
+    after = cpu()
     with open(sys.argv[1], 'w') as fh:
         json.dump([resource.getrusage(resource.RUSAGE_SELF).ru_maxrss,
-                   resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss], fh)
+                   resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss,
+                   after[0] - before[0], after[1] - before[1]], fh)
 """
 
 
@@ -120,17 +133,19 @@ finally:
 G_CODE_ONLY = ["--no-verify", "--no-html-report"]
 
 
-def job(args: list, out: str, outputs=G_CODE_ONLY):
+def job(args: list, out: str, outputs=G_CODE_ONLY, env=None):
     """(report.json, peak RSS in MB of the job process, of its largest worker) of
-    ``python3 -m tsplcam job`` (by default without verification and HTML report)."""
+    ``python3 -m tsplcam job`` (by default without verification and HTML report); the
+    report's ``cpu`` holds the command's CPU seconds (its own, its workers')."""
     mem = os.path.join(os.path.dirname(out), os.path.basename(out) + "-memory.json")
     subprocess.run([PY, "-c", WRAP, mem, "job", "--out", out] + list(outputs) + args, cwd=REPO_DIR, check=True,
-                   stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+                   stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, env=env)
     with open(mem, encoding="utf-8") as fh:
-        own, workers = json.load(fh)
+        own, workers, cpu_own, cpu_workers = json.load(fh)
     with open(os.path.join(out, "report.json"), encoding="utf-8") as fh:
         rep = json.load(fh)
     rep["seconds"] = rep["timing"]["total_s"]        # the job's own clock
+    rep["cpu"] = (cpu_own, cpu_workers)
     return rep, own / 1024.0, workers / 1024.0
 
 
@@ -326,6 +341,14 @@ def main(argv=None) -> int:
     print("  stages: " + ", ".join(f"{k[:-2]} {tm[k]:.2f} s" for k in ("model_s", "plan_s", "path_s", "orientation_s",
                                                                        "post_s") if k in tm)
           + " (tool axes: checker, smoothing, checks again)")
+    # the work itself: two cores end it no sooner than half the CPU time it takes one process
+    one = min((job([], os.path.join(tmp, f"one{k}"), env=dict(os.environ, TSPLCAM_WORKERS="1"))[0]
+               for k in range(args.repeat)), key=lambda r: r["seconds"])
+    c_own, c_work = rep["cpu"]
+    floor = 0.5 * sum(one["cpu"])
+    print(f"  CPU: {c_own:.2f} s in the job's process + {c_work:.2f} s in its workers (the fastest run); "
+          f"one process: {one['seconds']:.2f} s by the job's clock, {sum(one['cpu']):.2f} CPU-s; half of that, "
+          f"{floor:.2f} s, would be {points / floor / ocl:.1f}x")
     full, _, _ = job([], os.path.join(tmp, "full"), outputs=[])
     tm = full["timing"]
     print(f"  2b. the same job with its default outputs (surface verification, HTML report): "

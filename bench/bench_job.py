@@ -341,14 +341,14 @@ def main(argv=None) -> int:
     print("  stages: " + ", ".join(f"{k[:-2]} {tm[k]:.2f} s" for k in ("model_s", "plan_s", "path_s", "orientation_s",
                                                                        "post_s") if k in tm)
           + " (tool axes: checker, smoothing, checks again)")
-    # the work itself: two cores end it no sooner than half the CPU time it takes one process
+    # the work itself: two cores end it no sooner than in half the time one process takes
     one = min((job([], os.path.join(tmp, f"one{k}"), env=dict(os.environ, TSPLCAM_WORKERS="1"))[0]
                for k in range(args.repeat)), key=lambda r: r["seconds"])
     c_own, c_work = rep["cpu"]
-    floor = 0.5 * sum(one["cpu"])
+    half = 0.5 * one["seconds"]
     print(f"  CPU: {c_own:.2f} s in the job's process + {c_work:.2f} s in its workers (the fastest run); "
-          f"one process: {one['seconds']:.2f} s by the job's clock, {sum(one['cpu']):.2f} CPU-s; half of that, "
-          f"{floor:.2f} s, would be {points / floor / ocl:.1f}x")
+          f"one process: {one['seconds']:.2f} s by the job's clock ({sum(one['cpu']):.2f} CPU-s), half of it "
+          f"{half:.2f} s: {points / half / ocl:.1f}x")
     full, _, _ = job([], os.path.join(tmp, "full"), outputs=[])
     tm = full["timing"]
     print(f"  2b. the same job with its default outputs (surface verification, HTML report): "

@@ -359,6 +359,7 @@ class JobResult:
     baseline: object = None
     timing: dict = field(default_factory=dict)
     cl: str | None = None              # the CL data's text, made while the metrics were measured
+    clearance: object = None           # the report's clearance measurement, started meanwhile (an Aside)
 
     def report_inputs(self) -> dict:
         """The keyword arguments of :func:`tsplcam.report.write_report` (the orientation's
@@ -366,7 +367,7 @@ class JobResult:
         return dict(model=self.model, path=self.path, processing_list=self.plist, oriented=self.program,
                     machine=self.machine, posted=self.program.posted, verification=self.verification,
                     baseline=self.baseline, settings=report_settings(self.settings),
-                    tool=self.tool, stock=self.stock, checker=self.program.checker)
+                    tool=self.tool, stock=self.stock, checker=self.program.checker, clearance=self.clearance)
 
 
 def report_settings(s: JobSettings) -> dict:
@@ -375,12 +376,16 @@ def report_settings(s: JobSettings) -> dict:
     return s.to_dict([k for k in JobSettings.option_names("job") if k != "out"])
 
 
-def make_job(s: JobSettings, log=None, progress=None, baseline_axes: str = "job") -> JobResult:
+def make_job(s: JobSettings, log=None, progress=None, baseline_axes: str = "job",
+             report_ahead: bool = False) -> JobResult:
     """Model -> processing list -> path -> tool axes -> program, then the surface
     verification (``s.verify``, heights kept for the report's map) and the compound-NURBS
     baseline (``s.baseline``; ``baseline_axes`` "job" gives it tool axes by the job's
     strategy, "normal" keeps its surface normals). ``log(text)`` is told each stage's result;
-    ``progress``: a tsplcam.progress callback. Writes nothing."""
+    ``progress``: a tsplcam.progress callback. ``report_ahead``: the HTML report follows, so
+    its clearance measurement starts in a forked process on the core the verification's last
+    patch leaves idle (``JobResult.clearance``, for :func:`tsplcam.report.write_report`).
+    Writes nothing."""
     from .verify.metrics import path_metrics
     log = log or (lambda text: None)
     if baseline_axes not in ("job", "normal"):
@@ -421,31 +426,52 @@ def make_job(s: JobSettings, log=None, progress=None, baseline_axes: str = "job"
         log(f"tool axes ({s.orientation}): {program.metrics.summary()} ({timing['orientation_s']:.2f} s)")
     log(program.posted.summary())
     job = JobResult(s, model, plist, tool, machine, stock, path, program, timing=timing, cl=made.get("cl"))
-    if s.verify:
-        from .verify.scallop import measure
-        t = time.perf_counter()
-        job.verification = measure(path, model, heights=True, progress=for_stage(progress, "scallop"))
-        timing["verify_s"] = time.perf_counter() - t
-        v = job.verification
-        log(f"scallop measured on {v.samples:,d} surface samples + {v.ridges:,d} ridges: largest "
-            f"{v.max_scallop:.5f} mm of {s.scallop:g} mm, gouge at points {v.gouge_points:.1e} mm "
-            f"({timing['verify_s']:.2f} s)")
-    if s.baseline:
-        t = time.perf_counter()
-        report(progress, "baseline", 0, 1)
-        base = make_baseline(model, plist, s, radius)
-        report(progress, "baseline", 1, 1)
-        if baseline_axes == "job" and s.orientation != "normal":
-            renamed = None if progress is None else (
-                lambda stage, done, total: progress("baseline axes" if stage == "tool axes" else stage, done, total))
-            base = make_program(base, model, s, stock=stock, progress=renamed, post=False,
-                                checker=job.program.checker)
-        job.baseline = base
-        timing["baseline_s"] = time.perf_counter() - t
-        b = path_metrics(getattr(base, "path", base))
-        log(f"compound-NURBS baseline: {b.retractions} retractions, {b.air_moves} air moves, "
-            f"{b.length:.1f} mm ({timing['baseline_s']:.2f} s)")
+    try:
+        if s.verify:
+            from .verify.scallop import measure
+            t = time.perf_counter()
+            job.verification = measure(path, model, heights=True, progress=for_stage(progress, "scallop"),
+                                       when_idle=_clearance_ahead(job) if report_ahead else None)
+            timing["verify_s"] = time.perf_counter() - t
+            v = job.verification
+            log(f"scallop measured on {v.samples:,d} surface samples + {v.ridges:,d} ridges: largest "
+                f"{v.max_scallop:.5f} mm of {s.scallop:g} mm, gouge at points {v.gouge_points:.1e} mm "
+                f"({timing['verify_s']:.2f} s)")
+        if s.baseline:
+            t = time.perf_counter()
+            report(progress, "baseline", 0, 1)
+            base = make_baseline(model, plist, s, radius)
+            report(progress, "baseline", 1, 1)
+            if baseline_axes == "job" and s.orientation != "normal":
+                renamed = None if progress is None else (
+                    lambda stage, done, total: progress("baseline axes" if stage == "tool axes" else stage, done, total))
+                base = make_program(base, model, s, stock=stock, progress=renamed, post=False,
+                                    checker=job.program.checker)
+            job.baseline = base
+            timing["baseline_s"] = time.perf_counter() - t
+            b = path_metrics(getattr(base, "path", base))
+            log(f"compound-NURBS baseline: {b.retractions} retractions, {b.air_moves} air moves, "
+                f"{b.length:.1f} mm ({timing['baseline_s']:.2f} s)")
+    except BaseException:
+        if job.clearance is not None:                # (the report it was for is not written)
+            job.clearance.close()
+        raise
     return job
+
+
+def _clearance_ahead(job: JobResult):
+    """The verification's ``when_idle``: the report's clearance measurement
+    (:func:`tsplcam.report.report.clearance_aside` with the job's checker) started in a forked
+    process, where the report measures one and a fork is to be had. On the keycap the
+    verification's last patch left one core idle for 0.37 s, and the report then waited
+    0.2-0.3 s for this measurement after drawing its other pictures."""
+    def start() -> None:
+        from .orientation.aside import Aside
+        from .report.report import clearance_aside, clearance_wanted
+        checker = job.program.checker
+        if job.clearance is None and checker is not None and clearance_wanted(job.tool) and Aside.can_fork():
+            job.clearance = clearance_aside(checker, job.program.path)
+    return start
 
 
 def job_figures(job: JobResult) -> dict:
@@ -489,8 +515,6 @@ def run_job(s: JobSettings, log=print, progress=None) -> dict:
     at the end: program, CL data, processing list, report.json and, with ``s.html_report``,
     report.html with its pictures. Returns report.json's content. ``progress``: a
     tsplcam.progress callback (default: a bar on stderr)."""
-    from .plan.listfile import dumps as list_text
-    from .post.dialects import extension
     log = log or (lambda text: None)
     progress = progress or TerminalProgress()
     s.check()
@@ -500,7 +524,18 @@ def run_job(s: JobSettings, log=print, progress=None) -> dict:
         check_fcstd(s.fcstd)
     import_ahead()
     t_all = time.perf_counter()
-    job = make_job(s, log, progress)
+    job = make_job(s, log, progress, report_ahead=s.html_report)
+    try:
+        return _write_job(s, job, t_all, log, progress)
+    finally:
+        if job.clearance is not None:                # (closed by the report, unless it failed first)
+            job.clearance.close()
+
+
+def _write_job(s: JobSettings, job: JobResult, t_all: float, log, progress) -> dict:
+    """:func:`run_job`'s files of ``job`` (its clock started at ``t_all``)."""
+    from .plan.listfile import dumps as list_text
+    from .post.dialects import extension
     timing = job.timing
     figures = job_figures(job)
     log(motion_summary(figures["machine_motion"]))

@@ -8,6 +8,7 @@ the page outside its baseline section are the same bytes in both (the second rep
 a process that drew one already), and ``b``'s baseline table is checked against the program.
 (The whole page and every picture, the baseline's too, are compared between two processes in
 tests/test_batch.py.)"""
+import contextlib
 import os
 import re
 import shutil
@@ -241,6 +242,30 @@ class KeycapReport(unittest.TestCase):
             with open(os.path.join(a, report.FILES, f"{n}.png"), "rb") as fa, \
                     open(os.path.join(b, report.FILES, f"{n}.png"), "rb") as fb:
                 self.assertEqual(fa.read(), fb.read(), n)
+
+    def test_clearance_started_ahead_gives_the_same_report(self):
+        """The job's clearance measurement started before the report (``make_job``'s
+        ``report_ahead``, in a forked process while the verification's last patch is measured)
+        and handed to it: the same page and pictures as report a, which started its own."""
+        from types import SimpleNamespace
+
+        from tsplcam.job import _clearance_ahead
+        from tsplcam.orientation.aside import Aside
+        job = SimpleNamespace(program=self.job["oriented"], tool=self.job["tool"], clearance=None)
+        _clearance_ahead(job)()
+        if Aside.can_fork():
+            self.assertTrue(job.clearance.forked)
+        out = os.path.join(self.tmp, "c")
+        from unittest import mock
+        with mock.patch.object(report, "clearance_aside", side_effect=AssertionError("measured again")) \
+                if job.clearance is not None else contextlib.nullcontext():
+            html = write_report(out, **dict(self.job, clearance=job.clearance))
+        with open(html, encoding="utf-8") as fh:
+            self.assertEqual(fh.read(), self.text)
+        for n in PICTURES:
+            with open(os.path.join(self.out[0], report.FILES, f"{n}.png"), "rb") as fa, \
+                    open(os.path.join(out, report.FILES, f"{n}.png"), "rb") as fc:
+                self.assertEqual(fa.read(), fc.read(), n)
 
     def test_missing_pieces_leave_their_sections_out(self):
         out = os.path.join(self.tmp, "bare")

@@ -1,5 +1,6 @@
 """map_pieces' ``while_waiting``: other work for the main process while forked workers make
-the pieces, run once after they are started and only when there are workers; pieces asked
+the pieces, run once after they are started and only when there are workers (and
+``when_idle``, once the main process has no piece left while a worker's is out); pieces asked
 for meanwhile stay in the main process; the pieces are the same; the main process takes
 pieces too once it is free, and a piece failing (or lost) in a worker is run again there, the
 lowest failing index raising as in one process; and the job's collision
@@ -145,6 +146,32 @@ class SharedHandOut(unittest.TestCase):
         self.assertEqual([v for v, _ in out], [100, 101, 102])
         self.assertIn(MAIN, [pid for _, pid in out])
         self.assertEqual(_own_children(), [])
+
+    def test_when_idle_runs_once_while_a_worker_makes_the_last_piece(self):
+        """when_idle: called once, in the main process, when it has no piece left to take and
+        a worker's piece is still out (forking allowed there again: the Aside of the report's
+        clearance forks from it); not when every piece is in, nor with one process."""
+        seen = []
+
+        def idle():
+            seen.append((os.getpid(), worker_count(None, 2) > 1 or not FORK, parallel._WAITING))
+
+        with tempfile.TemporaryDirectory() as marks:
+            # the worker takes piece 5 and sleeps; the main process takes the rest at once
+            out = map_pieces(_slow_in_workers, (0.3, marks), 6, 2, order=[5, 4, 3, 2, 1, 0],
+                             while_waiting=lambda: _until_marked(marks, 1), when_idle=idle)
+        self.assertEqual([v for v, _ in out], [i + 100 for i in range(6)])
+        self.assertNotEqual(out[5][1], MAIN)
+        self.assertEqual(seen, [(MAIN, True, False)])
+        seen.clear()
+        with tempfile.TemporaryDirectory() as marks:
+            # every piece made in the worker and sent before the main process looks
+            out = map_pieces(_slow_in_workers, (0.0, marks), 3, 2,
+                             while_waiting=lambda: (_until_marked(marks, 3), time.sleep(0.3)), when_idle=idle)
+        self.assertEqual([v for v, _ in out], [100, 101, 102])
+        self.assertEqual(seen, [])
+        map_pieces(_square_pid, (1,), 4, 1, when_idle=idle)                 # one process
+        self.assertEqual(seen, [])
 
     def test_the_lowest_failing_piece_raises_wherever_it_was_made(self):
         with self.assertRaisesRegex(ValueError, "piece 2 fails"):

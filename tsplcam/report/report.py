@@ -132,9 +132,21 @@ class _Report:
         return f"{FILES}/{name}.png", figs
 
 
+def clearance_wanted(tool) -> bool:
+    """Whether a report of ``tool`` has a clearance section (some part above the flutes)."""
+    return tool is not None and any(p.name != "flutes" for p in tool.parts())
+
+
+def clearance_aside(checker, path):
+    """:func:`clearance_series` of ``path`` measured in a forked process while this one goes
+    on (an :class:`~tsplcam.orientation.aside.Aside`; with one process, here at once)."""
+    from ..orientation.aside import Aside
+    return Aside(clearance_series, checker, path)
+
+
 def write_report(out_dir: str, *, model, path, processing_list=None, oriented=None, machine=None,
                  posted=None, verification=None, baseline=None, settings=None, tool=None, stock=None,
-                 checker=None, progress=None) -> str:
+                 checker=None, progress=None, clearance=None) -> str:
     """Write ``out_dir/report.html`` and its pictures (``out_dir/report_files/*.png``);
     returns the page's path.
 
@@ -150,23 +162,23 @@ def write_report(out_dir: str, *, model, path, processing_list=None, oriented=No
     (vertices, triangles) too); ``checker``: the orientation's CollisionChecker to reuse for
     that (default: ``oriented.checker`` if it has one, else one is built, which on a big
     model takes as long as the orientation's did); ``progress``: a tsplcam.progress callback
-    told after each picture (stage "report").
+    told after each picture (stage "report"); ``clearance``: :func:`clearance_aside` of the
+    checker and the final path, started already (the job's, during its verification), else
+    started here when the tool has a part above the flutes; closed on return.
     The same inputs give the same bytes."""
     if checker is None:
         checker = getattr(oriented, "checker", None)     # the orientation's, when it keeps it
     if tool is None and checker is not None:
         tool = checker.tool
     final = oriented.path if oriented is not None else path
-    clearance = None
-    if tool is not None and any(p.name != "flutes" for p in tool.parts()):
+    if clearance is None and clearance_wanted(tool):
         if checker is None:
             from ..orientation import CollisionChecker
             meshes = [] if stock is None else [("stock", stock[0], stock[1])]
             checker = CollisionChecker(model, tool, meshes=meshes, tolerance=CLEARANCE_TESSELLATION)
         # measured in a forked process while the other pictures are drawn (the keycap's: 180
-        # grown tools' BVHs and their fcl queries, about 2 s), or here at once with one process
-        from ..orientation.aside import Aside
-        clearance = Aside(clearance_series, checker, final)
+        # grown tools' BVHs and their fcl queries, about 1.7 s), or here at once with one process
+        clearance = clearance_aside(checker, final)
     try:
         return _write(out_dir, model=model, path=path, processing_list=processing_list, oriented=oriented,
                       machine=machine, posted=posted, verification=verification, baseline=baseline,

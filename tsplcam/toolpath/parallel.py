@@ -51,7 +51,7 @@ def worker_count(requested: int | None = None, pieces: int = 2) -> int:
 
 
 def map_pieces(fn, shared: tuple, count: int, workers: int, order=None, tick=None,
-               while_waiting=None) -> list:
+               while_waiting=None, when_idle=None) -> list:
     """[fn(*shared, i) for i in range(count)], in forked processes when ``workers`` > 1.
     ``order``: the order the pieces are taken in (largest first balances the cores). A
     piece that fails in a worker (or whose result cannot be sent) is run again here, so its
@@ -62,7 +62,11 @@ def map_pieces(fn, shared: tuple, count: int, workers: int, order=None, tick=Non
     process after the workers are started and before their results are read, and only then:
     with one process (or one piece) it is not called, and the caller does that work later as
     it would without it. Its exceptions propagate (the workers are stopped); a caller that
-    wants the pieces' errors first catches its own.
+    wants the pieces' errors first catches its own. ``when_idle()``, when given, is called
+    once in this process when no piece is left to take while the workers still make theirs
+    (not with one process, nor when every piece is in): work for the core this process would
+    leave idle meanwhile; it may fork (no piece, thread or ``while_waiting`` of this call runs
+    here then). Its exceptions propagate as ``while_waiting``'s.
 
     ``workers`` processes work at once: this process and ``workers`` - 1 forked ones, which
     make pieces; this process makes pieces too, from the start, or with ``while_waiting``
@@ -130,6 +134,8 @@ def map_pieces(fn, shared: tuple, count: int, workers: int, order=None, tick=Non
                 made += 1
                 if tick is not None:
                     tick(made, count)
+        if when_idle is not None and len(got) < count:
+            when_idle()
         while len(got) < count:                               # the workers' last pieces
             ended = all(p.exitcode is not None for p in procs)
             try:

@@ -304,7 +304,7 @@ def _refine_ridges(sw: Swept, model, grid: SurfaceGrid, i, j, A, B, iterations: 
 
 def measure(path: ToolPath, model, scallop: float | None = None, spacing: float | None = None,
             patches=None, region=None, piece: float | None = None, progress=None,
-            heights: bool = False) -> ScallopReport:
+            heights: bool = False, when_idle=None) -> ScallopReport:
     """Scallop, cusps and gouges of ``path`` on ``model`` (see the module doc).
 
     ``scallop``: the limit the path was made for (default: the path's settings); it sets
@@ -316,6 +316,8 @@ def measure(path: ToolPath, model, scallop: float | None = None, spacing: float 
     grids, one per process, however big the model; ``progress(done, total)`` is called
     after each.
     ``heights``: keep every sample's height in the report (:class:`HeightSamples`, for maps).
+    ``when_idle``: work for this process's core once no patch is left for it while a worker
+    still measures one (``map_pieces``' ``when_idle``; not called with one process).
     """
     r = path.tool_radius
     if scallop is None:
@@ -338,7 +340,7 @@ def measure(path: ToolPath, model, scallop: float | None = None, spacing: float 
     size = np.bincount(on, minlength=len(model.patches))[np.asarray(todo, int)] if len(todo) else np.zeros(0, int)
     parts = [x for x in map_pieces(_patch_piece, (sw, model, spacing, region, line_patch, r, heights, todo),
                                    len(todo), worker_count(None, len(todo)), order=np.argsort(-size, kind="stable"),
-                                   tick=progress) if x is not None]
+                                   tick=progress, when_idle=when_idle) if x is not None]
     samples = sum(x["samples"] for x in parts)
     uncovered = sum(x["uncovered"] for x in parts)
     cusp = np.concatenate([x["cusp"] for x in parts]) if parts else np.zeros(0)

@@ -359,7 +359,7 @@ class JobResult:
     baseline: object = None
     timing: dict = field(default_factory=dict)
     cl: str | None = None              # the CL data's text, made while the metrics were measured
-    clearance: object = None           # the report's clearance measurement, started meanwhile (an Aside)
+    clearance: object = None           # the report's clearance measurement, started meanwhile (a ClearanceSweep)
 
     def report_inputs(self) -> dict:
         """The keyword arguments of :func:`tsplcam.report.write_report` (the orientation's

@@ -13,6 +13,7 @@ import os
 import re
 import shutil
 import tempfile
+import time
 import unittest
 from html.parser import HTMLParser
 
@@ -266,6 +267,33 @@ class KeycapReport(unittest.TestCase):
             with open(os.path.join(self.out[0], report.FILES, f"{n}.png"), "rb") as fa, \
                     open(os.path.join(out, report.FILES, f"{n}.png"), "rb") as fc:
                 self.assertEqual(fa.read(), fc.read(), n)
+
+    def test_clearance_sweep_shared_by_two_processes(self):
+        """The clearance series measured by the sweep (a forked process takes the holder's
+        first, this one what is left when it asks at once) and by a sweep whose process was
+        stopped before delivering (this process measures what it took): the values one process
+        gives, series by series."""
+        from tsplcam.orientation.aside import Aside
+        checker, final = self.job["oriented"].checker, self.job["oriented"].path
+        one = {name: report.clearance_group(checker, final, parts)
+               for name, parts in report.clearance_groups(checker).items()}
+        self.assertEqual(list(one), ["shank", "holder"])
+        sweeps = [report.clearance_aside(checker, final) for _ in range(2)]
+        self.assertEqual(sweeps[0].order, ["holder", "shank"])
+        self.assertEqual(sweeps[0].forked, Aside.can_fork())
+        if sweeps[1].forked:                                 # its process stopped once it took one
+            end = time.monotonic() + 10.0
+            while sweeps[1]._next.value < 1 and time.monotonic() < end:
+                time.sleep(0.002)
+            self.assertEqual(sweeps[1]._next.value, 1)
+        sweeps[1].close()
+        for sweep in sweeps:
+            got = sweep.result()
+            sweep.close()
+            self.assertEqual(list(got), list(one))
+            for name in one:
+                for a, b in zip(got[name], one[name]):
+                    np.testing.assert_array_equal(a, b, err_msg=name)
 
     def test_missing_pieces_leave_their_sections_out(self):
         out = os.path.join(self.tmp, "bare")

@@ -13,8 +13,10 @@ The report reads every stage and ``verify``; nothing in the pipeline imports it.
 """
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import json
+import multiprocessing
 import os
 
 import numpy as np
@@ -64,39 +66,96 @@ def settings_rows(settings) -> list:
     return rows
 
 
-def clearance_series(checker, path, poses: int | None = None, top: float = CLEARANCE_TOP) -> dict:
-    """Shank and holder clearance along ``path``: name -> (point indices, mm).
-
-    Measured (:class:`tsplcam.verify.orientation.ClearanceGauge`) at about ``poses`` poses
-    (default :data:`CLEARANCE_POSES`, read when called) spread evenly over the path, and then
-    at every pose next to the ten closest ones, so the smallest value is that of the closest
-    pose, not of the nearest sample."""
-    from ..verify.orientation import ClearanceGauge
-    poses = CLEARANCE_POSES if poses is None else int(poses)
+def clearance_groups(checker) -> dict:
+    """The clearance plot's series and the tool parts of each: "shank", "holder" (those the
+    tool has)."""
     names = [p.name for p in checker.tool.parts()]
     groups = {"shank": [n for n in names if n == "shank"],
               "holder": [n for n in names if n.startswith("holder")]}
+    return {k: v for k, v in groups.items() if v}
+
+
+def clearance_group(checker, path, parts, poses: int | None = None, top: float = CLEARANCE_TOP):
+    """(point indices, mm) of the tool ``parts``' clearance along ``path``: measured
+    (:class:`tsplcam.verify.orientation.ClearanceGauge`) at about ``poses`` poses (default
+    :data:`CLEARANCE_POSES`, read when called) spread evenly over the path, and then at every
+    pose next to the ten closest ones, so the smallest value is that of the closest pose, not
+    of the nearest sample."""
+    from ..verify.orientation import ClearanceGauge
+    poses = CLEARANCE_POSES if poses is None else int(poses)
     n = len(path)
     step = max(1, int(np.ceil(n / poses)))
     base = np.unique(np.concatenate([np.arange(0, n, step), [n - 1]]))
     C, A = path.center, path.axis
+    gauge = ClearanceGauge(checker, parts, top=top)
+    v = gauge.measure(C[base], A[base])
+    low = base[np.argsort(v, kind="stable")[:10]]
+    near = np.unique(np.concatenate([np.arange(max(0, i - step), min(n, i + step + 1)) for i in low]))
+    near = np.setdiff1d(near, base)
+    idx, val = base, v
+    if len(near):
+        idx = np.concatenate([base, near])
+        val = np.concatenate([v, gauge.measure(C[near], A[near])])
+        order = np.argsort(idx, kind="stable")
+        idx, val = idx[order], val[order]
+    return idx, val
+
+
+class ClearanceSweep:
+    """The shank's and holder's clearance along ``path`` (:func:`clearance_group` of each of
+    :func:`clearance_groups`) measured by a forked process (an
+    :class:`~tsplcam.orientation.aside.Aside`) and, once it asks for the result, by this one:
+    the series are taken one by one from a shared counter, the holder's first (the longest:
+    keycap_mold 1.78 s against the shank's 0.48, the keycap 1.14 against 0.37), so a report
+    whose pictures are drawn before the forked process is done measures the shank itself
+    (keycap_mold waited 0.78 s for the sweep after its pictures). Each series is measured by
+    the same code on the same data wherever it is, so the values are the same; one the forked
+    process took but did not deliver (it died) is measured here."""
+
+    def __init__(self, checker, path):
+        from ..orientation.aside import Aside
+        self.checker, self.path = checker, path
+        self.groups = clearance_groups(checker)
+        self.order = list(reversed(list(self.groups)))          # the holder's first
+        # (a shared counter where the sweep forks; one process takes every series at once)
+        self._next = multiprocessing.get_context("fork").Value("i", 0) if Aside.can_fork() else _Count()
+        self.aside = Aside(_take_series, self)
+
+    @property
+    def forked(self) -> bool:
+        return self.aside.forked
+
+    def result(self) -> dict:
+        """name -> (point indices, mm), in :func:`clearance_groups`' order."""
+        mine = _take_series(self)
+        theirs = self.aside.result()
+        return {name: mine[name] if name in mine else theirs[name] if name in theirs
+                else clearance_group(self.checker, self.path, parts)
+                for name, parts in self.groups.items()}
+
+    def close(self) -> None:
+        self.aside.close()
+
+
+class _Count:
+    """A multiprocessing Value's ``value`` and ``get_lock()`` for one process."""
+    value = 0
+
+    def get_lock(self):
+        return contextlib.nullcontext()
+
+
+def _take_series(sweep: ClearanceSweep) -> dict:
+    """The series of ``sweep`` not yet taken, measured here one by one: name -> series."""
     out = {}
-    for name, parts in groups.items():
-        if not parts:
-            continue
-        gauge = ClearanceGauge(checker, parts, top=top)
-        v = gauge.measure(C[base], A[base])
-        low = base[np.argsort(v, kind="stable")[:10]]
-        near = np.unique(np.concatenate([np.arange(max(0, i - step), min(n, i + step + 1)) for i in low]))
-        near = np.setdiff1d(near, base)
-        idx, val = base, v
-        if len(near):
-            idx = np.concatenate([base, near])
-            val = np.concatenate([v, gauge.measure(C[near], A[near])])
-            order = np.argsort(idx, kind="stable")
-            idx, val = idx[order], val[order]
-        out[name] = (idx, val)
-    return out
+    while True:
+        with sweep._next.get_lock():
+            k = sweep._next.value
+            if k >= len(sweep.order):
+                return out
+            sweep._next.value = k + 1
+        name = sweep.order[k]
+        out[name] = clearance_group(sweep.checker, sweep.path, sweep.groups[name])
 
 
 def _timed(p, machine, dialect):
@@ -137,11 +196,10 @@ def clearance_wanted(tool) -> bool:
     return tool is not None and any(p.name != "flutes" for p in tool.parts())
 
 
-def clearance_aside(checker, path):
-    """:func:`clearance_series` of ``path`` measured in a forked process while this one goes
-    on (an :class:`~tsplcam.orientation.aside.Aside`; with one process, here at once)."""
-    from ..orientation.aside import Aside
-    return Aside(clearance_series, checker, path)
+def clearance_aside(checker, path) -> ClearanceSweep:
+    """The clearance along ``path`` measured in a forked process while this one goes on
+    (:class:`ClearanceSweep`; with one process, here at once)."""
+    return ClearanceSweep(checker, path)
 
 
 def write_report(out_dir: str, *, model, path, processing_list=None, oriented=None, machine=None,
@@ -190,8 +248,8 @@ def write_report(out_dir: str, *, model, path, processing_list=None, oriented=No
 
 def _write(out_dir: str, *, model, path, processing_list, oriented, machine, posted, verification, baseline,
            settings, tool, checker, clearance, progress) -> str:
-    """:func:`write_report` once the tool and checker are known; ``clearance``: the Aside
-    measuring :func:`clearance_series` (None: no clearance section)."""
+    """:func:`write_report` once the tool and checker are known; ``clearance``: the
+    :func:`clearance_aside` (None: no clearance section)."""
     os.makedirs(os.path.join(out_dir, FILES), exist_ok=True)
     final = oriented.path if oriented is not None else path
     metrics = oriented.metrics if oriented is not None else None

@@ -384,7 +384,8 @@ def make_job(s: JobSettings, log=None, progress=None, baseline_axes: str = "job"
     strategy, "normal" keeps its surface normals). ``log(text)`` is told each stage's result;
     ``progress``: a tsplcam.progress callback. ``report_ahead``: the HTML report follows, so
     its clearance measurement starts in a forked process on the core the verification's last
-    patch leaves idle (``JobResult.clearance``, for :func:`tsplcam.report.write_report`).
+    patch leaves idle, when no baseline is to be made (``JobResult.clearance``, for
+    :func:`tsplcam.report.write_report`).
     Writes nothing."""
     from .verify.metrics import path_metrics
     log = log or (lambda text: None)
@@ -430,8 +431,11 @@ def make_job(s: JobSettings, log=None, progress=None, baseline_axes: str = "job"
         if s.verify:
             from .verify.scallop import measure
             t = time.perf_counter()
+            # (not with the baseline to make next: a sweep started now shares the cores with it,
+            # the keycap's job with --baseline 3.904 -> 3.988 s)
+            ahead = _clearance_ahead(job) if report_ahead and not s.baseline else None
             job.verification = measure(path, model, heights=True, progress=for_stage(progress, "scallop"),
-                                       when_idle=_clearance_ahead(job) if report_ahead else None)
+                                       when_idle=ahead)
             timing["verify_s"] = time.perf_counter() - t
             v = job.verification
             log(f"scallop measured on {v.samples:,d} surface samples + {v.ridges:,d} ridges: largest "

@@ -465,16 +465,16 @@ def make_job(s: JobSettings, log=None, progress=None, baseline_axes: str = "job"
 
 def _clearance_ahead(job: JobResult):
     """The verification's ``when_idle``: the report's clearance measurement
-    (:func:`tsplcam.report.report.clearance_aside` with the job's checker) started in a forked
+    (:class:`tsplcam.report.report.ClearanceSweep` with the job's checker) started in a forked
     process, where the report measures one and a fork is to be had. On the keycap the
     verification's last patch left one core idle for 0.37 s, and the report then waited
     0.2-0.3 s for this measurement after drawing its other pictures."""
     def start() -> None:
         from .orientation.aside import Aside
-        from .report.report import clearance_aside, clearance_wanted
+        from .report.report import ClearanceSweep, clearance_wanted
         checker = job.program.checker
         if job.clearance is None and checker is not None and clearance_wanted(job.tool) and Aside.can_fork():
-            job.clearance = clearance_aside(checker, job.program.path)
+            job.clearance = ClearanceSweep(checker, job.program.path)
     return start
 
 

@@ -258,7 +258,7 @@ class KeycapReport(unittest.TestCase):
             self.assertTrue(job.clearance.forked)
         out = os.path.join(self.tmp, "c")
         from unittest import mock
-        with mock.patch.object(report, "clearance_aside", side_effect=AssertionError("measured again")) \
+        with mock.patch.object(report, "ClearanceSweep", side_effect=AssertionError("measured again")) \
                 if job.clearance is not None else contextlib.nullcontext():
             html = write_report(out, **dict(self.job, clearance=job.clearance))
         with open(html, encoding="utf-8") as fh:
@@ -278,7 +278,7 @@ class KeycapReport(unittest.TestCase):
         one = {name: report.clearance_group(checker, final, parts)
                for name, parts in report.clearance_groups(checker).items()}
         self.assertEqual(list(one), ["shank", "holder"])
-        sweeps = [report.clearance_aside(checker, final) for _ in range(2)]
+        sweeps = [report.ClearanceSweep(checker, final) for _ in range(2)]
         self.assertEqual(sweeps[0].order, ["holder", "shank"])
         self.assertEqual(sweeps[0].forked, Aside.can_fork())
         if sweeps[1].forked:                                 # its process stopped once it took one

@@ -196,12 +196,6 @@ def clearance_wanted(tool) -> bool:
     return tool is not None and any(p.name != "flutes" for p in tool.parts())
 
 
-def clearance_aside(checker, path) -> ClearanceSweep:
-    """The clearance along ``path`` measured in a forked process while this one goes on
-    (:class:`ClearanceSweep`; with one process, here at once)."""
-    return ClearanceSweep(checker, path)
-
-
 def write_report(out_dir: str, *, model, path, processing_list=None, oriented=None, machine=None,
                  posted=None, verification=None, baseline=None, settings=None, tool=None, stock=None,
                  checker=None, progress=None, clearance=None) -> str:
@@ -220,8 +214,8 @@ def write_report(out_dir: str, *, model, path, processing_list=None, oriented=No
     (vertices, triangles) too); ``checker``: the orientation's CollisionChecker to reuse for
     that (default: ``oriented.checker`` if it has one, else one is built, which on a big
     model takes as long as the orientation's did); ``progress``: a tsplcam.progress callback
-    told after each picture (stage "report"); ``clearance``: :func:`clearance_aside` of the
-    checker and the final path, started already (the job's, during its verification), else
+    told after each picture (stage "report"); ``clearance``: the :class:`ClearanceSweep` of
+    the checker and the final path, started already (the job's, during its verification), else
     started here when the tool has a part above the flutes; closed on return.
     The same inputs give the same bytes."""
     if checker is None:
@@ -236,7 +230,7 @@ def write_report(out_dir: str, *, model, path, processing_list=None, oriented=No
             checker = CollisionChecker(model, tool, meshes=meshes, tolerance=CLEARANCE_TESSELLATION)
         # measured in a forked process while the other pictures are drawn (the keycap's: 180
         # grown tools' BVHs and their fcl queries, about 1.7 s), or here at once with one process
-        clearance = clearance_aside(checker, final)
+        clearance = ClearanceSweep(checker, final)
     try:
         return _write(out_dir, model=model, path=path, processing_list=processing_list, oriented=oriented,
                       machine=machine, posted=posted, verification=verification, baseline=baseline,
@@ -249,7 +243,7 @@ def write_report(out_dir: str, *, model, path, processing_list=None, oriented=No
 def _write(out_dir: str, *, model, path, processing_list, oriented, machine, posted, verification, baseline,
            settings, tool, checker, clearance, progress) -> str:
     """:func:`write_report` once the tool and checker are known; ``clearance``: the
-    :func:`clearance_aside` (None: no clearance section)."""
+    :class:`ClearanceSweep` (None: no clearance section)."""
     os.makedirs(os.path.join(out_dir, FILES), exist_ok=True)
     final = oriented.path if oriented is not None else path
     metrics = oriented.metrics if oriented is not None else None

@@ -34,12 +34,19 @@ def within_bounds(got, want):
     return (got <= want + half) & (got >= want - half - np.maximum(0.01, 0.01 * want) - np.maximum(0.005, 0.01 * want))
 
 
-def closed_form(tool, parts, theta):
-    """Distance from the named parts to the plane for a tilt theta (rad)."""
+def closed_form(tool, parts, theta, whole=False):
+    """Distance from the named parts to the plane for a tilt theta (rad): the height of the
+    lowest rim. Of a part whose bottom another solid covers (the shank's on the flutes) only
+    the plane's points above the bottom count (unless ``whole``): the nearest lies where the
+    plane crosses the bottom's plane, at the rim's height over the sine of the tilt across
+    the axis."""
     r = tool.ball_radius
-    rims = [(p.z0, p.r0) for p in tool.parts() if p.name in parts] + \
-           [(p.z1, p.r1) for p in tool.parts() if p.name in parts]
-    return r + min(z * np.cos(theta) - R * np.sin(theta) for z, R in rims)
+    dist = []
+    for p, (bottom, _) in zip(tool.parts(), tool.exposed_ends()):
+        if p.name in parts:
+            h = [r + p.z0 * np.cos(theta) - p.r0 * np.sin(theta), r + p.z1 * np.cos(theta) - p.r1 * np.sin(theta)]
+            dist.append(min(h) if bottom or whole else min(h) / np.sin(theta))
+    return min(dist)
 
 
 class PlaneClearance(unittest.TestCase):
@@ -65,7 +72,7 @@ class PlaneClearance(unittest.TestCase):
     def test_shank(self):
         got = clearance_profile(self.checker, self.centers, self.axes, parts=["shank"])
         want = self.check(["shank"], got)
-        self.assertLess(want.min(), 0.8)                  # the steep poses come close
+        self.assertLess(want.min(), 1.0)                  # the steep poses come close
 
     def test_holder(self):
         names = [p.name for p in self.tool.parts() if p.name.startswith("holder")]
@@ -87,14 +94,20 @@ class PlaneClearance(unittest.TestCase):
         the poses, and the same pose and value as fcl.distance measured at every pose."""
         keep = [p.name for p in self.tool.parts() if p.name != "flutes"]
         want = np.array([closed_form(self.tool, keep, t) for t in self.theta])
+        solid = np.array([closed_form(self.tool, keep, t, whole=True) for t in self.theta])
         flutes = np.array([closed_form(self.tool, ["flutes"], t) for t in self.theta])
-        self.assertLess(flutes.min(), want.min() - 0.3)
+        self.assertLess(flutes.min(), solid.min() - 0.3)
         got, at = min_clearance(self.checker, self.centers, self.axes)
         only, margin = self.checker.clearance_parts()
         every = self.checker.clearance_of(self.centers, self.axes, only) + margin
         self.assertEqual(at, int(np.argmin(every)))
         self.assertAlmostEqual(got, float(every.min()), delta=1e-12)
-        self.assertAlmostEqual(got, float(want.min()), delta=self.checker.margin + 1e-3)
+        # the shank's bottom rim is the closest: measured to the grown shank (not grown below
+        # its bottom, which the flutes cover), so between the rim's own distance and the
+        # margin more, and below what the gauge measures above the bottom
+        self.assertGreaterEqual(got, float(solid.min()) - 1e-3)
+        self.assertLessEqual(got, float(solid.min()) + self.checker.margin + 1e-3)
+        self.assertLess(got, float(want.min()))
         # the shortcut the mold's tests take: every pose within reach measured as here
         first = np.argsort(every, kind="stable")[:4]
         near = fcl_distances_up_to(self.checker, self.centers, self.axes, only,
@@ -142,7 +155,9 @@ class CurvedClearance(unittest.TestCase):
             tilt = np.radians(rng.uniform(0.0, 45.0, 24))[:, None]
             axes = np.cos(tilt) * n + np.sin(tilt) * side
             centers = sp.P + tool.ball_radius * n
-            got = clearance_profile(checker, centers, axes, top=20.0)
+            got = ClearanceGauge(checker, top=20.0, whole=True).measure(centers, axes)
+            above = clearance_profile(checker, centers, axes, top=20.0)     # above the shank's bottom
+            self.assertTrue(np.all(above >= got), np.column_stack([above, got]))
             exact = np.empty(len(axes))
             for i, q in enumerate(axis_quaternions(axes)):
                 best = np.inf
@@ -218,17 +233,18 @@ def fcl_distances_up_to(checker, centers, axes, only: int, reach: float, slices:
     Q = axis_quaternions(axes)
     req = fcl.CollisionRequest()
     near = np.zeros(len(centers), np.int64)                  # per pose: the parts within reach
-    for j, p in enumerate(checker.tool.parts()):
+    prof = checker.profile(0.0)                              # the primitives: the grown parts
+    for j in range(len(prof.z0)):
         if not (only >> j) & 1:
             continue
-        m = checker.cutting_margin if p.name == "flutes" else checker.margin
-        k, excess = (1, 0.0) if abs(p.r1 - p.r0) < 1e-12 else (slices, checker.polygon_tolerance)
-        length = (p.z1 - p.z0) / k
+        z0, z1, r0, r1 = prof.z0[j], prof.z1[j], prof.rin0[j], prof.rin1[j]
+        k, excess = (1, 0.0) if abs(r1 - r0) < 1e-12 else (slices, checker.polygon_tolerance)
+        length = (z1 - z0) / k
         cyl = []
         for i in range(k):
-            rho = max(p.r0 + (p.r1 - p.r0) * i / k, p.r0 + (p.r1 - p.r0) * (i + 1) / k) + m + excess
+            rho = max(r0 + (r1 - r0) * i / k, r0 + (r1 - r0) * (i + 1) / k) + excess
             cyl.append((fcl.CollisionObject(fcl.Cylinder(rho + reach, length + 2 * reach), fcl.Transform()),
-                        p.z0 + (i + 0.5) * length))
+                        z0 + (i + 0.5) * length))
         for q in range(len(centers)):
             for obj, z in cyl:
                 obj.setQuatRotation(Q[q])
@@ -332,18 +348,34 @@ class MoldSmallestClearance(unittest.TestCase):
     def test_smallest_next_to_a_part_end(self):
         """KNOWN TO FAIL (left for a later pass): on the keycap tilted 20 deg the search gives
         1.42795 mm at pose 1342 where fcl.distance at every pose gives 1.42766 mm at pose 1401
-        (figure4's job: 1.61452 mm at 9690 against 1.60871 mm at 55976). Its growths widen the
-        parts' radii (and the holder's top) only, so a pose nearest the workpiece at a part's
-        lower end need not touch at a growth above its clearance; the bisection then keeps
-        other poses. Growing every part in every direction (its ends too) makes the answers
-        fcl's, but boxes the ends' rims (up to 0.41 of the growth beyond the true offset) and
-        so the keycap job's search asked 4,272 distances (5.6 s against 0.14): a tight offset
-        (rounded ends, as :func:`offset_profile`) is the way."""
+        (figure4's job: 1.6125 mm at 12028). The growths do not grow a bottom another solid
+        covers (the shank's on the flutes: below it the flutes rule, as in the checker),
+        while fcl.distance measures to the grown shank from below it too; so a pose nearest
+        the workpiece there need not touch at a growth above that distance, and the
+        bisection keeps other poses. Growing those bottoms too makes the answers fcl's
+        (1.14942 mm at 1342, both) but the keycap job's search asked 18,440 poses of fcl
+        instead of 3,561 (0.25 s against 0.10): a distance measured above the bottom only is
+        the way. Both figures are lower bounds of the gauge's (test below)."""
         checker, centers, axes = self.tilted_keycap()
         only, margin = checker.clearance_parts()
         got = min_clearance(checker, centers, axes)
         every = fcl_distances_up_to(checker, centers, axes, only, got[0] - margin + 1e-3) + margin
         self.assertEqual(got[1], int(np.argmin(every)))
+
+    def test_smallest_is_a_lower_bound_of_the_gauge(self):
+        """The keycap tilted 20 deg: the smallest clearance lies below the gauge's (the true
+        offsets of the shank above its bottom, which the flutes cover, and of the holder:
+        2.77 mm) and above the distance to the parts' whole solids (the shank's bottom rim:
+        1.23 mm), within the gauge's bracket: the grown shank lies within the margin of
+        the shank (its bottom is not grown), so from below it too the figure is no more than
+        the margin short of the solid's distance."""
+        checker, centers, axes = self.tilted_keycap()
+        got, _ = min_clearance(checker, centers, axes)
+        above = clearance_profile(checker, centers, axes).min()
+        whole = ClearanceGauge(checker, whole=True).measure(centers, axes).min()
+        self.assertLess(whole, above - 1.0)
+        self.assertLessEqual(got, above * 1.01)
+        self.assertGreaterEqual(got, whole * 0.98 - 0.01)
 
     def test_bound_on_the_keycap(self):
         """The keycap (convex): no scout touches below 0.5 mm, so no level is skipped; the

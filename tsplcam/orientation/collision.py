@@ -8,14 +8,20 @@ triangle remembers its owner (a patch or a named mesh) so a collision names its 
 
 Tool: the solids above the ball centre (flutes, shank, holder segments; see
 :meth:`Tool.parts`) are turned into one closed triangle mesh of circumscribed polygons
-(the polygon contains the true circle), each part grown radially by ``margin`` (the
-chordal tolerance plus the requested clearance). So a pose the checker passes keeps the
-true tool at least ``clearance`` away from the true surface, and a reported collision is
-at most ``margin`` + the polygon excess (``polygon_tolerance``) from a real touch. The
-same parts also exist as fcl primitives (``fcl.Cylinder``, and ``fcl.Convex`` frustums):
-:meth:`CollisionChecker.collides_primitives` uses them as the independent reference the tests
-compare against; the mesh form answers about four times faster (one BVH-BVH query per
-pose instead of one GJK traversal per part).
+(the polygon contains the true circle), each part grown by ``margin`` (the chordal
+tolerance plus the requested clearance) in every direction: the smallest frustum of its
+slope that holds every point within ``margin`` of it (:func:`grown_frustum`: the side moved
+out by ``margin`` across the side, the ends by ``margin`` along the axis), except past an end
+another solid of the tool covers (a shank's bottom on flutes as wide: the flutes cut, and
+keep only the chordal tolerance). So a pose the checker passes keeps the true tool at least
+``clearance`` away from the true surface, and a reported collision is at most ``margin`` +
+the polygon excess (``polygon_tolerance``) from a real touch, ``sqrt(2)`` times that at a
+rim. (Grown across the axis only, as before, a cone kept ``margin / sqrt(1 + slope^2)``
+and nothing was kept below a bottom or above a top: keycap_mold's holder rim came 0.176 mm
+from the stock at clearance 0.3.) The same parts also exist as fcl primitives
+(``fcl.Cylinder``, and ``fcl.Convex`` frustums): :meth:`CollisionChecker.collides_primitives`
+uses them as the independent reference the tests compare against; the mesh form answers
+about four times faster (one BVH-BVH query per pose instead of one GJK traversal per part).
 
 Broad phase: :mod:`tsplcam.orientation.broadphase` decides most poses of a batch at once
 in numpy (a proof that the pose is free, or that it collides, from distance bounds to the
@@ -463,18 +469,51 @@ def _part_margin(name: str, margin: float, cutting_margin: float | None) -> floa
     return margin if (cutting_margin is None or name != "flutes") else cutting_margin
 
 
+def grown_frustum(z0: float, z1: float, r0: float, r1: float, grow: float,
+                  bottom: bool = True, top: bool = True) -> tuple:
+    """(z0, z1, r0, r1) of the smallest frustum of the same slope that holds every point
+    within ``grow`` of the frustum (z0, z1, r0, r1), i.e. its Minkowski sum with a ball: its
+    side moved out by ``grow`` across the side (``grow * sqrt(1 + slope^2)`` across the
+    axis) and both ends moved out by ``grow`` along the axis (the bottom only when
+    ``bottom``). The side's offset line is tangent to the rounded rims' arcs (circles of
+    radius ``grow`` about the rims), so the arcs lie inside it; a frustum only grown across the
+    axis keeps ``grow / sqrt(1 + slope^2)`` from a cone's side and nothing below its bottom or
+    above its top (a holder's rim 0.176 mm from keycap_mold's stock at clearance 0.3)."""
+    s = (r1 - r0) / (z1 - z0)
+    c = grow * float(np.sqrt(1.0 + s * s))
+    lo = grow if bottom else 0.0
+    hi = grow if top else 0.0
+    return z0 - lo, z1 + hi, r0 - s * lo + c, r1 + s * hi + c
+
+
+def tool_frustums(tool: Tool, margin: float = 0.0, cutting_margin: float | None = None) -> list:
+    """Per tool part (name, z0, z1, r0, r1): the part grown by ``margin`` (the flutes by
+    ``cutting_margin`` when given) in every direction (:func:`grown_frustum`) but past an end
+    another solid covers (:meth:`Tool.exposed_ends`): the tool the checker keeps off the
+    workpiece. Below a covered bottom (a shank's on flutes as wide) the solid below rules:
+    the flutes cut, and keep only the cutting margin (growing the keycap tool's shank 0.3 mm
+    down into its flutes' top made the keycap job 0.40 -> 0.64 s and the long tool's 0.59 ->
+    1.50 s). Above a covered top lies the part above (grown itself)."""
+    return [(p.name, *grown_frustum(p.z0, p.z1, p.r0, p.r1, _part_margin(p.name, margin, cutting_margin),
+                                    bottom=lo, top=hi))
+            for p, (lo, hi) in zip(tool.parts(), tool.exposed_ends())]
+
+
 def tool_mesh(tool: Tool, margin: float = 0.0, polygon_tolerance: float = 0.01,
               cutting_margin: float | None = None):
     """Closed triangle mesh of the tool parts (tool frame: ball centre at the origin, axis +z),
-    each radius grown by ``margin`` (the flutes by ``cutting_margin`` when given) and
-    circumscribed. Returns (V, T, part_of_triangle, names)."""
-    parts = tool.parts()
+    each grown by ``margin`` (the flutes by ``cutting_margin`` when given) as
+    :func:`tool_frustums` and circumscribed. Returns (V, T, part_of_triangle, names)."""
+    return frustum_mesh(tool_frustums(tool, margin, cutting_margin), polygon_tolerance)
+
+
+def frustum_mesh(frustums: list, polygon_tolerance: float = 0.01):
+    """Closed triangle mesh of frustums (name, z0, z1, r0, r1) about +z, each of circumscribed
+    polygons within ``polygon_tolerance`` of its circles. Returns (V, T, frustum_of_triangle,
+    names)."""
     V, T, owner = [], [], []
-    names = [p.name for p in parts]
-    for k, p in enumerate(parts):
-        g = _part_margin(p.name, margin, cutting_margin)
-        r0, r1 = p.r0 + g, p.r1 + g
-        z0, z1 = p.z0, p.z1
+    names = [f[0] for f in frustums]
+    for k, (_, z0, z1, r0, r1) in enumerate(frustums):
         n = polygon_segments(max(r0, r1), polygon_tolerance)
         a = np.arange(n) * 2 * np.pi / n
         s = 1.0 / np.cos(np.pi / n)                       # circumscribed: edge midpoints on the circle
@@ -498,12 +537,8 @@ def tool_primitives(tool: Tool, margin: float = 0.0, polygon_tolerance: float = 
     """fcl shapes of the tool parts with their offsets along the axis: [(name, geometry,
     z_offset)]. Cylinders are exact ``fcl.Cylinder``; cone frustums are ``fcl.Convex``
     hulls of two circumscribed polygons. Margins as in :func:`tool_mesh`."""
-    out = []
-    for p in tool.parts():
-        g = _part_margin(p.name, margin, cutting_margin)
-        out.append((p.name, frustum_shape(p.r0 + g, p.r1 + g, p.z1 - p.z0, polygon_tolerance),
-                    0.5 * (p.z0 + p.z1)))
-    return out
+    return [(name, frustum_shape(r0, r1, z1 - z0, polygon_tolerance), 0.5 * (z0 + z1))
+            for name, z0, z1, r0, r1 in tool_frustums(tool, margin, cutting_margin)]
 
 
 def frustum_shape(r0: float, r1: float, h: float, polygon_tolerance: float = 0.01):
@@ -615,13 +650,13 @@ class CollisionChecker:
         self.polygon_tolerance = float(polygon_tolerance)
         self._wp_object = None             # the workpiece's fcl BVH, built when first asked
         self.cutting_margin = self.mesh.chordal_error
-        TV, TT, self._tool_owner, self.part_names = tool_mesh(tool, self.margin, polygon_tolerance,
-                                                              self.cutting_margin)
+        self._frustums = tool_frustums(tool, self.margin, self.cutting_margin)
+        TV, TT, self._tool_owner, self.part_names = frustum_mesh(self._frustums, polygon_tolerance)
         self.tool_vertices, self.tool_triangles = TV, TT
         self._tool = fcl.CollisionObject(_bvh(TV, TT), fcl.Transform())
-        self._prims = [(name, fcl.CollisionObject(g, fcl.Transform()), z)
-                       for name, g, z in tool_primitives(tool, self.margin, polygon_tolerance,
-                                                         self.cutting_margin)]
+        self._prims = [(name, fcl.CollisionObject(frustum_shape(r0, r1, z1 - z0, polygon_tolerance),
+                                                  fcl.Transform()), 0.5 * (z0 + z1))
+                       for name, z0, z1, r0, r1 in self._frustums]
         self._ball = fcl.CollisionObject(fcl.Sphere(tool.ball_radius - self.gouge_tolerance), fcl.Transform())
         self._req = fcl.CollisionRequest()
         self.checks = 0                    # poses checked so far (for reports and benchmarks)
@@ -651,14 +686,20 @@ class CollisionChecker:
         (as :meth:`_tool_object`): per part its heights and its inscribed (grown) and
         circumscribed (polygon corner) radii."""
         rows = []
-        for p in self.tool.parts():
-            g = _part_margin(p.name, self.margin + grow, self.cutting_margin + grow)
-            r0, r1 = p.r0 + g, p.r1 + g
+        for _, z0, z1, r0, r1 in self._grown(grow):
             f = 1.0 / np.cos(np.pi / polygon_segments(max(r0, r1), self.polygon_tolerance))
-            rows.append((p.z0, p.z1, r0, r1, r0 * f, r1 * f))
+            rows.append((z0, z1, r0, r1, r0 * f, r1 * f))
         z0, z1, ri0, ri1, ro0, ro1 = (np.array(c, float) for c in zip(*rows))
-        z1[-1] += grow
         return Profile(z0, z1, ri0, ri1, ro0, ro1)
+
+    def _grown(self, grow: float) -> list:
+        """The tool's frustums grown by the margins and ``grow`` mm more (:func:`tool_frustums`):
+        every point above a covered bottom within ``grow`` of what :meth:`clearance_of`
+        measures to lies inside, so a pose that far touches at every larger growth (the
+        smallest clearance's search); below a covered bottom only the solid below counts."""
+        if not grow:
+            return self._frustums
+        return tool_frustums(self.tool, self.margin + grow, self.cutting_margin + grow)
 
     @property
     def triangles(self) -> int:
@@ -666,19 +707,13 @@ class CollisionChecker:
 
     # --- batches -----------------------------------------------------------------------
     def _tool_object(self, grow: float = 0.0, parts: int = -1):
-        """The fcl object of the tool mesh grown radially (and at its top) by ``grow`` mm
-        more; only the parts in the bit mask ``parts`` (-1: all). A pose collides when some
+        """The fcl object of the tool mesh grown by ``grow`` mm more; only the parts in the bit mask ``parts`` (-1: all). A pose collides when some
         part does, and a part's triangles are the same in every subset, so asking only the
         parts the broad phase could not clear gives the same answer."""
         key = (float(grow), int(parts))
         cache = self.__dict__.setdefault("_tool_objects", {})
         if key not in cache:
-            V, T, own, _ = tool_mesh(self.tool, self.margin + grow, self.polygon_tolerance,
-                                     self.cutting_margin + grow)
-            if grow:
-                V = V.copy()
-                top = V[:, 2].max()
-                V[:, 2] = np.where(V[:, 2] >= top - 1e-12, V[:, 2] + grow, V[:, 2])
+            V, T, own, _ = frustum_mesh(self._grown(grow), self.polygon_tolerance)
             keep = ((int(parts) >> own) & 1).astype(bool) if parts != -1 else np.ones(len(T), bool)
             cache[key] = fcl.CollisionObject(_bvh(V, T[keep]), fcl.Transform())
         return cache[key]
@@ -817,19 +852,37 @@ class CollisionChecker:
 
     def touching_bound(self, grow: float) -> float:
         """A distance (mm, as :meth:`clearance_of` measures it) that a pose touching at
-        ``grow`` (:meth:`collides_parts`) lies within: a workpiece point inside a part's
-        circumscribed polygons grown by ``grow`` is within ``grow`` plus the polygons'
-        ``polygon_tolerance`` of the part across the axis, and within ``grow`` above the
-        holder's top (grown too): at a corner both, hence their hypotenuse."""
-        return float(np.hypot(float(grow) + self.polygon_tolerance, float(grow))) + 1e-9
+        ``grow`` (:meth:`collides_parts`) lies within: the farthest a point inside a part's
+        circumscribed polygons grown by ``grow`` can be from its primitive (which holds the
+        frustum of its inscribed radii): of a convex body the corners are the farthest, so
+        the largest distance, in a plane through the axis, from a corner of the grown
+        frustum (its polygons' corner radius) to the part's profile. On a side that is
+        ``grow`` plus the polygons' excess; at a rim up to the hypotenuse of the side's and
+        the end's growth, and at the wide end of a cone, grown along its slope, more (the
+        keycap holder's cone: 1.8 ``grow``)."""
+        a, b = self.profile(grow), self.profile(0.0)
+        far = 0.0
+        for k in range(len(a.z0)):
+            pts = np.array([[a.rout0[k], a.z0[k]], [a.rout1[k], a.z1[k]]])
+            quad = np.array([[0.0, b.z0[k]], [b.rin0[k], b.z0[k]], [b.rin1[k], b.z1[k]], [0.0, b.z1[k]]])
+            d = np.full(len(pts), np.inf)
+            for p, q in zip(quad[:-1], quad[1:]):
+                t = np.clip((pts - p) @ (q - p) / max(float((q - p) @ (q - p)), 1e-300), 0.0, 1.0)
+                d = np.minimum(d, np.hypot(*(pts - (p + t[:, None] * (q - p))).T))
+            far = max(far, float(d.max()))
+        return far + 1e-9
 
     def parts_within(self, grow: float, larger: float) -> int:
         """Bit mask of the tool parts whose circumscribed frustum grown by ``grow`` lies inside
         the one grown by ``larger`` (so a part the broad phase cleared at ``larger`` is clear
-        at ``grow``): the polygons' corners move with the growth's side count."""
+        at ``grow``): the polygons' corners move with the growth's side count, and the
+        grown frustums' ends move along the axis."""
         a, b = self.profile(grow), self.profile(larger)
-        ok = ((a.rout0 <= b.rout0) & (a.rout1 <= b.rout1) & (a.z0 >= b.z0) & (a.z1 <= b.z1))
-        return int(np.sum(ok.astype(np.int64) << np.arange(len(ok))))
+        K = len(a.z0)
+        ok = (a.z0 >= b.z0) & (a.z1 <= b.z1)
+        for k in range(K):
+            ok[k] &= bool(b.rout(k, a.z0[k]) >= a.rout0[k] and b.rout(k, a.z1[k]) >= a.rout1[k])
+        return int(np.sum(ok.astype(np.int64) << np.arange(K)))
 
     def collides_fcl(self, centers, axes, grow: float = 0.0) -> np.ndarray:
         """:meth:`collides` asked of fcl alone: one BVH-BVH query per pose."""
@@ -923,7 +976,7 @@ class CollisionChecker:
                 if bound[k, j] >= best or not (mask >> j) & 1:
                     continue
                 _, obj, z = self._prims[j]
-                if np.isfinite(best) and not self._touches_grown(parts[j], z, Q[k], C[k], A[k], best):
+                if np.isfinite(best) and not self._touches_grown(j, Q[k], C[k], A[k], best):
                     continue
                 obj.setQuatRotation(Q[k])
                 obj.setTranslation(C[k] + z * A[k])
@@ -935,31 +988,19 @@ class CollisionChecker:
             floor = min(floor, own)
         return out
 
-    def _touches_grown(self, part, z, q, c, a, by: float) -> bool:
-        """Whether some point within ``by`` mm of the part's primitive lies in the workpiece
-        (a part it clears lies farther than ``by``): the points within ``by`` of a frustum lie
-        in the frustum whose radii grow by ``by / cos`` of the side's slope (the side's offset
-        measured across the axis), or in a disc of radius ``by`` more and thickness ``2 by`` at
-        either end; for a cylinder, one cylinder ``2 by`` longer."""
-        m = _part_margin(part.name, self.margin, self.cutting_margin)
-        length = part.z1 - part.z0
-        slope = abs(part.r1 - part.r0) / max(length, 1e-12)
-        if slope < 1e-12:
-            shapes = [(frustum_shape(part.r0 + m + by, part.r1 + m + by, length + 2 * by, self.polygon_tolerance), z)]
-        else:
-            side = m + by * np.sqrt(1.0 + slope * slope)
-            shapes = [(frustum_shape(part.r0 + side, part.r1 + side, length, self.polygon_tolerance), z),
-                      (frustum_shape(part.r0 + m + by, part.r0 + m + by, 2 * by, self.polygon_tolerance),
-                       z - 0.5 * length),
-                      (frustum_shape(part.r1 + m + by, part.r1 + m + by, 2 * by, self.polygon_tolerance),
-                       z + 0.5 * length)]
-        for shape, h in shapes:
-            grown = fcl.CollisionObject(shape, fcl.Transform())
-            grown.setQuatRotation(q)
-            grown.setTranslation(c + h * a)
-            if fcl.collide(grown, self._wp, self._req, fcl.CollisionResult()):
-                return True
-        return False
+    def _touches_grown(self, part: int, q, c, a, by: float) -> bool:
+        """Whether some point within ``by`` mm of part ``part``'s primitive lies in the workpiece
+        (a part it clears lies farther than ``by``): those points lie in the primitive's
+        frustum grown by ``by`` (:func:`grown_frustum`, both ends) and by the polygons'
+        excess across the axis (a ``Convex`` primitive's corners)."""
+        _, z0, z1, r0, r1 = self._frustums[part]
+        z0, z1, r0, r1 = grown_frustum(z0, z1, r0, r1, by)
+        pad = self.polygon_tolerance if abs(r1 - r0) > 1e-12 else 0.0
+        grown = fcl.CollisionObject(frustum_shape(r0 + pad, r1 + pad, z1 - z0, self.polygon_tolerance),
+                                    fcl.Transform())
+        grown.setQuatRotation(q)
+        grown.setTranslation(c + 0.5 * (z0 + z1) * a)
+        return bool(fcl.collide(grown, self._wp, self._req, fcl.CollisionResult()))
 
     # --- one pose, for messages ------------------------------------------------------------
     def _contact(self, obj):

@@ -311,8 +311,24 @@ def joint_programme(checker, C, grid: MeridianGrid, cost: SmoothingCost, pref, d
 
     def resolve(pj, pk):
         keep = (status[pj, pk] == -1) | (status[pj, pk] == 3)
-        status[pj[keep], pk[keep]] = -1
-        return resolve_meridians(checker, C, rot, grid, status, pj[keep], pk[keep], step, tick=tick)
+        pj, pk = pj[keep], pk[keep]
+        status[pj, pk] = -1
+        made = 0
+        moved = np.nonzero(grid.theta[pj, pk] != theta_init[pj, pk])[0]
+        if len(moved):
+            # a tilt taken from an anchor is tried first; where it collides the meridian is
+            # searched from its own first tilt (the search goes away from the preferred axis
+            # only, so from the anchor's tilt it would miss a free window nearer)
+            mj, mk = pj[moved], pk[moved]
+            hit = checker.collides(C[mj], rot.axis(grid.theta[mj, mk], grid.phi[mk]))
+            made += len(mj)
+            status[mj[~hit], mk[~hit]] = 0
+            grid.raised[mj[~hit], mk[~hit]] = False
+            grid.theta[mj[hit], mk[hit]] = theta_init[mj[hit], mk[hit]]
+            left = np.ones(len(pj), bool)
+            left[moved[~hit]] = False
+            pj, pk = pj[left], pk[left]
+        return made + resolve_meridians(checker, C, rot, grid, status, pj, pk, step, tick=tick)
 
     dev = seen = None
     while True:

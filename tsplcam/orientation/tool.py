@@ -117,6 +117,19 @@ class Tool:
             z += h.length
         return out
 
+    def exposed_ends(self) -> list:
+        """Per part of :meth:`parts`: (bottom, top), whether that end face is the tool's
+        surface: a bottom lies on the solid below (the ball for the first part) and a top
+        under the part above; an end as narrow as its neighbour or narrower is covered by it
+        (a shank's bottom on flutes as wide, the flutes' on the ball)."""
+        parts = self.parts()
+        out = []
+        for k, p in enumerate(parts):
+            below = parts[k - 1].r1 if k else self.ball_radius
+            above = parts[k + 1].r0 if k + 1 < len(parts) else 0.0
+            out.append((below < p.r0 - 1e-12, above < p.r1 - 1e-12))
+        return out
+
     def max_radius(self) -> float:
         return max([self.ball_radius] + [max(p.r0, p.r1) for p in self.parts()])
 

@@ -195,6 +195,29 @@ class Offsets(unittest.TestCase):
             self.assertLessEqual(dist.max(), g / np.cos(np.radians(7.5)) + 1e-9, part)
         self.assertEqual(len(offset_profile(ToolPart("x", 0.0, 1.0, 1.0, 1.0), 0.0)[0]), 4)
 
+    def test_grown_frustum_holds_the_offset(self):
+        """The checker's grown part (:func:`grown_frustum`) holds the part's offset (every
+        vertex of :func:`offset_profile`'s polyline, which contains the arcs) and touches it
+        along the side: its side lies exactly ``g`` from the part's side, across the side."""
+        from tsplcam.orientation.collision import grown_frustum
+        for part in (ToolPart("holder", 2.0, 8.0, 2.5, 5.0), ToolPart("shank", 1.0, 5.0, 0.5, 0.5),
+                     ToolPart("neck", 1.0, 3.0, 2.0, 1.0), ToolPart("steep", 1.0, 1.5, 1.0, 4.0)):
+            for g in (0.05, 0.3, 1.7):
+                for bottom in (True, False):
+                    z0, z1, r0, r1 = grown_frustum(part.z0, part.z1, part.r0, part.r1, g, bottom=bottom)
+                    r, z = offset_profile(part, g, max_angle=5.0, bottom=bottom)
+                    self.assertGreaterEqual(z.min(), z0 - 1e-12)
+                    self.assertLessEqual(z.max(), z1 + 1e-12)
+                    R = r0 + (z - z0) * (r1 - r0) / (z1 - z0)
+                    # the polyline's corners stray g (1 / cos 2.5 deg - 1) outside the arcs
+                    self.assertTrue(np.all(r <= R + g * (1.0 / np.cos(np.radians(2.5)) - 1.0) + 1e-12),
+                                    (part, g, bottom))
+                    s = (part.r1 - part.r0) / (part.z1 - part.z0)
+                    mid = 0.5 * (part.z0 + part.z1)
+                    across = (r0 + (mid - z0) * (r1 - r0) / (z1 - z0) - (part.r0 + (mid - part.z0) * s)) \
+                        / np.sqrt(1.0 + s * s)
+                    self.assertAlmostEqual(across, g, delta=1e-12)
+
     def test_revolved_mesh_is_closed(self):
         V, T = revolved_mesh([offset_profile(ToolPart("shank", 1.0, 5.0, 0.5, 0.5), 0.3)], 0.01)
         edges = np.sort(np.concatenate([T[:, [0, 1]], T[:, [1, 2]], T[:, [2, 0]]]), axis=1)
@@ -304,6 +327,33 @@ class MoldSmallestClearance(unittest.TestCase):
         self.assertIsNotNone(_scouted(checker, centers, axes, levels, 3, only, 40, 32))   # the scouts' way
         self.assertIsNotNone(_bounded(checker, centers, axes, levels[3], only, 32))       # and their bound
         self.assert_scouts_find_fcl_smallest(checker, centers, axes)
+
+    def test_free_poses_keep_the_clearance(self):
+        """Every pose the checker passes keeps the shank and holder the clearance from the
+        keycap mold and its stock, by the gauge (true offsets, rounded at the rims; shank
+        above its bottom, which the flutes cover): axes up to 40 deg from the vertical in the
+        cavity, where the holder's lower rim meets the stock's top edge. With the parts grown
+        across the axis only (before 2026-11-29), 20 of the 828 free poses brought the holder
+        0.085-0.29 mm close."""
+        from tsplcam.model import samples
+        from tsplcam.model.cage import cage_model
+        from tsplcam.orientation.testpaths import zigzag
+        mold = cage_model(samples.keycap_mold())
+        V, T = samples.keycap_mold_stock()
+        checker = CollisionChecker(mold, load_tool("ball1_keycap"), meshes=[("stock", V, T)], clearance=0.3)
+        path = zigzag(mold, 0.5, lines=16, points=40)
+        rng = np.random.default_rng(11)
+        up = np.array([0.0, 0.0, 1.0])
+        tilt = np.radians(rng.uniform(0.0, 40.0, len(path)))[:, None]
+        side = np.cross(up, rng.normal(size=(len(path), 3)))
+        side /= np.linalg.norm(side, axis=1, keepdims=True)
+        axes = np.cos(tilt) * up + np.sin(tilt) * side
+        centers = path.contact + 0.5 * path.normal
+        free = ~checker.collides(centers, axes)
+        self.assertGreater(free.sum(), 100)
+        got = clearance_profile(checker, centers[free], axes[free])
+        # the gauge reads up to half its 0.01 mm bracket high and the polygons' 0.01 mm low
+        self.assertGreaterEqual(got.min(), checker.clearance - 0.005, np.sort(got)[:5])
 
     @staticmethod
     def tilted_keycap(tilt_deg: float = 20.0, seed: int = 8):

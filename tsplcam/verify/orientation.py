@@ -325,18 +325,7 @@ def offset_profile(part, grow: float, max_angle: float = 15.0, bottom: bool = Tr
         return np.array([0.0, part.r0, part.r1, 0.0]), np.array([part.z0, part.z0, part.z1, part.z1])
     normal = -np.arctan2(part.r1 - part.r0, part.z1 - part.z0)     # the side's outward normal
     r, z = [0.0], [part.z0 - grow]
-    first = -0.5 * np.pi
-    if not bottom:
-        z = [part.z0]
-        if normal > 0.0:                       # a side sloping inward: the rim's arc above the bottom
-            first = 0.0
-        else:                                  # else the side's offset line where it crosses the bottom
-            first = normal
-            r.append(part.r0 + grow / np.cos(normal))
-            z.append(part.z0)
-    for (cr, cz), a0, a1 in (((part.r0, part.z0), first, normal), ((part.r1, part.z1), normal, 0.5 * np.pi)):
-        if a1 <= a0:                           # (a cut bottom on a side sloping outward: no arc)
-            continue
+    for (cr, cz), a0, a1 in (((part.r0, part.z0), -0.5 * np.pi, normal), ((part.r1, part.z1), normal, 0.5 * np.pi)):
         n = max(1, int(np.ceil(np.degrees(a1 - a0) / max_angle)))
         step = (a1 - a0) / n
         mid = a0 + (np.arange(n) + 0.5) * step                     # tangents at a0, a0 + step, ... meet here
@@ -346,7 +335,31 @@ def offset_profile(part, grow: float, max_angle: float = 15.0, bottom: bool = Tr
         z += [cz + grow * np.sin(ends[0]), *(cz + g * np.sin(mid)), cz + grow * np.sin(ends[1])]
     r.append(0.0)
     z.append(part.z1 + grow)
-    return np.array(r), np.array(z)
+    if bottom:
+        return np.array(r), np.array(z)
+    return _above(np.array(r), np.array(z), part.z0)
+
+
+def _above(r: np.ndarray, z: np.ndarray, z0: float):
+    """The profile (from the axis to the axis, closed along it) cut to ``z >= z0``: the
+    polygon clipped by the half-plane (its edges crossing ``z0`` cut there), from the axis
+    at ``z0`` to the axis at the top."""
+    pts = list(zip(r.tolist(), z.tolist()))
+    out = []
+    for (ra, za), (rb, zb) in zip(pts, pts[1:]):                  # (the axis edge adds nothing)
+        if za >= z0:
+            out.append((ra, za))
+        if (za >= z0) != (zb >= z0):
+            t = (z0 - za) / (zb - za)
+            out.append((ra + t * (rb - ra), z0))
+    out.append(pts[-1])
+    start = next(i for i, (_, zz) in enumerate(out) if zz == z0)    # the first point on the cut
+    body = [(0.0, z0)]
+    for p in out[start:]:
+        if abs(p[0] - body[-1][0]) + abs(p[1] - body[-1][1]) > 1e-12:   # (an arc's end on the cut)
+            body.append(p)
+    rr, zz = (np.array(c, float) for c in zip(*body))
+    return rr, zz
 
 
 def revolved_mesh(profiles, polygon_tolerance: float = 0.01):

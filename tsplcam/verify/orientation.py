@@ -18,7 +18,7 @@ rotary travel and machining time.
   below it need not touch at a growth above its clearance and can be left out of the
   bisection: on the keycap tilted 20 deg the search gives 1.42795 mm where fcl.distance at
   every pose gives 1.42766 mm (tests/verify/test_verify_clearance.py keeps that known-failing
-  case); the gauge (:class:`ClearanceGauge`) measures above such a bottom only.
+  case); the gauge (:class:`ClearanceGauge`) measures above such a bottom only when asked.
 * angular change per block ``arccos(K_i . K_i+1)``: largest and mean over cutting blocks;
   total variation; per mm.
 * rotary travel for an A/C table machine: ``sum |dA| + |dC|`` with the machine poses of
@@ -405,13 +405,15 @@ class ClearanceGauge:
     pose's distance by bisection over the growths of :func:`clearance_levels`: about eight BVH
     collision queries a pose instead of one fcl distance query (tens of ms) a pose. The grown
     tools are built once per growth and kept with the checker, so later calls and later gauges
-    on the same checker are cheaper. Below a part's bottom that another solid of the tool
-    covers (the shank's on flutes as wide, :meth:`~tsplcam.orientation.tool.Tool.exposed_ends`)
-    nothing is measured, as the checker keeps the clearance there (the flutes cut); ``whole``:
-    the distance to each part's whole solid."""
+    on the same checker are cheaper. The distance is to each part's whole solid; ``covered``:
+    below a part's bottom that another solid of the tool covers (the shank's on flutes as
+    wide, :meth:`~tsplcam.orientation.tool.Tool.exposed_ends`) nothing is measured, as the
+    checker keeps the clearance only above it (below it the flutes, which cut, rule). The
+    report draws whole solids: measured above the bottom only, a shank a millimetre over a
+    flat top read more than 10 mm on the keycap (the top of the flutes is what is near)."""
 
     def __init__(self, checker, parts=None, top: float = 10.0, step: float = 0.01, ratio: float = 1.02,
-                 whole: bool = False):
+                 covered: bool = False):
         import fcl
 
         from ..orientation.collision import _bvh
@@ -419,7 +421,7 @@ class ClearanceGauge:
         keep = [(p, lo) for p, (lo, _) in zip(checker.tool.parts(), checker.tool.exposed_ends())
                 if (p.name in parts if parts is not None else p.name != "flutes")]
         self.parts = [p for p, _ in keep]
-        self._bottoms = [lo or whole for _, lo in keep]
+        self._bottoms = [lo or not covered for _, lo in keep]
         if not self.parts:
             raise ValueError(f"no tool part named {parts!r} (parts: {names})")
         self.levels = clearance_levels(top, step, ratio)
@@ -489,10 +491,10 @@ class ClearanceGauge:
 
 
 def clearance_profile(checker, centers, axes, parts=None, top: float = 10.0, step: float = 0.01,
-                      ratio: float = 1.02) -> np.ndarray:
+                      ratio: float = 1.02, covered: bool = False) -> np.ndarray:
     """Distance (mm) of every pose between the tool parts (default: shank and holder) and the
     checker's workpiece, inf beyond ``top``; see :class:`ClearanceGauge`."""
-    return ClearanceGauge(checker, parts, top, step, ratio).measure(centers, axes)
+    return ClearanceGauge(checker, parts, top, step, ratio, covered).measure(centers, axes)
 
 
 def _simple_ac(axis):

@@ -880,8 +880,9 @@ class CollisionChecker:
         the largest distance, in a plane through the axis, from a corner of the grown
         frustum (its polygons' corner radius) to the part's profile. On a side that is
         ``grow`` plus the polygons' excess; at a rim up to the hypotenuse of the side's and
-        the end's growth, and at the wide end of a cone, grown along its slope, more (the
-        keycap holder's cone: 1.8 ``grow``)."""
+        the end's growth (1.42-1.56 ``grow`` on the keycap's tool), and past the wide end of a
+        cone, grown along its slope, more (1.8 ``grow`` on the keycap holder's cone, were its
+        top not covered by the holder's cylinder)."""
         a, b = self.profile(grow), self.profile(0.0)
         far = 0.0
         for k in range(len(a.z0)):
@@ -965,8 +966,9 @@ class CollisionChecker:
                      below: float = np.inf) -> np.ndarray:
         """Distance (mm) between the tool parts above the ball (those in the bit mask
         ``parts``, -1 all) and the workpiece per pose (fcl.distance on the exact primitives; 0
-        where they touch). The tool is grown by the margin, so the true distance is this plus
-        ``margin`` (the flutes: ``cutting_margin``). ``smallest``: only the smallest distance
+        where they touch). The tool is grown by the margin, so the true distance is at least this
+        plus ``margin`` (the flutes: ``cutting_margin``): as much on a side, more next to a
+        rim (the grown part's corner stands 0.41 ``margin`` beyond the rounded offset). ``smallest``: only the smallest distance
         over the poses is wanted; a pose shown farther than the smallest one measured before it
         is not measured (inf), so the smallest value and its first pose are the same;
         ``below``: a bound known to lie above that smallest distance (see

@@ -500,14 +500,6 @@ def tool_frustums(tool: Tool, margin: float = 0.0, cutting_margin: float | None 
             for p, (lo, hi) in zip(tool.parts(), tool.exposed_ends())]
 
 
-def tool_mesh(tool: Tool, margin: float = 0.0, polygon_tolerance: float = 0.01,
-              cutting_margin: float | None = None):
-    """Closed triangle mesh of the tool parts (tool frame: ball centre at the origin, axis +z),
-    each grown by ``margin`` (the flutes by ``cutting_margin`` when given) as
-    :func:`tool_frustums` and circumscribed. Returns (V, T, part_of_triangle, names)."""
-    return frustum_mesh(tool_frustums(tool, margin, cutting_margin), polygon_tolerance)
-
-
 def frustum_mesh(frustums: list, polygon_tolerance: float = 0.01):
     """Closed triangle mesh of frustums (name, z0, z1, r0, r1) about +z, each of circumscribed
     polygons within ``polygon_tolerance`` of its circles. Returns (V, T, frustum_of_triangle,
@@ -537,7 +529,7 @@ def tool_primitives(tool: Tool, margin: float = 0.0, polygon_tolerance: float = 
                     cutting_margin: float | None = None) -> list:
     """fcl shapes of the tool parts with their offsets along the axis: [(name, geometry,
     z_offset)]. Cylinders are exact ``fcl.Cylinder``; cone frustums are ``fcl.Convex``
-    hulls of two circumscribed polygons. Margins as in :func:`tool_mesh`."""
+    hulls of two circumscribed polygons. Margins as in :func:`tool_frustums`."""
     return [(name, frustum_shape(r0, r1, z1 - z0, polygon_tolerance), 0.5 * (z0 + z1))
             for name, z0, z1, r0, r1 in tool_frustums(tool, margin, cutting_margin)]
 
@@ -655,9 +647,9 @@ class CollisionChecker:
         TV, TT, self._tool_owner, self.part_names = frustum_mesh(self._frustums, polygon_tolerance)
         self.tool_vertices, self.tool_triangles = TV, TT
         self._tool = fcl.CollisionObject(_bvh(TV, TT), fcl.Transform())
-        self._prims = [(name, fcl.CollisionObject(frustum_shape(r0, r1, z1 - z0, polygon_tolerance),
-                                                  fcl.Transform()), 0.5 * (z0 + z1))
-                       for name, z0, z1, r0, r1 in self._frustums]
+        self._prims = [(name, fcl.CollisionObject(g, fcl.Transform()), z)
+                       for name, g, z in tool_primitives(tool, self.margin, polygon_tolerance,
+                                                         self.cutting_margin)]
         self._ball = fcl.CollisionObject(fcl.Sphere(tool.ball_radius - self.gouge_tolerance), fcl.Transform())
         self._req = fcl.CollisionRequest()
         self.checks = 0                    # poses checked so far (for reports and benchmarks)

@@ -345,15 +345,15 @@ def _above(r: np.ndarray, z: np.ndarray, z0: float):
     polygon clipped by the half-plane (its edges crossing ``z0`` cut there), from the axis
     at ``z0`` to the axis at the top."""
     pts = list(zip(r.tolist(), z.tolist()))
-    out = []
+    out, start = [], None
     for (ra, za), (rb, zb) in zip(pts, pts[1:]):                  # (the axis edge adds nothing)
         if za >= z0:
             out.append((ra, za))
         if (za >= z0) != (zb >= z0):
             t = (z0 - za) / (zb - za)
+            start = len(out) if start is None else start            # the first point on the cut
             out.append((ra + t * (rb - ra), z0))
     out.append(pts[-1])
-    start = next(i for i, (_, zz) in enumerate(out) if zz == z0)    # the first point on the cut
     body = [(0.0, z0)]
     for p in out[start:]:
         if abs(p[0] - body[-1][0]) + abs(p[1] - body[-1][1]) > 1e-12:   # (an arc's end on the cut)

@@ -197,6 +197,20 @@ class Offsets(unittest.TestCase):
             self.assertLessEqual(dist.max(), g / np.cos(np.radians(7.5)) + 1e-9, part)
         self.assertEqual(len(offset_profile(ToolPart("x", 0.0, 1.0, 1.0, 1.0), 0.0)[0]), 4)
 
+    def test_exposed_ends(self):
+        """Which end faces are the tool's surface: the keycap tool's flutes sit on the ball
+        and its shank on flutes as wide (covered), its holder cone's bottom is wider than the
+        shank and its cylinder wider than the cone's top (exposed), the cone's top lies under
+        the cylinder; a shank wider than the flutes shows its bottom; a shank narrower than the
+        ball that starts at its centre (no flutes above the ball) sits on the ball."""
+        self.assertEqual(load_tool("ball1_keycap").exposed_ends(),
+                         [(False, False), (False, False), (True, False), (True, True)])
+        from tsplcam.orientation.tool import Tool
+        wide = Tool("wide", ball_radius=0.5, flute_length=1.5, shank_diameter=3.0, shank_length=6.0)
+        self.assertEqual(wide.exposed_ends(), [(False, False), (True, True)])
+        neck = Tool("neck", ball_radius=1.0, flute_length=1.0, shank_diameter=1.5, shank_length=6.0)
+        self.assertEqual(neck.exposed_ends(), [(False, True)])
+
     def test_grown_frustum_holds_the_offset(self):
         """The checker's grown part (:func:`grown_frustum`) holds the part's offset (every
         vertex of :func:`offset_profile`'s polyline, which contains the arcs) and touches it

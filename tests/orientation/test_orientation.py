@@ -283,6 +283,12 @@ class Errors(unittest.TestCase):
             self.assertIn("patch 4", text)
             self.assertIn("u=0.5", text)
             self.assertIn("holder", text)
+        # what the holder keeps, and what would give it room
+        ch = CollisionChecker(model, tool, tolerance=0.01, clearance=0.3)
+        with self.assertRaises(CollisionError) as cm:
+            orient(path, checker=ch, strategy="smooth")
+        self.assertIn("comes within the 0.3 mm clearance it keeps of", str(cm.exception))
+        self.assertIn("a smaller holder clearance", str(cm.exception))
         with self.assertRaises(InputError):
             orient(path, checker=ch, strategy="sideways")
 

@@ -588,10 +588,15 @@ class Hit:
     obstacle: str
     patch: int | None
     point: np.ndarray = field(default_factory=lambda: np.full(3, np.nan))
+    clearance: float = 0.0          # mm the part keeps (the holder clearance; 0 for the flutes)
 
     def __str__(self) -> str:
         p = self.point
-        return f"the {self.part} touches {self.obstacle} near ({p[0]:.3f}, {p[1]:.3f}, {p[2]:.3f})"
+        near = f"near ({p[0]:.3f}, {p[1]:.3f}, {p[2]:.3f})"
+        if self.clearance > 0.0:
+            return (f"the {self.part} comes within the {self.clearance:g} mm clearance it keeps of "
+                    f"{self.obstacle} {near}")
+        return f"the {self.part} touches {self.obstacle} {near}"
 
 
 class CollisionChecker:
@@ -1041,7 +1046,9 @@ class CollisionChecker:
             return None
         b1 = c.b1                            # triangles of o1 (the tool) and o2 (the workpiece)
         part = self.part_names[int(self._tool_owner[b1])] if 0 <= b1 < len(self._tool_owner) else "tool"
-        return self._obstacle(c.b2, part, c.pos)
+        hit = self._obstacle(c.b2, part, c.pos)
+        hit.clearance = self.clearance if part not in ("flutes", "tool") else 0.0
+        return hit
 
     def ball_hit(self, center) -> Hit | None:
         """What the shrunk ball touches at this centre, or None."""

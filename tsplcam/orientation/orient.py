@@ -119,6 +119,9 @@ def _no_axis_error(path, checker: CollisionChecker, i: int, tried: np.ndarray, w
             break
     what = f"; e.g. with axis ({tried[0][0]:.4f}, {tried[0][1]:.4f}, {tried[0][2]:.4f}) {hit}" \
         if hit is not None else ""
+    if hit is not None and hit.clearance > 0.0:
+        what += (" (room for the tool: a longer stick-out or a slimmer holder, a smaller holder "
+                 "clearance, or wider tilt limits)")
     return CollisionError(f"{_where(path, i)}: {why}{what}")
 
 

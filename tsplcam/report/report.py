@@ -191,6 +191,17 @@ class _Report:
         return f"{FILES}/{name}.png", figs
 
 
+def _covered_note(tool, series) -> str:
+    """The clearance picture's word on parts whose lower end sits on flutes as wide (the
+    checker keeps their clearance from that end up: below it the flutes, which cut, rule)."""
+    names = [p.name for p, (bottom, _) in zip(tool.parts(), tool.exposed_ends())
+             if not bottom and p.name != "flutes" and p.name in series]
+    if not names:
+        return ""
+    return (f", by the {' and '.join(names)} from {'its' if len(names) == 1 else 'their'} lower end up "
+            f"(below it the flutes, as wide, cut, and the {names[0]}'s rim may read closer)")
+
+
 def clearance_wanted(tool) -> bool:
     """Whether a report of ``tool`` has a clearance section (some part above the flutes)."""
     return tool is not None and any(p.name != "flutes" for p in tool.parts())
@@ -402,7 +413,7 @@ def _write(out_dir: str, *, model, path, processing_list, oriented, machine, pos
                          f"workpiece along the path (log scale), measured by growing the tool part until it "
                          f"touches: {measured:,d} poses in all, spread over the path and around the closest ones; "
                          f"the surface as triangles within {checker.mesh.chordal_error:.3f} mm. Red dashed: the "
-                         f"clearance the tool axes were chosen to keep.",
+                         f"clearance the tool axes were chosen to keep{_covered_note(checker.tool, figs)}.",
                          figures.pixel_size("clearance")),
             page.row_table(("tool part", "smallest clearance (mm)", "at point"), rows, ident="clearance",
                            numeric=(1, 2))))

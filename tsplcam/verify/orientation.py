@@ -154,6 +154,21 @@ def min_clearance(checker, centers, axes, levels=CLEARANCE_LEVELS, exact: int = 
     def touching(sel, masks, g):
         return checker.collides_parts(C[sel], A[sel], g, parts=(top, masks), only=only)[0]
 
+    def narrow(sel, masks, lo, hi, steps=None):
+        """Bisect the growth between lo (none of ``sel`` touches) and hi (some do) among the
+        poses ``sel`` touching at hi, until at most ``exact`` are left, the bracket is 1e-4 mm,
+        or after ``steps`` halvings: (poses, masks, lo, hi)."""
+        k = 0
+        while len(sel) > exact and hi - lo >= 1e-4 and (steps is None or k < steps):
+            mid = 0.5 * (lo + hi)
+            hit = touching(sel, masks, mid)
+            if hit.any():
+                sel, masks, hi = sel[hit], masks[hit], mid
+            else:
+                lo = mid
+            k += 1
+        return sel, masks, lo, hi
+
     if pick is not None and j <= start:
         while j > 0:
             below = levels[j - 1]
@@ -187,24 +202,12 @@ def min_clearance(checker, centers, axes, levels=CLEARANCE_LEVELS, exact: int = 
                 # asked at the growth where the sample's closest touch (no pose lies closer
                 # than the closest of all), so the bisection goes on among those
                 row = np.linspace(0, len(pick) - 1, SAMPLED // 4).astype(int)
-                sp, sm, s_lo, s_hi = pick[row], parts[row], lo, hi
-                while len(sp) > exact and s_hi - s_lo >= 1e-4:
-                    mid = 0.5 * (s_lo + s_hi)
-                    hit = touching(sp, sm, mid)
-                    if hit.any():
-                        sp, sm, s_hi = sp[hit], sm[hit], mid
-                    else:
-                        s_lo = mid
+                s_hi = narrow(pick[row], parts[row], lo, hi)[3]
                 if s_hi < hi:
                     hit = touching(pick, parts, s_hi)
                     pick, parts, hi = pick[hit], parts[hit], s_hi
                     continue
-            mid = 0.5 * (lo + hi)
-            hit = touching(pick, parts, mid)
-            if hit.any():
-                pick, hi, parts = pick[hit], mid, parts[hit]
-            else:
-                lo = mid
+            pick, parts, lo, hi = narrow(pick, parts, lo, hi, steps=1)
     if len(pick) > 400:
         pick = pick[np.linspace(0, len(pick) - 1, 400).astype(int)]
     d = _smallest_of(checker, C[pick], A[pick], only, hi) + margin

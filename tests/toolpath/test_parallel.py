@@ -82,10 +82,26 @@ def _slow_in_workers(seconds, marks, i):
     return (i + 100, os.getpid())
 
 
+def _held_in_workers(main_pieces, after, marks, i):
+    """A piece that a worker holds (leaving a mark in the folder ``marks`` when it starts)
+    until the main process has made ``main_pieces`` pieces (each leaves its own mark; at most
+    10 s), then ``after`` seconds more; no time in the main process. Unlike a sleep alone, a
+    main process slowed by a busy machine cannot see the worker come back first."""
+    if os.getpid() == MAIN:
+        open(os.path.join(marks, f"m{i}"), "w").close()
+    else:
+        open(os.path.join(marks, str(i)), "w").close()
+        end = time.monotonic() + 10.0
+        while sum(f.startswith("m") for f in os.listdir(marks)) < main_pieces and time.monotonic() < end:
+            time.sleep(0.005)
+        time.sleep(after)
+    return (i + 100, os.getpid())
+
+
 def _until_marked(marks, n):
     """Wait (at most 10 s) until ``n`` pieces have started in the workers."""
     end = time.monotonic() + 10.0
-    while len(os.listdir(marks)) < n and time.monotonic() < end:
+    while sum(not f.startswith("m") for f in os.listdir(marks)) < n and time.monotonic() < end:
         time.sleep(0.005)
 
 
@@ -127,8 +143,8 @@ class SharedHandOut(unittest.TestCase):
         ticks = []
         with tempfile.TemporaryDirectory() as marks:
             # while_waiting ends once the worker has a piece: the main process takes the
-            # rest meanwhile (they take it no time here)
-            out = map_pieces(_slow_in_workers, (0.2, marks), 6, 2, order=[5, 4, 3, 2, 1, 0],
+            # rest meanwhile (the worker holds its piece until then)
+            out = map_pieces(_held_in_workers, (5, 0.0, marks), 6, 2, order=[5, 4, 3, 2, 1, 0],
                              tick=lambda done, total: ticks.append(done),
                              while_waiting=lambda: _until_marked(marks, 1))
         self.assertEqual([v for v, _ in out], [i + 100 for i in range(6)])
@@ -157,8 +173,9 @@ class SharedHandOut(unittest.TestCase):
             seen.append((os.getpid(), worker_count(None, 2) > 1 or not FORK, parallel._WAITING))
 
         with tempfile.TemporaryDirectory() as marks:
-            # the worker takes piece 5 and sleeps; the main process takes the rest at once
-            out = map_pieces(_slow_in_workers, (0.3, marks), 6, 2, order=[5, 4, 3, 2, 1, 0],
+            # the worker takes piece 5 and holds it until the main process has taken the
+            # rest, and 0.3 s more
+            out = map_pieces(_held_in_workers, (5, 0.3, marks), 6, 2, order=[5, 4, 3, 2, 1, 0],
                              while_waiting=lambda: _until_marked(marks, 1), when_idle=idle)
         self.assertEqual([v for v, _ in out], [i + 100 for i in range(6)])
         self.assertNotEqual(out[5][1], MAIN)

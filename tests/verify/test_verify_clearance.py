@@ -493,6 +493,62 @@ class MoldSmallestClearance(unittest.TestCase):
         self.assert_scouts_find_fcl_smallest(checker, centers, axes)
 
 
+class GrownPartTouches(unittest.TestCase):
+    """``CollisionChecker._touches_grown`` (whether a part, grown by the smallest distance so
+    far, could lie nearer: else its distance query is spared) asked as meshes: wherever the
+    grown primitive touches the workpiece, so does the mesh of its circumscribed polygons, and
+    a piece of the workpiece wholly inside (which meets no triangle of it) is found too."""
+
+    @staticmethod
+    def primitive_touches(checker, part, center, axis, by):
+        """The reference: the grown primitive itself (an ``fcl.Cylinder`` or ``fcl.Convex``)."""
+        from tsplcam.orientation.collision import frustum_shape, grown_frustum
+        _, z0, z1, r0, r1 = checker._frustums[part]
+        z0, z1, r0, r1 = grown_frustum(z0, z1, r0, r1, by)
+        pad = checker.polygon_tolerance if abs(r1 - r0) > 1e-12 else 0.0
+        obj = fcl.CollisionObject(frustum_shape(r0 + pad, r1 + pad, z1 - z0, checker.polygon_tolerance),
+                                  fcl.Transform())
+        obj.setQuatRotation(axis_quaternions(axis)[0])
+        obj.setTranslation(center + 0.5 * (z0 + z1) * axis)
+        return bool(fcl.collide(obj, checker._wp, checker._req, fcl.CollisionResult()))
+
+    def test_holds_the_grown_primitive(self):
+        checker, centers, axes = MoldSmallestClearance.tilted_keycap()
+        rows = np.arange(0, len(centers), 7)
+        q = axis_quaternions(axes[rows])
+        n = same = 0
+        for part in (1, 2, 3):                                   # shank, holder cone, holder
+            for by in (0.3, 1.0, 2.5):
+                for k, i in enumerate(rows):
+                    want = self.primitive_touches(checker, part, centers[i], axes[i], by)
+                    got = checker._touches_grown(part, q[k], centers[i], axes[i], by)
+                    if want:
+                        self.assertTrue(got, (part, by, int(i)))
+                    n += 1
+                    same += want == got
+        self.assertGreater(same, 0.97 * n)                       # a hair larger: seldom more
+
+    def test_a_piece_wholly_inside(self):
+        """A small triangle by itself inside the grown holder, far from the keycap: no triangle
+        of the grown mesh meets it, one of its vertices inside shows it."""
+        from tsplcam.model import samples
+        from tsplcam.model.cage import cage_model
+        tool = load_tool("ball1_keycap")
+        keycap = cage_model(samples.keycap())
+        center, axis = np.array([0.0, 0.0, 80.0]), np.array([0.0, 0.0, 1.0])
+        _, z0, z1, r0, r1 = CollisionChecker(keycap, tool, clearance=0.3)._frustums[-1]    # the holder's top
+        z = center[2] + 0.5 * (z0 + z1)
+        chip = ("chip", np.array([[0.0, 0.0, z], [0.2, 0.0, z], [0.0, 0.2, z]]), np.array([[0, 1, 2]]))
+        checker = CollisionChecker(keycap, tool, meshes=[chip], clearance=0.3)
+        part = len(checker._frustums) - 1
+        q = axis_quaternions(axis[None])[0]
+        self.assertTrue(self.primitive_touches(checker, part, center, axis, 0.5))
+        self.assertTrue(checker._touches_grown(part, q, center, axis, 0.5))
+        grown = checker._grown_objects[(part, 0.5)]                  # its mesh meets no triangle
+        self.assertFalse(fcl.collide(grown, checker._wp, checker._req, fcl.CollisionResult()))
+        self.assertFalse(checker._touches_grown(part, q, center + [0.0, 0.0, z1 - z0 + 5.0], axis, 0.5))
+
+
 class GrownShankLeftToFcl(unittest.TestCase):
     def test_same_hits_as_fcl_alone(self):
         """A grown tool (the clearance measurement) whose shank (a cylinder) the spheres

@@ -43,6 +43,7 @@ from __future__ import annotations
 import multiprocessing
 import weakref
 from dataclasses import dataclass, field
+from functools import cached_property
 
 import numpy as np
 
@@ -1010,15 +1011,51 @@ class CollisionChecker:
         """Whether some point within ``by`` mm of part ``part``'s primitive lies in the workpiece
         (a part it clears lies farther than ``by``): those points lie in the primitive's
         frustum grown by ``by`` (:func:`grown_frustum`, both ends) and by the polygons'
-        excess across the axis (a ``Convex`` primitive's corners)."""
+        excess across the axis (a ``Convex`` primitive's corners), whose circumscribed polygons
+        hold it. Asked as a mesh against the workpiece's mesh (a ``Convex`` against it tests
+        each near triangle by GJK: the keycap's 64 asks 23 ms, as meshes 1 ms); a piece of the
+        workpiece wholly inside meets none of its triangles, so one vertex of each piece is
+        tested against the polygons' corner radii too. A larger region than the grown
+        primitive only measures a part more often: the same smallest distance."""
         _, z0, z1, r0, r1 = self._frustums[part]
         z0, z1, r0, r1 = grown_frustum(z0, z1, r0, r1, by)
         pad = self.polygon_tolerance if abs(r1 - r0) > 1e-12 else 0.0
-        grown = fcl.CollisionObject(frustum_shape(r0 + pad, r1 + pad, z1 - z0, self.polygon_tolerance),
-                                    fcl.Transform())
+        cache = self.__dict__.setdefault("_grown_objects", {})
+        key = (int(part), float(by))             # (the smallest distance so far: few values)
+        grown = cache.get(key)
+        if grown is None:
+            if len(cache) >= 64:
+                cache.clear()
+            V, T, _, _ = frustum_mesh([("", z0, z1, r0 + pad, r1 + pad)], self.polygon_tolerance)
+            grown = cache[key] = fcl.CollisionObject(_bvh(V, T), fcl.Transform())
         grown.setQuatRotation(q)
-        grown.setTranslation(c + 0.5 * (z0 + z1) * a)
-        return bool(fcl.collide(grown, self._wp, self._req, fcl.CollisionResult()))
+        grown.setTranslation(c)
+        if fcl.collide(grown, self._wp, self._req, fcl.CollisionResult()):
+            return True
+        P = self._piece_vertices - c
+        t = P @ a
+        rho = row_norms(P - t[:, None] * a)
+        f = 1.0 / np.cos(np.pi / polygon_segments(max(r0, r1) + pad, self.polygon_tolerance))
+        rout = (r0 + pad + (r1 - r0) * (t - z0) / (z1 - z0)) * f
+        return bool(np.any((t >= z0) & (t <= z1) & (rho <= rout)))
+
+    @cached_property
+    def _piece_vertices(self) -> np.ndarray:
+        """One vertex of each connected piece of the workpiece mesh (triangles sharing
+        vertices)."""
+        from scipy.sparse import coo_matrix
+        from scipy.sparse.csgraph import connected_components
+        V, T = self.mesh.vertices, self.mesh.triangles
+        if len(T) == 0:
+            return np.zeros((0, 3))
+        n = len(V)
+        rows = np.concatenate([T[:, 0], T[:, 1]])
+        cols = np.concatenate([T[:, 1], T[:, 2]])
+        graph = coo_matrix((np.ones(len(rows), np.int8), (rows, cols)), shape=(n, n))
+        _, label = connected_components(graph, directed=False)
+        used = np.unique(T)
+        _, first = np.unique(label[used], return_index=True)
+        return np.ascontiguousarray(V[used[first]])
 
     # --- one pose, for messages ------------------------------------------------------------
     def _contact(self, obj):

@@ -75,6 +75,17 @@ def _then(label, extra):
     return label, extra, _KEPT.get("built"), os.getpid()
 
 
+def _pid(_):
+    return os.getpid()
+
+
+def _then_pool(extra):
+    """A second piece that shares its work out to processes of its own: (its pid, theirs)."""
+    import multiprocessing
+    with multiprocessing.get_context("fork").Pool(2) as pool:
+        return os.getpid(), sorted(set(pool.map(_pid, range(8), chunksize=1)))
+
+
 class SecondPiece(unittest.TestCase):
     """Aside(then=...).follow(...): the second piece in the process the first ran in, on
     arguments given after; where that process is gone, failed or was never forked, here."""
@@ -141,6 +152,24 @@ class SecondPiece(unittest.TestCase):
                 a.result()                                   # its process now waits
         self.assertEqual(set(multiprocessing.active_children()) - before, set())
 
+    def test_children_let_the_second_piece_start_processes(self):
+        """``children``: the forked process is no daemon, so its second piece may start a
+        pool of its own (a daemon may not: the piece fails there and runs here)."""
+        if not FORK:
+            self.skipTest("no forked workers here")
+        with mock.patch.dict(os.environ, {"TSPLCAM_WORKERS": "2"}):
+            for children in (True, False):
+                with Aside(_build, 3, then=(_then_pool,), children=children) as a:
+                    pid = a.result()
+                    with a.follow(1) as b:
+                        own, theirs = b.result()
+                if children:
+                    self.assertEqual(own, pid)                   # there, with a pool of its own
+                    self.assertNotIn(pid, theirs)
+                    self.assertNotIn(os.getpid(), theirs)
+                else:
+                    self.assertEqual(own, os.getpid())           # run again here
+
     def test_one_process(self):
         with mock.patch.dict(os.environ, {"TSPLCAM_WORKERS": "1"}):
             a = Aside(_build, 3, then=(_then, "b"))
@@ -196,6 +225,53 @@ class ProgramBeside(unittest.TestCase):
         self.assertEqual(beside.posted.text, alone.posted.text)
         self.assertEqual(beside.metrics.gouges, 0)
         self.assertEqual(set(beside.seconds), {"orientation_s", "post_s"})
+
+    def test_clearance_shared_out_in_the_forked_process(self):
+        """The job's forked process measures the smallest clearance with a pool of its own for
+        its large collision batches (the main process only posts, then waits): the same
+        figure as one process (the keycap with its axes 20 deg off the normals, whose search
+        asks fcl; every batch shared out here)."""
+        if not FORK:
+            self.skipTest("no forked workers here")
+        import tempfile
+
+        import numpy as np
+
+        from tsplcam.model import samples
+        from tsplcam.model.cage import cage_model
+        from tsplcam.orientation import collision
+        from tsplcam.orientation.orient import ball_check
+        from tsplcam.orientation.testpaths import zigzag
+        from tsplcam.orientation.tool import load_tool
+        from tsplcam.program import _clearance_beside
+        from tsplcam.verify.orientation import min_clearance
+        keycap = cage_model(samples.keycap())
+        checker = collision.CollisionChecker(keycap, load_tool("ball1_keycap"), clearance=0.3)
+        path = zigzag(keycap, 0.5, lines=10, points=30)
+        side = np.cross(path.normal, np.random.default_rng(5).normal(size=(len(path), 3)))
+        side /= np.linalg.norm(side, axis=1, keepdims=True)
+        axes = np.cos(np.radians(20)) * path.normal + np.sin(np.radians(20)) * side
+        with mock.patch.dict(os.environ, {"TSPLCAM_WORKERS": "1"}):
+            alone = min_clearance(checker, path.center, axes)
+        start = collision.CollisionChecker._pool
+        with tempfile.TemporaryDirectory() as marks:
+            def pool(checker, workers):                  # (a mark left where a pool starts)
+                open(os.path.join(marks, str(os.getpid())), "w").close()
+                return start(checker, workers)
+            with mock.patch.object(collision, "POOL_START", 1), mock.patch.object(collision, "POOL_MIN", 1), \
+                    mock.patch.object(collision.CollisionChecker, "_pool", pool), \
+                    mock.patch("tsplcam.orientation.orient.MIN_POINTS", 0), \
+                    mock.patch.dict(os.environ, {"TSPLCAM_WORKERS": "2"}):
+                with ball_check(path, checker, then=(_clearance_beside, checker, os.getpid(), "2")) as a:
+                    a.result()
+                    with a.follow(path.center, axes) as b:
+                        self.assertTrue(b.forked)
+                        beside = b.result()
+            started = [int(f) for f in os.listdir(marks)]
+        self.assertTrue(started)
+        self.assertNotIn(os.getpid(), started)           # started there, not here
+        self.assertEqual(beside[1], alone[1])
+        self.assertAlmostEqual(beside[0], alone[0], delta=1e-12)
 
     def test_metrics_error_first(self):
         if not FORK:

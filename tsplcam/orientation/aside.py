@@ -8,7 +8,9 @@ than one process (not inside FreeCAD, not with ``TSPLCAM_WORKERS=1``, not while 
 module's workers are busy); otherwise ``fn`` runs at once, in this process, where it ran
 before. The forked process runs with ``TSPLCAM_WORKERS=1`` (pieces it would share out stay
 in it: the pool a collision checker keeps belongs to this process) and sends back its
-result, pickled. A piece that fails there is run again here by :meth:`Aside.result`, so its
+result, pickled. A piece that should share its work out while this process waits for it
+sets its own workers there (the job's smallest clearance: the checker's pool of its own,
+``children``, as a daemon may have none). A piece that fails there is run again here by :meth:`Aside.result`, so its
 error is raised as without the fork. A caller that meets an error of its own while the piece
 is out asks for the result first (:meth:`Aside.first`): the piece's error, when there is one,
 is the one a single process would have met first.
@@ -45,9 +47,10 @@ class Aside:
     """``fn(*args)`` in a forked process (or here, at once, with one process or ``beside``
     False: too little work to pay for the fork); the value by :meth:`result`; ``forked``:
     whether it runs in another process. Use as a context manager: leaving it stops a process
-    still running."""
+    still running. ``children``: the forked process may start processes of its own (a daemon
+    may not), for a piece that shares its work out while this one waits for it."""
 
-    def __init__(self, fn, *args, beside: bool = True, then=None, meanwhile=None):
+    def __init__(self, fn, *args, beside: bool = True, then=None, meanwhile=None, children: bool = False):
         self.fn, self.args = fn, args
         self.then = then
         self._proc = self._conn = self._ask = None
@@ -59,7 +62,7 @@ class Aside:
             ask_r, ask_w = ctx.Pipe(duplex=False) if then is not None else (None, None)
             try:
                 self._proc = ctx.Process(target=_child, args=(send, fn, args, then, ask_r, meanwhile),
-                                         daemon=True)
+                                         daemon=not children)
                 self._proc.start()
             except OSError:                      # no process to be had: here, at once
                 self._proc, self.forked = None, False

@@ -767,6 +767,11 @@ class CollisionChecker:
             return np.concatenate(got)
         return self._fcl_here(C, A, grow, parts)
 
+    def leave_pool(self) -> None:
+        """In a process forked from the one that started this checker's pool: forget that
+        pool (its workers serve the parent), so that a batch here starts one of its own."""
+        self._workers = None
+
     def _pool(self, workers: int):
         """Forked workers that inherit this checker."""
         pool = getattr(self, "_workers", None)

@@ -131,9 +131,9 @@ def ball_check(path, checker: CollisionChecker, then=None) -> Aside:
     pay for a fork (:class:`~tsplcam.orientation.aside.Aside`); ``then``: a second piece the
     same process runs after it on arguments given later (:meth:`Aside.follow`), with the
     checker's BVH built there meanwhile (the broad phase answers the check itself without
-    it)."""
+    it); that process may start the checker's pool for it."""
     return Aside(_check_ball, path, checker, beside=len(path) >= MIN_POINTS, then=then,
-                 meanwhile=None if then is None else checker.build_bvh)
+                 meanwhile=None if then is None else checker.build_bvh, children=then is not None)
 
 
 def _check_ball(path, checker: CollisionChecker) -> None:

@@ -351,6 +351,7 @@ def _orient(path, model, settings: JobSettings, tool, machine, stock, progress, 
     if beside and len(path) >= MIN_POINTS and Aside.can_fork():
         companion = ball_check(path, checker, then=(_clearance_beside, checker, os.getpid(),
                                                     os.environ.get("TSPLCAM_WORKERS")))
+    checker.beside = companion                  # (half of the search's large batches there)
     try:
         # with the companion, the report's forced C travel is left for the wait for its metrics
         oriented, report = orient(path, model, tool, settings=base, per_patch=per_patch, checker=checker,
@@ -361,6 +362,8 @@ def _orient(path, model, settings: JobSettings, tool, machine, stock, progress, 
         if companion is not None:
             companion.close()
         raise
+    finally:
+        checker.beside = None
     # orient refused the path if the ball gouged anywhere (its centres do not move with the
     # axes): no gouge to count again
     measure = functools.partial(orientation_metrics, oriented, checker, machine, gouges=0)

@@ -178,6 +178,68 @@ class SecondPiece(unittest.TestCase):
             self.assertEqual(b.result(), ("b", 7, (3, os.getpid()), os.getpid()))
 
 
+def _square_there(x):
+    if x == "fail":
+        raise ValueError("no square")
+    return x * x, os.getpid()
+
+
+def _slow_build(x):
+    import time
+    time.sleep(0.3)
+    _build(x)
+
+
+class Requests(unittest.TestCase):
+    """Aside(serve=...): while its process waits for the second piece it answers requests,
+    once it says it is ready (after ``meanwhile``); a failed request is answered None (the
+    caller computes it); the second piece follows as without them."""
+
+    def test_served_there_then_the_second_piece(self):
+        if not FORK:
+            self.skipTest("no forked workers here")
+        import time
+        with mock.patch.dict(os.environ, {"TSPLCAM_WORKERS": "2"}):
+            with Aside(_build, 3, then=(_then, "b"), meanwhile=lambda: _slow_build(4), serve=_square_there) as a:
+                pid = a.result()
+                self.assertFalse(a.serving())                 # meanwhile still runs there
+                end = time.monotonic() + 10.0
+                while not a.serving() and time.monotonic() < end:
+                    time.sleep(0.01)
+                self.assertTrue(a.serving())
+                self.assertTrue(a.request(7))
+                self.assertEqual(a.answer(), (49, pid))
+                self.assertTrue(a.request("fail"))
+                self.assertIsNone(a.answer())                 # failed there: None, and it goes on
+                self.assertTrue(a.request(5))
+                self.assertEqual(a.answer(), (25, pid))
+                a.request(6)                                  # an answer never read
+                with a.follow(11) as b:
+                    self.assertFalse(a.serving())
+                    self.assertEqual(b.result(), ("b", 11, (4, pid), pid))
+
+    def test_no_requests_without_a_process(self):
+        with mock.patch.dict(os.environ, {"TSPLCAM_WORKERS": "1"}):
+            a = Aside(_build, 3, then=(_then, "b"), serve=_square_there)
+            self.assertFalse(a.serving())
+            self.assertEqual(a.follow(2).result()[1], 2)
+
+    def test_closed_while_serving_leaves_no_process(self):
+        if not FORK:
+            self.skipTest("no forked workers here")
+        import multiprocessing
+        import time
+        before = set(multiprocessing.active_children())
+        with mock.patch.dict(os.environ, {"TSPLCAM_WORKERS": "2"}):
+            with Aside(_build, 3, then=(_then, "b"), serve=_square_there) as a:
+                a.result()
+                end = time.monotonic() + 10.0
+                while not a.serving() and time.monotonic() < end:
+                    time.sleep(0.01)
+                a.request(3)
+        self.assertEqual(set(multiprocessing.active_children()) - before, set())
+
+
 class ProgramBeside(unittest.TestCase):
     """make_program with the metrics measured beside the post: the same metrics and program
     bytes as one process; where both fail, the metrics' error (one process meets it first)."""
@@ -272,6 +334,46 @@ class ProgramBeside(unittest.TestCase):
         self.assertNotIn(os.getpid(), started)           # started there, not here
         self.assertEqual(beside[1], alone[1])
         self.assertAlmostEqual(beside[0], alone[0], delta=1e-12)
+
+    def test_search_batches_shared_with_the_process_beside(self):
+        """While the axes are searched the job's forked process answers half of each large
+        batch (the centres of every other cell): the same answers as this process alone."""
+        if not FORK:
+            self.skipTest("no forked workers here")
+        import time
+
+        import numpy as np
+
+        from tsplcam.orientation import collision
+        from tsplcam.orientation.orient import ball_check
+        rng = np.random.default_rng(3)
+        rows = rng.integers(0, len(self.path), 3000)
+        tilt = np.radians(rng.uniform(30.0, 100.0, len(rows)))
+        side = np.cross(self.path.normal[rows], rng.normal(size=(len(rows), 3)))
+        side /= np.linalg.norm(side, axis=1, keepdims=True)
+        C = self.path.center[rows]
+        A = np.cos(tilt)[:, None] * self.path.normal[rows] + np.sin(tilt)[:, None] * side
+        alone = self.checker.collides(C, A)
+        self.assertTrue(0.05 < alone.mean() < 0.95, alone.mean())
+        asked = []
+        with mock.patch.dict(os.environ, {"TSPLCAM_WORKERS": "2"}), \
+                mock.patch("tsplcam.orientation.orient.MIN_POINTS", 0):
+            with ball_check(self.path, self.checker, then=(_then, "b")) as a:
+                end = time.monotonic() + 10.0
+                while not a.serving() and time.monotonic() < end:
+                    time.sleep(0.01)
+                request = a.request
+                with mock.patch.object(a, "request", lambda *x: asked.append(len(x[0])) or request(*x)):
+                    self.checker.beside = a
+                    try:
+                        shared = self.checker.collides(C, A)
+                        small = self.checker.collides(C[:collision.BESIDE_MIN - 1], A[:collision.BESIDE_MIN - 1])
+                    finally:
+                        self.checker.beside = None
+        np.testing.assert_array_equal(shared, alone)
+        np.testing.assert_array_equal(small, alone[:collision.BESIDE_MIN - 1])
+        self.assertEqual(len(asked), 1)                          # the small batch stayed here
+        self.assertTrue(0.3 * len(C) < asked[0] < 0.7 * len(C))
 
     def test_metrics_error_first(self):
         if not FORK:

@@ -23,6 +23,12 @@ are searched here, and the same process then measures the axes' smallest clearan
 while this one posts the program (the main process builds a BVH of its own only where its
 questions reach fcl, as on the molds).
 
+While it waits for the second piece's arguments, the forked process may also answer
+requests (``serve``): the job's process hands it half of each large batch of collision
+questions while the axes are searched (:meth:`Aside.serving`, :meth:`Aside.request`,
+:meth:`Aside.answer`), from the time its BVH is built (it says so); on the molds the search
+leaves that core idle otherwise.
+
 A fork of the job's process costs it about 5 ms, and its pages, shared with the child until
 written, cost its next work more (the keycap's post: 0.091 -> 0.109 s beside an idle
 child): worth it for pieces of 50 ms and more (:data:`MIN_POINTS`; the forced C travel's
@@ -50,30 +56,35 @@ class Aside:
     still running. ``children``: the forked process may start processes of its own (a daemon
     may not), for a piece that shares its work out while this one waits for it."""
 
-    def __init__(self, fn, *args, beside: bool = True, then=None, meanwhile=None, children: bool = False):
+    def __init__(self, fn, *args, beside: bool = True, then=None, meanwhile=None, children: bool = False,
+                 serve=None):
         self.fn, self.args = fn, args
         self.then = then
-        self._proc = self._conn = self._ask = None
+        self._proc = self._conn = self._ask = self._reply = None
         self._done, self._value, self._ok = False, None, False
+        self._ready = self._pending = False
         self.forked = bool(beside) and self.can_fork()
         if self.forked:
             ctx = multiprocessing.get_context("fork")
             recv, send = ctx.Pipe(duplex=False)
             ask_r, ask_w = ctx.Pipe(duplex=False) if then is not None else (None, None)
+            rep_r, rep_w = ctx.Pipe(duplex=False) if then is not None and serve is not None else (None, None)
             try:
-                self._proc = ctx.Process(target=_child, args=(send, fn, args, then, ask_r, meanwhile),
-                                         daemon=not children)
+                self._proc = ctx.Process(target=_child, args=(send, fn, args, then, ask_r, meanwhile, serve,
+                                                              rep_w), daemon=not children)
                 self._proc.start()
             except OSError:                      # no process to be had: here, at once
                 self._proc, self.forked = None, False
                 recv.close()
-                if ask_w is not None:
-                    ask_w.close()
-            send.close()
-            if ask_r is not None:
-                ask_r.close()
+                for c in (ask_w, rep_r):
+                    if c is not None:
+                        c.close()
+            for c in (send, ask_r, rep_w):
+                if c is not None:
+                    c.close()
             self._conn = recv if self.forked else None
             self._ask = ask_w if self.forked else None
+            self._reply = rep_r if self.forked else None
         if not self.forked:
             self._value, self._done = fn(*args), True
 
@@ -108,6 +119,50 @@ class Aside:
         self._value, self._ok, self._done = value, ok, True
         return value
 
+    # --- requests while the forked process waits for the second piece --------------------
+    def serving(self) -> bool:
+        """Whether the forked process answers requests now (it has said it is ready, and no
+        request failed to go or come back); never waits."""
+        if self._reply is None:
+            return False
+        if not self._ready:
+            try:
+                if not self._reply.poll():
+                    return False
+                self._ready = self._reply.recv_bytes() == b"ready"
+            except (EOFError, OSError):
+                self._stop_serving()
+                return False
+        return self._ready
+
+    def request(self, *args) -> bool:
+        """Send ``serve(*args)`` to the forked process (after :meth:`serving`); whether it
+        went. Its answer must be read (:meth:`answer`) before the next request."""
+        try:
+            self._ask.send_bytes(pickle.dumps(("serve", args), protocol=pickle.HIGHEST_PROTOCOL))
+        except (OSError, pickle.PickleError):
+            self._stop_serving()
+            return False
+        self._pending = True
+        return True
+
+    def answer(self):
+        """The value of the last request, or None where it failed there (the caller then
+        computes it itself; requests stop where the process is gone)."""
+        self._pending = False
+        try:
+            ok, value = pickle.loads(self._reply.recv_bytes())
+        except (EOFError, OSError, pickle.PickleError):
+            self._stop_serving()
+            return None
+        return value if ok else None
+
+    def _stop_serving(self) -> None:
+        self._ready = False
+        if self._reply is not None:
+            self._reply.close()
+            self._reply = None
+
     def follow(self, *extra) -> "Aside":
         """The second piece, ``then[0](*then[1:], *extra)``, in the same forked process (which
         keeps what the first built, e.g. the checker's BVH), after :meth:`result`: an Aside
@@ -119,13 +174,17 @@ class Aside:
         fn, args = self.then[0], tuple(self.then[1:]) + extra
         nxt = object.__new__(Aside)
         nxt.fn, nxt.args, nxt.then = fn, args, None
-        nxt._ask = None
+        nxt._ask = nxt._reply = None
+        nxt._ready = nxt._pending = False
         nxt._done, nxt._value, nxt._ok = False, None, False
         nxt.forked = self._ok and self._ask is not None
         nxt._proc, nxt._conn = None, None
+        if self._pending:                         # (an answer never read: it would come first)
+            self.answer()
+        self._stop_serving()
         if nxt.forked:
             try:
-                self._ask.send_bytes(pickle.dumps(extra, protocol=pickle.HIGHEST_PROTOCOL))
+                self._ask.send_bytes(pickle.dumps(("then", extra), protocol=pickle.HIGHEST_PROTOCOL))
             except (OSError, pickle.PickleError):
                 nxt.forked = False
         if nxt.forked:                            # the process and its pipe go to the second piece
@@ -147,6 +206,7 @@ class Aside:
         proc, self._proc = self._proc, None
         conn, self._conn = self._conn, None
         ask, self._ask = self._ask, None
+        self._stop_serving()
         for c in (conn, ask):
             if c is not None:
                 c.close()
@@ -163,11 +223,12 @@ class Aside:
             self.close()
 
 
-def _child(conn, fn, args, then=None, ask=None, meanwhile=None) -> None:
+def _child(conn, fn, args, then=None, ask=None, meanwhile=None, serve=None, reply=None) -> None:
     """The forked process: ``fn(*args)`` with one process, (True, value) or (False, None) back;
     with ``then``, once that went well, ``meanwhile()`` (its failure left to the second piece
-    to meet again), then the second piece on the arguments read from ``ask`` (none: the caller
-    closed it, nothing more to do)."""
+    to meet again), then requests answered by ``serve`` on ``reply`` (after b"ready") until the
+    second piece's arguments come on ``ask``, then that piece (none: the caller closed it,
+    nothing more to do)."""
     os.environ["TSPLCAM_WORKERS"] = "1"
     ok = _send(conn, fn, args)
     if then is not None and ok:
@@ -176,21 +237,34 @@ def _child(conn, fn, args, then=None, ask=None, meanwhile=None) -> None:
                 meanwhile()
             except Exception:                    # noqa: BLE001  (the second piece meets it)
                 pass
-        try:
-            extra = pickle.loads(ask.recv_bytes())
-        except (EOFError, OSError, pickle.PickleError):
-            extra = None
+        if reply is not None:
+            try:
+                reply.send_bytes(b"ready")
+            except OSError:
+                reply = None
+        extra = None
+        while True:
+            try:
+                kind, got = pickle.loads(ask.recv_bytes())
+            except (EOFError, OSError, pickle.PickleError):
+                break
+            if kind == "then":
+                extra = got
+                break
+            if reply is not None:                  # (a broken pipe: the caller stopped asking)
+                _send(reply, serve, got, quiet=True)
         if extra is not None:
             _send(conn, then[0], tuple(then[1:]) + tuple(extra))
     conn.close()
 
 
-def _send(conn, fn, args) -> bool:
+def _send(conn, fn, args, quiet: bool = False) -> bool:
     """``fn(*args)`` sent on ``conn`` as (True, value), or (False, None) where it failed or its
-    value does not pickle (the caller runs it again and raises its error); whether it went."""
+    value does not pickle (the caller runs it again and raises its error); whether it went.
+    ``quiet``: a request's failure (``Exception``) is answered as such and the process goes on."""
     try:
         out = (True, fn(*args))
-    except BaseException:                        # run again by the caller, which raises it
+    except Exception if quiet else BaseException:  # run again by the caller, which raises it
         out = (False, None)
     try:
         data = pickle.dumps(out, protocol=pickle.HIGHEST_PROTOCOL)

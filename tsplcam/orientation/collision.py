@@ -566,10 +566,18 @@ def axis_quaternions(axes: np.ndarray) -> np.ndarray:
 POOL_MIN = 400                 # fcl batches at least twice this long go to worker processes,
 POOL_START = 8000              # once a batch this long has started them (see CollisionChecker._fcl)
 _POOL_CHECKER = None           # the checker forked workers inherit
+BESIDE_MIN = 1000              # poses: a batch this large is shared with the process beside
+BESIDE_CELL = 1.0              # mm: ball centres in a checkerboard of cells go to one process or the other
 
 
 def _pool_fcl(job):
     return _POOL_CHECKER._fcl_here(*job)
+
+
+def decided_there(checker, C, A, grow) -> np.ndarray:
+    """The process beside's answer to :meth:`CollisionChecker.collides`' request (its own
+    copy of the checker, its own BVH)."""
+    return checker._decided(C, A, float(grow))
 
 
 def _bvh(V, T):
@@ -648,6 +656,9 @@ class CollisionChecker:
         self.margin = self.mesh.chordal_error + self.clearance
         self.polygon_tolerance = float(polygon_tolerance)
         self._wp_object = None             # the workpiece's fcl BVH, built when first asked
+        # an Aside whose forked process answers half of each large batch (decided_there): the
+        # job's, while the axes are searched
+        self.beside = None
         self.cutting_margin = self.mesh.chordal_error
         self._frustums = tool_frustums(tool, self.margin, self.cutting_margin)
         TV, TT, self._tool_owner, self.part_names = frustum_mesh(self._frustums, polygon_tolerance)
@@ -822,9 +833,36 @@ class CollisionChecker:
         C = np.asarray(centers, float).reshape(-1, 3)
         A = np.asarray(axes, float).reshape(-1, 3)
         C, A = (np.ascontiguousarray(x) for x in np.broadcast_arrays(C, A)) if len(C) != len(A) else (C, A)
-        out = self._decided(C, A, float(grow))
+        out = self._shared(C, A, float(grow))
         if grow == 0.0:
             self.checks += len(C)
+        return out
+
+    def _shared(self, C, A, grow: float) -> np.ndarray:
+        """:meth:`_decided`, a large batch (``BESIDE_MIN``) shared with the process beside
+        (:attr:`beside`) once it serves: the poses whose ball centres lie in every other cell of
+        a checkerboard (``BESIDE_CELL``) go there, the others are decided here meanwhile; so
+        each process keeps seeing the same centres (the broad phase keeps free cones and hit
+        witnesses by centre). The same answers: each is exact. On the molds the search's
+        questions are most of the job, and that core idled through them (deep_mold's 1.1 s):
+        deep_mold's job 1.81 -> 1.62 s, the Fusion mold's 1.86 -> 1.63, keycap_mold's 1.14 ->
+        1.10 (its first large batch comes before the BVH there is built)."""
+        helper = self.beside
+        if helper is None or len(C) < BESIDE_MIN or not helper.serving():
+            return self._decided(C, A, grow)
+        cell = np.floor(C / BESIDE_CELL).astype(np.int64)
+        there = ((cell[:, 0] + cell[:, 1] + cell[:, 2]) & 1).astype(bool)
+        t, m = np.nonzero(there)[0], np.nonzero(~there)[0]
+        if not len(t) or not len(m) or not helper.request(C[t], A[t], grow):
+            return self._decided(C, A, grow)
+        out = np.empty(len(C), bool)
+        try:
+            out[m] = self._decided(C[m], A[m], grow)
+        finally:
+            got = helper.answer()                 # (read even where this half failed)
+        if got is None or len(got) != len(t):     # it failed there: here
+            got = self._decided(C[t], A[t], grow)
+        out[t] = got
         return out
 
     def collides_parts(self, centers, axes, grow: float, parts=None, only: int = -1):

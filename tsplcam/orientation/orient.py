@@ -29,6 +29,7 @@ point, patch, (u, v) and what the tool hits.
 from __future__ import annotations
 
 import contextlib
+import functools
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -37,7 +38,7 @@ from ..errors import CollisionError, InputError
 from .candidates import (DEG, Z_AXIS, Limits, Reach, admissible, angle, candidate_axes,
                          feed_directions, unit)
 from .aside import MIN_POINTS, Aside
-from .collision import CollisionChecker
+from .collision import CollisionChecker, decided_there
 from .controls import limit_halfspaces, point_settings, runs, target_axes
 from .settings import STRATEGIES, OrientationSettings  # noqa: F401 (STRATEGIES: orient.STRATEGIES)
 from .rotary import Rotary
@@ -131,9 +132,12 @@ def ball_check(path, checker: CollisionChecker, then=None) -> Aside:
     pay for a fork (:class:`~tsplcam.orientation.aside.Aside`); ``then``: a second piece the
     same process runs after it on arguments given later (:meth:`Aside.follow`), with the
     checker's BVH built there meanwhile (the broad phase answers the check itself without
-    it); that process may start the checker's pool for it."""
+    it); that process may start the checker's pool for it, and answers half of the
+    checker's large batches until then (:attr:`CollisionChecker.beside`, set by the caller
+    while it searches the axes)."""
     return Aside(_check_ball, path, checker, beside=len(path) >= MIN_POINTS, then=then,
-                 meanwhile=None if then is None else checker.build_bvh, children=then is not None)
+                 meanwhile=None if then is None else checker.build_bvh, children=then is not None,
+                 serve=None if then is None else functools.partial(decided_there, checker))
 
 
 def _check_ball(path, checker: CollisionChecker) -> None:

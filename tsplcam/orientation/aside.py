@@ -9,11 +9,11 @@ module's workers are busy); otherwise ``fn`` runs at once, in this process, wher
 before. The forked process runs with ``TSPLCAM_WORKERS=1`` (pieces it would share out stay
 in it: the pool a collision checker keeps belongs to this process) and sends back its
 result, pickled. A piece that should share its work out while this process waits for it
-sets its own workers there (the job's smallest clearance: the checker's pool of its own,
-``children``, as a daemon may have none). A piece that fails there is run again here by :meth:`Aside.result`, so its
-error is raised as without the fork. A caller that meets an error of its own while the piece
-is out asks for the result first (:meth:`Aside.first`): the piece's error, when there is one,
-is the one a single process would have met first.
+sets its own workers there (the job's smallest clearance: the checker's pool of its own;
+``children``, as a daemon may have none). A piece that fails there is run again here by
+:meth:`Aside.result`, so its error is raised as without the fork. A caller that meets an
+error of its own while the piece is out asks for the result first (:meth:`Aside.first`): the
+piece's error, when there is one, is the one a single process would have met first.
 
 An Aside may have a second piece (``then``) that its forked process runs after the first,
 on arguments given later (:meth:`Aside.follow`), keeping what the first built there, and

@@ -50,7 +50,7 @@ import numpy as np
 from ..errors import GeometryError, InputError
 from ..toolpath.parallel import map_pieces, worker_count
 from ..npfast import cross_rows, row_norms
-from .broadphase import FREE, HIT, UNKNOWN, BroadPhase, Profile, longest_edges, row_bits
+from .broadphase import FREE, HIT, UNKNOWN, BroadPhase, Profile, longest_edges, mesh_components, row_bits
 from .tool import Tool
 
 try:                                   # python-fcl is a dependency of this stage only
@@ -1086,18 +1086,11 @@ class CollisionChecker:
     def _piece_vertices(self) -> np.ndarray:
         """One vertex of each connected piece of the workpiece mesh (triangles sharing
         vertices)."""
-        from scipy.sparse import coo_matrix
-        from scipy.sparse.csgraph import connected_components
         V, T = self.mesh.vertices, self.mesh.triangles
         if len(T) == 0:
             return np.zeros((0, 3))
-        n = len(V)
-        rows = np.concatenate([T[:, 0], T[:, 1]])
-        cols = np.concatenate([T[:, 1], T[:, 2]])
-        graph = coo_matrix((np.ones(len(rows), np.int8), (rows, cols)), shape=(n, n))
-        _, label = connected_components(graph, directed=False)
         used = np.unique(T)
-        _, first = np.unique(label[used], return_index=True)
+        _, first = np.unique(mesh_components(len(V), T)[used], return_index=True)
         return np.ascontiguousarray(V[used[first]])
 
     # --- one pose, for messages ------------------------------------------------------------

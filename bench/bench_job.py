@@ -112,8 +112,9 @@ from tsplcam.job import import_ahead
 build_parser()
 import_ahead()
 def cpu():
-    return [sum(getattr(resource.getrusage(w), f) for f in ('ru_utime', 'ru_stime'))
-            for w in (resource.RUSAGE_SELF, resource.RUSAGE_CHILDREN)]
+    # per process kind (its own, its workers'): CPU seconds, system seconds, page faults
+    return [v for w in (resource.RUSAGE_SELF, resource.RUSAGE_CHILDREN)
+            for u in [resource.getrusage(w)] for v in (u.ru_utime + u.ru_stime, u.ru_stime, u.ru_minflt)]
 before = cpu()
 try:
     main(sys.argv[2:])
@@ -123,8 +124,8 @@ finally:
     after = cpu()
     with open(sys.argv[1], 'w') as fh:
         json.dump([resource.getrusage(resource.RUSAGE_SELF).ru_maxrss,
-                   resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss,
-                   after[0] - before[0], after[1] - before[1]], fh)
+                   resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss]
+                  + [a - b for a, b in zip(after, before)], fh)
 """
 
 
@@ -141,11 +142,13 @@ def job(args: list, out: str, outputs=G_CODE_ONLY, env=None):
     subprocess.run([PY, "-c", WRAP, mem, "job", "--out", out] + list(outputs) + args, cwd=REPO_DIR, check=True,
                    stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, env=env)
     with open(mem, encoding="utf-8") as fh:
-        own, workers, cpu_own, cpu_workers = json.load(fh)
+        own, workers, cpu_own, sys_own, flt_own, cpu_workers, sys_workers, flt_workers = json.load(fh)
     with open(os.path.join(out, "report.json"), encoding="utf-8") as fh:
         rep = json.load(fh)
     rep["seconds"] = rep["timing"]["total_s"]        # the job's own clock
     rep["cpu"] = (cpu_own, cpu_workers)
+    rep["system"] = (sys_own, sys_workers)           # of those, in the kernel (page faults, forks)
+    rep["faults"] = (int(flt_own), int(flt_workers))
     return rep, own / 1024.0, workers / 1024.0
 
 
@@ -346,9 +349,11 @@ def main(argv=None) -> int:
                for k in range(args.repeat)), key=lambda r: r["seconds"])
     c_own, c_work = rep["cpu"]
     half = 0.5 * one["seconds"]
-    print(f"  CPU: {c_own:.2f} s in the job's process + {c_work:.2f} s in its workers (the fastest run); "
-          f"one process: {one['seconds']:.2f} s by the job's clock ({sum(one['cpu']):.2f} CPU-s), half of it "
-          f"{half:.2f} s: {points / half / ocl:.1f}x")
+    print(f"  CPU: {c_own:.2f} s in the job's process + {c_work:.2f} s in its workers (the fastest run; "
+          f"system {rep['system'][0]:.2f} + {rep['system'][1]:.2f} s, page faults {rep['faults'][0]:,d} + "
+          f"{rep['faults'][1]:,d}: the forks' copy-on-write); one process: {one['seconds']:.2f} s by the "
+          f"job's clock ({sum(one['cpu']):.2f} CPU-s, system {sum(one['system']):.2f} s, page faults "
+          f"{sum(one['faults']):,d}), half of it {half:.2f} s: {points / half / ocl:.1f}x")
     full, _, _ = job([], os.path.join(tmp, "full"), outputs=[])
     tm = full["timing"]
     print(f"  2b. the same job with its default outputs (surface verification, HTML report): "

@@ -190,6 +190,33 @@ class SharedHandOut(unittest.TestCase):
         map_pieces(_square_pid, (1,), 4, 1, when_idle=idle)                 # one process
         self.assertEqual(seen, [])
 
+    def test_workers_idle_once_their_pieces_are_done(self):
+        """workers_idle: inside while_waiting, False while a worker holds a piece, True once
+        every piece is taken and made (the broad phase's threads may then use two cores);
+        False outside map_pieces."""
+        from tsplcam.orientation.broadphase import threads
+        seen = []
+
+        def waiting(marks):
+            seen.append(parallel.workers_idle())
+            _until_marked(marks, 1)                      # the worker holds piece 1
+            seen.append(parallel.workers_idle())
+            open(os.path.join(marks, "m0"), "w").close()  # let it go (it takes piece 0 next)
+            end = time.monotonic() + 10.0
+            while not parallel.workers_idle() and time.monotonic() < end:
+                time.sleep(0.005)
+            seen.append(parallel.workers_idle())
+            seen.append(threads())
+
+        self.assertFalse(parallel.workers_idle())
+        with tempfile.TemporaryDirectory() as marks, \
+                mock.patch.dict(os.environ, {"TSPLCAM_WORKERS": "2"}):
+            out = map_pieces(_held_in_workers, (1, 0.0, marks), 2, 2, order=[1, 0],
+                             while_waiting=lambda: waiting(marks))
+        self.assertEqual([v for v, _ in out], [100, 101])
+        self.assertEqual(seen[1:], [False, True, min(2, len(os.sched_getaffinity(0)))])
+        self.assertFalse(parallel.workers_idle())
+
     def test_the_lowest_failing_piece_raises_wherever_it_was_made(self):
         with self.assertRaisesRegex(ValueError, "piece 2 fails"):
             map_pieces(_fails, ({2, 4},), 6, 2, order=[5, 4, 3, 2, 1, 0])

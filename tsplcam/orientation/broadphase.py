@@ -186,10 +186,15 @@ def threads() -> int:
     (:func:`others_busy`; where that cannot be measured, the last minute's load average
     leaves one idle), else one (on cores shared with other work two threads only wait for
     each other: at load 4 on two cores they were slower), and one while this process's
-    forked workers are busy. The answers are the same either way. Every thread is joined
-    before the call that started it returns, so none is alive when workers fork."""
+    forked workers are busy; two once they are done while this process still works beside
+    them (the molds' collision checker, built beside the path, outlasts it: keycap_mold's by
+    0.14 s): a thread on the core a worker left keeps the job at the two it had (the window of
+    :func:`others_busy` still holds that worker's time). The answers are the same either way.
+    Every thread is joined before the call that started it returns, so none is alive when
+    workers fork."""
     from ..toolpath import parallel
-    if getattr(parallel, "_WAITING", False):
+    waiting = getattr(parallel, "_WAITING", False)
+    if waiting and not parallel.workers_idle():
         return 1
     env = os.environ.get("TSPLCAM_WORKERS", "").strip()
     cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
@@ -197,6 +202,8 @@ def threads() -> int:
         cores = min(cores, max(1, int(env)))
     if cores < 2:
         return 1
+    if waiting:
+        return 2
     others = others_busy()
     if others is not None:
         return 2 if others < cores - 1.5 else 1

@@ -218,6 +218,24 @@ class Requests(unittest.TestCase):
                     self.assertFalse(a.serving())
                     self.assertEqual(b.result(), ("b", 11, (4, pid), pid))
 
+    def test_exit_with_a_process_left_serving(self):
+        """A process that exits with such an Aside left open (no daemon: multiprocessing waits
+        for it at exit, and it waits for a request) stops it first instead of hanging."""
+        if not FORK:
+            self.skipTest("no forked workers here")
+        import subprocess
+        import sys
+        import time
+        code = ("import os; os.environ['TSPLCAM_WORKERS'] = '2'\n"
+                "from tsplcam.orientation.aside import Aside\n"
+                "a = Aside(os.getpid, then=(abs,), children=True, serve=abs)\n"
+                "print(a.forked, a.result() != os.getpid())\n")
+        t = time.monotonic()
+        out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60,
+                             cwd=os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__)))))
+        self.assertEqual(out.stdout.split(), ["True", "True"], out.stderr)
+        self.assertLess(time.monotonic() - t, 20.0)
+
     def test_no_requests_without_a_process(self):
         with mock.patch.dict(os.environ, {"TSPLCAM_WORKERS": "1"}):
             a = Aside(_build, 3, then=(_then, "b"), serve=_square_there)

@@ -41,6 +41,8 @@ from __future__ import annotations
 import multiprocessing
 import os
 import pickle
+import weakref
+from multiprocessing import util
 
 from ..toolpath.parallel import worker_count
 
@@ -73,6 +75,8 @@ class Aside:
                 self._proc = ctx.Process(target=_child, args=(send, fn, args, then, ask_r, meanwhile, serve,
                                                               rep_w), daemon=not children)
                 self._proc.start()
+                if children:
+                    _LIVE.add(self._proc)
             except OSError:                      # no process to be had: here, at once
                 self._proc, self.forked = None, False
                 recv.close()
@@ -221,6 +225,22 @@ class Aside:
     def __exit__(self, *exc) -> None:
         if not self._done or self._ask is not None:
             self.close()
+
+
+# the forked processes that are no daemons (``children``): at this process's exit
+# multiprocessing would wait for one still running (as it waits for a request), so they are
+# stopped first
+_LIVE = weakref.WeakSet()
+
+
+def _stop_live() -> None:
+    for proc in list(_LIVE):
+        if proc.is_alive():
+            proc.terminate()
+            proc.join(5.0)
+
+
+util.Finalize(None, _stop_live, exitpriority=0)
 
 
 def _child(conn, fn, args, then=None, ask=None, meanwhile=None, serve=None, reply=None) -> None:

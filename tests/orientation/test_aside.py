@@ -184,6 +184,17 @@ def _square_there(x):
     return x * x, os.getpid()
 
 
+def _pool_then_wait(marks, extra):
+    """A second piece that starts a pool of two, notes its workers' pids and keeps them busy."""
+    import multiprocessing
+    import time
+    pool = multiprocessing.get_context("fork").Pool(2)
+    with open(os.path.join(marks, "pids.tmp"), "w") as fh:
+        fh.write(" ".join(str(p.pid) for p in pool._pool))
+    os.replace(os.path.join(marks, "pids.tmp"), os.path.join(marks, "pids"))
+    return pool.map(time.sleep, [5.0] * 4)
+
+
 def _slow_build(x):
     import time
     time.sleep(0.3)
@@ -235,6 +246,28 @@ class Requests(unittest.TestCase):
                              cwd=os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__)))))
         self.assertEqual(out.stdout.split(), ["True", "True"], out.stderr)
         self.assertLess(time.monotonic() - t, 20.0)
+
+    def test_stopped_with_its_pool(self):
+        """Closed while its second piece runs a pool of its own, the forked process stops
+        that pool's workers too (none left running on, to meet a broken pipe)."""
+        if not FORK:
+            self.skipTest("no forked workers here")
+        import tempfile
+        import time
+        with tempfile.TemporaryDirectory() as marks, mock.patch.dict(os.environ, {"TSPLCAM_WORKERS": "2"}):
+            a = Aside(_build, 3, then=(_pool_then_wait, marks), children=True)
+            a.result()
+            b = a.follow(1)
+            end = time.monotonic() + 10.0
+            while not os.path.exists(os.path.join(marks, "pids")) and time.monotonic() < end:
+                time.sleep(0.01)
+            with open(os.path.join(marks, "pids")) as fh:
+                pids = [int(x) for x in fh.read().split()]
+            b.close()
+            end = time.monotonic() + 2.5                 # (their tasks take 5 s)
+            while any(os.path.exists(f"/proc/{p}") for p in pids) and time.monotonic() < end:
+                time.sleep(0.02)
+        self.assertEqual([p for p in pids if os.path.exists(f"/proc/{p}")], [])
 
     def test_no_requests_without_a_process(self):
         with mock.patch.dict(os.environ, {"TSPLCAM_WORKERS": "1"}):

@@ -41,6 +41,7 @@ from __future__ import annotations
 import multiprocessing
 import os
 import pickle
+import signal
 import weakref
 from multiprocessing import util
 
@@ -73,7 +74,7 @@ class Aside:
             rep_r, rep_w = ctx.Pipe(duplex=False) if then is not None and serve is not None else (None, None)
             try:
                 self._proc = ctx.Process(target=_child, args=(send, fn, args, then, ask_r, meanwhile, serve,
-                                                              rep_w), daemon=not children)
+                                                              rep_w, children), daemon=not children)
                 self._proc.start()
                 if children:
                     _LIVE.add(self._proc)
@@ -243,12 +244,17 @@ def _stop_live() -> None:
 util.Finalize(None, _stop_live, exitpriority=0)
 
 
-def _child(conn, fn, args, then=None, ask=None, meanwhile=None, serve=None, reply=None) -> None:
+def _child(conn, fn, args, then=None, ask=None, meanwhile=None, serve=None, reply=None,
+           children: bool = False) -> None:
     """The forked process: ``fn(*args)`` with one process, (True, value) or (False, None) back;
     with ``then``, once that went well, ``meanwhile()`` (its failure left to the second piece
     to meet again), then requests answered by ``serve`` on ``reply`` (after b"ready") until the
     second piece's arguments come on ``ask``, then that piece (none: the caller closed it,
-    nothing more to do)."""
+    nothing more to do). With ``children``, stopped (``terminate``) it exits as at its end,
+    so multiprocessing stops the processes it started (a pool's workers would go on, and
+    print their broken pipes)."""
+    if children:
+        signal.signal(signal.SIGTERM, _exit)
     os.environ["TSPLCAM_WORKERS"] = "1"
     ok = _send(conn, fn, args)
     if then is not None and ok:
@@ -276,6 +282,10 @@ def _child(conn, fn, args, then=None, ask=None, meanwhile=None, serve=None, repl
         if extra is not None:
             _send(conn, then[0], tuple(then[1:]) + tuple(extra))
     conn.close()
+
+
+def _exit(signum, frame) -> None:
+    raise SystemExit(1)
 
 
 def _send(conn, fn, args, quiet: bool = False) -> bool:

@@ -77,6 +77,7 @@ class Aside:
                                                               rep_w, children), daemon=not children)
                 self._proc.start()
                 if children:
+                    _own_group(self._proc.pid)
                     _LIVE.add(self._proc)
             except OSError:                      # no process to be had: here, at once
                 self._proc, self.forked = None, False
@@ -216,9 +217,7 @@ class Aside:
             if c is not None:
                 c.close()
         if proc is not None:
-            if proc.is_alive():
-                proc.terminate()
-            proc.join()
+            _end(proc)
 
     def __enter__(self):
         return self
@@ -228,17 +227,39 @@ class Aside:
             self.close()
 
 
-# the forked processes that are no daemons (``children``): at this process's exit
-# multiprocessing would wait for one still running (as it waits for a request), so they are
-# stopped first
+# the forked processes that may have children: each leads a process group of its own, which
+# is stopped whole (a pool's workers left to run on met broken pipes, and printed them); and
+# at this process's exit multiprocessing would wait for one still running (no daemon; as it
+# waits for a request), so they are stopped first
 _LIVE = weakref.WeakSet()
+
+
+def _own_group(pid: int) -> None:
+    """Make the process ``pid`` lead a process group of its own (from both sides of the fork:
+    whichever comes first)."""
+    try:
+        os.setpgid(pid, pid)
+    except OSError:                              # (it did so itself, or is gone)
+        pass
+
+
+def _end(proc, wait: float | None = None) -> None:
+    """Stop a forked process still running (with its group: the processes it started) and
+    reap it."""
+    if proc.is_alive():
+        if proc in _LIVE:
+            try:
+                os.killpg(proc.pid, signal.SIGTERM)
+            except OSError:
+                proc.terminate()
+        else:
+            proc.terminate()
+    proc.join(wait)
 
 
 def _stop_live() -> None:
     for proc in list(_LIVE):
-        if proc.is_alive():
-            proc.terminate()
-            proc.join(5.0)
+        _end(proc, 5.0)
 
 
 util.Finalize(None, _stop_live, exitpriority=0)
@@ -250,11 +271,10 @@ def _child(conn, fn, args, then=None, ask=None, meanwhile=None, serve=None, repl
     with ``then``, once that went well, ``meanwhile()`` (its failure left to the second piece
     to meet again), then requests answered by ``serve`` on ``reply`` (after b"ready") until the
     second piece's arguments come on ``ask``, then that piece (none: the caller closed it,
-    nothing more to do). With ``children``, stopped (``terminate``) it exits as at its end,
-    so multiprocessing stops the processes it started (a pool's workers would go on, and
-    print their broken pipes)."""
+    nothing more to do). With ``children`` it leads a process group of its own (stopped
+    whole, with the processes it starts)."""
     if children:
-        signal.signal(signal.SIGTERM, _exit)
+        _own_group(os.getpid())
     os.environ["TSPLCAM_WORKERS"] = "1"
     ok = _send(conn, fn, args)
     if then is not None and ok:
@@ -282,10 +302,6 @@ def _child(conn, fn, args, then=None, ask=None, meanwhile=None, serve=None, repl
         if extra is not None:
             _send(conn, then[0], tuple(then[1:]) + tuple(extra))
     conn.close()
-
-
-def _exit(signum, frame) -> None:
-    raise SystemExit(1)
 
 
 def _send(conn, fn, args, quiet: bool = False) -> bool:

@@ -644,8 +644,7 @@ class DistanceGrid:
 
     def __init__(self, tree: cKDTree, e2: float, lo: np.ndarray, hi: np.ndarray, spacing: float,
                  pad: float, cap: float, nodes: int):
-        ext = hi - lo + 2 * pad
-        self.h = max(float(spacing), float(np.prod(ext) / nodes) ** (1 / 3))
+        self.h = self.spacing(lo, hi, spacing, pad, nodes)
         self.origin = lo - pad
         self.shape = np.ceil((hi - lo + 2 * pad) / self.h).astype(np.int64) + 1
         axes = [self.origin[i] + self.h * np.arange(self.shape[i]) for i in range(3)]
@@ -670,6 +669,13 @@ class DistanceGrid:
         self.idx = np.where(far, -1, jn)
         self.stride = np.array([self.shape[1] * self.shape[2], self.shape[2], 1])
         self._offsets = _CORNERS @ self.stride
+
+    @staticmethod
+    def spacing(lo: np.ndarray, hi: np.ndarray, spacing: float, pad: float, nodes: int) -> float:
+        """The node spacing of a grid over the box (lo, hi) padded by ``pad``: ``spacing``, or
+        coarser where that would make more than ``nodes`` nodes."""
+        ext = hi - lo + 2 * pad
+        return max(float(spacing), float(np.prod(ext) / nodes) ** (1 / 3))
 
     def _near_blocks(self, tree: cKDTree) -> np.ndarray:
         """Per block of ``BLOCK``^3 nodes: False where every node is proven beyond the cap (no
@@ -1022,9 +1028,11 @@ class BroadPhase:
         lo, hi = self.samples.min(axis=0), self.samples.max(axis=0)
         self.box = (lo, hi)
         reach = profile(0.0).reach
-        fine = DistanceGrid(self.tree, self.e2, lo, hi, FINE[0], 3.0, 1.5, FINE[1])
-        if fine.h > FINE[0]:                       # a large part: pad and cap with the spacing
-            fine = DistanceGrid(self.tree, self.e2, lo, hi, fine.h, 8 * fine.h, 4 * fine.h, FINE[1])
+        h = DistanceGrid.spacing(lo, hi, FINE[0], 3.0, FINE[1])
+        if h > FINE[0]:                            # a large part: pad and cap with the spacing
+            fine = DistanceGrid(self.tree, self.e2, lo, hi, h, 8 * h, 4 * h, FINE[1])
+        else:
+            fine = DistanceGrid(self.tree, self.e2, lo, hi, FINE[0], 3.0, 1.5, FINE[1])
         self.grids = [fine, DistanceGrid(self.tree, self.e2, lo, hi, COARSE[0], reach + COARSE[0],
                                          10 * COARSE[0], COARSE[1])]
         self._covers: dict[float, SphereCover] = {}

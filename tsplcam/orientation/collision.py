@@ -465,6 +465,20 @@ def polygon_segments(radius: float, excess: float) -> int:
     return int(max(12, np.ceil(np.pi / np.arccos(min(c, 1.0 - 1e-12)))))
 
 
+def corner_factor(radius: float, excess: float) -> float:
+    """How far a corner of the circumscribed polygon of :func:`polygon_segments` lies out, as a
+    multiple of the radius: 1 / cos(pi / sides)."""
+    return 1.0 / np.cos(np.pi / polygon_segments(radius, excess))
+
+
+def _circumscribed_ring(radius: float, excess: float):
+    """(sides, corners (sides, 2)) of the circumscribed polygon of :func:`polygon_segments`
+    about the unit circle: its edge midpoints on the circle."""
+    n = polygon_segments(radius, excess)
+    a = np.arange(n) * 2 * np.pi / n
+    return n, np.column_stack([np.cos(a), np.sin(a)]) * (1.0 / np.cos(np.pi / n))
+
+
 def _part_margin(name: str, margin: float, cutting_margin: float | None) -> float:
     """The flutes cut: they only must not touch other surfaces (``cutting_margin``), while the
     shank and holder keep the full ``margin`` (chordal error plus clearance)."""
@@ -508,10 +522,7 @@ def frustum_mesh(frustums: list, polygon_tolerance: float = 0.01):
     V, T, owner = [], [], []
     names = [f[0] for f in frustums]
     for k, (_, z0, z1, r0, r1) in enumerate(frustums):
-        n = polygon_segments(max(r0, r1), polygon_tolerance)
-        a = np.arange(n) * 2 * np.pi / n
-        s = 1.0 / np.cos(np.pi / n)                       # circumscribed: edge midpoints on the circle
-        ring = np.column_stack([np.cos(a), np.sin(a)]) * s
+        n, ring = _circumscribed_ring(max(r0, r1), polygon_tolerance)
         base = sum(len(v) for v in V)
         bottom = np.column_stack([ring * r0, np.full(n, z0)])
         top = np.column_stack([ring * r1, np.full(n, z1)])
@@ -540,10 +551,7 @@ def frustum_shape(r0: float, r1: float, h: float, polygon_tolerance: float = 0.0
     ``fcl.Convex`` hull of two circumscribed polygons (radius r0 at -h/2, r1 at +h/2)."""
     if abs(r0 - r1) < 1e-12:
         return fcl.Cylinder(r0, h)
-    n = polygon_segments(max(r0, r1), polygon_tolerance)
-    a = np.arange(n) * 2 * np.pi / n
-    s = 1.0 / np.cos(np.pi / n)
-    ring = np.column_stack([np.cos(a), np.sin(a)]) * s
+    n, ring = _circumscribed_ring(max(r0, r1), polygon_tolerance)
     verts = np.vstack([np.column_stack([ring * r0, np.full(n, -0.5 * h)]),
                        np.column_stack([ring * r1, np.full(n, 0.5 * h)])])
     faces = [n] + list(range(n - 1, -1, -1)) + [n] + list(range(n, 2 * n))
@@ -697,7 +705,7 @@ class CollisionChecker:
         circumscribed (polygon corner) radii."""
         rows = []
         for _, z0, z1, r0, r1 in self._grown(grow):
-            f = 1.0 / np.cos(np.pi / polygon_segments(max(r0, r1), self.polygon_tolerance))
+            f = corner_factor(max(r0, r1), self.polygon_tolerance)
             rows.append((z0, z1, r0, r1, r0 * f, r1 * f))
         z0, z1, ri0, ri1, ro0, ro1 = (np.array(c, float) for c in zip(*rows))
         return Profile(z0, z1, ri0, ri1, ro0, ro1)
@@ -1078,7 +1086,7 @@ class CollisionChecker:
         P = self._piece_vertices - c
         t = P @ a
         rho = row_norms(P - t[:, None] * a)
-        f = 1.0 / np.cos(np.pi / polygon_segments(max(r0, r1) + pad, self.polygon_tolerance))
+        f = corner_factor(max(r0, r1) + pad, self.polygon_tolerance)
         rout = (r0 + pad + (r1 - r0) * (t - z0) / (z1 - z0)) * f
         return bool(np.any((t >= z0) & (t <= z1) & (rho <= rout)))
 

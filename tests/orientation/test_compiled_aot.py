@@ -91,6 +91,14 @@ def workload(rng) -> None:
     A = np.column_stack([np.sin(th) * np.cos(ph), np.sin(th) * np.sin(ph), np.cos(th)])
     for grow in (0.0, 0.2):
         broad.decide(C, A, grow)
+    from tsplcam.toolpath.path import ToolPath                # capsule_entries: hits, misses, inside
+    from tsplcam.verify.scallop import Swept
+    c = np.column_stack([np.linspace(0, 4, 30), np.zeros(30), np.full(30, 0.5)])
+    up = np.tile([0.0, 0.0, 1.0], (30, 1))
+    sw = Swept(ToolPath(c, up, up, np.zeros(30, np.int8), np.zeros(30, int), np.zeros((30, 2)), np.zeros(30, int),
+                        0.5), 0.3)
+    q = np.column_stack([rng.random(50) * 4, rng.normal(size=50) * 0.4, rng.normal(size=50) * 0.4])
+    sw.entry(q, np.tile([0.0, 0.0, 1.0], (50, 1)), sw.candidates(q, np.tile([0.0, 0.0, 1.0], (50, 1)), 6))
 
 
 @unittest.skipUnless(HAVE_NUMBA, "numba is not installed (the numpy versions run)")

@@ -227,6 +227,30 @@ class NearSearch(unittest.TestCase):
                 np.testing.assert_allclose(got, brute, atol=1e-12)
 
 
+    def test_compiled_entries_are_numpys(self):
+        """The compiled capsule entries (``compiled.capsule_entries``) give numpy's bits, at grid
+        points near the path (hits from outside and inside, misses) and at points pushed
+        along the normals and across them (inside the swept volume, far from it)."""
+        from unittest import mock
+
+        from tsplcam import compiled
+        from tsplcam.verify import scallop
+        if compiled.kernels() is None:
+            self.skipTest("no compiled kernels (numba is not installed)")
+        sw, grid = self.sw, self.grid
+        rng = np.random.default_rng(3)
+        sel = rng.choice(len(grid), 3000)
+        p = grid.P[sel] + rng.normal(size=(len(sel), 3)) * rng.choice([0.0, 0.05, 0.6], (len(sel), 1))
+        n = grid.n[sel]
+        idx = sw.candidates(p, n)
+        idx[::7, -3:] = rng.integers(0, len(sw.a), (len(idx[::7]), 3))       # far capsules too
+        got = sw.entry(p, n, idx)
+        with mock.patch.object(scallop, "compiled", mock.Mock(kernels=lambda work=None: None)):
+            want = sw.entry(p, n, idx)
+        self.assertTrue(np.isfinite(got).any() and np.isinf(got).any() and (got < 0).any())
+        self.assertEqual(got.tobytes(), want.tobytes())
+
+
 class Metrics(unittest.TestCase):
 
     def test_lengths_by_kind(self):

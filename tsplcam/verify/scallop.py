@@ -33,6 +33,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.spatial import cKDTree
 
+from .. import compiled
 from ..toolpath.path import Move, ToolPath
 
 K_NEAR = 16
@@ -41,6 +42,7 @@ K_RIDGE = 10
 ENTRY_ROWS = 4096
 LINK_OWNER = 1 << 40
 RIDGE_ROWS = 20000      # ridges refined at once (their candidates' data: at most 2.4 kB a ridge)
+ENTRY_WORK = 10.0       # a capsule entry in numpy costs about as much as this many Viterbi elements
 
 
 @dataclass
@@ -117,6 +119,8 @@ class Swept:
         # the capsules' start, unit axis and end by component (contiguous: entry() gathers them)
         self._soa = tuple(tuple(np.ascontiguousarray(x[:, c]) for c in range(3))
                           for x in (self.a, self.unit, self.b))
+        self.a, self.unit, self.b, self.length = (np.ascontiguousarray(x, float)
+                                                  for x in (self.a, self.unit, self.b, self.length))
 
     def candidates(self, p: np.ndarray, n: np.ndarray, k: int = K_NEAR):
         kk = min(k, len(self.a))
@@ -127,8 +131,18 @@ class Swept:
         """Distance along n from p to the entry into each candidate capsule (Q, k); inf when
         the ray misses; negative when p is inside. The candidates: capsule indices ``idx``
         (Q, k), or ``caps``, their data as :meth:`gather` gives it (a caller asking about the
-        same candidates again gathers them once). ``ENTRY_ROWS`` points at a time (the
-        (rows, k) temporaries then stay in the processor's cache)."""
+        same candidates again gathers them once). With the compiled kernels
+        (``compiled.capsule_entries``: the same operations, the same bits) from ``idx``,
+        else in numpy ``ENTRY_ROWS`` points at a time (the (rows, k) temporaries then stay
+        in the processor's cache)."""
+        if idx is not None:
+            k = compiled.kernels(work=ENTRY_WORK * idx.size)
+            if k is not None:
+                lam = np.empty(idx.shape)
+                k["capsule_entries"](np.ascontiguousarray(p, float), np.ascontiguousarray(n, float),
+                                     np.ascontiguousarray(idx, np.int64), self.length, self.a, self.unit, self.b,
+                                     float(self.r), lam)
+                return lam
         if len(p) > ENTRY_ROWS:
             return np.concatenate([self._entry(p[s:s + ENTRY_ROWS], n[s:s + ENTRY_ROWS],
                                                self.gather(idx[s:s + ENTRY_ROWS]) if caps is None
@@ -172,10 +186,13 @@ class Swept:
             lam = np.minimum(lam, np.where(d >= 0, ls, np.inf))
         return lam
 
-    def height(self, p: np.ndarray, n: np.ndarray, chunk: int = 20000):
-        """(height, owner of the lowest capsule) of material at points p with normals n."""
+    def height(self, p: np.ndarray, n: np.ndarray, chunk: int = 20000, keep: int = 0):
+        """(height, owner of the lowest capsule) of material at points p with normals n; with
+        ``keep``, also each point's ``keep`` nearest capsules (int32, (len(p), keep): the first
+        of its candidates, which the kd-tree gives nearest first)."""
         out = np.empty(len(p))
         own = np.empty(len(p), np.int64)
+        near = np.empty((len(p), min(keep, K_NEAR, len(self.a))), np.int32) if keep else None
         for s in range(0, len(p), chunk):
             e = slice(s, s + chunk)
             idx = self.candidates(p[e], n[e])
@@ -183,16 +200,21 @@ class Swept:
             j = np.argmin(lam, axis=1)
             out[e] = lam[np.arange(len(j)), j]
             own[e] = self.owner[idx[np.arange(len(j)), j]]
-        return out, own
+            if keep:
+                near[e] = idx[:, :near.shape[1]]
+        return (out, own, near) if keep else (out, own)
 
-    def ridge_candidates(self, points, A, B):
+    def ridge_candidates(self, points, A, B, known=()):
         """The candidates of ridges' bisections: per row, the capsules of owner A or B among
         the ``K_RIDGE`` nearest at each of ``points`` ((p, n) pairs, the same rows), asked once
         at a ridge's ends and middle rather than at every step (its points lie between them, a
-        few hundredths of a mm apart). Returns what :meth:`heights_among` reads: the
-        candidates' :meth:`gather` (Q, w) and whether each is owner A's and owner B's (the
-        padding neither's)."""
-        idx = np.concatenate([self.candidates(p, n, K_RIDGE) for p, n in points], axis=1)
+        few hundredths of a mm apart); ``known``: more rows of nearest capsules found before
+        (the ends' own, kept by :meth:`height`: grid samples). Returns what :meth:`heights_among` reads: the
+        candidates (Q, w), and whether each is owner A's and owner B's (the padding neither's);
+        the candidates as capsule indices where the kernels measure them, else their
+        :meth:`gather` (made once for the bisection's steps)."""
+        idx = np.concatenate([np.asarray(x, np.int64) for x in known]
+                             + [self.candidates(p, n, K_RIDGE) for p, n in points], axis=1)
         own = self.owner[idx]
         keep = (own == A[:, None]) | (own == B[:, None])
         big = len(self.a)
@@ -204,6 +226,8 @@ class Swept:
         real = s < big
         idx = np.where(real, s, 0)
         own = np.where(real, self.owner[idx], -1)
+        if compiled.kernels(work=ENTRY_WORK * idx.size * 12) is not None:
+            return idx, own == A[:, None], own == B[:, None]
         return self.gather(idx), own == A[:, None], own == B[:, None]
 
     def heights_among(self, p, n, candidates):
@@ -211,7 +235,7 @@ class Swept:
         ``candidates`` (:meth:`ridge_candidates`); inf where no candidate of that owner is
         hit."""
         caps, of_a, of_b = candidates
-        lam = self.entry(p, n, caps=caps)
+        lam = self.entry(p, n, idx=caps) if isinstance(caps, np.ndarray) else self.entry(p, n, caps=caps)
         return np.where(of_a, lam, np.inf).min(axis=1), np.where(of_b, lam, np.inf).min(axis=1)
 
 
@@ -267,18 +291,20 @@ def _evaluate_at(model, pat, uv):
     return P, Nn
 
 
-def _refine_ridges(sw: Swept, model, grid: SurfaceGrid, i, j, A, B, iterations: int = 11):
+def _refine_ridges(sw: Swept, model, grid: SurfaceGrid, i, j, A, B, iterations: int = 11, ends=None):
     """Ridge heights between grid samples i (lowest capsule of owner A) and j (owner B):
     bisection on f = h_A - h_B along the parameter segment, then the crossing of the two
     height profiles interpolated linearly inside the last bracket (each profile is smooth
-    there; only their minimum has the corner)."""
+    there; only their minimum has the corner). ``ends``: the ``K_RIDGE`` nearest capsules
+    of samples i and j, as :meth:`Swept.height` kept them (else asked of the kd-tree again)."""
     pat = grid.patch[i]
     ua, ub = grid.uv[i].copy(), grid.uv[j].copy()
     Pa, Na = _evaluate_at(model, pat, ua)
     Pb, Nb = _evaluate_at(model, pat, ub)
     um = 0.5 * (ua + ub)
     Pm, Nm = _evaluate_at(model, pat, um)
-    near = sw.ridge_candidates(((Pa, Na), (Pb, Nb), (Pm, Nm)), A, B)
+    near = (sw.ridge_candidates(((Pa, Na), (Pb, Nb), (Pm, Nm)), A, B) if ends is None
+            else sw.ridge_candidates(((Pm, Nm),), A, B, known=ends))
     a_a, b_a = sw.heights_among(Pa, Na, near)
     a_b, b_b = sw.heights_among(Pb, Nb, near)
     for it in range(iterations):
@@ -378,7 +404,8 @@ def _measure_patches(sw: "Swept", model, spacing: float, patches, region, line_p
     grid = surface_grid(model, spacing, patches, region)
     if len(grid) == 0:
         return None
-    hgt, own = sw.height(grid.P, grid.n)
+    # (each sample's nearest capsules kept: a ridge's ends are samples)
+    hgt, own, near = sw.height(grid.P, grid.n, keep=K_RIDGE)
     uncovered = int(np.count_nonzero(~(hgt <= r)))
     # neighbouring grid samples cut by different capsule owners: refine their ridge
     pairs = []
@@ -397,7 +424,8 @@ def _measure_patches(sw: "Swept", model, spacing: float, patches, region, line_p
         parts_h, parts_uv = [], []
         for s in range(0, len(pairs), RIDGE_ROWS):
             e = slice(s, s + RIDGE_ROWS)
-            hh, ww = _refine_ridges(sw, model, grid, pairs[e, 0], pairs[e, 1], ra[e], rb[e])
+            hh, ww = _refine_ridges(sw, model, grid, pairs[e, 0], pairs[e, 1], ra[e], rb[e],
+                                    ends=(near[pairs[e, 0]], near[pairs[e, 1]]))
             parts_h.append(hh)
             parts_uv.append(ww)
         ridge_h = np.concatenate(parts_h)

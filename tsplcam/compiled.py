@@ -1460,15 +1460,21 @@ def _define(jit):
                 lo[g, e] = z if (z < 1.0 or z != z) else 1.0
 
     @jit
-    def capsule_entries(p, n, idx, length, a, e, b, r, lam):
+    def capsule_entries(p, n, idx, length, a, e, b, r, of_a, of_b, lam, low_a, low_b):
         """:meth:`~tsplcam.verify.scallop.Swept.entry` of rows of candidates: for point p[q]
         (unit normal n[q]) and capsule idx[q, c] (length, start a, unit axis e, end b), the
         distance along the normal to where the ray enters the capsule (inf where it misses,
         negative inside), into lam[q, c]; the same operations in the same order as the numpy
         form (each dot product summed (x + z) + y), so the same bits, without its gathers and
-        (rows, candidates) temporaries (the keycap's verification: 0.73 s of numpy)."""
+        (rows, candidates) temporaries (the keycap's verification: 0.73 s of numpy). With
+        masks ``of_a`` and ``of_b`` (rows, candidates; else (0, 0)) instead the least entry
+        per row among the candidates each marks, into low_a[q] and low_b[q] (inf where none:
+        :meth:`~tsplcam.verify.scallop.Swept.heights_among`; lam is not written)."""
         rr = r * r
+        masked = of_a.shape[0] > 0
         for q in range(idx.shape[0]):
+            ma = np.inf
+            mb = np.inf
             px = p[q, 0]
             py = p[q, 1]
             pz = p[q, 2]
@@ -1518,7 +1524,16 @@ def _define(jit):
                     ls = -bb - np.sqrt(d) if d >= 0 else np.inf
                     if ls < out or ls != ls:
                         out = ls
-                lam[q, c] = out
+                if not masked:
+                    lam[q, c] = out
+                else:                                   # (np.min: a nan wins)
+                    if of_a[q, c] and (out < ma or out != out):
+                        ma = out
+                    if of_b[q, c] and (out < mb or out != out):
+                        mb = out
+            if masked:
+                low_a[q] = ma
+                low_b[q] = mb
 
     return {"hit_pairs": hit_pairs, "viterbi_steps": viterbi_steps, "joint_steps": joint_steps, "viterbi_path": viterbi_path,
             "banded_solve": banded_solve, "grid_read": grid_read, "two_states": two_states,
@@ -1556,7 +1571,8 @@ SIGNATURES = {
     "cusp_ends": "void(f8[3], f8[3], i8, i8, f8[4], f8[4], f8[4], f8[3], f8, f8[2]w, f8[2]w, f8[2]w)",
     "band_samples": "void(f8[2], f8[1], f8[2], i8[1], i8[1], f8[1], f8, i8[1], i8, f8[1]w, i8[1]w, i8[1]w, i8[2]w,"
                     " b1[1]w)",
-    "capsule_entries": "void(f8[2], f8[2], i8[2], f8[1], f8[2], f8[2], f8[2], f8, f8[2]w)",
+    "capsule_entries": "void(f8[2], f8[2], i8[2], f8[1], f8[2], f8[2], f8[2], f8, b1[2], b1[2], f8[2]w, f8[1]w,"
+                       " f8[1]w)",
 }
 #: the ahead-of-time module's name (beside this file, built by :func:`build_aot`)
 AOT_MODULE = "_aot_kernels"

@@ -98,7 +98,10 @@ def workload(rng) -> None:
     sw = Swept(ToolPath(c, up, up, np.zeros(30, np.int8), np.zeros(30, int), np.zeros((30, 2)), np.zeros(30, int),
                         0.5), 0.3)
     q = np.column_stack([rng.random(50) * 4, rng.normal(size=50) * 0.4, rng.normal(size=50) * 0.4])
-    sw.entry(q, np.tile([0.0, 0.0, 1.0], (50, 1)), sw.candidates(q, np.tile([0.0, 0.0, 1.0], (50, 1)), 6))
+    up = np.tile([0.0, 0.0, 1.0], (50, 1))
+    near = sw.candidates(q, up, 6)
+    sw.entry(q, up, near)
+    sw.heights_among(q, up, (near, rng.random(near.shape) < 0.5, rng.random(near.shape) < 0.5))
 
 
 @unittest.skipUnless(HAVE_NUMBA, "numba is not installed (the numpy versions run)")

@@ -249,6 +249,14 @@ class NearSearch(unittest.TestCase):
             want = sw.entry(p, n, idx)
         self.assertTrue(np.isfinite(got).any() and np.isinf(got).any() and (got < 0).any())
         self.assertEqual(got.tobytes(), want.tobytes())
+        # each owner's least entry among marked candidates (a ridge's bisection), against
+        # numpy's on the gathered candidates
+        of_a, of_b = rng.random(idx.shape) < 0.4, rng.random(idx.shape) < 0.4
+        got = sw.heights_among(p, n, (idx, of_a, of_b))
+        want = sw.heights_among(p, n, (sw.gather(idx), of_a, of_b))
+        self.assertTrue(np.isinf(got[0]).any() and np.isfinite(got[1]).any())
+        for g, w in zip(got, want):
+            self.assertEqual(g.tobytes(), w.tobytes())
 
 
 class Metrics(unittest.TestCase):

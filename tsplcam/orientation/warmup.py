@@ -61,4 +61,5 @@ def exercise() -> None:
     # (the verification's capsule entries: one capsule, one point)
     compiled.kernels()["capsule_entries"](np.zeros((1, 3)), np.array([[0.0, 0.0, 1.0]]), np.zeros((1, 1), np.int64),
                                           np.ones(1), np.zeros((1, 3)), np.array([[1.0, 0.0, 0.0]]),
-                                          np.array([[1.0, 0.0, 0.0]]), 0.5, np.empty((1, 1)))
+                                          np.array([[1.0, 0.0, 0.0]]), 0.5, np.zeros((0, 0), bool),
+                                          np.zeros((0, 0), bool), np.empty((1, 1)), np.zeros(0), np.zeros(0))

@@ -43,6 +43,9 @@ ENTRY_ROWS = 4096
 LINK_OWNER = 1 << 40
 RIDGE_ROWS = 20000      # ridges refined at once (their candidates' data: at most 2.4 kB a ridge)
 ENTRY_WORK = 10.0       # a capsule entry in numpy costs about as much as this many Viterbi elements
+_NO_MASK = np.zeros((0, 0), bool)        # (compiled.capsule_entries' arguments it does not use)
+_NO_LAM = np.zeros((0, 0))
+_NO_ROWS = np.zeros(0)
 
 
 @dataclass
@@ -139,9 +142,7 @@ class Swept:
             k = compiled.kernels(work=ENTRY_WORK * idx.size)
             if k is not None:
                 lam = np.empty(idx.shape)
-                k["capsule_entries"](np.ascontiguousarray(p, float), np.ascontiguousarray(n, float),
-                                     np.ascontiguousarray(idx, np.int64), self.length, self.a, self.unit, self.b,
-                                     float(self.r), lam)
+                self._kernel(k, p, n, idx, _NO_MASK, _NO_MASK, lam, _NO_ROWS, _NO_ROWS)
                 return lam
         if len(p) > ENTRY_ROWS:
             return np.concatenate([self._entry(p[s:s + ENTRY_ROWS], n[s:s + ENTRY_ROWS],
@@ -149,6 +150,12 @@ class Swept:
                                                else tuple(c[s:s + ENTRY_ROWS] for c in caps))
                                    for s in range(0, len(p), ENTRY_ROWS)])
         return self._entry(p, n, self.gather(idx) if caps is None else caps)
+
+    def _kernel(self, k, p, n, idx, of_a, of_b, lam, low_a, low_b) -> None:
+        """``compiled.capsule_entries`` of points p, n and candidates idx."""
+        k["capsule_entries"](np.ascontiguousarray(p, float), np.ascontiguousarray(n, float),
+                             np.ascontiguousarray(idx, np.int64), self.length, self.a, self.unit, self.b,
+                             float(self.r), of_a, of_b, lam, low_a, low_b)
 
     def gather(self, idx: np.ndarray) -> tuple:
         """The data :meth:`entry` reads of capsules ``idx`` (Q, k): length, then start, unit
@@ -235,7 +242,12 @@ class Swept:
         ``candidates`` (:meth:`ridge_candidates`); inf where no candidate of that owner is
         hit."""
         caps, of_a, of_b = candidates
-        lam = self.entry(p, n, idx=caps) if isinstance(caps, np.ndarray) else self.entry(p, n, caps=caps)
+        k = compiled.kernels() if isinstance(caps, np.ndarray) else None     # (capsule indices)
+        if k is not None:
+            low_a, low_b = np.empty(len(p)), np.empty(len(p))
+            self._kernel(k, p, n, caps, np.ascontiguousarray(of_a), np.ascontiguousarray(of_b), _NO_LAM, low_a, low_b)
+            return low_a, low_b
+        lam = self.entry(p, n, caps=self.gather(caps) if isinstance(caps, np.ndarray) else caps)
         return np.where(of_a, lam, np.inf).min(axis=1), np.where(of_b, lam, np.inf).min(axis=1)
 
 

@@ -69,6 +69,31 @@ class FlatCusps(unittest.TestCase):
         expect = self.r - np.sqrt(self.r ** 2 - d ** 2)
         self.assertLess(float(np.abs(hs.height[grid][inside] - expect[inside]).max()), 1e-9)
 
+    def test_one_patch_shared_among_processes(self):
+        """A lone patch's samples and ridges measured in two processes (``_measure_patches``'
+        split, several pieces of each) give the report of one process: every figure, cusp
+        height and kept height the same bytes."""
+        from unittest import mock
+
+        from tsplcam.toolpath import parallel
+        from tsplcam.verify import scallop
+        if parallel.worker_count(2, 2) < 2:
+            self.skipTest("no second process here")
+        with mock.patch.dict("os.environ", {"TSPLCAM_WORKERS": "1"}):
+            one = measure(self.path, self.model, scallop=self.h, spacing=0.02, heights=True)
+        with mock.patch.dict("os.environ", {"TSPLCAM_WORKERS": "2"}), \
+                mock.patch.object(scallop, "SPLIT_SAMPLES", 1000), mock.patch.object(scallop, "RIDGE_ROWS", 500), \
+                mock.patch.object(parallel, "map_pieces", wraps=parallel.map_pieces) as mp:
+            two = measure(self.path, self.model, scallop=self.h, spacing=0.02, heights=True)
+        shared = [c for c in mp.call_args_list if c.args[0] in (scallop._grid_rows, scallop._ridge_rows)]
+        self.assertEqual({c.args[0] for c in shared}, {scallop._grid_rows, scallop._ridge_rows})
+        self.assertTrue(all(c.args[3] == 2 and c.args[2] > 2 for c in shared))     # pieces, processes
+        self.assertEqual(two.as_dict(), one.as_dict())
+        self.assertEqual(two.cusp_heights.tobytes(), one.cusp_heights.tobytes())
+        for a, b in zip((one.heights.patch, one.heights.uv, one.heights.height, one.heights.ridge),
+                        (two.heights.patch, two.heights.uv, two.heights.height, two.heights.ridge)):
+            self.assertEqual(a.tobytes(), b.tobytes())
+
     def test_cusp_heights_match_closed_form(self):
         rep = self.rep
         self.assertEqual(rep.uncovered, 0)

@@ -352,7 +352,9 @@ def measure(path: ToolPath, model, scallop: float | None = None, spacing: float 
     is allowed (:func:`~tsplcam.toolpath.parallel.map_pieces`; the same figures: each patch's
     are its own, gathered in patch order), so memory stays bounded by the largest patches'
     grids, one per process, however big the model; ``progress(done, total)`` is called
-    after each.
+    after each. With fewer patches than processes (a T-spline of one patch) a patch's samples
+    and ridges are shared among them instead, each measured as alone: the same figures
+    (tjunction_mold's one patch of 2,448,180 samples: 10.9 -> 6.7 s).
     ``heights``: keep every sample's height in the report (:class:`HeightSamples`, for maps).
     ``when_idle``: work for this process's core once no patch is left for it while a worker
     still measures one (``map_pieces``' ``when_idle``; not called with one process).
@@ -376,7 +378,11 @@ def measure(path: ToolPath, model, scallop: float | None = None, spacing: float 
     # end together
     on = path.patch[path.patch >= 0]
     size = np.bincount(on, minlength=len(model.patches))[np.asarray(todo, int)] if len(todo) else np.zeros(0, int)
-    parts = [x for x in map_pieces(_patch_piece, (sw, model, spacing, region, line_patch, r, heights, todo),
+    # fewer patches than processes (a T-spline of one patch): each patch's samples and ridges
+    # are shared among the processes instead (_split_patch)
+    split = worker_count(None, 2) if len(todo) < worker_count(None, 2) else 1
+    parts = [x for x in map_pieces(_patch_piece, (sw, model, spacing, region, line_patch, r, heights, todo, split,
+                                                  when_idle),
                                    len(todo), worker_count(None, len(todo)), order=np.argsort(-size, kind="stable"),
                                    tick=progress, when_idle=when_idle) if x is not None]
     samples = sum(x["samples"] for x in parts)
@@ -405,19 +411,52 @@ def _height_samples(parts) -> HeightSamples:
 
 
 def _patch_piece(sw: "Swept", model, spacing: float, region, line_patch: np.ndarray, r: float, keep: bool,
-                 todo: list, i: int):
+                 todo: list, split: int, when_idle, i: int):
     """:func:`_measure_patches` of the i-th patch of ``todo`` (a piece of ``map_pieces``)."""
-    return _measure_patches(sw, model, spacing, [todo[i]], region, line_patch, r, keep)
+    return _measure_patches(sw, model, spacing, [todo[i]], region, line_patch, r, keep, split, when_idle)
+
+
+SPLIT_SAMPLES = 200_000     # a patch is shared among processes (_measure_patches' split) from this many samples
+
+
+def _grid_rows(sw: "Swept", model, grid: SurfaceGrid, cuts: np.ndarray, i: int):
+    """A piece of ``map_pieces`` over a grid: 0 its :func:`gouges`, i > 0 :meth:`Swept.height`
+    of samples ``cuts[i - 1]`` to ``cuts[i]``."""
+    if i == 0:
+        return gouges(sw.path, model, grid)
+    e = slice(int(cuts[i - 1]), int(cuts[i]))
+    return sw.height(grid.P[e], grid.n[e], keep=K_RIDGE)
+
+
+def _ridge_rows(sw: "Swept", model, grid: SurfaceGrid, pairs: np.ndarray, ra: np.ndarray, rb: np.ndarray,
+                near: np.ndarray, i: int):
+    """:func:`_refine_ridges` of the i-th ``RIDGE_ROWS`` of ``pairs`` (a piece of ``map_pieces``)."""
+    e = slice(i * RIDGE_ROWS, (i + 1) * RIDGE_ROWS)
+    return _refine_ridges(sw, model, grid, pairs[e, 0], pairs[e, 1], ra[e], rb[e],
+                          ends=(near[pairs[e, 0]], near[pairs[e, 1]]))
 
 
 def _measure_patches(sw: "Swept", model, spacing: float, patches, region, line_patch: np.ndarray, r: float,
-                     keep: bool = False):
-    """The figures of one grid (one patch), to be aggregated by :func:`measure`."""
+                     keep: bool = False, split: int = 1, when_idle=None):
+    """The figures of one grid (one patch), to be aggregated by :func:`measure`. ``split``:
+    processes to share the samples' heights and the ridges among (each sample and each ridge
+    measured as alone, the results in their order: the same figures), for a grid of
+    ``SPLIT_SAMPLES`` or more; ``when_idle`` then as :func:`measure`'s."""
+    from ..toolpath.parallel import map_pieces
     grid = surface_grid(model, spacing, patches, region)
     if len(grid) == 0:
         return None
+    split = split if len(grid) >= SPLIT_SAMPLES else 1
     # (each sample's nearest capsules kept: a ridge's ends are samples)
-    hgt, own, near = sw.height(grid.P, grid.n, keep=K_RIDGE)
+    gouge = None
+    if split > 1:
+        # the gouge check beside the samples' heights, which come in a few pieces
+        cuts = np.linspace(0, len(grid), 2 * split + 1).astype(np.int64)
+        got = map_pieces(_grid_rows, (sw, model, grid, cuts), len(cuts), split)
+        gouge, got = got[0], got[1:]
+        hgt, own, near = (np.concatenate([g[k] for g in got]) for k in range(3))
+    else:
+        hgt, own, near = sw.height(grid.P, grid.n, keep=K_RIDGE)
     uncovered = int(np.count_nonzero(~(hgt <= r)))
     # neighbouring grid samples cut by different capsule owners: refine their ridge
     pairs = []
@@ -433,15 +472,11 @@ def _measure_patches(sw: "Swept", model, spacing: float, patches, region, line_p
     ra = rb = np.zeros(0, np.int64)
     if len(pairs):
         ra, rb = own[pairs[:, 0]], own[pairs[:, 1]]
-        parts_h, parts_uv = [], []
-        for s in range(0, len(pairs), RIDGE_ROWS):
-            e = slice(s, s + RIDGE_ROWS)
-            hh, ww = _refine_ridges(sw, model, grid, pairs[e, 0], pairs[e, 1], ra[e], rb[e],
-                                    ends=(near[pairs[e, 0]], near[pairs[e, 1]]))
-            parts_h.append(hh)
-            parts_uv.append(ww)
-        ridge_h = np.concatenate(parts_h)
-        ridge_uv = np.concatenate(parts_uv)
+        chunks = -(-len(pairs) // RIDGE_ROWS)
+        got = map_pieces(_ridge_rows, (sw, model, grid, pairs, ra, rb, near), chunks, split if chunks > 1 else 1,
+                         when_idle=when_idle)
+        ridge_h = np.concatenate([hh for hh, _ in got])
+        ridge_uv = np.concatenate([ww for _, ww in got])
     lp, lq = _owner_patch(ra, line_patch, -2), _owner_patch(rb, line_patch, -3)
     neighbours = (np.abs(ra - rb) == 1) & (ra < LINK_OWNER) & (rb < LINK_OWNER) & (lp == lq) & (lp >= 0)
     cusp = ridge_h[neighbours & np.isfinite(ridge_h)]
@@ -468,7 +503,7 @@ def _measure_patches(sw: "Swept", model, spacing: float, patches, region, line_p
                 np.concatenate([np.zeros(int(g.sum()), bool), np.ones(int(rf.sum()), bool)]))
     return {"heights": kept, "samples": len(grid), "uncovered": uncovered, "cusp": cusp, "hmax": hmax, "at": at,
             "finite": len(finite), "material_sum": float(np.sum(np.maximum(finite, 0.0))),
-            "ridges": int(len(ridge_h)), "gouge": gouges(sw.path, model, grid)}
+            "ridges": int(len(ridge_h)), "gouge": gouges(sw.path, model, grid) if gouge is None else gouge}
 
 
 def _owner_patch(owner: np.ndarray, line_patch: np.ndarray, link: int) -> np.ndarray:

@@ -43,6 +43,7 @@ ENTRY_ROWS = 4096
 LINK_OWNER = 1 << 40
 RIDGE_ROWS = 20000      # ridges refined at once (their candidates' data: at most 2.4 kB a ridge)
 ENTRY_WORK = 10.0       # a capsule entry in numpy costs about as much as this many Viterbi elements
+SPLIT_SAMPLES = 200_000  # a lone patch is shared among processes (_measure_patches' split) from this many samples
 _NO_MASK = np.zeros((0, 0), bool)        # (compiled.capsule_entries' arguments it does not use)
 _NO_LAM = np.zeros((0, 0))
 _NO_ROWS = np.zeros(0)
@@ -380,7 +381,8 @@ def measure(path: ToolPath, model, scallop: float | None = None, spacing: float 
     size = np.bincount(on, minlength=len(model.patches))[np.asarray(todo, int)] if len(todo) else np.zeros(0, int)
     # fewer patches than processes (a T-spline of one patch): each patch's samples and ridges
     # are shared among the processes instead (_split_patch)
-    split = worker_count(None, 2) if len(todo) < worker_count(None, 2) else 1
+    procs = worker_count(None, 2)
+    split = procs if len(todo) < procs else 1
     parts = [x for x in map_pieces(_patch_piece, (sw, model, spacing, region, line_patch, r, heights, todo, split,
                                                   when_idle),
                                    len(todo), worker_count(None, len(todo)), order=np.argsort(-size, kind="stable"),
@@ -414,9 +416,6 @@ def _patch_piece(sw: "Swept", model, spacing: float, region, line_patch: np.ndar
                  todo: list, split: int, when_idle, i: int):
     """:func:`_measure_patches` of the i-th patch of ``todo`` (a piece of ``map_pieces``)."""
     return _measure_patches(sw, model, spacing, [todo[i]], region, line_patch, r, keep, split, when_idle)
-
-
-SPLIT_SAMPLES = 200_000     # a patch is shared among processes (_measure_patches' split) from this many samples
 
 
 def _grid_rows(sw: "Swept", model, grid: SurfaceGrid, cuts: np.ndarray, i: int):

@@ -1,5 +1,6 @@
-"""Patch.grid_points and grids_points (the collision checker's tessellation route: positions alone) against
-Patch.evaluate_grid's P. The claim is not closeness but the same values bit for bit (the same
+"""Patch.grid_points and grids_points (the collision checker's tessellation route: positions alone)
+and Patch.evaluate_grid without second derivatives (the verification's grid) against
+Patch.evaluate_grid's P, first derivatives and normals. The claim is not closeness but the same values bit for bit (the same
 products on the same arrays, LevelCells point by point), since the tessellation's triangles
 and measured error feed the collision margins and the program bytes: so the comparison is
 exact. Grids: uniform, on the cell breaks, within 2^-30 of a cell's corner (below the cached
@@ -51,9 +52,15 @@ class GridPoints(unittest.TestCase):
         for patch in patches:
             for us, vs in grids(patch, rng):
                 got = patch.grid_points(us, vs)
-                want = patch.evaluate_grid(us, vs).P
+                full = patch.evaluate_grid(us, vs)
+                want = full.P
                 self.assertEqual(got.shape, (len(us) * len(vs), 3))
                 np.testing.assert_array_equal(got, want, err_msg=f"{patch.name}: {len(us)} x {len(vs)}")
+                # without the second derivatives (the verification's grid): the rest the same
+                first = patch.evaluate_grid(us, vs, second=False)
+                self.assertIsNone(first.Puu)
+                for k in ("P", "Pu", "Pv", "normal", "u", "v"):
+                    np.testing.assert_array_equal(getattr(first, k), getattr(full, k), err_msg=f"{patch.name} {k}")
             # several grids at once: their extraordinary cells together (the first three), or
             # grid by grid when one has points next to a cell's corner (all four)
             every = list(grids(patch, np.random.default_rng(seed)))

@@ -208,7 +208,8 @@ class BezierCells:
 
         Both contractions are BLAS products and the second one writes straight into ``out``
         (any view of that shape whose rows are contiguous, e.g. a block of the patch's grid),
-        so a grid costs little more than writing its result."""
+        so a grid costs little more than writing its result. An ``out`` of 3 rows (or fewer)
+        takes the position and first derivatives alone: the same products for them."""
         nc, p1, q1 = self.nc, self.p + 1, self.q + 1
         na, nb = len(a), len(b)
         bs = bernstein(self.p, a)                        # (na, 3, p+1)
@@ -223,7 +224,7 @@ class BezierCells:
         btT = np.ascontiguousarray(bt.transpose(1, 2, 0))             # (3, q+1, nb)
         if out is None:
             out = np.empty((6, nc, na, nb))
-        for k, (ds, dt) in enumerate(DERIVS):
+        for k, (ds, dt) in enumerate(DERIVS[:len(out)]):
             np.matmul(T[ds], btT[dt], out=out[k])                     # (nc, na, nb)
         out[0] += self._origin[cell][:, None, None]
         return out

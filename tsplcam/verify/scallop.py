@@ -82,7 +82,7 @@ def surface_grid(model, spacing: float, patches=None, region=None) -> SurfaceGri
         # are singular (the Newton projection starts from these samples)
         gu = np.clip(np.linspace(u0, u1, nu), GRID_EPS, 1 - GRID_EPS)
         gv = np.clip(np.linspace(v0, v1, nv), GRID_EPS, 1 - GRID_EPS)
-        sp = p.evaluate_grid(gu, gv)
+        sp = p.evaluate_grid(gu, gv, second=False)
         pp.append(np.full(nu * nv, p.index))
         uvs.append(np.column_stack([sp.u, sp.v]))
         Ps.append(sp.P)

@@ -64,7 +64,7 @@ def surface_quads(model, cells=None, per_patch: int | None = None) -> SurfaceQua
     for p in model.patches:
         nu, nv = cells[p.index] if cells is not None else (per_patch, per_patch)
         gu, gv = np.linspace(0.0, 1.0, nu + 1), np.linspace(0.0, 1.0, nv + 1)
-        sp = p.evaluate_grid(np.clip(gu, 1e-7, 1 - 1e-7), np.clip(gv, 1e-7, 1 - 1e-7))
+        sp = p.evaluate_grid(np.clip(gu, 1e-7, 1 - 1e-7), np.clip(gv, 1e-7, 1 - 1e-7), second=False)
         G = sp.P.reshape(nu + 1, nv + 1, 3)
         Gn = sp.normal.reshape(nu + 1, nv + 1, 3)
         q = np.stack([G[:-1, :-1], G[1:, :-1], G[1:, 1:], G[:-1, 1:]], axis=2).reshape(-1, 4, 3)

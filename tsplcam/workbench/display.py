@@ -81,7 +81,7 @@ def tessellate(model, density: int = 8, progress=None) -> list[PatchMesh]:
     out = []
     grids = samples_per_patch(model, density)
     for k, (patch, (nu, nv)) in enumerate(zip(model.patches, grids)):
-        sp = patch.evaluate_grid(np.linspace(0.0, 1.0, nu + 1), np.linspace(0.0, 1.0, nv + 1))
+        sp = patch.evaluate_grid(np.linspace(0.0, 1.0, nu + 1), np.linspace(0.0, 1.0, nv + 1), second=False)
         # the mesh runs u fastest (rows of constant v); the grid comes u slowest
         P = sp.P.reshape(nu + 1, nv + 1, 3).transpose(1, 0, 2).reshape(-1, 3)
         N = sp.normal.reshape(nu + 1, nv + 1, 3).transpose(1, 0, 2).reshape(-1, 3)

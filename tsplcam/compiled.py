@@ -1490,6 +1490,8 @@ def _define(jit):
             ny = n[q, 1]
             nz = n[q, 2]
             for c in range(idx.shape[1]):
+                if masked and not (of_a[q, c] or of_b[q, c]):
+                    continue                            # (a row's padding: no owner's)
                 j = idx[q, c]
                 L = length[j]
                 ex = e[j, 0]

@@ -15,6 +15,8 @@ from functools import cached_property
 
 import numpy as np
 
+from ..npfast import cross_rows, row_norms
+
 
 def rational_from_homogeneous(H: np.ndarray) -> tuple[np.ndarray, ...]:
     """Euclidean position and partials from homogeneous ones.
@@ -69,8 +71,10 @@ class SurfacePoints:
         """Unit normal S_u x S_v / |S_u x S_v| (n, 3)."""
         if self.normal_override is not None:
             return self.normal_override
-        c = np.cross(self.Pu, self.Pv)
-        length = np.linalg.norm(c, axis=1, keepdims=True)
+        # (np.cross's and np.linalg.norm's products and sums in their order, without their
+        # axis handling: the same bits, two thirds of the time on a verification grid's rows)
+        c = cross_rows(self.Pu, self.Pv)
+        length = row_norms(c)[:, None]
         return c / np.where(length > 0.0, length, 1.0)
 
     @cached_property

@@ -304,20 +304,19 @@ def _evaluate_at(model, pat, uv):
     return P, Nn
 
 
-def _refine_ridges(sw: Swept, model, grid: SurfaceGrid, i, j, A, B, iterations: int = 11, ends=None):
+def _refine_ridges(sw: Swept, model, grid: SurfaceGrid, i, j, A, B, ends: tuple, iterations: int = 11):
     """Ridge heights between grid samples i (lowest capsule of owner A) and j (owner B):
     bisection on f = h_A - h_B along the parameter segment, then the crossing of the two
     height profiles interpolated linearly inside the last bracket (each profile is smooth
     there; only their minimum has the corner). ``ends``: the ``K_RIDGE`` nearest capsules
-    of samples i and j, as :meth:`Swept.height` kept them (else asked of the kd-tree again)."""
+    of samples i and j, as :meth:`Swept.height` kept them (the middle's are asked here)."""
     pat = grid.patch[i]
     ua, ub = grid.uv[i].copy(), grid.uv[j].copy()
     Pa, Na = _evaluate_at(model, pat, ua)
     Pb, Nb = _evaluate_at(model, pat, ub)
     um = 0.5 * (ua + ub)
     Pm, Nm = _evaluate_at(model, pat, um)
-    near = (sw.ridge_candidates(((Pa, Na), (Pb, Nb), (Pm, Nm)), A, B) if ends is None
-            else sw.ridge_candidates(((Pm, Nm),), A, B, known=ends))
+    near = sw.ridge_candidates(((Pm, Nm),), A, B, known=ends)
     a_a, b_a = sw.heights_among(Pa, Na, near)
     a_b, b_b = sw.heights_among(Pb, Nb, near)
     for it in range(iterations):
@@ -432,7 +431,7 @@ def _ridge_rows(sw: "Swept", model, grid: SurfaceGrid, pairs: np.ndarray, ra: np
     """:func:`_refine_ridges` of the i-th ``RIDGE_ROWS`` of ``pairs`` (a piece of ``map_pieces``)."""
     e = slice(i * RIDGE_ROWS, (i + 1) * RIDGE_ROWS)
     return _refine_ridges(sw, model, grid, pairs[e, 0], pairs[e, 1], ra[e], rb[e],
-                          ends=(near[pairs[e, 0]], near[pairs[e, 1]]))
+                          (near[pairs[e, 0]], near[pairs[e, 1]]))
 
 
 def _measure_patches(sw: "Swept", model, spacing: float, patches, region, line_patch: np.ndarray, r: float,

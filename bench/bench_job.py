@@ -107,8 +107,10 @@ def ocl_run(model, radius: float, points: int):
 # and the CPU seconds of the command (its own, its workers', once they have exited) after its
 # imports (those import_ahead makes before the job's clock starts included)
 WRAP = """import json, multiprocessing, resource, sys
+from tsplcam.allocator import keep_freed_memory
 from tsplcam.cli import build_parser, main
 from tsplcam.job import import_ahead
+keep_freed_memory()          # as python3 -m tsplcam sets its allocator (tsplcam/__main__.py)
 build_parser()
 import_ahead()
 def cpu():

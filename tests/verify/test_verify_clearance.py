@@ -437,7 +437,7 @@ class MoldSmallestClearance(unittest.TestCase):
     def test_smallest_next_to_a_part_end(self):
         """KNOWN TO FAIL (left for a later pass): on the keycap tilted 20 deg the search gives
         1.42795 mm at pose 1342 where fcl.distance at every pose gives 1.42766 mm at pose 1401
-        (figure4's job: 1.6125 mm at 12028). The growths do not grow a bottom another solid
+        (figure4's job: 1.61241 mm at 49056). The growths do not grow a bottom another solid
         covers (the shank's on the flutes: below it the flutes rule, as in the checker),
         while fcl.distance measures to the grown shank from below it too; so a pose nearest
         the workpiece there need not touch at a growth above that distance, and the

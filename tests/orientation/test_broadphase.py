@@ -638,7 +638,7 @@ class Geometry(unittest.TestCase):
         tree, ref = SampleTree(S), cKDTree(S, leafsize=LEAFSIZE)
         x = np.concatenate([S[:200] + rng.normal(scale=0.3, size=(200, 3)), S[200:300],
                             rng.random((200, 3)) * [10, 10, 4] - [0, 0, 2]])
-        for mode in ("fast", None):             # the fast tree always; the tree chosen by the clock
+        for mode in ("fast", None):             # the fast tree always; the fast one for k = 1 only
             tree.mode = mode
             for k in (1, 3, 8):
                 for ub in (0.2, 0.7, 3.0, np.inf, float(np.linalg.norm(x[0] - S[5]))):
@@ -648,7 +648,8 @@ class Geometry(unittest.TestCase):
                         self.assertEqual(g.tobytes(), w.tobytes(), (k, ub))
             if mode == "fast":
                 self.assertGreater(tree.asked_ref, 100)     # the ties went to the default tree
-        self.assertGreater(tree._probe[2], 0)                # both trees timed on k = 1 calls
+        self.assertTrue(tree._use_fast(1))                   # the nearest sample: the fast tree
+        self.assertFalse(tree._use_fast(3))                  # the k nearest: the default tree
 
     def test_centre_table(self):
         """Slots by a centre's exact bytes: the same centre (also -0.0 against 0.0: other

@@ -103,12 +103,11 @@ alive when the path or fcl workers fork.
 
 **KD queries.** The samples' KD-tree (:class:`SampleTree`) answers as scipy's default tree
 (median splits, nodes shrunk to their points) always has, bit for bit, but asks for the
-nearest sample (k = 1), where it proves faster on the mesh (both timed on the first 512
-points), a sliding-midpoint tree over the distinct samples first (its two
+nearest sample (k = 1) a sliding-midpoint tree over the distinct samples first (its two
 nearest; where they, or one and the bound, lie closer in squared distance than
 1e-9 (1 + bound)^2, or a repeated sample's copies lie in several of the default tree's
 leaves, the default tree is asked): the keycap_mold job's wide exact bounds (R 3-6 mm in the
-cavity) cost 16 us a point in the default tree, 4 in the other.
+cavity) cost 16 us a point in the default tree, 4 in the other (:meth:`SampleTree._use_fast`).
 
 **Per centre.** The free cones are kept per ball centre, found by the centre's bytes
 (:class:`CentreTable`): with the kernels, in an open-addressing table of the centres' words
@@ -362,36 +361,25 @@ class SampleTree:
             rep[dup] = np.where(lo[dup] == hi[dup], self.ref.indices[np.minimum(best[dup], self.n - 1)], -1)
         self.rep, self.mult = rep, cnt
         self.fast = cKDTree(samples[first], leafsize=LEAFSIZE, balanced_tree=False, compact_nodes=False)
-        self.mode = None                     # "fast" or "ref": always that tree; None: by k, timed
-        self._probe = [0.0, 0.0, 0]          # seconds of the fast tree, of ref, points timed (k = 1)
+        self.mode = None                     # "fast" or "ref": always that tree; None: by k
 
-    PROBE = 512                              # points timed on both trees before k = 1 calls choose
-
-    def _use_fast(self, k: int, x: np.ndarray, u: float) -> bool:
-        """Which tree answers a call (the same answers either way): the default tree for
-        the k nearest (the narrow bands: about even, the checks over k + 1 columns cost
-        more); for the nearest sample alone (the wide exact bounds, the side grid's nodes)
-        the one that took less time on the first ``PROBE`` points asked, both trees asked
-        the first 64 of each call until then (in keycap_mold's cavity 16 us a point in
-        the default tree, 4 in the fast one; on the keycap's open surface about a sixth
-        more in the fast one with its checks)."""
+    def _use_fast(self, k: int) -> bool:
+        """Which tree answers a call (the same answers either way): the fast one for the
+        nearest sample alone, the default one for the k nearest (the narrow bands: the checks
+        over k + 1 columns cost more; on the sample jobs 2.2-2.6 times the default tree's
+        time). The nearest sample's calls in one process, fast tree against default tree
+        (s): keycap distance grids 0.063 / 0.077; keycap_mold (as the bench runs it) grids
+        0.097 / 0.093, wide exact bounds 0.111 / 0.265, side grid 0.023 / 0.043; Fusion mold
+        grids 0.091 / 0.096, exact bounds 0.225 / 1.157, side grid 0.029 / 0.095; deep_mold
+        grids 0.148 / 0.132, exact bounds 0.129 / 0.172; tjunction_mold grids 0.146 / 0.237;
+        head grids 0.275 / 0.443, exact bounds 0.081 / 0.069. (The tree that took less time
+        on the first 512 points asked, 64 of each call, answered before: on keycap_mold in
+        one process those were the distance grids' far rows, the default tree won, and the
+        bench's keycap_mold job took 1.35 s against 1.21 s now, medians of 4 alternate pairs;
+        in two processes 1.09 against 1.00 s, 6 pairs.)"""
         if self.mode is not None:
             return self.mode == "fast"
-        if k != 1:
-            return False
-        pr = self._probe
-        if pr[2] < self.PROBE and len(x) >= 64:
-            p = np.ascontiguousarray(x[:64])
-            first = pr[2] // 64 % 2                # (which tree goes first alternates)
-            for which in (first, 1 - first):
-                t0 = time.perf_counter()
-                if which == 0:
-                    self._query_fast(p, 1, u, 1)
-                else:
-                    self.ref.query(p, k=1, distance_upper_bound=u)
-                pr[which] += time.perf_counter() - t0
-            pr[2] += len(p)
-        return pr[2] < self.PROBE or pr[0] <= pr[1]
+        return k == 1
 
     @staticmethod
     def _distinct(P: np.ndarray):
@@ -421,7 +409,7 @@ class SampleTree:
         below 1e-13 of it."""
         x = np.asarray(x, float)
         u = float(distance_upper_bound)
-        if self._use_fast(k, x, u):
+        if self._use_fast(k):
             return self._query_fast(x, k, u, workers)
         return self.ref.query(x, k=k, distance_upper_bound=u, workers=workers)
 

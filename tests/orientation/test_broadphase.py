@@ -161,7 +161,9 @@ class AgreesWithFcl(unittest.TestCase):
 
     def test_fcl_workers_answer_as_one_process(self):
         """fcl batches shared among forked workers (started by a batch of ``POOL_START`` poses
-        or more) give the answers of this process alone."""
+        or more) give the answers of this process alone; ``close_pool`` stops the workers and
+        the pool's threads here."""
+        import threading
         from tsplcam.orientation import collision
         from tsplcam.toolpath.parallel import worker_count
         if worker_count(None, 4) < 2:
@@ -173,13 +175,17 @@ class AgreesWithFcl(unittest.TestCase):
         start = collision.POOL_START
         try:
             collision.POOL_START = 1000
+            threads_before = threading.active_count()
             shared = ch._fcl(C, A, 0.1)
-            self.assertIsNotNone(getattr(ch, "_workers", None), "no workers started")
+            workers = getattr(ch, "_workers", None)
+            self.assertIsNotNone(workers, "no workers started")
+            self.assertEqual(threading.active_count(), threads_before + 3)
         finally:
             collision.POOL_START = start
-            pool = ch.__dict__.pop("_workers", None)
-            if pool is not None:
-                pool.terminate()
+            ch.close_pool()
+        self.assertIsNone(ch._workers)
+        self.assertEqual(threading.active_count(), threads_before)
+        self.assertFalse(any(p.is_alive() for p in workers._pool))
         np.testing.assert_array_equal(shared, alone)
         self.assertTrue(alone.any() and not alone.all())
 

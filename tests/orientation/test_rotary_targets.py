@@ -50,6 +50,10 @@ class RotaryTargets:
         with open(artifact_path("rotary_targets.json"), "w") as f:
             json.dump(FIGURES, f, indent=2)
 
+    @classmethod
+    def tearDownClass(cls):
+        cls.checker.close_pool()             # (the deep mold's batches start one)
+
     def test_collision_free(self):
         for strategy, (out, _) in self.results.items():
             self.assertEqual(int(self.checker.collides_exact(out.center, out.axis).sum()), 0, strategy)

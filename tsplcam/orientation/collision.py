@@ -791,6 +791,15 @@ class CollisionChecker:
         pool (its workers serve the parent), so that a batch here starts one of its own."""
         self._workers = None
 
+    def close_pool(self) -> None:
+        """Stop the worker processes this checker started for its large fcl batches, and the
+        pool's three threads in this process (a later large batch starts a new pool); for a
+        checker kept after its work, as a test class keeps one, so that later forks happen
+        beside no thread of it."""
+        pool, self._workers = getattr(self, "_workers", None), None
+        if pool is not None:
+            pool.terminate()
+
     def _pool(self, workers: int):
         """Forked workers that inherit this checker."""
         pool = getattr(self, "_workers", None)

@@ -195,9 +195,13 @@ def _pool_then_wait(marks, extra):
     return pool.map(time.sleep, [5.0] * 4)
 
 
-def _slow_build(x):
+def _held_build(x, marks):
+    """_build(x) once the file ``go`` is in the folder ``marks`` (at most 10 s): the process
+    stays busy until the test lets it go, however slowly either runs."""
     import time
-    time.sleep(0.3)
+    end = time.monotonic() + 10.0
+    while not os.path.exists(os.path.join(marks, "go")) and time.monotonic() < end:
+        time.sleep(0.005)
     _build(x)
 
 
@@ -209,11 +213,14 @@ class Requests(unittest.TestCase):
     def test_served_there_then_the_second_piece(self):
         if not FORK:
             self.skipTest("no forked workers here")
+        import tempfile
         import time
-        with mock.patch.dict(os.environ, {"TSPLCAM_WORKERS": "2"}):
-            with Aside(_build, 3, then=(_then, "b"), meanwhile=lambda: _slow_build(4), serve=_square_there) as a:
+        with mock.patch.dict(os.environ, {"TSPLCAM_WORKERS": "2"}), tempfile.TemporaryDirectory() as marks:
+            with Aside(_build, 3, then=(_then, "b"), meanwhile=lambda: _held_build(4, marks),
+                       serve=_square_there) as a:
                 pid = a.result()
                 self.assertFalse(a.serving())                 # meanwhile still runs there
+                open(os.path.join(marks, "go"), "w").close()
                 end = time.monotonic() + 10.0
                 while not a.serving() and time.monotonic() < end:
                     time.sleep(0.01)

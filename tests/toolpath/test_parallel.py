@@ -129,9 +129,7 @@ def _stalled_workers() -> str:
     state, the kernel function it waits in), then stopped (SIGKILL: a stopped process
     ignores SIGTERM) and reaped."""
     rows = []
-    for p in multiprocessing.active_children():
-        if p.name.startswith("ForkPoolWorker"):
-            continue
+    for p in _own_children(0.0):
         seen = {}
         for name in ("status", "wchan"):
             try:

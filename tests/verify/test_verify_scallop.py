@@ -284,6 +284,103 @@ class NearSearch(unittest.TestCase):
             self.assertEqual(g.tobytes(), w.tobytes())
 
 
+
+class CellSearch(unittest.TestCase):
+    """The kernels' neighbour search on a table of cells (``compiled.k_nearest``, the
+    candidates' and the gouge check's) against scipy's kd-tree: the same neighbours in the same
+    order and the same distances bit for bit, wherever it does not flag a tie; the callers then
+    ask the tree, so their rows are the tree's everywhere."""
+
+    def setUp(self):
+        from tsplcam import compiled
+        if compiled.kernels() is None:
+            self.skipTest("no compiled kernels (numba is not installed)")
+        self.compiled = compiled
+
+    @staticmethod
+    def point_sets(rng):
+        g = np.arange(9) * 0.25                                     # a lattice: exact ties
+        yield "lattice", np.stack(np.meshgrid(g, g, g, indexing="ij"), -1).reshape(-1, 3)
+        yield "uniform", rng.uniform(-5, 5, (3000, 3))
+        shell = rng.normal(size=(2500, 3))
+        yield "shell", 3.0 * shell / np.linalg.norm(shell, axis=1, keepdims=True)
+        yield "repeated", np.repeat(rng.uniform(-1, 1, (400, 3)), 3, axis=0)
+        yield "flat", np.column_stack([rng.uniform(0, 20, 3000), rng.uniform(0, 2, 3000), np.zeros(3000)])
+
+    def test_same_neighbours_as_the_tree(self):
+        from scipy.spatial import cKDTree
+        rng = np.random.default_rng(11)
+        k_near = self.compiled.kernels()["k_nearest"]
+        flagged = {}
+        for name, P in self.point_sets(rng):
+            tree = cKDTree(P)
+            X = np.concatenate([rng.uniform(-9, 9, (400, 3)),                     # far and near
+                                P[rng.integers(0, len(P), 300)] + rng.normal(scale=0.05, size=(300, 3)),
+                                P[rng.integers(0, len(P), 60)]])                  # on the points
+            for edge in (0.05, 0.4, 3.0):
+                table = self.compiled.cell_table(P, edge, 4_000_000)
+                origin, h, shape, start, items, pts = table
+                for k, ub in ((1, np.inf), (16, np.inf), (2, 0.57), (7, 1.5)):
+                    j = np.empty((len(X), k), np.int64)
+                    d = np.empty((len(X), k))
+                    tie = np.empty(len(X), bool)
+                    k_near(X, pts, items, start, origin, h, shape, k, ub, j, d, tie)
+                    dt, jt = tree.query(X, k=k, distance_upper_bound=ub)
+                    dt, jt = dt.reshape(len(X), k), jt.reshape(len(X), k)
+                    ok = ~tie
+                    what = f"{name}, edge {edge}, k {k}, ub {ub}"
+                    np.testing.assert_array_equal(j[ok], jt[ok], what)
+                    self.assertEqual(d[ok].tobytes(), dt[ok].tobytes(), what)
+                    flagged[name] = flagged.get(name, 0) + int(tie.sum())
+        self.assertGreater(flagged["lattice"], 0)                  # the ties are found
+        self.assertEqual(flagged["uniform"] + flagged["shell"], 0)
+
+    def test_callers_give_the_trees_rows(self):
+        """``Swept.candidates`` and the gouge check's sample search: the tree's rows, ties and
+        all (a zigzag of equally spaced lines on a plane, asked at a lattice, where every row
+        ties, and at points moved off it, where none does)."""
+        from unittest import mock
+
+        from tsplcam.verify import scallop
+        rng = np.random.default_rng(2)
+        x = np.linspace(0.0, 10.0, 41)
+        lines = [np.column_stack([x, np.full(41, y), np.zeros(41)]) for y in np.arange(12) * 0.5]
+        up = [np.tile([0.0, 0.0, 1.0], (41, 1))] * len(lines)
+        sw = Swept(zigzag_by_hand(lines, up, 0.5), piece=0.1)
+        self.assertIsNotNone(sw.cells)
+        g = np.arange(0.0, 10.0, 0.125)
+        P = np.column_stack([np.repeat(g, 45), np.tile(np.arange(45) * 0.125, len(g)), np.zeros(45 * len(g))])
+        P = np.concatenate([P, P[::2] + rng.normal(scale=0.02, size=(len(P[::2]), 3)) * [1.0, 1.0, 0.0]])
+        n = np.tile([0.0, 0.0, 1.0], (len(P), 1))
+        got = sw.candidates(P, n)
+        near = scallop._Nearest(P, 0.75)
+        X = P[rng.integers(0, len(P), 500)] + [0.0, 0.0, 0.5]
+        got_d, got_j = near.query(X, 2)
+        off = mock.Mock(kernels=lambda work=None: None, loaded=lambda: None)
+        with mock.patch.object(scallop, "compiled", off):
+            want = Swept(zigzag_by_hand(lines, up, 0.5), piece=0.1).candidates(P, n)
+            want_d, want_j = scallop._Nearest(P, 0.75).query(X, 2)
+        np.testing.assert_array_equal(got, want)
+        np.testing.assert_array_equal(got_j, want_j)
+        self.assertEqual(got_d.tobytes(), want_d.tobytes())
+
+    def test_cell_table_kernel_is_numpys(self):
+        """The table sorted by the kernel (``cell_sort``) and by numpy: the same arrays."""
+        rng = np.random.default_rng(4)
+        for P in (rng.uniform(0, 7, (20000, 3)) * [1.0, 1.0, 0.01], np.round(rng.normal(size=(3000, 3)), 1),
+                  np.zeros((5, 3))):
+            for edge in (0.02, 0.3, 4.0):
+                got = self.compiled.cell_table(P, edge, 100_000)
+                k = self.compiled._STATE.pop("k")
+                try:
+                    want = self.compiled.cell_table(P, edge, 100_000)
+                finally:
+                    self.compiled._STATE["k"] = k
+                for a, b in zip(got, want):
+                    np.testing.assert_array_equal(a, b)
+        with self.assertRaises(ValueError):
+            self.compiled.cell_table(np.array([[0.0, np.nan, 0.0]]), 1.0, 64)
+
 class Metrics(unittest.TestCase):
 
     def test_lengths_by_kind(self):

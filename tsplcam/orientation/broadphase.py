@@ -1146,15 +1146,7 @@ class BroadPhase:
         cells on a part that would need more than ``BAND_CELLS``), for ``band_samples``:
         (origin, edge, shape, each cell's first row, the samples' indices, their points)."""
         if self._band_cells is None:
-            lo, hi = self.box
-            h = max(BAND_CELL * self.e, float(np.prod(hi - lo + 1e-9)) ** (1.0 / 3.0) / BAND_CELLS ** (1.0 / 3.0), 1e-6)
-            shape = np.floor((hi - lo) / h).astype(np.int64) + 1
-            c = np.minimum(np.floor((self.samples - lo) / h).astype(np.int64), shape - 1)
-            key = (c[:, 0] * shape[1] + c[:, 1]) * shape[2] + c[:, 2]
-            order = np.argsort(key, kind="stable")
-            start = np.searchsorted(key[order], np.arange(int(np.prod(shape)) + 1)).astype(np.int64)
-            self._band_cells = (np.ascontiguousarray(lo, float), float(h), shape, start, order.astype(np.int64),
-                                np.ascontiguousarray(self.samples[order]))
+            self._band_cells = compiled.cell_table(self.samples, BAND_CELL * self.e, BAND_CELLS)
         return self._band_cells
 
     def _triangles_of(self, js: np.ndarray):

@@ -63,3 +63,7 @@ def exercise() -> None:
                                           np.ones(1), np.zeros((1, 3)), np.array([[1.0, 0.0, 0.0]]),
                                           np.array([[1.0, 0.0, 0.0]]), 0.5, np.zeros((0, 0), bool),
                                           np.zeros((0, 0), bool), np.empty((1, 1)), np.zeros(0), np.zeros(0))
+    # (the verification's neighbour searches: a table of two points, one query)
+    table = compiled.cell_table(np.array([[0.0, 0.0, 0.0], [1.0, 0.0, 0.0]]), 0.5, 64)
+    compiled.kernels()["k_nearest"](np.zeros((1, 3)), table[5], table[4], table[3], table[0], table[1], table[2], 1,
+                                    np.inf, np.empty((1, 1), np.int64), np.empty((1, 1)), np.empty(1, bool))

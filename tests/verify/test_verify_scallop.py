@@ -364,6 +364,24 @@ class CellSearch(unittest.TestCase):
         np.testing.assert_array_equal(got_j, want_j)
         self.assertEqual(got_d.tobytes(), want_d.tobytes())
 
+    def test_large_part_keeps_the_tree(self):
+        """Where the table's cell cap would make cells far larger than asked (a large part),
+        the kd-tree answers: the same rows."""
+        from unittest import mock
+
+        from tsplcam.verify import scallop
+        x = np.linspace(0.0, 10.0, 41)
+        lines = [np.column_stack([x, np.full(41, y), np.full(41, 0.5 * y)]) for y in np.arange(12) * 0.5]
+        up = [np.tile([0.0, 0.0, 1.0], (41, 1))] * len(lines)
+        P = np.random.default_rng(3).uniform(0, 5, (300, 3)) * [2.0, 1.0, 0.5]
+        n = np.tile([0.0, 0.0, 1.0], (len(P), 1))
+        want = Swept(zigzag_by_hand(lines, up, 0.5), piece=0.1).candidates(P, n)
+        with mock.patch.object(scallop, "NEAR_CELLS", 50):
+            sw = Swept(zigzag_by_hand(lines, up, 0.5), piece=0.1)
+            self.assertIs(sw.cells, False)
+            np.testing.assert_array_equal(sw.candidates(P, n), want)
+            self.assertIsNone(scallop._Nearest(P, 0.1).cells)
+
     def test_cell_table_kernel_is_numpys(self):
         """The table sorted by the kernel (``cell_sort``) and by numpy: the same arrays."""
         rng = np.random.default_rng(4)

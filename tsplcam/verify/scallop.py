@@ -48,7 +48,8 @@ RIDGE_ROWS = 20000      # ridges refined at once (their candidates' data: at mos
 ENTRY_WORK = 10.0       # a capsule entry in numpy costs about as much as this many Viterbi elements
 SPLIT_SAMPLES = 200_000  # a lone patch is shared among processes (_measure_patches' split) from this many samples
 NEAR_CELL = 3.0         # the candidates' table: cells of this many capsule pieces on a side
-NEAR_CELLS = 4_000_000  # at most this many cells (a large part: larger cells)
+NEAR_CELLS = 4_000_000  # at most this many cells (a large part: larger cells, ...
+NEAR_COARSE = 4.0       # ... up to this many times the edge asked; larger, the kd-tree answers)
 NEAR_WORK = 200.0       # a candidates' query in the kd-tree costs about as much as this many Viterbi elements
 _NO_MASK = np.zeros((0, 0), bool)        # (compiled.capsule_entries' arguments it does not use)
 _NO_LAM = np.zeros((0, 0))
@@ -126,10 +127,10 @@ class Swept:
         # has the kernels (k_nearest), else (and for the rows it finds tied) a kd-tree; made here,
         # before the measuring processes fork
         self._mid = 0.5 * (self.a + self.b)
-        self.cells = None
+        self.cells = None                  # (False: the part is too large for the table's cells)
         if len(self._mid) > K_NEAR and compiled.loaded() is not None:
-            self.cells = compiled.cell_table(self._mid, NEAR_CELL * piece, NEAR_CELLS)
-        else:
+            self.cells = self._table()
+        if not self.cells:
             self.tree
         # each capsule's length and unit axis, once (entry() reads them per candidate)
         e = self.b - self.a
@@ -146,6 +147,14 @@ class Swept:
         """The capsules' middles in a kd-tree (without the kernels, and for rows they find tied)."""
         return cKDTree(self._mid)
 
+    def _table(self):
+        """The capsules' middles in a table of cells for ``k_nearest``, or False where the
+        table's cell cap would make its cells more than ``NEAR_COARSE`` times as large as
+        asked (there the tree is as fast: tjunction_mold's queries take 3.9 s with cells 4
+        times the edge asked, 6.5 s with 6 times, the tree 4.9 s)."""
+        edge = NEAR_CELL * self.piece
+        return compiled.cell_table(self._mid, edge, NEAR_CELLS, NEAR_COARSE * edge) or False
+
     def candidates(self, p: np.ndarray, n: np.ndarray, k: int = K_NEAR):
         """The ``k`` capsules whose middles lie nearest to p + r n, nearest first (rows of
         capsule indices): the kd-tree's query, or with the kernels ``compiled.k_nearest`` on a
@@ -153,11 +162,11 @@ class Swept:
         asked where two of the k + 1 nearest tie; tjunction_mold's 3.1 M queries 4.4 -> 1.8 s)."""
         kk = min(k, len(self.a))
         x = p + self.r * n
-        kern = compiled.kernels(work=NEAR_WORK * len(x)) if kk < len(self.a) else None
-        if kern is None:
+        kern = compiled.kernels(work=NEAR_WORK * len(x)) if kk < len(self.a) and self.cells is not False else None
+        if kern is not None and self.cells is None:
+            self.cells = self._table()
+        if kern is None or not self.cells:
             return self.tree.query(x, k=kk)[1].reshape(len(p), kk)
-        if self.cells is None:
-            self.cells = compiled.cell_table(self._mid, NEAR_CELL * self.piece, NEAR_CELLS)
         origin, h, shape, start, items, pts = self.cells
         idx = np.empty((len(x), kk), np.int64)
         tie = np.empty(len(x), bool)
@@ -593,7 +602,7 @@ class _Nearest:
         self.cells = None
         self.k = compiled.kernels(work=NEAR_WORK * len(P))
         if self.k is not None:
-            self.cells = compiled.cell_table(self.P, self.ub, NEAR_CELLS)
+            self.cells = compiled.cell_table(self.P, self.ub, NEAR_CELLS, NEAR_COARSE * self.ub)
 
     @cached_property
     def tree(self) -> cKDTree:

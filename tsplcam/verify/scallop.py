@@ -131,7 +131,7 @@ class Swept:
         if len(self._mid) > K_NEAR and compiled.loaded() is not None:
             self.cells = self._table()
         if not self.cells:
-            self.tree
+            self.tree                      # (built now)
         # each capsule's length and unit axis, once (entry() reads them per candidate)
         e = self.b - self.a
         self.length = np.linalg.norm(e, axis=1)
@@ -600,8 +600,8 @@ class _Nearest:
     def __init__(self, P: np.ndarray, ub: float):
         self.P, self.ub = np.ascontiguousarray(P, float), float(ub)
         self.cells = None
-        self.k = compiled.kernels(work=NEAR_WORK * len(P))
-        if self.k is not None:
+        self.kern = compiled.kernels(work=NEAR_WORK * len(P))
+        if self.kern is not None:
             self.cells = compiled.cell_table(self.P, self.ub, NEAR_CELLS, NEAR_COARSE * self.ub)
 
     @cached_property
@@ -616,8 +616,8 @@ class _Nearest:
         origin, h, shape, start, items, pts = self.cells
         d, j = np.empty((len(x), k)), np.empty((len(x), k), np.int64)
         tie = np.empty(len(x), bool)
-        self.k["k_nearest"](np.ascontiguousarray(x, float), pts, items, start, origin, h, shape, int(k), self.ub, j,
-                            d, tie)
+        self.kern["k_nearest"](np.ascontiguousarray(x, float), pts, items, start, origin, h, shape, int(k), self.ub,
+                               j, d, tie)
         t = np.nonzero(tie)[0]
         if len(t):
             dt, jt = self.tree.query(x[t], k=k, distance_upper_bound=self.ub)

@@ -347,7 +347,7 @@ class CellSearch(unittest.TestCase):
         lines = [np.column_stack([x, np.full(41, y), np.zeros(41)]) for y in np.arange(12) * 0.5]
         up = [np.tile([0.0, 0.0, 1.0], (41, 1))] * len(lines)
         sw = Swept(zigzag_by_hand(lines, up, 0.5), piece=0.1)
-        self.assertIsNotNone(sw.cells)
+        self.assertTrue(sw.near.cells)
         g = np.arange(0.0, 10.0, 0.125)
         P = np.column_stack([np.repeat(g, 45), np.tile(np.arange(45) * 0.125, len(g)), np.zeros(45 * len(g))])
         P = np.concatenate([P, P[::2] + rng.normal(scale=0.02, size=(len(P[::2]), 3)) * [1.0, 1.0, 0.0]])
@@ -378,9 +378,11 @@ class CellSearch(unittest.TestCase):
         want = Swept(zigzag_by_hand(lines, up, 0.5), piece=0.1).candidates(P, n)
         with mock.patch.object(scallop, "NEAR_CELLS", 50):
             sw = Swept(zigzag_by_hand(lines, up, 0.5), piece=0.1)
-            self.assertIs(sw.cells, False)
+            self.assertIs(sw.near.cells, False)
             np.testing.assert_array_equal(sw.candidates(P, n), want)
-            self.assertIsNone(scallop._Nearest(P, 0.1).cells)
+            near = scallop._Nearest(P, 0.1)
+            near.query(P, 2)
+            self.assertIs(near.cells, False)
 
     def test_cell_table_kernel_is_numpys(self):
         """The table sorted by the kernel (``cell_sort``) and by numpy: the same arrays."""

@@ -50,7 +50,7 @@ SPLIT_SAMPLES = 200_000  # a lone patch is shared among processes (_measure_patc
 NEAR_CELL = 3.0         # the candidates' table: cells of this many capsule pieces on a side
 NEAR_CELLS = 4_000_000  # at most this many cells (a large part: larger cells, ...
 NEAR_COARSE = 4.0       # ... up to this many times the edge asked; larger, the kd-tree answers)
-NEAR_WORK = 200.0       # a candidates' query in the kd-tree costs about as much as this many Viterbi elements
+NEAR_WORK = 200.0       # a kd-tree query costs about as much as this many Viterbi elements
 _NO_MASK = np.zeros((0, 0), bool)        # (compiled.capsule_entries' arguments it does not use)
 _NO_LAM = np.zeros((0, 0))
 _NO_ROWS = np.zeros(0)
@@ -105,7 +105,6 @@ class Swept:
 
     def __init__(self, path: ToolPath, piece: float):
         self.path = path
-        self.piece = float(piece)
         r = path.tool_radius
         C = path.center
         self.r = r
@@ -123,15 +122,10 @@ class Swept:
         self.owner = owner[idx]
         if len(C) == 1:                    # a single point: one ball
             self.a, self.b, self.owner = C.copy(), C.copy(), np.array([LINK_OWNER])
-        # the capsules' middles, for the candidates' search: a table of cells where this process
-        # has the kernels (k_nearest), else (and for the rows it finds tied) a kd-tree; made here,
-        # before the measuring processes fork
-        self._mid = 0.5 * (self.a + self.b)
-        self.cells = None                  # (False: the part is too large for the table's cells)
-        if len(self._mid) > K_NEAR and compiled.loaded() is not None:
-            self.cells = self._table()
-        if not self.cells:
-            self.tree                      # (built now)
+        # the capsules' middles, for the candidates' search (made here, before the measuring
+        # processes fork)
+        self.near = _Nearest(0.5 * (self.a + self.b), edge=NEAR_CELL * piece)
+        self.near.prepare()
         # each capsule's length and unit axis, once (entry() reads them per candidate)
         e = self.b - self.a
         self.length = np.linalg.norm(e, axis=1)
@@ -142,40 +136,10 @@ class Swept:
         self.a, self.unit, self.b, self.length = (np.ascontiguousarray(x, float)
                                                   for x in (self.a, self.unit, self.b, self.length))
 
-    @cached_property
-    def tree(self) -> cKDTree:
-        """The capsules' middles in a kd-tree (without the kernels, and for rows they find tied)."""
-        return cKDTree(self._mid)
-
-    def _table(self):
-        """The capsules' middles in a table of cells for ``k_nearest``, or False where the
-        table's cell cap would make its cells more than ``NEAR_COARSE`` times as large as
-        asked (there the tree is as fast: tjunction_mold's queries take 3.9 s with cells 4
-        times the edge asked, 6.5 s with 6 times, the tree 4.9 s)."""
-        edge = NEAR_CELL * self.piece
-        return compiled.cell_table(self._mid, edge, NEAR_CELLS, NEAR_COARSE * edge) or False
-
     def candidates(self, p: np.ndarray, n: np.ndarray, k: int = K_NEAR):
         """The ``k`` capsules whose middles lie nearest to p + r n, nearest first (rows of
-        capsule indices): the kd-tree's query, or with the kernels ``compiled.k_nearest`` on a
-        table of cells (the same rows: the same squared distances bit for bit, and the tree
-        asked where two of the k + 1 nearest tie; tjunction_mold's 3.1 M queries 4.4 -> 1.8 s)."""
-        kk = min(k, len(self.a))
-        x = p + self.r * n
-        kern = compiled.kernels(work=NEAR_WORK * len(x)) if kk < len(self.a) and self.cells is not False else None
-        if kern is not None and self.cells is None:
-            self.cells = self._table()
-        if kern is None or not self.cells:
-            return self.tree.query(x, k=kk)[1].reshape(len(p), kk)
-        origin, h, shape, start, items, pts = self.cells
-        idx = np.empty((len(x), kk), np.int64)
-        tie = np.empty(len(x), bool)
-        kern["k_nearest"](np.ascontiguousarray(x, float), pts, items, start, origin, h, shape, int(kk), np.inf, idx,
-                          _NO_LAM, tie)
-        t = np.nonzero(tie)[0]
-        if len(t):
-            idx[t] = self.tree.query(x[t], k=kk)[1].reshape(len(t), kk)
-        return idx
+        capsule indices), as scipy's kd-tree gives them (:class:`_Nearest`)."""
+        return self.near.query(p + self.r * n, min(k, len(self.a)), dist=False)[1]
 
     def entry(self, p: np.ndarray, n: np.ndarray, idx: np.ndarray | None = None, caps=None) -> np.ndarray:
         """Distance along n from p to the entry into each candidate capsule (Q, k); inf when
@@ -590,39 +554,57 @@ def project(model, patch: np.ndarray, uv: np.ndarray, x: np.ndarray, iterations:
 
 
 class _Nearest:
-    """The points P nearest to query points within ``ub``, as ``cKDTree(P).query(x, k,
-    distance_upper_bound=ub)`` gives them: with the kernels ``compiled.k_nearest`` on a table
-    of cells of edge ``ub`` (the same distances bit for bit, the tree asked where two of the
-    k + 1 nearest tie), else the tree. tjunction_mold's gouge check, 138,499 centres over 2.4 M
-    grid samples: the tree 0.45 s to build and 1.15 s to ask, the table 0.17 s and 0.34 s (and
-    the tree still, for the 5 rows that tie)."""
+    """The points P nearest to query points (within ``ub``), as ``cKDTree(P).query(x, k,
+    distance_upper_bound=ub)`` gives them: with the kernels, ``compiled.k_nearest`` on a table of
+    cells of ``edge`` (default ``ub``; the same neighbours, order and distances bit for bit, the
+    tree asked for the rows where two of the k + 1 nearest tie), else, and where the table's
+    cell cap would make its cells more than ``NEAR_COARSE`` times as large as asked (a large
+    part: tjunction_mold's capsule queries take 3.9 s with cells 4 times the edge asked, 6.5 s
+    with 6 times, the tree 4.9 s), the tree. tjunction_mold's 3.1 M capsule queries 4.4 -> 1.8
+    s; its gouge check, 138,499 centres over 2.4 M grid samples: the tree 0.45 s to build and
+    1.15 s to ask, the table 0.17 s and 0.34 s (and the tree still, for the 5 rows that tie)."""
 
-    def __init__(self, P: np.ndarray, ub: float):
+    def __init__(self, P: np.ndarray, ub: float = np.inf, edge: float | None = None):
         self.P, self.ub = np.ascontiguousarray(P, float), float(ub)
-        self.cells = None
-        self.kern = compiled.kernels(work=NEAR_WORK * len(P))
-        if self.kern is not None:
-            self.cells = compiled.cell_table(self.P, self.ub, NEAR_CELLS, NEAR_COARSE * self.ub)
+        self.edge = self.ub if edge is None else float(edge)
+        self.cells = None                 # the table, made at its first use (False: none)
 
     @cached_property
     def tree(self) -> cKDTree:
         return cKDTree(self.P)
 
-    def query(self, x: np.ndarray, k: int):
-        """(distances (len(x), k), indices (len(x), k)), inf and len(P) where fewer lie within."""
-        if self.cells is None or k >= len(self.P):
+    def prepare(self) -> None:
+        """Make now what this process's queries will ask (the table where it has the kernels,
+        else the tree), e.g. before processes that query are forked."""
+        if compiled.loaded() is None or not self._table():
+            self.tree
+
+    def _table(self):
+        if self.cells is None:
+            self.cells = (len(self.P) > 0 and compiled.cell_table(
+                self.P, self.edge, NEAR_CELLS, NEAR_COARSE * self.edge)) or False
+        return self.cells
+
+    def query(self, x: np.ndarray, k: int, dist: bool = True):
+        """(distances (len(x), k) or None without ``dist``, indices (len(x), k)), inf and
+        len(P) where fewer lie within ``ub``."""
+        kern = compiled.kernels(work=NEAR_WORK * len(x)) if k < len(self.P) else None
+        if kern is None or not self._table():
             d, j = self.tree.query(x, k=k, distance_upper_bound=self.ub)
             return d.reshape(len(x), k), j.reshape(len(x), k)
         origin, h, shape, start, items, pts = self.cells
-        d, j = np.empty((len(x), k)), np.empty((len(x), k), np.int64)
+        d = np.empty((len(x), k)) if dist else _NO_LAM
+        j = np.empty((len(x), k), np.int64)
         tie = np.empty(len(x), bool)
-        self.kern["k_nearest"](np.ascontiguousarray(x, float), pts, items, start, origin, h, shape, int(k), self.ub,
-                               j, d, tie)
+        kern["k_nearest"](np.ascontiguousarray(x, float), pts, items, start, origin, h, shape, int(k), self.ub, j,
+                          d, tie)
         t = np.nonzero(tie)[0]
         if len(t):
             dt, jt = self.tree.query(x[t], k=k, distance_upper_bound=self.ub)
-            d[t], j[t] = dt.reshape(len(t), k), jt.reshape(len(t), k)
-        return d, j
+            j[t] = jt.reshape(len(t), k)
+            if dist:
+                d[t] = dt.reshape(len(t), k)
+        return (d if dist else None), j
 
 
 def gouges(path: ToolPath, model, grid: SurfaceGrid, k: int = 2):

@@ -591,7 +591,7 @@ class _Nearest:
         kern = compiled.kernels(work=NEAR_WORK * len(x)) if k < len(self.P) else None
         if kern is None or not self._table():
             d, j = self.tree.query(x, k=k, distance_upper_bound=self.ub)
-            return d.reshape(len(x), k), j.reshape(len(x), k)
+            return (d.reshape(len(x), k) if dist else None), j.reshape(len(x), k)
         origin, h, shape, start, items, pts = self.cells
         d = np.empty((len(x), k)) if dist else _NO_LAM
         j = np.empty((len(x), k), np.int64)

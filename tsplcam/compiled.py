@@ -1718,7 +1718,6 @@ def _define(jit):
             "capsule_entries": capsule_entries, "k_nearest": k_nearest, "cell_sort": cell_sort}
 
 
-
 def cell_table(points: np.ndarray, edge: float, max_cells: int, coarsest: float = np.inf) -> tuple | None:
     """``points`` sorted into cubic cells for the kernels' neighbour searches (``band_samples``,
     ``k_nearest``): cells of ``edge`` (larger where the points' box would need more than

@@ -61,6 +61,9 @@ def workload(rng) -> None:
     with np.errstate(invalid="ignore", divide="ignore"):
         _end_pass(E, nE, 3, ca, cb, 0.5, _capsule_segments(ca, cb), np.zeros((G, 2)), rng.random((G, 2)),
                   np.ones((G, 2)), compiled.kernels())
+    from tsplcam.toolpath.lines import _cusp_foot             # cusp_foot: meeting, apart, beyond
+    x = [rng.normal(size=(3, 5, 3)) * 0.3 for _ in range(11)]
+    _cusp_foot(*x, rng.random((3, 5)) < 0.2, 0.5, compiled.kernels())
     for S, n in ((12, 120), (2, 80)):                      # viterbi_steps / _path, two_states
         node = rng.random((n, S))
         node[rng.random((n, S)) < 0.15] = np.inf

@@ -403,6 +403,68 @@ class SameBytesAsNumpy(unittest.TestCase):
                 self.assertTrue(same(got, want))
 
 
+class CompiledCuspFoot(unittest.TestCase):
+    """The cusps between two lines in the compiled kernel (``cusp_foot``) give the numpy
+    form's bytes: balls meeting and apart, centres that coincide, zero normals, singular
+    forms (det <= 0), points beyond the line's end, nan / inf coordinates."""
+
+    def test_kernel_is_numpy(self):
+        from tsplcam import compiled
+        from tsplcam.toolpath.lines import _cusp_foot
+        kern = compiled.kernels()
+        if kern is None:
+            self.skipTest("no compiled kernels (numba absent or TSPLCAM_COMPILED=0)")
+        rng = np.random.default_rng(7)
+        specials = np.array([0.0, -0.0, np.inf, -np.inf, np.nan, 1e-300])
+        r = 0.5
+        seen = set()
+        for mode in [m for m in range(6) for _ in range(20)]:
+            G, m = int(rng.integers(1, 4)), int(rng.integers(1, 9))
+            P1 = rng.normal(size=(G, m, 3)) * 0.2
+            N1 = rng.normal(size=(G, m, 3))
+            N1 /= np.linalg.norm(N1, axis=-1, keepdims=True)
+            P2 = P1 + rng.normal(size=(G, m, 3)) * rng.choice([0.05, 0.3, 1.5])   # near, far apart
+            N2 = N1 + rng.normal(size=(G, m, 3)) * 0.1
+            N2 /= np.linalg.norm(N2, axis=-1, keepdims=True)
+            mid = [0.5 * (P1 + P2), 0.5 * (N1 + N2)] + [rng.normal(size=(G, m, 3)) for _ in range(5)]
+            if mode == 1:                                      # coincident centres, opposite normals
+                P2, N2 = P1.copy(), -N1
+            if mode == 2:                                      # zero normals
+                N1[rng.random((G, m)) < 0.5] = 0.0
+                N2[rng.random((G, m)) < 0.5] = 0.0
+            if mode == 3:                                      # singular forms: St along Ss, or zero
+                mid[3] = mid[2] * rng.choice([0.0, 2.0], size=(G, m, 1))
+            if mode == 4:                                      # nan / inf / 0 coordinates
+                for x in (P1, N1, P2, mid[0], mid[2]):
+                    bad = rng.random(x.shape) < 0.05
+                    x[bad] = rng.choice(specials, bad.sum())
+            if mode == 5:                                      # grid values: ties and exact zeros
+                P1, N1, P2, N2 = (np.round(x * 4) / 4 for x in (P1, N1, P2, N2))
+                mid = [np.round(x * 4) / 4 for x in mid]
+            beyond = rng.random((G, m)) < 0.2
+            args = (P1, N1, P2, N2, *mid, beyond, r)
+            with np.errstate(all="ignore"):
+                want = _cusp_foot(*args)
+            got = _cusp_foot(*args, kern)
+            self.assertTrue(same(want, got), mode)
+            seen |= {"inf" if np.isinf(x) else "nan" if np.isnan(x) else "x" for x in want.ravel()}
+        self.assertEqual(seen, {"inf", "nan", "x"})          # apart, beyond (or nan in), meeting
+
+    def test_path_in_numpy_is_the_kernels(self):
+        """A whole keycap path with the kernels and without (``TSPLCAM_COMPILED=0`` as the
+        kernels' absence): the same points, bit for bit."""
+        from tsplcam import compiled
+        from tsplcam.toolpath.zigzag import zigzag_path
+        if compiled.kernels() is None:
+            self.skipTest("no compiled kernels (numba absent or TSPLCAM_COMPILED=0)")
+        model = load_model("keycap")
+        with_kernels = zigzag_path(model, tool_radius=0.5, scallop=0.02)
+        with patch.object(compiled, "kernels", lambda *a, **k: None):
+            without = zigzag_path(model, tool_radius=0.5, scallop=0.02)
+        self.assertTrue(same(with_kernels.contact, without.contact))
+        self.assertTrue(same(with_kernels.normal, without.normal))
+
+
 class CompiledEndPass(unittest.TestCase):
     """The line ends' pass of the cusp heights in the compiled kernel (``cusp_ends``) gives the
     numpy pass's bytes: ends, bracket and step, on random capsules and edge points with misses

@@ -304,6 +304,15 @@ def _norm3(x: np.ndarray) -> np.ndarray:
     return np.sqrt(out)[..., None]
 
 
+def _dot(x: np.ndarray, y: np.ndarray) -> np.ndarray:
+    """Row-wise dot products of 3-vectors (..., 3), summed (x0 y0 + x1 y1) + x2 y2 whatever
+    the arrays' layout (einsum's order follows their strides)."""
+    q = x * y
+    out = q[..., 0] + q[..., 1]
+    out += q[..., 2]
+    return out
+
+
 def _coords_first(x: np.ndarray) -> np.ndarray:
     """A view of (..., 3) with the coordinate axis first, (3, ...)."""
     return x.transpose((x.ndim - 1,) + tuple(range(x.ndim - 1)))
@@ -470,33 +479,44 @@ def _cusp_heights(frame, g1, ds, r):
     gb = frame.evaluate(S.ravel(), T.ravel())
     Pb, nb = rs(gb.P), rs(gb.n)
     ends, _, _ = _end_pass(Pb, nb, m, ca, cb, r, seg, ends, lo, width, kern)
-    mP, mn, mSs, mSt = Pb[:, :m], nb[:, :m], rs(gb.Ss)[:, :m], rs(gb.St)[:, :m]
-    # the fundamental forms at the mid points alone, on a copy of their rows (a form is made
-    # row by row: the same values as on all the call's points, for a third of the work)
-    fm = object.__new__(FrameGeom)
-    for k in ("n", "Ss", "St", "Sss", "Sst", "Stt"):
-        setattr(fm, k, rs(getattr(gb, k))[:, :m].reshape(-1, 3))
-    mE, mF, mG, mL, mM, mN = (getattr(fm, k).reshape(G, m) for k in ("E", "F", "G", "L", "M", "N"))
-    n1 = rs(g1.n)
-    c1 = rs(g1.P) + r * n1
-    c2 = c2all[:, :m]
+    mid = [rs(getattr(gb, k))[:, :m] for k in ("Ss", "St", "Sss", "Sst", "Stt")]
+    height = _cusp_foot(rs(g1.P), rs(g1.n), P[:, :m], n[:, :m], Pb[:, :m], nb[:, :m], *mid, beyond, r, kern)
+    return height, ends
+
+
+def _cusp_foot(P1, N1, P2, N2, mP, mn, mSs, mSt, mSss, mSst, mStt, beyond, r, kern=None):
+    """The cusps of :func:`_cusp_heights` (G, m): between the balls on line 1 (surface points
+    P1, normals N1) and their partners on line 2 (P2, N2), measured from the mid points (mP,
+    mn, derivatives mSs .. mStt); inf where the balls do not meet, nan ``beyond``. All (G, m,
+    3). ``kern``: the compiled kernels, whose ``cusp_foot`` makes these operations point by
+    point in their order (the same bits; each dot product summed as :func:`_dot`)."""
+    if kern is not None:
+        c = np.ascontiguousarray
+        height = np.empty(beyond.shape)
+        kern["cusp_foot"](c(P1), c(N1), c(P2), c(N2), c(mP), c(mn), c(mSs), c(mSt), c(mSss), c(mSst), c(mStt),
+                          c(beyond), float(r), height)
+        return height
+    # the fundamental forms at the mid points
+    mE, mF, mG = _dot(mSs, mSs), _dot(mSs, mSt), _dot(mSt, mSt)
+    mL, mM, mN = _dot(mn, mSss), _dot(mn, mSst), _dot(mn, mStt)
+    c1 = P1 + r * N1
+    c2 = P2 + r * N2
     w = c2 - c1
-    d2 = _einsum("gij,gij->gi", w, w)
+    d2 = _dot(w, w)
     meet = d2 < 4 * r * r
-    down = -(n1 + gn[:, :m])
-    down -= (_einsum("gij,gij->gi", down, w) / _where(d2 > 0, d2, 1.0))[..., None] * w
+    down = -(N1 + N2)
+    down -= (_dot(down, w) / _where(d2 > 0, d2, 1.0))[..., None] * w
     down /= np.maximum(_norm3(down), 1e-300)
     q = 0.5 * (c1 + c2) + np.sqrt(np.maximum(r * r - 0.25 * d2, 0.0))[..., None] * down
     rel = q - mP
     # Gauss-Newton foot offset (ds, dt): (J^T J) x = J^T rel
-    ra, rb = _einsum("gij,gij->gi", mSs, rel), _einsum("gij,gij->gi", mSt, rel)
+    ra, rb = _dot(mSs, rel), _dot(mSt, rel)
     det = mE * mG - mF * mF
     x = _where(det > 0, (mG * ra - mF * rb) / det, 0.0)
     y = _where(det > 0, (mE * rb - mF * ra) / det, 0.0)
-    height = _einsum("gij,gij->gi", mn, rel) - 0.5 * (mL * x * x + 2 * mM * x * y + mN * y * y)
+    height = _dot(mn, rel) - 0.5 * (mL * x * x + 2 * mM * x * y + mN * y * y)
     height = _where(meet, height, np.inf)
-    height = _where(beyond, np.nan, height)
-    return height, ends
+    return _where(beyond, np.nan, height)
 
 
 def _end_pass(P, n, off, ca, cb, r, seg, ends, lo, width, kern=None):

@@ -28,10 +28,10 @@ The cusps between two lines themselves (``cusp_foot``, :func:`tsplcam.toolpath.l
 the balls' centres, their spheres' intersection nearest the surface, one Gauss-Newton step
 to its foot and the height by the second fundamental form) are some forty array calls on
 G x m points; the kernel makes them point by point in their order, each dot product summed
-(x0 y0 + x1 y1) + x2 y2 as the numpy form's ``_dot`` (which replaced einsum there: einsum's
-order follows its operands' strides), so the same bits; the keycap path 0.138 -> 0.124 s in
-one process, the same points on every sample model with the kernels, without them and as
-before.
+as numpy's einsum sums it there: (x0 + x2) + x1 in its paired loop, where both operands'
+coordinates lie next to each other in memory, else in order (the caller reads which from the
+arrays' strides, ``lines._sum_orders``), so the same bits; the keycap path 0.138 -> 0.124 s
+in one process, the same points bit for bit as before on the sample models.
 
 The Viterbi recurrence (:mod:`tsplcam.orientation.viterbi`) is sequential along the path:
 numpy spends one sequence of array calls per point, about 11 us for 36 x 36 states, and
@@ -1489,15 +1489,17 @@ def _define(jit):
                 lo[g, e] = z if (z < 1.0 or z != z) else 1.0
 
     @jit
-    def cusp_foot(P1, N1, P2, N2, mP, mN, Ss, St, Sss, Sst, Stt, beyond, r, out):
-        """The cusps between two lines of :func:`tsplcam.toolpath.lines._cusp_heights` (its
-        numpy operations after the mid points' evaluation, in their order: the same bits), per
-        gap g and sample i: the balls' centres on line 1 (P1 + r N1) and on line 2 (P2 + r
-        N2), their spheres' intersection nearest the surface, one Gauss-Newton step to its
-        foot from the mid point (mP, mN, the first and second derivatives Ss .. Stt) and the
-        height there by the second fundamental form; inf where the balls do not meet, nan
-        where ``beyond``. Each dot product (x0 y0 + x1 y1) + x2 y2 as ``lines._dot``; a nan
-        kept by the maxima as by np.maximum. All arrays (G, m, 3) but beyond and out (G, m)."""
+    def cusp_foot(P1, N1, P2, N2, mP, mN, Ss, St, Sss, Sst, Stt, beyond, r, order, out):
+        """The cusps between two lines of :func:`tsplcam.toolpath.lines._cusp_foot` (its
+        numpy operations, in their order: the same bits), per gap g and sample i: the balls'
+        centres on line 1 (P1 + r N1) and on line 2 (P2 + r N2), their spheres' intersection
+        nearest the surface, one Gauss-Newton step to its foot from the mid point (mP, mN, the
+        first and second derivatives Ss .. Stt) and the height there by the second fundamental
+        form; inf where the balls do not meet, nan where ``beyond``. Each dot product summed
+        as numpy's einsum sums it there: w.w and down.w (x0 + x2) + x1, the forms E, F, G, L,
+        M, N and Ss.rel, St.rel, n.rel so where ``order`` (9) says, else x0 + x1 + x2 in
+        order, onto +0 both; a nan kept by the maxima as by np.maximum. All arrays (G, m, 3)
+        but beyond and out (G, m)."""
         G = P1.shape[0]
         m = P1.shape[1]
         four = 4 * r * r
@@ -1513,13 +1515,16 @@ def _define(jit):
                 w0 = c20 - c10
                 w1 = c21 - c11
                 w2 = c22 - c12
-                d2 = w0 * w0 + w1 * w1
-                d2 += w2 * w2
+                # (x0 + x2) + x1 where order says einsum pairs, else in order; onto +0
+                d2 = w0 * w0 + w2 * w2
+                d2 += w1 * w1
+                d2 += 0.0
                 a0 = -(N1[g, i, 0] + N2[g, i, 0])
                 a1 = -(N1[g, i, 1] + N2[g, i, 1])
                 a2 = -(N1[g, i, 2] + N2[g, i, 2])
-                f = a0 * w0 + a1 * w1
-                f += a2 * w2
+                f = a0 * w0 + a2 * w2
+                f += a1 * w1
+                f += 0.0
                 f = f / (d2 if d2 > 0 else 1.0)
                 a0 = a0 - f * w0
                 a1 = a1 - f * w1
@@ -1539,30 +1544,42 @@ def _define(jit):
                 s0, s1, s2 = Ss[g, i, 0], Ss[g, i, 1], Ss[g, i, 2]
                 t0, t1, t2 = St[g, i, 0], St[g, i, 1], St[g, i, 2]
                 n0, n1, n2 = mN[g, i, 0], mN[g, i, 1], mN[g, i, 2]
-                E = s0 * s0 + s1 * s1
-                E += s2 * s2
-                F = s0 * t0 + s1 * t1
-                F += s2 * t2
-                Gf = t0 * t0 + t1 * t1
-                Gf += t2 * t2
-                Lf = n0 * Sss[g, i, 0] + n1 * Sss[g, i, 1]
-                Lf += n2 * Sss[g, i, 2]
-                Mf = n0 * Sst[g, i, 0] + n1 * Sst[g, i, 1]
-                Mf += n2 * Sst[g, i, 2]
-                Nf = n0 * Stt[g, i, 0] + n1 * Stt[g, i, 1]
-                Nf += n2 * Stt[g, i, 2]
-                ra = s0 * e0 + s1 * e1
-                ra += s2 * e2
-                rb = t0 * e0 + t1 * e1
-                rb += t2 * e2
+                u0, u1, u2 = Sss[g, i, 0], Sss[g, i, 1], Sss[g, i, 2]
+                v0, v1, v2 = Sst[g, i, 0], Sst[g, i, 1], Sst[g, i, 2]
+                z0, z1, z2 = Stt[g, i, 0], Stt[g, i, 1], Stt[g, i, 2]
+                E = s0 * s0 + (s2 * s2 if order[0] else s1 * s1)
+                E += s1 * s1 if order[0] else s2 * s2
+                E += 0.0
+                F = s0 * t0 + (s2 * t2 if order[1] else s1 * t1)
+                F += s1 * t1 if order[1] else s2 * t2
+                F += 0.0
+                Gf = t0 * t0 + (t2 * t2 if order[2] else t1 * t1)
+                Gf += t1 * t1 if order[2] else t2 * t2
+                Gf += 0.0
+                Lf = n0 * u0 + (n2 * u2 if order[3] else n1 * u1)
+                Lf += n1 * u1 if order[3] else n2 * u2
+                Lf += 0.0
+                Mf = n0 * v0 + (n2 * v2 if order[4] else n1 * v1)
+                Mf += n1 * v1 if order[4] else n2 * v2
+                Mf += 0.0
+                Nf = n0 * z0 + (n2 * z2 if order[5] else n1 * z1)
+                Nf += n1 * z1 if order[5] else n2 * z2
+                Nf += 0.0
+                ra = s0 * e0 + (s2 * e2 if order[6] else s1 * e1)
+                ra += s1 * e1 if order[6] else s2 * e2
+                ra += 0.0
+                rb = t0 * e0 + (t2 * e2 if order[7] else t1 * e1)
+                rb += t1 * e1 if order[7] else t2 * e2
+                rb += 0.0
+                hn = n0 * e0 + (n2 * e2 if order[8] else n1 * e1)
+                hn += n1 * e1 if order[8] else n2 * e2
+                hn += 0.0
                 det = E * Gf - F * F
                 x = 0.0
                 y = 0.0
                 if det > 0:
                     x = (Gf * ra - F * rb) / det
                     y = (E * rb - F * ra) / det
-                hn = n0 * e0 + n1 * e1
-                hn += n2 * e2
                 h = hn - 0.5 * (Lf * x * x + 2 * Mf * x * y + Nf * y * y)
                 if not d2 < four:
                     h = math.inf
@@ -1867,7 +1884,7 @@ SIGNATURES = {
                     " i8, f8[3]w, i1[1]w)",
     "cusp_ends": "void(f8[3], f8[3], i8, i8, f8[4], f8[4], f8[4], f8[3], f8, f8[2]w, f8[2]w, f8[2]w)",
     "cusp_foot": "void(f8[3], f8[3], f8[3], f8[3], f8[3], f8[3], f8[3], f8[3], f8[3], f8[3], f8[3], b1[2], f8,"
-                 " f8[2]w)",
+                 " b1[1], f8[2]w)",
     "band_samples": "void(f8[2], f8[1], f8[2], i8[1], i8[1], f8[1], f8, i8[1], i8, f8[1]w, i8[1]w, i8[1]w, i8[2]w,"
                     " b1[1]w)",
     "capsule_entries": "void(f8[2], f8[2], i8[2], f8[1], f8[2], f8[2], f8[2], f8, b1[2], b1[2], f8[2]w, f8[1]w,"

@@ -406,20 +406,38 @@ class SameBytesAsNumpy(unittest.TestCase):
 class CompiledCuspFoot(unittest.TestCase):
     """The cusps between two lines in the compiled kernel (``cusp_foot``) give the numpy
     form's bytes: balls meeting and apart, centres that coincide, zero normals, singular
-    forms (det <= 0), points beyond the line's end, nan / inf coordinates."""
+    forms (det <= 0), points beyond the line's end, nan / inf coordinates; the derivatives in
+    the layouts the evaluations give them (coordinates next to each other or not, rows one
+    array or not), on which einsum's order of the three products turns."""
+
+    @staticmethod
+    def layout(x, kind, rng):
+        """x (G, m, 3) in a layout: 'C' contiguous, 'S' rows of a longer C array, 'F' rows of
+        a coordinate-major array (as a patch's evaluation returns them)."""
+        G, m, _ = x.shape
+        if kind == "C":
+            return np.ascontiguousarray(x)
+        extra = int(rng.integers(0, 4))
+        if kind == "S":
+            buf = np.empty((G, m + extra, 3))
+            buf[:, :m] = x
+            return buf[:, :m]
+        buf = np.empty((3, G, m + extra))
+        buf[:, :, :m] = np.moveaxis(x, 2, 0)
+        return np.moveaxis(buf, 0, 2)[:, :m]
 
     def test_kernel_is_numpy(self):
         from tsplcam import compiled
-        from tsplcam.toolpath.lines import _cusp_foot
+        from tsplcam.toolpath.lines import _cusp_foot, _rows_together
         kern = compiled.kernels()
         if kern is None:
             self.skipTest("no compiled kernels (numba absent or TSPLCAM_COMPILED=0)")
         rng = np.random.default_rng(7)
         specials = np.array([0.0, -0.0, np.inf, -np.inf, np.nan, 1e-300])
         r = 0.5
-        seen = set()
-        for mode in [m for m in range(6) for _ in range(20)]:
-            G, m = int(rng.integers(1, 4)), int(rng.integers(1, 9))
+        seen, orders = set(), set()
+        for mode in [m for m in range(6) for _ in range(30)]:
+            G, m = int(rng.choice([1, 1, 2, 3])), int(rng.integers(1, 9))
             P1 = rng.normal(size=(G, m, 3)) * 0.2
             N1 = rng.normal(size=(G, m, 3))
             N1 /= np.linalg.norm(N1, axis=-1, keepdims=True)
@@ -441,6 +459,9 @@ class CompiledCuspFoot(unittest.TestCase):
             if mode == 5:                                      # grid values: ties and exact zeros
                 P1, N1, P2, N2 = (np.round(x * 4) / 4 for x in (P1, N1, P2, N2))
                 mid = [np.round(x * 4) / 4 for x in mid]
+            P1, P2 = (self.layout(x, rng.choice(["C", "S", "F"]), rng) for x in (P1, P2))
+            N1, N2 = (self.layout(x, rng.choice(["C", "S"]), rng) for x in (N1, N2))
+            mid = [self.layout(x, rng.choice(["C", "S", "F"]), rng) for x in mid]
             beyond = rng.random((G, m)) < 0.2
             args = (P1, N1, P2, N2, *mid, beyond, r)
             with np.errstate(all="ignore"):
@@ -448,7 +469,11 @@ class CompiledCuspFoot(unittest.TestCase):
             got = _cusp_foot(*args, kern)
             self.assertTrue(same(want, got), mode)
             seen |= {"inf" if np.isinf(x) else "nan" if np.isnan(x) else "x" for x in want.ravel()}
+            orders |= {tuple(x.strides[-1] == 8 for x in mid[2:4])}
+            for x in mid:                                      # the flags read without reshaping
+                self.assertEqual(_rows_together(x), x.reshape(-1, 3).strides[-1] == 8)
         self.assertEqual(seen, {"inf", "nan", "x"})          # apart, beyond (or nan in), meeting
+        self.assertEqual(len(orders), 4)                       # paired and in order, each operand
 
     def test_path_in_numpy_is_the_kernels(self):
         """A whole keycap path with the kernels and without (``TSPLCAM_COMPILED=0`` as the

@@ -304,15 +304,6 @@ def _norm3(x: np.ndarray) -> np.ndarray:
     return np.sqrt(out)[..., None]
 
 
-def _dot(x: np.ndarray, y: np.ndarray) -> np.ndarray:
-    """Row-wise dot products of 3-vectors (..., 3), summed (x0 y0 + x1 y1) + x2 y2 whatever
-    the arrays' layout (einsum's order follows their strides)."""
-    q = x * y
-    out = q[..., 0] + q[..., 1]
-    out += q[..., 2]
-    return out
-
-
 def _coords_first(x: np.ndarray) -> np.ndarray:
     """A view of (..., 3) with the coordinate axis first, (3, ...)."""
     return x.transpose((x.ndim - 1,) + tuple(range(x.ndim - 1)))
@@ -489,34 +480,63 @@ def _cusp_foot(P1, N1, P2, N2, mP, mn, mSs, mSt, mSss, mSst, mStt, beyond, r, ke
     P1, normals N1) and their partners on line 2 (P2, N2), measured from the mid points (mP,
     mn, derivatives mSs .. mStt); inf where the balls do not meet, nan ``beyond``. All (G, m,
     3). ``kern``: the compiled kernels, whose ``cusp_foot`` makes these operations point by
-    point in their order (the same bits; each dot product summed as :func:`_dot`)."""
-    if kern is not None:
+    point in their order, each dot product summed as einsum sums it here (:func:`_sum_orders`):
+    the same bits."""
+    # the fundamental forms at the mid points alone, on a copy of their rows where the rows
+    # are not one array (a form is made row by row: the same values as on all the call's
+    # points, for a third of the work)
+    G, m = beyond.shape
+    if kern is not None and N1.strides[-1] == N1.itemsize and N2.strides[-1] == N2.itemsize:
         c = np.ascontiguousarray
-        height = np.empty(beyond.shape)
+        height = np.empty((G, m))
         kern["cusp_foot"](c(P1), c(N1), c(P2), c(N2), c(mP), c(mn), c(mSs), c(mSt), c(mSss), c(mSst), c(mStt),
-                          c(beyond), float(r), height)
+                          c(beyond), float(r), _sum_orders(mn, mSs, mSt, mSss, mSst, mStt), height)
         return height
-    # the fundamental forms at the mid points
-    mE, mF, mG = _dot(mSs, mSs), _dot(mSs, mSt), _dot(mSt, mSt)
-    mL, mM, mN = _dot(mn, mSss), _dot(mn, mSst), _dot(mn, mStt)
+    fn, fSs, fSt, fSss, fSst, fStt = (x.reshape(-1, 3) for x in (mn, mSs, mSt, mSss, mSst, mStt))
+    mE, mF, mG = _einsum("ij,ij->i", fSs, fSs), _einsum("ij,ij->i", fSs, fSt), _einsum("ij,ij->i", fSt, fSt)
+    mL, mM, mN = _einsum("ij,ij->i", fn, fSss), _einsum("ij,ij->i", fn, fSst), _einsum("ij,ij->i", fn, fStt)
+    mE, mF, mG, mL, mM, mN = (x.reshape(G, m) for x in (mE, mF, mG, mL, mM, mN))
     c1 = P1 + r * N1
     c2 = P2 + r * N2
     w = c2 - c1
-    d2 = _dot(w, w)
+    d2 = _einsum("gij,gij->gi", w, w)
     meet = d2 < 4 * r * r
     down = -(N1 + N2)
-    down -= (_dot(down, w) / _where(d2 > 0, d2, 1.0))[..., None] * w
+    down -= (_einsum("gij,gij->gi", down, w) / _where(d2 > 0, d2, 1.0))[..., None] * w
     down /= np.maximum(_norm3(down), 1e-300)
     q = 0.5 * (c1 + c2) + np.sqrt(np.maximum(r * r - 0.25 * d2, 0.0))[..., None] * down
     rel = q - mP
     # Gauss-Newton foot offset (ds, dt): (J^T J) x = J^T rel
-    ra, rb = _dot(mSs, rel), _dot(mSt, rel)
+    ra, rb = _einsum("gij,gij->gi", mSs, rel), _einsum("gij,gij->gi", mSt, rel)
     det = mE * mG - mF * mF
     x = _where(det > 0, (mG * ra - mF * rb) / det, 0.0)
     y = _where(det > 0, (mE * rb - mF * ra) / det, 0.0)
-    height = _dot(mn, rel) - 0.5 * (mL * x * x + 2 * mM * x * y + mN * y * y)
+    height = _einsum("gij,gij->gi", mn, rel) - 0.5 * (mL * x * x + 2 * mM * x * y + mN * y * y)
     height = _where(meet, height, np.inf)
     return _where(beyond, np.nan, height)
+
+
+def _sum_orders(mn, mSs, mSt, mSss, mSst, mStt) -> np.ndarray:
+    """Per dot product of :func:`_cusp_foot`'s numpy form (the forms E, F, G, L, M, N, then
+    Ss.rel, St.rel, n.rel) whether einsum sums the three products (x0 + x2) + x1 (its paired
+    loop, where both operands' coordinates lie next to each other in memory) rather than
+    x0 + x1 + x2 in order (both onto +0): numpy 1.24's choice on every call of the sample
+    models' paths. The forms' operands are the rows reshaped into one array (a copy, with its
+    coordinates together, unless the rows are one array already: :func:`_rows_together`); the
+    vectors rel (and w, down, whose sums are paired) are fresh arrays whose coordinates lie
+    together where the normals' do, which the kernel's caller asks."""
+    fn, fSs, fSt, fSss, fSst, fStt = (_rows_together(x) for x in (mn, mSs, mSt, mSss, mSst, mStt))
+    near = lambda x: x.strides[-1] == x.itemsize             # noqa: E731
+    return np.array([fSs, fSs and fSt, fSt, fn and fSss, fn and fSst, fn and fStt,
+                     near(mSs), near(mSt), near(mn)], bool)
+
+
+def _rows_together(x: np.ndarray) -> bool:
+    """Whether ``x.reshape(-1, 3)`` of x (G, m, 3) has its coordinates next to each other:
+    a copy does (the rows cannot be one array's without it), a view where x's do."""
+    G, m = x.shape[:2]
+    view = G == 1 or m == 1 or x.strides[0] == m * x.strides[1]
+    return x.strides[-1] == x.itemsize if view else True
 
 
 def _end_pass(P, n, off, ca, cb, r, seg, ends, lo, width, kern=None):

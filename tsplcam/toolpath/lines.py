@@ -482,9 +482,6 @@ def _cusp_foot(P1, N1, P2, N2, mP, mn, mSs, mSt, mSss, mSst, mStt, beyond, r, ke
     3). ``kern``: the compiled kernels, whose ``cusp_foot`` makes these operations point by
     point in their order, each dot product summed as einsum sums it here (:func:`_sum_orders`):
     the same bits."""
-    # the fundamental forms at the mid points alone, on a copy of their rows where the rows
-    # are not one array (a form is made row by row: the same values as on all the call's
-    # points, for a third of the work)
     G, m = beyond.shape
     if kern is not None and N1.strides[-1] == N1.itemsize and N2.strides[-1] == N2.itemsize:
         c = np.ascontiguousarray
@@ -492,6 +489,9 @@ def _cusp_foot(P1, N1, P2, N2, mP, mn, mSs, mSt, mSss, mSst, mStt, beyond, r, ke
         kern["cusp_foot"](c(P1), c(N1), c(P2), c(N2), c(mP), c(mn), c(mSs), c(mSt), c(mSss), c(mSst), c(mStt),
                           c(beyond), float(r), _sum_orders(mn, mSs, mSt, mSss, mSst, mStt), height)
         return height
+    # the fundamental forms at the mid points alone, on a copy of their rows where the rows
+    # are not one array (a form is made row by row: the same values as on all the call's
+    # points, for a third of the work)
     fn, fSs, fSt, fSss, fSst, fStt = (x.reshape(-1, 3) for x in (mn, mSs, mSt, mSss, mSst, mStt))
     mE, mF, mG = _einsum("ij,ij->i", fSs, fSs), _einsum("ij,ij->i", fSs, fSt), _einsum("ij,ij->i", fSt, fSt)
     mL, mM, mN = _einsum("ij,ij->i", fn, fSss), _einsum("ij,ij->i", fn, fSst), _einsum("ij,ij->i", fn, fStt)

@@ -30,7 +30,7 @@ to its foot and the height by the second fundamental form) are some forty array 
 G x m points; the kernel makes them point by point in their order, each dot product summed
 as numpy's einsum sums it there: (x0 + x2) + x1 in its paired loop, where both operands'
 coordinates lie next to each other in memory, else in order (the caller reads which from the
-arrays' strides, ``lines._sum_orders``), so the same bits; the keycap path 0.138 -> 0.124 s
+arrays' strides, ``lines._sum_orders``), so the same bits; the keycap path 0.135 -> 0.125 s
 in one process, the same points bit for bit as before on the sample models.
 
 The Viterbi recurrence (:mod:`tsplcam.orientation.viterbi`) is sequential along the path:

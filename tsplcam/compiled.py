@@ -1488,6 +1488,16 @@ def _define(jit):
                 z = z if (z > 0.0 or z != z) else 0.0
                 lo[g, e] = z if (z < 1.0 or z != z) else 1.0
 
+    import numba
+
+    @numba.njit(inline="always")
+    def dot3(x0, x1, x2, y0, y1, y2, paired):
+        """x . y as numpy's einsum sums it: (x0 y0 + x2 y2) + x1 y1 in its paired loop, else in
+        order; onto +0 (which turns only a sum of -0 into +0). Inlined into its callers."""
+        v = x0 * y0 + (x2 * y2 if paired else x1 * y1)
+        v += x1 * y1 if paired else x2 * y2
+        return v + 0.0
+
     @jit
     def cusp_foot(P1, N1, P2, N2, mP, mN, Ss, St, Sss, Sst, Stt, beyond, r, order, out):
         """The cusps between two lines of :func:`tsplcam.toolpath.lines._cusp_foot` (its
@@ -1515,17 +1525,11 @@ def _define(jit):
                 w0 = c20 - c10
                 w1 = c21 - c11
                 w2 = c22 - c12
-                # (x0 + x2) + x1 where order says einsum pairs, else in order; onto +0
-                d2 = w0 * w0 + w2 * w2
-                d2 += w1 * w1
-                d2 += 0.0
+                d2 = dot3(w0, w1, w2, w0, w1, w2, True)
                 a0 = -(N1[g, i, 0] + N2[g, i, 0])
                 a1 = -(N1[g, i, 1] + N2[g, i, 1])
                 a2 = -(N1[g, i, 2] + N2[g, i, 2])
-                f = a0 * w0 + a2 * w2
-                f += a1 * w1
-                f += 0.0
-                f = f / (d2 if d2 > 0 else 1.0)
+                f = dot3(a0, a1, a2, w0, w1, w2, True) / (d2 if d2 > 0 else 1.0)
                 a0 = a0 - f * w0
                 a1 = a1 - f * w1
                 a2 = a2 - f * w2
@@ -1544,36 +1548,15 @@ def _define(jit):
                 s0, s1, s2 = Ss[g, i, 0], Ss[g, i, 1], Ss[g, i, 2]
                 t0, t1, t2 = St[g, i, 0], St[g, i, 1], St[g, i, 2]
                 n0, n1, n2 = mN[g, i, 0], mN[g, i, 1], mN[g, i, 2]
-                u0, u1, u2 = Sss[g, i, 0], Sss[g, i, 1], Sss[g, i, 2]
-                v0, v1, v2 = Sst[g, i, 0], Sst[g, i, 1], Sst[g, i, 2]
-                z0, z1, z2 = Stt[g, i, 0], Stt[g, i, 1], Stt[g, i, 2]
-                E = s0 * s0 + (s2 * s2 if order[0] else s1 * s1)
-                E += s1 * s1 if order[0] else s2 * s2
-                E += 0.0
-                F = s0 * t0 + (s2 * t2 if order[1] else s1 * t1)
-                F += s1 * t1 if order[1] else s2 * t2
-                F += 0.0
-                Gf = t0 * t0 + (t2 * t2 if order[2] else t1 * t1)
-                Gf += t1 * t1 if order[2] else t2 * t2
-                Gf += 0.0
-                Lf = n0 * u0 + (n2 * u2 if order[3] else n1 * u1)
-                Lf += n1 * u1 if order[3] else n2 * u2
-                Lf += 0.0
-                Mf = n0 * v0 + (n2 * v2 if order[4] else n1 * v1)
-                Mf += n1 * v1 if order[4] else n2 * v2
-                Mf += 0.0
-                Nf = n0 * z0 + (n2 * z2 if order[5] else n1 * z1)
-                Nf += n1 * z1 if order[5] else n2 * z2
-                Nf += 0.0
-                ra = s0 * e0 + (s2 * e2 if order[6] else s1 * e1)
-                ra += s1 * e1 if order[6] else s2 * e2
-                ra += 0.0
-                rb = t0 * e0 + (t2 * e2 if order[7] else t1 * e1)
-                rb += t1 * e1 if order[7] else t2 * e2
-                rb += 0.0
-                hn = n0 * e0 + (n2 * e2 if order[8] else n1 * e1)
-                hn += n1 * e1 if order[8] else n2 * e2
-                hn += 0.0
+                E = dot3(s0, s1, s2, s0, s1, s2, order[0])
+                F = dot3(s0, s1, s2, t0, t1, t2, order[1])
+                Gf = dot3(t0, t1, t2, t0, t1, t2, order[2])
+                Lf = dot3(n0, n1, n2, Sss[g, i, 0], Sss[g, i, 1], Sss[g, i, 2], order[3])
+                Mf = dot3(n0, n1, n2, Sst[g, i, 0], Sst[g, i, 1], Sst[g, i, 2], order[4])
+                Nf = dot3(n0, n1, n2, Stt[g, i, 0], Stt[g, i, 1], Stt[g, i, 2], order[5])
+                ra = dot3(s0, s1, s2, e0, e1, e2, order[6])
+                rb = dot3(t0, t1, t2, e0, e1, e2, order[7])
+                hn = dot3(n0, n1, n2, e0, e1, e2, order[8])
                 det = E * Gf - F * F
                 x = 0.0
                 y = 0.0

@@ -419,3 +419,51 @@ class Metrics(unittest.TestCase):
 
 if __name__ == "__main__":
     unittest.main()
+
+
+class GridInRows(unittest.TestCase):
+    """``surface_grid`` evaluates a patch whole rows of cells at a time (``GRID_CHUNK``
+    samples or so): the same samples, normals and parameters, bit for bit and in the same
+    memory layout, as the whole grid's evaluation gave them (its blocks are the same), on a
+    T-spline of many cells with an extraordinary point (figure 4) and a one-patch T-spline."""
+
+    @staticmethod
+    def whole(model, spacing):
+        """The grid as it was made before: each patch's grid evaluated at once, concatenated."""
+        from tsplcam.verify import scallop as S
+        pp, uvs, Ps, ns = [], [], [], []
+        for p in model.patches:
+            g = np.linspace(0, 1, 17)
+            P = p.evaluate_grid(g, g).P.reshape(17, 17, 3)
+            su = float(np.linalg.norm(np.diff(P, axis=0), axis=2).sum(axis=0).max())
+            sv = float(np.linalg.norm(np.diff(P, axis=1), axis=2).sum(axis=1).max())
+            nu, nv = max(2, int(np.ceil(su / spacing)) + 1), max(2, int(np.ceil(sv / spacing)) + 1)
+            gu = np.clip(np.linspace(0, 1, nu), S.GRID_EPS, 1 - S.GRID_EPS)
+            gv = np.clip(np.linspace(0, 1, nv), S.GRID_EPS, 1 - S.GRID_EPS)
+            sp = p.evaluate_grid(gu, gv, second=False)
+            pp.append(np.full(nu * nv, p.index))
+            uvs.append(np.column_stack([sp.u, sp.v]))
+            Ps.append(sp.P)
+            ns.append(sp.normal)
+        return [np.concatenate(x) for x in (pp, uvs, Ps, ns)]
+
+    def test_same_as_whole(self):
+        from unittest import mock
+
+        from tsplcam import load_model
+        from tsplcam.verify import scallop as S
+        for name, spacing in (("figure4", 0.4), ("tjunction_mold", 0.2)):
+            model = load_model(name)
+            want = self.whole(model, spacing)
+            with mock.patch.object(S, "GRID_CHUNK", 3000):        # several chunks a patch
+                got = surface_grid(model, spacing)
+                one = surface_grid(model, spacing, [0])
+            for a, b in zip(want, (got.patch, got.uv, got.P, got.n)):
+                self.assertEqual((a.shape, a.strides), (b.shape, b.strides), name)
+                self.assertEqual(a.tobytes(), b.tobytes(), name)
+            first = want[0] == 0
+            for a, b in zip(want, (one.patch, one.uv, one.P, one.n)):
+                self.assertEqual(a[first].tobytes(), np.ascontiguousarray(b).tobytes(), name)
+            rows = list(S._cell_rows(model.patches[0], np.linspace(0, 1, 200), 3000 // 50))
+            self.assertGreater(len(rows), 1)
+            self.assertEqual([r[0] for r in rows[1:]], [r[1] for r in rows[:-1]])

@@ -417,9 +417,6 @@ class Metrics(unittest.TestCase):
         self.assertIn("retractions", compare_table({"a": m, "b": m}))
 
 
-if __name__ == "__main__":
-    unittest.main()
-
 
 class GridInRows(unittest.TestCase):
     """``surface_grid`` evaluates a patch whole rows of cells at a time (``GRID_CHUNK``
@@ -467,3 +464,7 @@ class GridInRows(unittest.TestCase):
             rows = list(S._cell_rows(model.patches[0], np.linspace(0, 1, 200), 3000 // 50))
             self.assertGreater(len(rows), 1)
             self.assertEqual([r[0] for r in rows[1:]], [r[1] for r in rows[:-1]])
+
+
+if __name__ == "__main__":
+    unittest.main()

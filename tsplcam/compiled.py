@@ -219,6 +219,48 @@ def _define(jit):
         return -1
 
     @jit
+    def kind_steps(acc, node, both, kind, i0, i1, tie, back):
+        """:func:`viterbi_steps` for points ``i0 .. i1 - 1`` whose transitions are one of a
+        few matrices: ``both[kind[i - 1]]`` (S, S) into point i (the forced rotary travel's
+        moves, into a short block or not), read in place rather than from a block per run
+        (the same arithmetic, written out again: a cached kernel that calls another is not
+        found in numba's cache by the next process)."""
+        S = both.shape[1]
+        tot = np.empty((S, S))
+        m = np.empty(S)
+        nan = np.empty(S, np.bool_)
+        for i in range(i0, i1):
+            c = kind[i - 1]
+            m[:] = np.inf
+            nan[:] = False
+            for a in range(S):
+                x = acc[a]
+                for b in range(S):
+                    v = x + both[c, a, b]
+                    tot[a, b] = v
+                    if v < m[b]:
+                        m[b] = v
+                    elif v != v:
+                        nan[b] = True
+            live = False
+            for b in range(S):
+                mb = np.nan if nan[b] else m[b]
+                lim = mb + tie * max(1.0, abs(mb))
+                k = 0
+                for a in range(S):
+                    if tot[a, b] <= lim:
+                        k = a
+                        break
+                back[i, b] = k
+                v = tot[k, b] + node[i, b]
+                acc[b] = v
+                if np.isfinite(v):
+                    live = True
+            if not live:
+                return i
+        return -1
+
+    @jit
     def joint_steps(acc, node, i0, i1, th, cth, sth, D2, D1, cosD, swing, alpha, beta, travel,
                     lds, hard, short, cmin, tie, back):
         """:func:`viterbi_steps` for points ``i0 .. i1 - 1`` with the smoothing programme's
@@ -1801,7 +1843,8 @@ def _define(jit):
                 low_a[q] = ma
                 low_b[q] = mb
 
-    return {"hit_pairs": hit_pairs, "viterbi_steps": viterbi_steps, "joint_steps": joint_steps, "viterbi_path": viterbi_path,
+    return {"hit_pairs": hit_pairs, "viterbi_steps": viterbi_steps, "kind_steps": kind_steps,
+            "joint_steps": joint_steps, "viterbi_path": viterbi_path,
             "banded_solve": banded_solve, "grid_read": grid_read, "two_states": two_states,
             "solve_box": solve_box, "sphere_loop": sphere_loop, "side_bounds": side_bounds,
             "store_cones": store_cones, "centre_slots": centre_slots,
@@ -1846,6 +1889,7 @@ def cell_table(points: np.ndarray, edge: float, max_cells: int, coarsest: float 
 #: read-only); ``void`` returns None. A kernel's argument changed is to be changed here too.
 SIGNATURES = {
     "viterbi_steps": "i8(f8[1]w, f8[2], f8[3], i8, f8, i4[2]w)",
+    "kind_steps": "i8(f8[1]w, f8[2], f8[3], i8[1], i8, i8, f8, i4[2]w)",
     "joint_steps": "i8(f8[1]w, f8[2], i8, i8, f8[2], f8[2], f8[2], f8[2], f8[2], f8[2], b1[2], f8, f8, f8,"
                    " f8[1], b1[1], b1[1], f8, f8, i4[2]w)",
     "viterbi_path": "void(i4[2], i8, i8[1]w)",

@@ -70,6 +70,12 @@ def workload(rng) -> None:
         trans = np.round(rng.random((n - 1, S, S)) * 4) / 4      # ties
         trans[rng.random((n - 1, S, S)) < 0.3] = np.inf
         viterbi(node, trans)
+    from tsplcam.orientation.smoothing import MeridianGrid, forced_rotary_travel
+    n, M = 90, 12                                          # kind_steps: short blocks, excluded states
+    ok = rng.random((n, M)) < 0.7
+    th = np.zeros((n, M))
+    forced_rotary_travel(MeridianGrid(2 * np.pi * np.arange(M) / M, th, th, th, th, ok),
+                         np.where(rng.random((n, M)) < 0.1, 2, -1), np.where(rng.random(n - 1) < 0.4, 0.05, 1.0))
     N, u = 40, 3                                           # banded_solve, solve_box
     box = _Banded(N, u)
     box.ab[:] = rng.normal(size=(u + 1, N)) * 0.1

@@ -57,10 +57,10 @@ class AgainstEnumeration(unittest.TestCase):
                      "numba is not installed (the numpy version runs)")
 class CompiledRuns(unittest.TestCase):
     def test_runs_in_the_kernel_same_as_blocks(self):
-        """With the kernels loaded the programme runs run by run of one move kind through
-        viterbi_steps (runs of short blocks and of others, longer and shorter than a block,
-        air points, states excluded, chains that break): the same travel and states as the
-        numpy loop over the gathered blocks."""
+        """With the kernels loaded the programme runs in kind_steps, each move's transition
+        read from its kind's matrix (runs of short blocks and of others, longer and shorter
+        than a block, air points, states excluded, chains that break): the same travel and
+        states as the numpy loop over the gathered blocks."""
         self.assertIsNotNone(compiled.kernels())
         rng = np.random.default_rng(9)
         broke = 0

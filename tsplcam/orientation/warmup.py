@@ -37,10 +37,11 @@ def exercise() -> None:
     node = np.zeros((3, 3))
     viterbi(node, np.ones((2, 3, 3)))
     from .rotary import Rotary
-    from .smoothing import MeridianGrid, SmoothingCost, _Banded, joint_transitions
+    from .smoothing import MeridianGrid, SmoothingCost, _Banded, forced_rotary_travel, joint_transitions
     th = np.zeros((3, 3))
     grid = MeridianGrid(np.zeros(3), th, th, th, th, np.ones((3, 3), bool))
     viterbi(node, joint_transitions(grid, SmoothingCost(1.0, Rotary()), np.ones(2), 1.0, np.ones(3, bool)))
+    forced_rotary_travel(grid, np.zeros((3, 3), np.int8), np.ones(2))
     ab = np.array([[0.0, 0.0, 1.0], [0.0, 1.0, 1.0], [2.0, 2.0, 2.0]])
     compiled.kernels()["banded_solve"](ab.copy(), np.ones(3))
     box = _Banded(3, 2)

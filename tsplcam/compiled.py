@@ -224,6 +224,57 @@ def _define(jit):
         return -1
 
     @jit
+    def meridian_dots(V, m, out):
+        """``smoothing._meridian_dots`` where the meridians are horizontal: ``out[i, k] =
+        V[i, 0] m[k, 0] + V[i, 1] m[k, 1] + 0.0``, each product and sum rounded as numpy's
+        three passes round them (the same bits) in one pass."""
+        for i in range(V.shape[0]):
+            v0 = V[i, 0]
+            v1 = V[i, 1]
+            for k in range(m.shape[0]):
+                r = v0 * m[k, 0]
+                r += v1 * m[k, 1]
+                r += 0.0
+                out[i, k] = r
+
+    @jit
+    def cone_arcs(al, ref, half, lo, hi):
+        """``theta_interval``'s half-arc of one constraint on a meridian grid, in place: per
+        element the arc's centre ``al`` taken on the branch nearest ``ref``, ``ref + (pi -
+        mod(pi - (al - ref), 2 pi))`` (numpy's float mod: fmod (exact), then the divisor added
+        where the two signs differ, +0 where it is 0), then ``lo = maximum(lo, centre -
+        half)`` and ``hi = minimum(hi, centre + half)`` (numpy's maximum and minimum: a nan
+        wins, lo's or hi's first): the same operations in the same order, so the same bits.
+        All (rows, M)."""
+        two_pi = 2 * np.pi
+        for i in range(al.shape[0]):
+            for j in range(al.shape[1]):
+                r = ref[i, j]
+                t = np.pi - (al[i, j] - r)
+                # (fmod returns t itself where |t| < 2 pi: exactly, so not asked there)
+                md = t if -two_pi < t < two_pi else np.fmod(t, two_pi)
+                # (2 pi > 0: added where md < 0; +0 for a zero of either sign; a nan kept)
+                md = md + two_pi if md < 0.0 else (md if md != 0.0 else 0.0)
+                c = r + (np.pi - md)
+                # (selects, not branches: which bound wins is data, not predictable)
+                a = c - half
+                b = lo[i, j]
+                v = a if a > b else b
+                if b != b:
+                    v = b
+                elif a != a:
+                    v = a
+                lo[i, j] = v
+                a = c + half
+                b = hi[i, j]
+                v = a if a < b else b
+                if b != b:
+                    v = b
+                elif a != a:
+                    v = a
+                hi[i, j] = v
+
+    @jit
     def kind_steps(acc, node, both, kind, i0, i1, tie, back):
         """:func:`viterbi_steps` for points ``i0 .. i1 - 1`` whose transitions are one of a
         few matrices: ``both[kind[i - 1]]`` (S, S) into point i (the forced rotary travel's
@@ -1848,7 +1899,8 @@ def _define(jit):
                 low_a[q] = ma
                 low_b[q] = mb
 
-    return {"hit_pairs": hit_pairs, "viterbi_steps": viterbi_steps, "kind_steps": kind_steps,
+    return {"hit_pairs": hit_pairs, "viterbi_steps": viterbi_steps, "kind_steps": kind_steps, "cone_arcs": cone_arcs,
+            "meridian_dots": meridian_dots,
             "joint_steps": joint_steps, "viterbi_path": viterbi_path,
             "banded_solve": banded_solve, "grid_read": grid_read, "two_states": two_states,
             "solve_box": solve_box, "sphere_loop": sphere_loop, "side_bounds": side_bounds,
@@ -1895,6 +1947,8 @@ def cell_table(points: np.ndarray, edge: float, max_cells: int, coarsest: float 
 SIGNATURES = {
     "viterbi_steps": "i8(f8[1]w, f8[2], f8[3], i8, f8, i4[2]w)",
     "kind_steps": "i8(f8[1]w, f8[2], f8[3], i8[1], i8, i8, f8, i4[2]w)",
+    "cone_arcs": "void(f8[2], f8[2], f8, f8[2]w, f8[2]w)",
+    "meridian_dots": "void(f8[2], f8[2], f8[2]w)",
     "joint_steps": "i8(f8[1]w, f8[2], i8, i8, f8[2], f8[2], f8[2], f8[2], f8[2], f8[2], b1[2], f8, f8, f8,"
                    " f8[1], b1[1], b1[1], f8, f8, i4[2]w)",
     "viterbi_path": "void(i4[2], i8, i8[1]w)",

@@ -319,6 +319,23 @@ class CompiledJointTransitions(unittest.TestCase):
             broken += same_result(self, node, tr, f"trial {trial}")[0] is None
         self.assertGreater(broken, 0)
 
+    def test_programme_across_row_blocks(self):
+        """The kernel handed the points in blocks of ``STEPS_ROWS`` (each block's cos and sin
+        made for it; a small block size here, so that chains cross many blocks and break in
+        later ones): the same states and break points as the numpy loop."""
+        rng = np.random.default_rng(23)
+        broken = 0
+        with mock.patch.object(smoothing, "STEPS_ROWS", 7):
+            for trial in range(30):
+                n, M = int(rng.integers(2, 120)), int(rng.choice([5, 12]))
+                grid, tr = random_programme(rng, n, M)
+                node = rng.random((n, M))
+                node[rng.random((n, M)) < 0.2] = np.inf
+                node[int(rng.integers(0, n)), :] = np.inf if trial % 3 == 0 else node[0]
+                broken += same_result(self, node, tr, f"trial {trial}")[0] is None
+        self.assertGreater(broken, 0)
+        self.assertLess(broken, 30)
+
     def test_prepare_loads_aside(self):
         """``prepare(exercise)`` (the job's, while the path's workers run) loads every kernel
         into a set kept aside: numba or numpy is still chosen by the work asked, and the set
@@ -418,6 +435,84 @@ class KeycapJob(unittest.TestCase):
         self.assertGreaterEqual(seen["viterbi"], 2)       # the joint programme and the forced travel
         self.assertGreater(seen["banded"], 100)
         self.assertEqual(figures["orientation"]["collisions"], 0)
+
+
+@needs_numba
+class CompiledMeridianGrid(unittest.TestCase):
+    def test_cone_arcs_same_bits_as_numpy(self):
+        """``cone_arcs`` (a cone's arc on the branch nearest ref, into lo and hi) against
+        theta_interval's numpy operations, bit for bit: arc centres far from ref (the float
+        mod's fmod, its sign rule and its zero), +-pi, nan and inf in al, ref and the bounds."""
+        k = compiled.kernels()
+        rng = np.random.default_rng(31)
+        half = smoothing._HALF_PI
+        for case in range(200):
+            rows, M = int(rng.integers(1, 30)), int(rng.choice([3, 12, 36]))
+            al = rng.uniform(-4, 4, (rows, M)) * rng.choice([1.0, 1e-8, 1e3, 1e17], (rows, M))
+            sp = rng.random((rows, M))
+            al[sp < 0.03] = np.nan
+            al[(sp >= 0.03) & (sp < 0.05)] = np.inf
+            al[(sp >= 0.05) & (sp < 0.08)] = -np.pi
+            ref = rng.uniform(-7, 7, (rows, M))
+            ref[rng.random((rows, M)) < 0.02] = np.nan
+            whole = rng.random((rows, M)) < 0.2                 # pi - (al - ref) a multiple of 2 pi
+            ref = np.where(whole, al + np.pi - 2 * np.pi * rng.integers(-3, 4, (rows, M)), ref)
+            lo = np.where(rng.random((rows, M)) < 0.5, -np.inf, rng.uniform(-3, 3, (rows, M)))
+            hi = np.where(rng.random((rows, M)) < 0.5, np.inf, rng.uniform(-3, 3, (rows, M)))
+            lo[rng.random((rows, M)) < 0.02] = np.nan
+            with np.errstate(invalid="ignore"):
+                centre = ref + (np.pi - np.mod(np.pi - (al - ref), 2 * np.pi))
+                want_lo, want_hi = np.maximum(lo, centre - half), np.minimum(hi, centre + half)
+            got_lo, got_hi = lo.copy(), hi.copy()
+            k["cone_arcs"](al, ref, half, got_lo, got_hi)
+            np.testing.assert_array_equal(got_lo.view(np.int64), want_lo.view(np.int64), f"case {case}")
+            np.testing.assert_array_equal(got_hi.view(np.int64), want_hi.view(np.int64), f"case {case}")
+
+    def test_meridian_dots_same_bits_as_numpy(self):
+        """``meridian_dots`` against ``_meridian_dots``' three numpy passes, bit for bit, on
+        finite vectors of every magnitude (products that overflow and underflow), signed zeros
+        in V and the meridians."""
+        rng = np.random.default_rng(32)
+        for case in range(200):
+            n, M = int(rng.integers(1, 60)), int(rng.choice([3, 12, 36]))
+            V = rng.normal(size=(n, 3)) * rng.choice([1.0, 1e-200, 1e200], (n, 3))
+            V[rng.random((n, 3)) < 0.05] = -0.0
+            m = np.column_stack([np.cos(np.arange(M)), np.sin(np.arange(M)), np.zeros(M)])
+            m[:, :2][rng.random((M, 2)) < 0.1] = -0.0
+            got = smoothing._meridian_dots(V, m)
+            with mock.patch.object(compiled, "kernels", lambda work=None: None), np.errstate(all="ignore"):
+                want = smoothing._meridian_dots(V, m)
+            np.testing.assert_array_equal(got.view(np.int64), want.view(np.int64), f"case {case}")
+
+    def test_grid_same_bits_as_numpy(self):
+        """meridian_grid with the kernels against numpy alone: the same tilts, bounds,
+        preferred tilts and admissible poses bit for bit, on the lead/tilt cones of random
+        normals and feeds (rows whose constraint lies horizontal take the numpy form), with a
+        controls' half-space of b != 0, on a pole tilt, across its row blocks."""
+        from tsplcam.orientation.rotary import DEG, Rotary
+        rng = np.random.default_rng(33)
+        for case in range(24):
+            n, M = int(rng.integers(1, 2600)), int(rng.choice([12, 36]))
+            N = rng.normal(size=(n, 3))
+            N[:, 2] = np.abs(N[:, 2]) + rng.choice([0.0, 1.0])
+            N /= np.linalg.norm(N, axis=1)[:, None]
+            F = np.cross(N, rng.normal(size=(n, 3)))
+            F /= np.linalg.norm(F, axis=1)[:, None]
+            cons = [(h, np.zeros(n)) for h in smoothing.cone_halfspaces(N, F, 0.6, 1.0)]
+            if case % 3 == 0:
+                cons[1][0][: n // 2, 2] = 0.0
+            if case % 4 == 1:
+                cons.append((rng.normal(size=(n, 3)), rng.normal(size=n) * 0.2))
+            P = rng.normal(size=(n, 3))
+            P /= np.linalg.norm(P, axis=1)[:, None]
+            rot = Rotary(about=str(rng.choice(["X", "Z"])), theta_lo=-30 * DEG, theta_hi=115 * DEG)
+            pole = float(rng.choice([0.0, 2 * DEG]))
+            got = smoothing.meridian_grid(rot, P, N, cons, M, pole, rows=int(rng.choice([64, 1024])))
+            with mock.patch.object(compiled, "kernels", lambda work=None: None):
+                want = smoothing.meridian_grid(rot, P, N, cons, M, pole)
+            for f in ("theta", "lo", "hi", "pref", "ok"):
+                np.testing.assert_array_equal(getattr(got, f).view(np.int8), getattr(want, f).view(np.int8),
+                                              f"case {case} {f}")
 
 
 if __name__ == "__main__":

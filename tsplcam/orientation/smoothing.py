@@ -527,9 +527,16 @@ def _meridian_dots(V: np.ndarray, m: np.ndarray) -> np.ndarray:
     """``V . m`` (n, M) of vectors V (n, 3) and horizontal meridians m (M, 3): the bits of
     ``np.einsum("nj,nkj->nk", V, m broadcast to (n, M, 3))`` in half its time. einsum sums
     the three products in order onto +0; m's z is 0, so its product (+-0) changes a sum only
-    where the sum is zero, and adding +0.0 gives einsum's +0 there."""
+    where the sum is zero, and adding +0.0 gives einsum's +0 there. With the kernels loaded
+    in one pass (``meridian_dots``: the same roundings, so the same bits; a nan's sign may
+    differ where both products are nan, which finite V and m never make)."""
     if m[:, 2].any():
         return np.einsum("nj,nkj->nk", V, np.broadcast_to(m, (len(V),) + m.shape))
+    k = compiled.kernels(work=float(V.shape[0]) * m.shape[0])
+    if k is not None and V.ndim == 2 and V.shape[1] == 3:
+        r = np.empty((len(V), len(m)))
+        k["meridian_dots"](np.ascontiguousarray(V, float), np.ascontiguousarray(m, float), r)
+        return r
     r = V[:, 0, None] * m[:, 0]
     r += V[:, 1, None] * m[:, 1]
     r += 0.0
@@ -548,6 +555,10 @@ def theta_interval(rot: Rotary, phi, constraints, ref, m=None):
     grid = phi.ndim == 2
     lo = np.full(phi.shape, -np.inf)
     hi = np.full(phi.shape, np.inf)
+    # on a grid, a cone's arcs (b = 0, every row's |hz| above 1e-15) in the kernel: the
+    # nearest branch, lo and hi element by element in place, numpy's operations (the same bits)
+    k = compiled.kernels(work=float(phi.size) * len(constraints)) if grid else None
+    ref_c = np.ascontiguousarray(np.broadcast_to(ref, phi.shape), float) if k is not None else None
     for h, b in constraints:
         hz = component(h, 2)                # (contiguous: the same arctan2 code whatever the heap)
         hz = hz[:, None] if grid else hz
@@ -559,6 +570,9 @@ def theta_interval(rot: Rotary, phi, constraints, ref, m=None):
             hm = np.einsum("nj,nkj->nk", h, m)
         bb = np.asarray(b, float)[:, None] if grid else np.asarray(b, float)
         al = np.arctan2(hm, hz)
+        if k is not None and not np.any(bb) and np.all(np.abs(hz) > 1e-15):
+            k["cone_arcs"](np.ascontiguousarray(al), ref_c, _HALF_PI, lo, hi)
+            continue
         al = ref + (np.pi - np.mod(np.pi - (al - ref), 2 * np.pi))          # nearest ref
         if not np.any(bb):
             # b = 0 (the lead/tilt cones): c is +0 where R > 1e-15, else -1; the same half

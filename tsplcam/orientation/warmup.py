@@ -42,6 +42,10 @@ def exercise() -> None:
     grid = MeridianGrid(np.zeros(3), th, th, th, th, np.ones((3, 3), bool))
     viterbi(node, joint_transitions(grid, SmoothingCost(1.0, Rotary()), np.ones(2), 1.0, np.ones(3, bool)))
     forced_rotary_travel(grid, np.zeros((3, 3), np.int8), np.ones(2))
+    from .smoothing import cone_halfspaces, meridian_grid
+    up = np.array([[0.0, 0.6, 0.8]])
+    meridian_grid(Rotary(), up, up, [(h, np.zeros(1)) for h in cone_halfspaces(up, np.array([[1.0, 0.0, 0.0]]),
+                                                                                 0.5, 0.5)], 4)
     ab = np.array([[0.0, 0.0, 1.0], [0.0, 1.0, 1.0], [2.0, 2.0, 2.0]])
     compiled.kernels()["banded_solve"](ab.copy(), np.ones(3))
     box = _Banded(3, 2)

@@ -191,7 +191,47 @@ def _define(jit):
     while it is the text the module was built from."""
     import math
 
+    import numba
     import numpy as np
+
+    # the kernels' inlined helpers are module globals, not closure cells: numba's cache keys a
+    # closure by its cells, and a dispatcher in a cell differs in every process, so a kernel
+    # calling one was compiled again in every process (cusp_foot: 1.2-1.6 s)
+    global viterbi_step, dot3
+
+    @numba.njit(inline="always")
+    def viterbi_step(acc, node, X, q, i, tie, back, tot, m, nan):
+        """One step of the Viterbi recurrence into point ``i`` with the transitions ``X[q]``
+        (S, S): ``acc`` (S,) and ``back[i]`` updated in place (``tot``, ``m``, ``nan`` its
+        scratch); whether a state is still reachable. Inlined into its callers (a kernel that
+        calls another, not inlined, is not found in numba's cache by the next process)."""
+        S = acc.shape[0]
+        m[:] = np.inf
+        nan[:] = False
+        for a in range(S):
+            x = acc[a]
+            for b in range(S):
+                v = x + X[q, a, b]
+                tot[a, b] = v
+                if v < m[b]:
+                    m[b] = v
+                elif v != v:
+                    nan[b] = True
+        live = False
+        for b in range(S):
+            mb = np.nan if nan[b] else m[b]
+            lim = mb + tie * max(1.0, abs(mb))
+            k = 0
+            for a in range(S):
+                if tot[a, b] <= lim:
+                    k = a
+                    break
+            back[i, b] = k
+            v = tot[k, b] + node[i, b]
+            acc[b] = v
+            if np.isfinite(v):
+                live = True
+        return live
 
     @jit
     def viterbi_steps(acc, node, T, i0, tie, back):
@@ -203,34 +243,8 @@ def _define(jit):
         m = np.empty(S)
         nan = np.empty(S, np.bool_)
         for r in range(B):
-            i = i0 + r
-            m[:] = np.inf
-            nan[:] = False
-            for a in range(S):
-                x = acc[a]
-                for b in range(S):
-                    v = x + T[r, a, b]
-                    tot[a, b] = v
-                    if v < m[b]:
-                        m[b] = v
-                    elif v != v:
-                        nan[b] = True
-            live = False
-            for b in range(S):
-                mb = np.nan if nan[b] else m[b]
-                lim = mb + tie * max(1.0, abs(mb))
-                k = 0
-                for a in range(S):
-                    if tot[a, b] <= lim:
-                        k = a
-                        break
-                back[i, b] = k
-                v = tot[k, b] + node[i, b]
-                acc[b] = v
-                if np.isfinite(v):
-                    live = True
-            if not live:
-                return i
+            if not viterbi_step(acc, node, T, r, i0 + r, tie, back, tot, m, nan):
+                return i0 + r
         return -1
 
     @jit
@@ -289,40 +303,13 @@ def _define(jit):
         """:func:`viterbi_steps` for points ``i0 .. i1 - 1`` whose transitions are one of a
         few matrices: ``both[kind[i - 1]]`` (S, S) into point i (the forced rotary travel's
         moves, into a short block or not), read in place rather than from a block per run
-        (the same arithmetic, written out again: a cached kernel that calls another is not
-        found in numba's cache by the next process)."""
+        (the same step, :func:`viterbi_step`)."""
         S = both.shape[1]
         tot = np.empty((S, S))
         m = np.empty(S)
         nan = np.empty(S, np.bool_)
         for i in range(i0, i1):
-            c = kind[i - 1]
-            m[:] = np.inf
-            nan[:] = False
-            for a in range(S):
-                x = acc[a]
-                for b in range(S):
-                    v = x + both[c, a, b]
-                    tot[a, b] = v
-                    if v < m[b]:
-                        m[b] = v
-                    elif v != v:
-                        nan[b] = True
-            live = False
-            for b in range(S):
-                mb = np.nan if nan[b] else m[b]
-                lim = mb + tie * max(1.0, abs(mb))
-                k = 0
-                for a in range(S):
-                    if tot[a, b] <= lim:
-                        k = a
-                        break
-                back[i, b] = k
-                v = tot[k, b] + node[i, b]
-                acc[b] = v
-                if np.isfinite(v):
-                    live = True
-            if not live:
+            if not viterbi_step(acc, node, both, kind[i - 1], i, tie, back, tot, m, nan):
                 return i
         return -1
 
@@ -369,9 +356,9 @@ def _define(jit):
                     if (hi and dots < cmin) or (sh and swing[a, b]):
                         c = np.inf
                     t[b] = c
-                # from here on viterbi_steps's arithmetic, written out again: a cached kernel
-                # that calls another kernel of this closure is not found in numba's cache by
-                # the next process (measured: compiled again, 2.3 s, in every process)
+                # from here on viterbi_step's arithmetic, written out again: fused with the
+                # transitions (each row's in registers) it takes 15 ms on the keycap, through
+                # the helper on a block of them 20 ms
                 for b in range(S):
                     v = x + t[b]
                     tot[a, b] = v
@@ -1595,8 +1582,6 @@ def _define(jit):
                 z = lo[g, e] + step * (kk - 1)
                 z = z if (z > 0.0 or z != z) else 0.0
                 lo[g, e] = z if (z < 1.0 or z != z) else 1.0
-
-    import numba
 
     @numba.njit(inline="always")
     def dot3(x0, x1, x2, y0, y1, y2, paired):

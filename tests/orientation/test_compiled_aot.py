@@ -185,6 +185,17 @@ class Signatures(unittest.TestCase):
                 self.assertIn(code, ("f8", "i8", "i4", "i1", "b1"), name)
                 self.assertIn(nd, (0, 1, 2, 3, 4), name)
 
+    def test_no_kernel_in_a_closure(self):
+        """No kernel holds a compiled function in its closure: numba's cache keys a closure by
+        its cells, and a dispatcher there differs in every process, so such a kernel is never
+        found in the cache and is compiled again in each (cusp_foot with a helper in a cell:
+        1.2-1.6 s a process); helpers are module globals, which the cache does not key."""
+        import numba
+        funcs = compiled._define(lambda f: f)
+        for name, f in funcs.items():
+            for cell in f.__closure__ or ():
+                self.assertNotIsInstance(cell.cell_contents, numba.core.dispatcher.Dispatcher, name)
+
     def test_compiled_off(self):
         """``TSPLCAM_COMPILED=0``: no kernels, numpy runs."""
         with mock.patch.dict(os.environ, {"TSPLCAM_COMPILED": "0"}), mock.patch.dict(compiled._STATE, clear=True):

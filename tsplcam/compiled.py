@@ -203,8 +203,7 @@ def _define(jit):
     def viterbi_step(acc, node, X, q, i, tie, back, tot, m, nan):
         """One step of the Viterbi recurrence into point ``i`` with the transitions ``X[q]``
         (S, S): ``acc`` (S,) and ``back[i]`` updated in place (``tot``, ``m``, ``nan`` its
-        scratch); whether a state is still reachable. Inlined into its callers (a kernel that
-        calls another, not inlined, is not found in numba's cache by the next process)."""
+        scratch); whether a state is still reachable. Inlined into its callers."""
         S = acc.shape[0]
         m[:] = np.inf
         nan[:] = False

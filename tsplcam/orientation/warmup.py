@@ -37,12 +37,12 @@ def exercise() -> None:
     node = np.zeros((3, 3))
     viterbi(node, np.ones((2, 3, 3)))
     from .rotary import Rotary
-    from .smoothing import MeridianGrid, SmoothingCost, _Banded, forced_rotary_travel, joint_transitions
+    from .smoothing import (MeridianGrid, SmoothingCost, _Banded, cone_halfspaces, forced_rotary_travel,
+                            joint_transitions, meridian_grid)
     th = np.zeros((3, 3))
     grid = MeridianGrid(np.zeros(3), th, th, th, th, np.ones((3, 3), bool))
     viterbi(node, joint_transitions(grid, SmoothingCost(1.0, Rotary()), np.ones(2), 1.0, np.ones(3, bool)))
     forced_rotary_travel(grid, np.zeros((3, 3), np.int8), np.ones(2))
-    from .smoothing import cone_halfspaces, meridian_grid
     up = np.array([[0.0, 0.6, 0.8]])
     meridian_grid(Rotary(), up, up, [(h, np.zeros(1)) for h in cone_halfspaces(up, np.array([[1.0, 0.0, 0.0]]),
                                                                                  0.5, 0.5)], 4)

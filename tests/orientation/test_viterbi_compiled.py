@@ -515,10 +515,6 @@ class CompiledMeridianGrid(unittest.TestCase):
                                               f"case {case} {f}")
 
 
-if __name__ == "__main__":
-    unittest.main()
-
-
 @needs_numba
 class CompiledGridRead(unittest.TestCase):
     def test_same_bits_as_numpy(self):
@@ -546,3 +542,7 @@ class CompiledGridRead(unittest.TestCase):
                 self.assertEqual(g.dtype, w.dtype)
                 np.testing.assert_array_equal(g, w)
         self.assertIsInstance(bp.grids[0], DistanceGrid)
+
+
+if __name__ == "__main__":
+    unittest.main()

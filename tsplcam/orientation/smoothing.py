@@ -533,7 +533,7 @@ def _meridian_dots(V: np.ndarray, m: np.ndarray) -> np.ndarray:
     if m[:, 2].any():
         return np.einsum("nj,nkj->nk", V, np.broadcast_to(m, (len(V),) + m.shape))
     k = compiled.kernels(work=float(V.shape[0]) * m.shape[0])
-    if k is not None and V.ndim == 2 and V.shape[1] == 3:
+    if k is not None:
         r = np.empty((len(V), len(m)))
         k["meridian_dots"](np.ascontiguousarray(V, float), np.ascontiguousarray(m, float), r)
         return r

@@ -86,6 +86,12 @@ numpy form's sorted hashes give it). The exact pass's narrow bands come from ``b
 count and the set in the band, as the KD-tree's k nearest give them, the squared distances
 summed in its order: about 0.3 us a point on the keycap against 2 us in the tree).
 
+The broad phase's cylinder pass (``cylinder_clear``, :meth:`~tsplcam.orientation.broadphase.BroadPhase._cylinder_pass`)
+has no numpy form: per (pose, part) it scans the cells of a table of the samples around the
+axis, flags the samples within reach and clips their triangles to the cylinder (one polygon
+clip per triangle, a few per pose), about 2.7 us a pose on the keycap's smallest clearance
+where fcl took 10 us; without the kernels the parts are left to fcl (the same answers).
+
 The verification's capsule entries (:meth:`tsplcam.verify.scallop.Swept.entry`: where the ray
 along each surface sample's normal enters each of its candidate capsules) come from
 ``capsule_entries``, candidate by candidate with the numpy form's operations in its order (each
@@ -197,7 +203,7 @@ def _define(jit):
     # the kernels' inlined helpers are module globals, not closure cells: numba's cache keys a
     # closure by its cells, and a dispatcher in a cell differs in every process, so a kernel
     # calling one was compiled again in every process (cusp_foot: 1.2-1.6 s)
-    global viterbi_step, dot3
+    global viterbi_step, dot3, meets_cylinder
 
     @numba.njit(inline="always")
     def viterbi_step(acc, node, X, q, i, tie, back, tot, m, nan):
@@ -1815,6 +1821,148 @@ def _define(jit):
             pts[p, 1] = P[i, 1]
             pts[p, 2] = P[i, 2]
 
+    @numba.njit(inline="always")
+    def meets_cylinder(V, T, t, c, a, u, w, lo, hi, R2, px, py, pz, qx, qy, qz):
+        """Whether triangle t (rows of V by T) may meet the solid cylinder about the axis a
+        through c (frame a, u, w), between the heights lo and hi, of squared radius R2: the
+        triangle clipped to the slab (Sutherland-Hodgman, into the scratch rows px.. and
+        qx..), then the axis through the clipped polygon seen along a, or a polygon edge within
+        the radius of it. Only an answer False is a proof (the caller widens lo, hi and R2)."""
+        zmin, zmax = np.inf, -np.inf
+        for i in range(3):
+            v = T[t, i]
+            dx, dy, dz = V[v, 0] - c[0], V[v, 1] - c[1], V[v, 2] - c[2]
+            pz[i] = dx * a[0] + dy * a[1] + dz * a[2]
+            px[i] = dx * u[0] + dy * u[1] + dz * u[2]
+            py[i] = dx * w[0] + dy * w[1] + dz * w[2]
+            zmin, zmax = min(zmin, pz[i]), max(zmax, pz[i])
+        if zmax < lo or zmin > hi:
+            return False
+        m = 3
+        for side in range(2):
+            lim, sg = (lo, 1.0) if side == 0 else (hi, -1.0)
+            n = 0
+            for i in range(m):
+                j = i + 1 if i + 1 < m else 0
+                ini, inj = sg * (pz[i] - lim) >= 0.0, sg * (pz[j] - lim) >= 0.0
+                if ini:
+                    qx[n], qy[n], qz[n] = px[i], py[i], pz[i]
+                    n += 1
+                if ini != inj:
+                    f = (lim - pz[i]) / (pz[j] - pz[i])
+                    qx[n], qy[n], qz[n] = px[i] + f * (px[j] - px[i]), py[i] + f * (py[j] - py[i]), lim
+                    n += 1
+            m = n
+            for i in range(m):
+                px[i], py[i], pz[i] = qx[i], qy[i], qz[i]
+            if m == 0:
+                return False
+        if m >= 3:                                  # the axis inside the polygon (either turn)
+            pos, neg = True, True
+            for i in range(m):
+                j = i + 1 if i + 1 < m else 0
+                cr = (px[j] - px[i]) * -py[i] + (py[j] - py[i]) * px[i]
+                if cr < 0.0:
+                    pos = False
+                if cr > 0.0:
+                    neg = False
+            if pos or neg:
+                return True
+        for i in range(m):
+            j = i + 1 if i + 1 < m else 0
+            dx, dy = px[j] - px[i], py[j] - py[i]
+            ll = dx * dx + dy * dy
+            f = 0.0
+            if ll > 0.0:
+                f = min(max(-(px[i] * dx + py[i] * dy) / ll, 0.0), 1.0)
+            ex, ey = px[i] + f * dx, py[i] + f * dy
+            if ex * ex + ey * ey <= R2:
+                return True
+        return False
+
+    @jit
+    def cylinder_clear(C, A, pose, part, z0, z1, ro, lo, h, shape, start, order, pts, se, emax,
+                       tris_start, tris_flat, V, T, eps, max_cells, out):
+        """:meth:`~tsplcam.orientation.broadphase.BroadPhase._cylinder_pass`: per (pose, part)
+        row whether the part, a cylinder of circumscribed radius ro between heights z0 and z1
+        on the axis, is proven clear of the mesh (out True). The samples (``pts`` by cells of
+        ``h`` from ``lo``, their indices ``order``) within ro + their spacing ``se`` + eps of the
+        axis segment and within their spacing of its heights are flagged, and their triangles
+        (``tris_flat`` runs) tested whole (:func:`meets_cylinder`, heights and radius widened
+        by eps); a row whose cells number more than ``max_cells`` is left open. Returns the
+        rows cleared."""
+        px, py, pz = np.empty(8), np.empty(8), np.empty(8)
+        qx, qy, qz = np.empty(8), np.empty(8), np.empty(8)
+        c, a, u, w = np.empty(3), np.empty(3), np.empty(3), np.empty(3)
+        cl, ch = np.empty(3, np.int64), np.empty(3, np.int64)
+        cleared = 0
+        for k in range(pose.shape[0]):
+            out[k] = False
+            i, j = pose[k], part[k]
+            for d in range(3):
+                c[d], a[d] = C[i, d], A[i, d]
+            zlo, zhi = z0[j], z1[j]
+            R = ro[j] + eps
+            R2 = R * R
+            reach = R + emax + eps
+            cells = 1
+            for d in range(3):
+                e0, e1 = c[d] + zlo * a[d], c[d] + zhi * a[d]
+                l0 = np.int64(np.floor((min(e0, e1) - reach - lo[d]) / h))
+                l1 = np.int64(np.floor((max(e0, e1) + reach - lo[d]) / h))
+                cl[d], ch[d] = max(l0, 0), min(l1, shape[d] - 1)
+                cells *= max(ch[d] - cl[d] + 1, 0)
+            if cells > max_cells:
+                continue
+            if abs(a[0]) < 0.9:                          # a frame across the axis
+                u[0], u[1], u[2] = 0.0, a[2], -a[1]
+            else:
+                u[0], u[1], u[2] = -a[2], 0.0, a[0]
+            ln = math.sqrt(u[0] * u[0] + u[1] * u[1] + u[2] * u[2])
+            u[0], u[1], u[2] = u[0] / ln, u[1] / ln, u[2] / ln
+            w[0], w[1], w[2] = a[1] * u[2] - a[2] * u[1], a[2] * u[0] - a[0] * u[2], a[0] * u[1] - a[1] * u[0]
+            cull = reach + 0.8660254037844387 * h + eps    # a cell's centre: its samples in reach
+            meets = False
+            for i0 in range(cl[0], ch[0] + 1):
+                for i1 in range(cl[1], ch[1] + 1):
+                    for i2 in range(cl[2], ch[2] + 1):
+                        dx = lo[0] + (i0 + 0.5) * h - c[0]
+                        dy = lo[1] + (i1 + 0.5) * h - c[1]
+                        dz = lo[2] + (i2 + 0.5) * h - c[2]
+                        z = min(max(dx * a[0] + dy * a[1] + dz * a[2], zlo), zhi)
+                        dx, dy, dz = dx - z * a[0], dy - z * a[1], dz - z * a[2]
+                        if dx * dx + dy * dy + dz * dz > cull * cull:
+                            continue
+                        cell = (i0 * shape[1] + i1) * shape[2] + i2
+                        for s in range(start[cell], start[cell + 1]):
+                            dx, dy, dz = pts[s, 0] - c[0], pts[s, 1] - c[1], pts[s, 2] - c[2]
+                            z = dx * a[0] + dy * a[1] + dz * a[2]
+                            sid = order[s]
+                            e = se[sid]
+                            if z < zlo - e - eps or z > zhi + e + eps:
+                                continue
+                            z = min(max(z, zlo), zhi)
+                            dx, dy, dz = dx - z * a[0], dy - z * a[1], dz - z * a[2]
+                            if dx * dx + dy * dy + dz * dz > R2 + e * e / 3.0 + eps:
+                                continue
+                            for q in range(tris_start[sid], tris_start[sid + 1]):
+                                if meets_cylinder(V, T, tris_flat[q], c, a, u, w, zlo - eps, zhi + eps, R2,
+                                                  px, py, pz, qx, qy, qz):
+                                    meets = True
+                                    break
+                            if meets:
+                                break
+                        if meets:
+                            break
+                    if meets:
+                        break
+                if meets:
+                    break
+            if not meets:
+                out[k] = True
+                cleared += 1
+        return cleared
+
     @jit
     def capsule_entries(p, n, idx, length, a, e, b, r, of_a, of_b, lam, low_a, low_b):
         """:meth:`~tsplcam.verify.scallop.Swept.entry` of rows of candidates: for point p[q]
@@ -1901,7 +2049,8 @@ def _define(jit):
             "store_cones": store_cones, "centre_slots": centre_slots,
             "cubic_points": cubic_points, "cusp_ends": cusp_ends, "cusp_foot": cusp_foot,
             "band_samples": band_samples,
-            "capsule_entries": capsule_entries, "k_nearest": k_nearest, "cell_sort": cell_sort}
+            "capsule_entries": capsule_entries, "k_nearest": k_nearest, "cell_sort": cell_sort,
+            "cylinder_clear": cylinder_clear}
 
 
 def cell_table(points: np.ndarray, edge: float, max_cells: int, coarsest: float = np.inf) -> tuple | None:
@@ -1971,6 +2120,8 @@ SIGNATURES = {
                        " f8[1]w)",
     "k_nearest": "void(f8[2], f8[2], i8[1], i8[1], f8[1], f8, i8[1], i8, f8, i8[2]w, f8[2]w, b1[1]w)",
     "cell_sort": "void(f8[2], f8[1], f8, i8[1], i8[1]w, i8[1]w, f8[2]w)",
+    "cylinder_clear": "i8(f8[2], f8[2], i8[1], i8[1], f8[1], f8[1], f8[1], f8[1], f8, i8[1], i8[1], i8[1],"
+                      " f8[2], f8[1], f8, i8[1], i8[1], f8[2], i8[2], f8, i8, b1[1]w)",
 }
 #: the ahead-of-time module's name (beside this file, built by :func:`build_aot`)
 AOT_MODULE = "_aot_kernels"

@@ -255,14 +255,13 @@ def _cmd_path(args) -> int:
             t = time.perf_counter()
             verification = measure(path, model, progress=for_stage(bar, "scallop"))
             timing["verify_s"] = time.perf_counter() - t
-        made = {}
         program = make_program(path, model, s, stock=stock, progress=bar, post=bool(s.gcode), plist=plist,
                                checker=None if ahead is None else ahead.checker,
-                               meanwhile=(lambda p: made.update(cl=cl_text(p.path))) if s.cl else None)
+                               beside=cl_text if s.cl else None)
         timing.update(program.seconds)
         files = []
         if s.cl:
-            files.append((s.cl, made["cl"] if "cl" in made else cl_text(program.path), "CL file", "ascii"))
+            files.append((s.cl, program.beside, "CL file", "ascii"))
         if baseline is not None and s.baseline_cl:
             files.append((s.baseline_cl, cl_text(baseline), "CL file", "ascii"))
         if s.report:
@@ -358,7 +357,7 @@ class JobResult:
     verification: object = None
     baseline: object = None
     timing: dict = field(default_factory=dict)
-    cl: str | None = None              # the CL data's text, made while the metrics were measured
+    cl: str | None = None              # the CL data's text, made beside the post (Program.beside)
     clearance: object = None           # the report's clearance measurement, started meanwhile (a ClearanceSweep)
 
     def report_inputs(self) -> dict:
@@ -418,15 +417,13 @@ def make_job(s: JobSettings, log=None, progress=None, baseline_axes: str = "job"
         f"; collision checker built meanwhile in {ahead.seconds:.2f} s"
     log(f"path: {m.lines} lines, {m.points} points, {m.length:.1f} mm, {m.retractions} retractions "
         f"({timing['path_s']:.2f} s{meanwhile})")
-    made = {}
     program = make_program(path, model, s, stock=stock, progress=progress, plist=plist,
-                           checker=None if ahead is None else ahead.checker,
-                           meanwhile=lambda p: made.update(cl=cl_text(p.path)))
+                           checker=None if ahead is None else ahead.checker, beside=cl_text)
     timing.update(program.seconds)
     if program.metrics is not None:
         log(f"tool axes ({s.orientation}): {program.metrics.summary()} ({timing['orientation_s']:.2f} s)")
     log(program.posted.summary())
-    job = JobResult(s, model, plist, tool, machine, stock, path, program, timing=timing, cl=made.get("cl"))
+    job = JobResult(s, model, plist, tool, machine, stock, path, program, timing=timing, cl=program.beside)
     try:
         if s.verify:
             from .verify.scallop import measure

@@ -196,17 +196,19 @@ class Program:
     axes measured again with the same collision checker (collisions, clearance, axis steps,
     rotary travel); ``posted``: the PostResult (program text, motion, time estimate);
     ``seconds``: run time of each step (orientation, post); ``checker``: the collision checker
-    the axes were found and measured with (for more measurements, e.g. the report's)."""
+    the axes were found and measured with (for more measurements, e.g. the report's);
+    ``beside``: the value of :func:`make_program`'s ``beside`` work on the path."""
     path: object
     report: object = None
     metrics: object = None
     posted: object = None
     seconds: dict = field(default_factory=dict)
     checker: object = None
+    beside: object = None
 
 
 def make_program(path, model, settings: JobSettings, stock=None, progress=None, post: bool = True,
-                 plist=None, checker=None, meanwhile=None) -> Program:
+                 plist=None, checker=None, beside=None) -> Program:
     """Tool axes and machine program of ``path`` (a ToolPath of ``model``) by ``settings``
     (its ``tool``, ``orientation``, ``holder_clearance``, ``smoothing_length``,
     ``rotary_weight``, ``machine`` and ``dialect``). With more than one process the axes are
@@ -221,12 +223,14 @@ def make_program(path, model, settings: JobSettings, stock=None, progress=None, 
     False stops before the machine program; ``plist``: the processing list, whose steps may
     carry tool-axis settings for their patch; ``checker``: a CollisionChecker already built
     for this model, tool, stock and holder clearance (another path of the same job), reused
-    rather than built again; ``meanwhile(program)``: work of the caller's on the program
-    (e.g. the job's CL text) done once it is posted, before the wait for the metrics the forked
-    process measures (``program.metrics`` is then None; with one process they are there), so
-    in time this process would otherwise wait (the keycap's: 0.03-0.08 s). Raises InputError,
-    CollisionError or
-    KinematicsError naming the place; a path that collides is never returned."""
+    rather than built again; ``beside(path)``: work of the caller's on the path with its axes
+    (e.g. the job's CL text, a function of the path alone), its value in ``program.beside``:
+    done in the forked process that measures the metrics, after their smallest clearance,
+    while this one posts the program (the keycap's CL text, 8 ms, balances the two: this
+    process's part of the post then took 0.065-0.068 s and the forked one's 0.048-0.052 s);
+    with one process, or where the post stops early (``post`` False), here once the axes are
+    made. Raises InputError, CollisionError or KinematicsError naming the place; a path that
+    collides is never returned."""
     one_blas_thread()
     machine = load_machine(settings)
     t = time.perf_counter()
@@ -240,12 +244,12 @@ def make_program(path, model, settings: JobSettings, stock=None, progress=None, 
             raise InputError(f"tool {tool.name} has a ball of radius {tool.ball_radius:g} mm, the path was "
                              f"made for {path.tool_radius:g} mm: pick a matching tool or make the path for "
                              "that radius", item="tool")
-        program, pending = _orient(path, model, settings, tool, machine,
-                                   load_stock(settings) if stock is None else stock, progress, plist, checker,
-                                   beside=post and machine is not None)
+        program, pending, done = _orient(path, model, settings, tool, machine,
+                                         load_stock(settings) if stock is None else stock, progress, plist,
+                                         checker, beside=post and machine is not None, work=beside)
         program.seconds["orientation_s"] = time.perf_counter() - t
     else:
-        program = Program(path)
+        program, done = Program(path), False
     with contextlib.ExitStack() as stack:
         if pending is not None:
             stack.enter_context(pending)
@@ -265,14 +269,15 @@ def make_program(path, model, settings: JobSettings, stock=None, progress=None, 
             program.seconds["post_s"] = time.perf_counter() - t
         if program.report is not None:
             program.report.finish()      # (what orient left for this time: a figure of its report)
-        if meanwhile is not None:
-            meanwhile(program)
         if pending is not None:
             t = time.perf_counter()
             program.metrics = pending.result()
+            program.beside = pending.beside()
             from .progress import report as tick
             tick(progress, "checking axes", 1, 1)
             program.seconds["orientation_s"] += time.perf_counter() - t
+    if beside is not None and pending is None and not done:
+        program.beside = beside(program.path)
     return program
 
 
@@ -281,7 +286,8 @@ class _Metrics:
     (``aside``, an :class:`~tsplcam.orientation.aside.Aside`): :meth:`result` measures the rest
     here (``measure``: :func:`~tsplcam.verify.orientation.orientation_metrics` of the path)
     and takes the clearance from the fork; errors come as in one process (collisions,
-    clearance, joints). A context manager like the Aside it holds."""
+    clearance, joints); :meth:`beside` gives the caller's work done there (the
+    ``beside`` of :func:`make_program`). A context manager like the Aside it holds."""
 
     def __init__(self, measure, aside):
         self.measure, self.aside = measure, aside
@@ -289,8 +295,12 @@ class _Metrics:
 
     def result(self):
         if self._value is None:
-            self._value = self.measure(measured=self.aside.result)
+            self._value = self.measure(measured=lambda: self.aside.result()[0])
         return self._value
+
+    def beside(self):
+        """The value of the caller's work on the path (None without one)."""
+        return self.aside.result()[1]
 
     def first(self) -> None:
         """Raise the metrics' error, if they have one (the post failed: one process would
@@ -321,13 +331,25 @@ def _clearance_beside(checker, parent: int, workers: str | None, centers, axes):
     return min_clearance(checker, centers, axes)
 
 
+def _measured_beside(checker, parent: int, workers: str | None, path, work, centers, axes):
+    """The forked process's second piece: (:func:`_clearance_beside` of the poses, ``work``
+    (the caller's, :func:`make_program`'s ``beside``) of ``path`` with the axes, or None)."""
+    from dataclasses import replace
+    found = _clearance_beside(checker, parent, workers, centers, axes)
+    # (the axes as the path with axes holds them: the same path, bit for bit)
+    return found, None if work is None else work(replace(path, axis=axes))
+
+
 def _orient(path, model, settings: JobSettings, tool, machine, stock, progress, plist=None,
-            checker=None, beside: bool = False):
+            checker=None, beside: bool = False, work=None):
     """Tool axes by the orientation settings (and a processing list's per-step blocks),
-    checked again with the same collision checker: (Program, None), or with ``beside`` and
-    more than one process (Program without its metrics, a :class:`_Metrics` whose smallest
-    clearance is measured in a forked process while the caller posts the program: the one
-    that checked the ball gouges while the axes were searched)."""
+    checked again with the same collision checker: (Program, None, done), or with ``beside``
+    and more than one process (Program without its metrics, a :class:`_Metrics` whose
+    smallest clearance is measured in a forked process while the caller posts the program:
+    the one that checked the ball gouges while the axes were searched, done). ``work``: the
+    caller's work on the path with its axes, done after the smallest clearance where that is
+    measured (``done`` True: its value in ``Program.beside`` or from the :class:`_Metrics`);
+    else ``done`` is False."""
     from .orientation import orient
     from .orientation.aside import MIN_POINTS, Aside
     from .orientation.orient import ball_check
@@ -349,8 +371,8 @@ def _orient(path, model, settings: JobSettings, tool, machine, stock, progress, 
     # process's questions without it on most parts)
     companion = None
     if beside and len(path) >= MIN_POINTS and Aside.can_fork():
-        companion = ball_check(path, checker, then=(_clearance_beside, checker, os.getpid(),
-                                                    os.environ.get("TSPLCAM_WORKERS")))
+        companion = ball_check(path, checker, then=(_measured_beside, checker, os.getpid(),
+                                                    os.environ.get("TSPLCAM_WORKERS"), path, work))
     checker.beside = companion                  # (half of the search's large batches there)
     try:
         # with the companion, the report's forced C travel is left for the wait for its metrics
@@ -370,13 +392,15 @@ def _orient(path, model, settings: JobSettings, tool, machine, stock, progress, 
     if companion is not None:
         clear = companion.follow(oriented.center, oriented.axis)
         if clear.forked:
-            return Program(oriented, report, None, checker=checker), _Metrics(measure, clear)
+            return Program(oriented, report, None, checker=checker), _Metrics(measure, clear), True
         report.finish()
-        metrics = measure(measured=clear.result)
-    else:
-        metrics = measure()
+        metrics = measure(measured=lambda: clear.result()[0])
+        program = Program(oriented, report, metrics, checker=checker, beside=clear.result()[1])
+        tick(progress, "checking axes", 1, 1)
+        return program, None, True
+    metrics = measure()
     tick(progress, "checking axes", 1, 1)
-    return Program(oriented, report, metrics, checker=checker), None
+    return Program(oriented, report, metrics, checker=checker), None, False
 
 
 def program_file_name(model: str, dialect: str) -> str:

@@ -443,6 +443,38 @@ class AgreesWithFcl(unittest.TestCase):
             below, _ = checker.collides_parts(C, A, 0.35, parts=(0.5, masks), only=only)
             np.testing.assert_array_equal(below, checker._fcl(C, A, 0.35, np.full(len(C), only)))
 
+    def test_cylinder_pass_near_the_surface(self):
+        """The smallest clearance's questions: the keycap's path poses tilted 40-60 deg, the
+        shank and holder grown 0.5 mm, so the shank passes within a few tenths of a mm of the
+        surface, where the spheres leave it open. The cylinder pass clears the shank nearly
+        wherever fcl finds the pose clear, and every pose the broad phase calls free is free
+        in fcl."""
+        from unittest import mock
+
+        from tsplcam.orientation import broadphase
+        rng = np.random.default_rng(23)
+        ch, path = self.keycap, self.keycap_path
+        only, _ = ch.clearance_parts()
+        i = rng.integers(0, len(path), 1500)
+        N = path.normal[i]
+        side = np.cross(N, rng.normal(size=(len(i), 3)))
+        side /= np.linalg.norm(side, axis=1, keepdims=True)
+        tilt = np.radians(rng.uniform(40, 60, len(i)))[:, None]
+        C, A = path.center[i], np.cos(tilt) * N + np.sin(tilt) * side
+        ref = ch._fcl(C, A, 0.5, np.full(len(C), only))
+        self.assertGreater(int(ref.sum()), 50)                # (some touch)
+        before = ch.broad.stats["cylinder"]
+        st = ch.broad.decide(C, A, 0.5, only)
+        cleared = ch.broad.stats["cylinder"] - before
+        self.assertEqual(int(((st == FREE) & ref).sum()), 0)
+        self.assertEqual(int(((st == HIT) & ~ref).sum()), 0)
+        self.assertGreater(cleared, 200)
+        self.assertGreater(np.mean(st[~ref] == FREE), 0.97)
+        with mock.patch.object(broadphase.compiled, "kernels", lambda work=None: None):
+            plain = ch.broad.decide(C, A, 0.5, only)          # (no kernels: no cylinder pass)
+        self.assertEqual(int(((plain == FREE) & ref).sum()), 0)
+        self.assertLess(np.mean(plain[~ref] == FREE), np.mean(st[~ref] == FREE))
+
     def test_batches_agree_with_fcl(self):
         """collides (broad phase, free cones, fcl) returns fcl's answers, batch after batch."""
         rng = np.random.default_rng(8)
@@ -454,6 +486,49 @@ class AgreesWithFcl(unittest.TestCase):
 
 
 class Geometry(unittest.TestCase):
+    def test_cylinder_pass_against_sampled_triangles(self):
+        """The cylinder pass (``cylinder_clear``) on single triangles about a cylinder (radius
+        1 mm between heights 1 and 4 on the z axis), against the triangle's points sampled 150
+        to an edge: a triangle it clears has no point inside the cylinder, and one whose points
+        all lie 0.01 mm or more outside it is cleared. The triangles lie 0.3 mm and less either
+        side of the cylinder's side and ends, turned every way; each 100 mm from the next (a
+        pose per triangle)."""
+        from tsplcam import compiled
+        from tsplcam.orientation.broadphase import BroadPhase, Profile
+        if compiled.kernels() is None:
+            self.skipTest("no compiled kernels: the pass leaves the parts to fcl")
+        rng = np.random.default_rng(31)
+        n = 400
+        where = rng.integers(0, 3, n)                     # beside the side, below, above
+        ang = rng.uniform(0, 2 * np.pi, n)
+        rad = np.where(where == 0, 1.0 + rng.uniform(-0.3, 0.3, n), rng.uniform(0.0, 1.3, n))
+        z = np.where(where == 0, rng.uniform(0.5, 4.5, n),
+                     np.where(where == 1, 1.0, 4.0) + rng.uniform(-0.3, 0.3, n))
+        mid = np.column_stack([rad * np.cos(ang), rad * np.sin(ang), z])
+        corners = mid[:, None, :] + rng.normal(scale=0.25, size=(n, 3, 3))
+        shift = np.column_stack([100.0 * np.arange(n), np.zeros(n), np.zeros(n)])
+        V = (corners + shift[:, None, :]).reshape(-1, 3)
+        T = np.arange(3 * n).reshape(n, 3)
+        one = np.ones(1)
+        prof = Profile(one, 4 * one, one, one, one, one)
+        b = BroadPhase(V, T, lambda grow: prof, 0.5)
+        status = np.full(n, UNKNOWN, np.int8)
+        unresolved = np.ones((n, 1), bool)
+        b._cylinder_pass(shift, np.tile([0.0, 0.0, 1.0], (n, 1)), prof, status, unresolved, np.full(n, np.inf))
+        cleared = ~unresolved[:, 0]
+        a, c = np.meshgrid(np.linspace(0, 1, 151), np.linspace(0, 1, 151), indexing="ij")
+        keep = a + c <= 1.0
+        w = np.column_stack([1 - a[keep] - c[keep], a[keep], c[keep]])
+        P = np.einsum("sk,nkd->nsd", w, corners)         # (triangles, samples, 3)
+        rho = np.linalg.norm(P[..., :2], axis=2)
+        out = np.maximum(rho - 1.0, 0.0)
+        dz = np.maximum(np.maximum(1.0 - P[..., 2], P[..., 2] - 4.0), 0.0)
+        dist = np.sqrt(out * out + dz * dz).min(axis=1)    # sampled distance to the solid cylinder
+        self.assertGreater(int((dist <= 0).sum()), 50)
+        self.assertGreater(int((dist >= 0.01).sum()), 50)
+        self.assertFalse((cleared & (dist <= 0)).any(), "a triangle with a point inside was cleared")
+        np.testing.assert_array_equal(cleared[dist >= 0.01], True)
+
     def test_closest_on_triangles_against_brute_force(self):
         rng = np.random.default_rng(0)
         P = rng.normal(size=(400, 3)) * 2

@@ -66,6 +66,9 @@ def exercise() -> None:
     tri.decide(C, A)
     tri.exact_bound(C, np.full(3, 0.1))
     tri._hits(np.full(3, -1, np.int8), tri.samples[[0, 1]], np.arange(2), np.arange(2), C, A, tri._cover(0.0).prof)
+    # (the cylinder pass of a grown tool's questions: one cylinder part, every pose open)
+    tri._cylinder_pass(C, A, Profile(0.5 * one, 3 * one, one, one, one, one), np.full(3, -1, np.int8),
+                       np.ones((3, 1), bool), np.full(3, np.inf))
     # (the verification's capsule entries: one capsule, one point)
     compiled.kernels()["capsule_entries"](np.zeros((1, 3)), np.array([[0.0, 0.0, 1.0]]), np.zeros((1, 1), np.int64),
                                           np.ones(1), np.zeros((1, 3)), np.array([[1.0, 0.0, 0.0]]),

@@ -61,9 +61,12 @@ inside the clipped polygon or an edge within R of it (heights and radius widened
 R the circumscribed polygon's). A part that meets none is clear; one that does is left to fcl.
 The keycap's 3,618 poses: 3,607 cleared in 9-10 ms (2-3 samples a pose flagged, 11
 triangles tested), the 11 left are fcl's 11 hits. Only for a grown tool, and only with the
-compiled kernels (without them fcl answers, the same answers); a part whose box around its
-axis spans more than ``CYL_MAX_CELLS`` cells of the pass's table is left to fcl, and a pose a
-part of it was cleared this way keeps no free cone.
+compiled kernels (without them fcl answers, the same answers), and only up to a growth of
+``SIDE_GROWN_MAX``: grown more, a shank's cylinder holds the surface near every pose, and the
+pass scans its many samples for nothing (figure4's smallest clearance asks 52,344 poses at
+4 mm: 0.72 s more, no pose cleared). A part whose box around its axis spans more than
+``CYL_MAX_CELLS`` cells of the pass's table is left to fcl too, and a pose a part of it was
+cleared this way keeps no free cone.
 
 **Free cones.** Turning the axis by an angle phi about the ball centre moves a point at
 distance l from it by at most l phi. A pose cleared with that much to spare leaves a cone of
@@ -169,7 +172,8 @@ SIDE_GRID = 0.4               # the side pass's own grid: spacing (mm)
 # part keeps open to fcl whole (BroadPhase._side_pass); grown less, its cones are cleared
 # too, so fcl asks only the cylinder (it asks part by part): the keycap's smallest clearance
 # at 0.30 mm, 3,136 holder questions spared, 0.085 -> 0.065 s; figure4's at 4-7 mm would
-# cost seconds of side-grid bounds for nothing decided
+# cost seconds of side-grid bounds for nothing decided. Nor does the cylinder pass run past
+# it (BroadPhase._cylinder_pass: figure4's 52,344 poses at 4 mm, 0.72 s for none cleared)
 SIDE_GROWN_MAX = 1.0
 EXACT_COST = 3                # spheres of the exact pass that cost about as much as one fcl query
 EXACT_PROBE = 2000            # spheres the exact pass is tried on before its gain counts
@@ -1827,7 +1831,7 @@ class BroadPhase:
             # (a grown tool is what the clearance measurement asks, of poses within a hair
             # of the surface by construction: there the pass decided one pose in 70 spheres)
             self._exact_pass(C, A, cov, status, unresolved, phi, cell, parts)
-        else:
+        elif grow <= SIDE_GROWN_MAX:
             self._cylinder_pass(C, A, prof, status, unresolved, phi, parts)
         free = np.zeros(n, bool)
         free[todo] = True

@@ -343,6 +343,13 @@ def _define(jit):
             nan[:] = False
             for a in range(S):
                 x = acc[a]
+                if x == np.inf:
+                    # a state out of reach (excluded, or behind one): inf + any transition
+                    # (0 to inf) is inf, so its row is inf without computing the transitions
+                    # (the keycap's 15 % excluded states: 16 -> 14 ms)
+                    for b in range(S):
+                        tot[a, b] = np.inf
+                    continue
                 ta = th[i - 1, a]
                 ca = cth[i - 1, a]
                 sa = sth[i - 1, a]

@@ -229,7 +229,7 @@ def make_program(path, model, settings: JobSettings, stock=None, progress=None, 
     while this one posts the program (the keycap's CL text, 8 ms, balances the two: this
     process's part of the post then took 0.065-0.068 s and the forked one's 0.048-0.052 s);
     with one process, or where the post stops early (``post`` False), here once the axes are
-    made. Raises InputError, CollisionError or KinematicsError naming the place; a path that
+    made and measured. Raises InputError, CollisionError or KinematicsError naming the place; a path that
     collides is never returned."""
     one_blas_thread()
     machine = load_machine(settings)
@@ -244,12 +244,12 @@ def make_program(path, model, settings: JobSettings, stock=None, progress=None, 
             raise InputError(f"tool {tool.name} has a ball of radius {tool.ball_radius:g} mm, the path was "
                              f"made for {path.tool_radius:g} mm: pick a matching tool or make the path for "
                              "that radius", item="tool")
-        program, pending, done = _orient(path, model, settings, tool, machine,
-                                         load_stock(settings) if stock is None else stock, progress, plist,
-                                         checker, beside=post and machine is not None, work=beside)
+        program, pending = _orient(path, model, settings, tool, machine,
+                                   load_stock(settings) if stock is None else stock, progress, plist, checker,
+                                   beside=post and machine is not None, work=beside)
         program.seconds["orientation_s"] = time.perf_counter() - t
     else:
-        program, done = Program(path), False
+        program = Program(path, beside=None if beside is None else beside(path))
     with contextlib.ExitStack() as stack:
         if pending is not None:
             stack.enter_context(pending)
@@ -276,8 +276,6 @@ def make_program(path, model, settings: JobSettings, stock=None, progress=None, 
             from .progress import report as tick
             tick(progress, "checking axes", 1, 1)
             program.seconds["orientation_s"] += time.perf_counter() - t
-    if beside is not None and pending is None and not done:
-        program.beside = beside(program.path)
     return program
 
 
@@ -343,13 +341,12 @@ def _measured_beside(checker, parent: int, workers: str | None, path, work, cent
 def _orient(path, model, settings: JobSettings, tool, machine, stock, progress, plist=None,
             checker=None, beside: bool = False, work=None):
     """Tool axes by the orientation settings (and a processing list's per-step blocks),
-    checked again with the same collision checker: (Program, None, done), or with ``beside``
-    and more than one process (Program without its metrics, a :class:`_Metrics` whose
-    smallest clearance is measured in a forked process while the caller posts the program:
-    the one that checked the ball gouges while the axes were searched, done). ``work``: the
-    caller's work on the path with its axes, done after the smallest clearance where that is
-    measured (``done`` True: its value in ``Program.beside`` or from the :class:`_Metrics`);
-    else ``done`` is False."""
+    checked again with the same collision checker: (Program, None), or with ``beside`` and
+    more than one process (Program without its metrics, a :class:`_Metrics` whose smallest
+    clearance is measured in a forked process while the caller posts the program: the one
+    that checked the ball gouges while the axes were searched). ``work``: the caller's work on
+    the path with its axes, done after the smallest clearance, there or here (its value in
+    ``Program.beside``, or from the :class:`_Metrics`)."""
     from .orientation import orient
     from .orientation.aside import MIN_POINTS, Aside
     from .orientation.orient import ball_check
@@ -392,15 +389,15 @@ def _orient(path, model, settings: JobSettings, tool, machine, stock, progress, 
     if companion is not None:
         clear = companion.follow(oriented.center, oriented.axis)
         if clear.forked:
-            return Program(oriented, report, None, checker=checker), _Metrics(measure, clear), True
+            return Program(oriented, report, None, checker=checker), _Metrics(measure, clear)
         report.finish()
         metrics = measure(measured=lambda: clear.result()[0])
-        program = Program(oriented, report, metrics, checker=checker, beside=clear.result()[1])
-        tick(progress, "checking axes", 1, 1)
-        return program, None, True
-    metrics = measure()
+        made = clear.result()[1]
+    else:
+        metrics = measure()
+        made = None if work is None else work(oriented)
     tick(progress, "checking axes", 1, 1)
-    return Program(oriented, report, metrics, checker=checker), None, False
+    return Program(oriented, report, metrics, checker=checker, beside=made), None
 
 
 def program_file_name(model: str, dialect: str) -> str:

@@ -527,10 +527,10 @@ def _simple_ac(axis):
     C = np.degrees(np.arctan2(kx, -ky))
     pole = A < 1e-6
     if pole.all():
-        C = np.zeros(len(K))
+        C = np.zeros(len(kx))
     else:
         good = np.nonzero(~pole)[0]
-        C = C[good[np.clip(np.searchsorted(good, np.arange(len(K))), 0, len(good) - 1)]]
+        C = C[good[np.clip(np.searchsorted(good, np.arange(len(kx))), 0, len(good) - 1)]]
     dC = np.diff(C)
     dC = (dC + 180.0) % 360.0 - 180.0
     C = C[0] + np.concatenate([[0.0], np.cumsum(dC)])

@@ -225,6 +225,27 @@ class Refusals(unittest.TestCase):
         self.assertEqual(os.listdir(self.out), [])
 
 
+class NegativeNumbers(unittest.TestCase):
+    """A vector or range whose first number is negative (``--tilt-range -30,30``) is the
+    option's value, not an unknown option (argparse takes a word starting with a minus sign
+    as an option unless it is one number)."""
+
+    def test_joined_to_the_option_before(self):
+        from tsplcam.cli import joined_negative_lists
+        argv = ["job", "--tilt-range", "-30,30", "--point", "-5, 0,10.5", "--axis", "-.2,0,1e0", "--lead", "-5",
+                "--out", "-x", "-h", "-1,2", "--scallop=-1,2"]
+        self.assertEqual(joined_negative_lists(argv),
+                         ["job", "--tilt-range=-30,30", "--point=-5, 0,10.5", "--axis=-.2,0,1e0", "--lead", "-5",
+                          "--out", "-x", "-h", "-1,2", "--scallop=-1,2"])
+
+    def test_parsed_as_numbers(self):
+        from tsplcam.cli import build_parser
+        args = build_parser().parse_args(["job", "--tilt-range", "-30,30", "--point", "-5,0,10",
+                                          "--direction", "-1,0,0", "--lead", "-5"])
+        self.assertEqual((args.tilt_range, args.point, args.direction, args.lead),
+                         ((-30.0, 30.0), (-5.0, 0.0, 10.0), (-1.0, 0.0, 0.0), -5.0))
+
+
 class ModelArgument(unittest.TestCase):
     def test_plan_takes_a_sample_name_like_path(self):
         """`plan keycap --out list.json` reads the shipped sample: the same list as the sample's

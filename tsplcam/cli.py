@@ -9,6 +9,7 @@ option, file and line, or place on the part; no traceback, no file written.
 from __future__ import annotations
 
 import argparse
+import re
 import sys
 
 from . import __version__
@@ -35,10 +36,32 @@ def _cmd_info(args) -> int:
 
 
 class Parser(argparse.ArgumentParser):
-    """argparse with a refusal on one line (usage is in --help), exit code 2."""
+    """argparse with a refusal on one line (usage is in --help), exit code 2; a list of
+    numbers that starts with a minus sign is taken as the value of the option before it."""
 
     def error(self, message: str):
         self.exit(2, f"error: {message} (see `{self.prog} --help`)\n")
+
+    def parse_known_args(self, args=None, namespace=None):
+        return super().parse_known_args(joined_negative_lists(sys.argv[1:] if args is None else args), namespace)
+
+
+_NUMBER = r"\s*-?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?\s*"
+_NEGATIVE_LIST = re.compile(rf"-(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?\s*(?:,{_NUMBER})+")
+
+
+def joined_negative_lists(argv: list[str]) -> list[str]:
+    """``--tilt-range -30,30`` as ``--tilt-range=-30,30``: argparse reads a word that starts
+    with a minus sign as an option unless it is one number, so a vector or range whose first
+    number is negative (``--point -5,0,10``, ``--axis -1,0,0``) would be refused as a missing
+    value; joined to the long option before it, it is that option's value."""
+    out = list(argv)
+    for i in range(1, len(out)):
+        prev = out[i - 1]
+        if (_NEGATIVE_LIST.fullmatch(out[i]) and prev.startswith("--") and "=" not in prev
+                and len(prev) > 2):
+            out[i - 1:i + 1] = [f"{prev}={out[i]}", None]
+    return [a for a in out if a is not None]
 
 
 def build_parser() -> argparse.ArgumentParser:

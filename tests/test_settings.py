@@ -39,13 +39,23 @@ class Settings(unittest.TestCase):
                ("holder_clearance", -0.1), ("smoothing_length", 0.0), ("rotary_weight", -1.0),
                ("scallop", "0.01"), ("feed", True), ("orientation", "sideways"), ("clearance_mode", "cube"),
                ("dialect", "klingon"), ("balance", "yes"), ("model", ""), ("model", None),
-               ("scallop", 0.6)]                          # not below the 0.5 mm ball radius
+               ("scallop", 0.6),                          # not below the 0.5 mm ball radius
+               ("max_lead", 95.0), ("max_lead", -1.0), ("max_side_tilt", 90.0), ("max_axis_step", 0.0),
+               ("max_axis_step", 200.0)]
         for name, value in bad:
             with self.subTest(name=name, value=value):
                 s = JobSettings(**{"tool_radius": 0.5, name: value})
                 with self.assertRaises(InputError) as cm:
                     s.check(lambda n: "--" + n.replace("_", "-"))
                 self.assertEqual(cm.exception.item, "--" + name.replace("_", "-"))
+
+    def test_tool_axis_limits_reach_the_orientation(self):
+        """The job's lead, side-tilt and axis-step limits are the orientation stage's cone and
+        step (its own names: lead_max, tilt_max, max_step)."""
+        o = JobSettings(max_lead=20.0, max_side_tilt=25.0, max_axis_step=4.0).check().orientation_settings()
+        self.assertEqual((o.lead_max, o.tilt_max, o.max_step), (20.0, 25.0, 4.0))
+        d = JobSettings().orientation_settings()
+        self.assertEqual((d.lead_max, d.tilt_max, d.max_step), (60.0, 60.0, 10.0))
 
     def test_options_that_need_each_other(self):
         with self.assertRaises(InputError) as cm:

@@ -32,8 +32,11 @@ PATH_KEYS = ("scallop", "chord_tol", "max_step", "feed", "clearance", "clearance
 # the tool-axis controls, handed to the orientation stage (tsplcam.orientation.settings)
 AXIS_KEYS = ("target", "axis", "lead", "side_tilt", "point", "direction", "max_tilt", "limit_axis",
              "tilt_range", "pole_tilt")
+# the tool-axis limits the job's options name apart from the orientation stage's settings
+# (job option: OrientationSettings field)
+AXIS_LIMITS = {"max_lead": "lead_max", "max_side_tilt": "tilt_max", "max_axis_step": "max_step"}
 PROGRAM_KEYS = ("tool", "orientation", "holder_clearance", "smoothing_length", "rotary_weight",
-                "machine", "dialect", "axes_form", "spindle") + AXIS_KEYS
+                "machine", "dialect", "axes_form", "spindle") + AXIS_KEYS + tuple(AXIS_LIMITS)
 # kinds of option whose value is one number, and the unit their messages name
 NUMBER_KINDS = ("length", "length0", "feed", "factor", "angle", "rpm")
 UNITS = {"length": "mm", "length0": "mm", "feed": "mm/min", "angle": "deg", "rpm": "rpm"}
@@ -142,6 +145,15 @@ class JobSettings:
                                       "machine values)", "pair", "MIN,MAX")
     pole_tilt: float = option(0.0, "axes", "smallest angle kept between the tool axis and the rotary axis "
                               "(deg); 0: at the pole the rotary axis holds still instead", "angle", "DEG")
+    max_lead: float = option(60.0, "axes", "largest lead or lag of the tool axis from the surface normal, "
+                             "along the feed (deg, 0 to 89.9)", "angle", "DEG")
+    max_side_tilt: float = option(60.0, "axes", "largest side tilt of the tool axis from the surface normal, "
+                                  "across the feed (deg, 0 to 89.9)", "angle", "DEG")
+    max_axis_step: float = option(10.0, "axes", "closest and smooth: largest change of the tool axis from one "
+                                  "point of a pass to the next that the axis search may take (deg; it searches "
+                                  "a grid of rotary positions every 10 deg, so below about 10 it may refuse a "
+                                  "turn the smoothing would spread finer); raise it where the job stops at a "
+                                  "sharp turn", "angle", "DEG")
     holder_clearance: float = option(0.3, "axes", "distance kept between shank or holder and the part "
                                      "(mm); only the flutes may touch it", "length0", "MM")
     smoothing_length: float = option(5.0, "axes", "smooth: a tilt needed at one place is eased in and out "
@@ -210,11 +222,18 @@ class JobSettings:
                 if getattr(self, name) >= self.tool_radius:
                     raise InputError(f"{getattr(self, name):g} mm must be smaller than the tool radius "
                                      f"{self.tool_radius:g} mm", item=label(name))
+        for name, lo, hi in (("max_lead", 0.0, 89.9), ("max_side_tilt", 0.0, 89.9), ("max_axis_step", 0.0, 180.0)):
+            v = getattr(self, name)
+            if name == "max_axis_step" and not 0.0 < v <= hi:
+                raise InputError(f"must be more than 0 and at most {hi:g} degrees, not {v:g}", item=label(name))
+            if not lo <= v <= hi:
+                raise InputError(f"must be from {lo:g} to {hi:g} degrees, not {v:g}", item=label(name))
         if self.orientation != "normal":
             try:
                 self.orientation_settings()
             except InputError as exc:
-                item = {"strategy": "orientation"}.get(exc.item, exc.item)
+                names = {"strategy": "orientation"} | {v: k for k, v in AXIS_LIMITS.items()}
+                item = names.get(exc.item, exc.item)
                 raise InputError(exc.message, item=label(item) if item else None) from None
         if self.name is not None and ("/" in self.name or "\\" in self.name or self.name.strip(".") == ""):
             raise InputError(f"a file name without folder, not {self.name!r}", item=label("name"))
@@ -265,7 +284,8 @@ class JobSettings:
         from .orientation.settings import OrientationSettings
         return OrientationSettings(strategy=self.orientation, smoothing_length=self.smoothing_length,
                                    rotary_weight=self.rotary_weight,
-                                   **{k: getattr(self, k) for k in AXIS_KEYS}).check()
+                                   **{k: getattr(self, k) for k in AXIS_KEYS},
+                                   **{v: getattr(self, k) for k, v in AXIS_LIMITS.items()}).check()
 
     def path_settings(self, tool_radius: float):
         """The path generator's settings (tsplcam.toolpath.zigzag.PathSettings)."""

@@ -18,6 +18,8 @@ from tsplcam.orientation.orient import cutting_directions
 from tsplcam.orientation.testpaths import zigzag
 from tsplcam.post import load_machine
 from tsplcam.post.kinematics import inverse_orientation, solve_joints
+from tsplcam.settings import JobSettings
+from tsplcam.toolpath.path import Move
 
 D = np.pi / 180
 
@@ -135,6 +137,38 @@ class OnParts(unittest.TestCase):
             orient(self.cap_path, checker=self.cap_checker, machine=self.machine,
                    settings=OrientationSettings(max_tilt=10.0))
         self.assertRegex(str(cm.exception), r"point \d+ \(patch 0, u=[0-9.]+, v=[0-9.]+\)")
+
+    def test_lead_and_side_tilt_limits_hold(self):
+        """The job's lead and side-tilt limits (``max_lead``, ``max_side_tilt``) hold at every
+        point, measured against the normal and the feed the cones are defined with: the
+        polish of the smooth strategy used to move a rotary value to where only a little
+        more tilt was admissible and keep the tilt (20 deg limits: 20.27 and 21.66 deg here;
+        the paper's job 61.8 deg of side tilt against its 60)."""
+        for strategy in ("smooth", "closest"):
+            for limit in (20.0, 60.0):
+                s = JobSettings(orientation=strategy, max_lead=limit, max_side_tilt=limit).orientation_settings()
+                out, _ = orient(self.cap_path, checker=self.cap_checker, settings=s, machine=self.machine)
+                self.free(out, self.cap_checker)
+                lead, tilt = lead_tilt(out.axis[:, None], out.normal, cutting_directions(out))
+                worst = np.degrees(np.maximum(np.abs(lead[:, 0]), np.abs(tilt[:, 0]))).max()
+                self.assertLessEqual(worst, limit + 1e-9, (strategy, limit))
+                if limit == 20.0:
+                    self.assertGreater(worst, limit - 0.5)            # (the limit binds)
+
+    def test_largest_axis_step(self):
+        """``max_axis_step`` bounds the tool axis's change between neighbouring cutting points:
+        at 1 deg the keycap's wall is refused naming the place and the setting; at 3 deg every
+        cutting step keeps it."""
+        with self.assertRaises(CollisionError) as cm:
+            orient(self.cap_path, checker=self.cap_checker, machine=self.machine,
+                   settings=JobSettings(max_axis_step=1.0).orientation_settings())
+        self.assertRegex(str(cm.exception), r"point \d+ \(patch 0, u=[0-9.]+, v=[0-9.]+\) -> point \d+ .*"
+                                            r"largest axis step of 1\.0 deg .*max_axis_step")
+        out, _ = orient(self.cap_path, checker=self.cap_checker, machine=self.machine,
+                        settings=JobSettings(max_axis_step=3.0).orientation_settings())
+        self.free(out, self.cap_checker)
+        cut = out.move[1:] == Move.CUT
+        self.assertLessEqual(deg_between(out.axis[1:], out.axis[:-1])[cut].max(), 3.0 + 1e-9)
 
     def test_machine_tilt_range_and_pole_tilt(self):
         s = OrientationSettings(tilt_range=(-5.0, 40.0), pole_tilt=2.0)

@@ -110,6 +110,11 @@ def _where(path, i: int) -> str:
     return text
 
 
+def _cone_text(limits: Limits) -> str:
+    """The lead/tilt cone around the normal as the job's options name it."""
+    return f"max_lead {limits.lead_max / DEG:g} deg, max_side_tilt {limits.tilt_max / DEG:g} deg"
+
+
 def _no_axis_error(path, checker: CollisionChecker, i: int, tried: np.ndarray, why: str) -> CollisionError:
     """CollisionError for point i naming what the most promising tried axis hits."""
     c = path.center[i]
@@ -177,8 +182,9 @@ def orient_closest(path, checker, preferred, limits: Limits, reach, feed, bisect
     open_ = ok.any(axis=1)
     if not open_.all():
         i = int(np.argmin(open_))
-        raise CollisionError(f"{_where(path, i)}: no candidate axis within the lead/tilt limits and the "
-                             f"machine's reach ({reach.name if reach else 'no machine'})")
+        raise CollisionError(f"{_where(path, i)}: no candidate axis within the lead/tilt limits "
+                             f"({_cone_text(limits)}) and the machine's reach "
+                             f"({reach.name if reach else 'no machine'})")
     for rank in range(A.shape[1]):
         idx = np.nonzero(open_ & (chosen < 0))[0]
         if len(idx) == 0:
@@ -281,8 +287,9 @@ def orient_smooth(path, checker, preferred, limits: Limits, reach, feed, smoothi
     none = ~grid.ok.any(axis=1)
     if none.any():
         i = int(np.argmax(none))
-        raise CollisionError(f"{_where(path, i)}: no tool axis within the lead/tilt limits, the controls' "
-                             f"limits and the machine's reach ({reach.name if reach else 'no machine'})")
+        raise CollisionError(f"{_where(path, i)}: no tool axis within the lead/tilt limits "
+                             f"({_cone_text(limits)}), the controls' limits and the machine's reach "
+                             f"({reach.name if reach else 'no machine'})")
     ds = _spacing(path)
     free_step = path.move != Move.CUT          # links and retracts: no hard step limit
     half = np.concatenate([[ds[0]], ds]) * 0.5 + np.concatenate([ds, [ds[-1]]]) * 0.5
@@ -299,8 +306,9 @@ def orient_smooth(path, checker, preferred, limits: Limits, reach, feed, smoothi
                                  f"no collision-free tool axis on any of the {int(grid.ok[i].sum())} "
                                  "admissible rotary positions") from None
         raise CollisionError(f"{_where(path, i)} -> {_where(path, i + 1)}: no pair of collision-free "
-                             f"axes within the maximum step of {max_step / DEG:.1f} deg (raise max_step "
-                             "or the cone limits, or split the path there)") from None
+                             f"axes within the largest axis step of {max_step / DEG:.1f} deg (allow a larger "
+                             f"one, max_axis_step, or wider lead/tilt limits, {_cone_text(limits)}; or split "
+                             "the path there)") from None
     # the least rotary travel any sequence of the grid's poses known or presumed free can have
     def forced_deg() -> float:
         return forced_rotary_travel(grid, status, ds, air=air)[0] / DEG

@@ -19,7 +19,8 @@ TARGET_NEEDS = {"axis": ("axis",), "lead-tilt": ("lead", "side_tilt"), "toward-p
                 "away-from-line": ("point", "direction")}
 TARGET_FIELDS = ("axis", "lead", "side_tilt", "point", "direction")
 AXIS_FIELDS = ("target", "axis", "lead", "side_tilt", "point", "direction", "max_tilt", "limit_axis",
-               "tilt_range", "pole_tilt", "holder_clearance", "smoothing_length", "rotary_weight", "tool")
+               "tilt_range", "pole_tilt", "max_lead", "max_side_tilt", "max_axis_step", "holder_clearance",
+               "smoothing_length", "rotary_weight", "tool")
 SPECIAL = {"max_tilt": "machine's range", "spindle": "machine's", "tool_radius": "the tool's"}
 
 

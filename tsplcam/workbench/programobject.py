@@ -3,8 +3,11 @@
 Inputs are a linked TsplcamToolPath and the options a CAM programmer picks when posting,
 one property per option of :class:`tsplcam.settings.JobSettings` (``fields.PROGRAM_FIELDS``:
 tool, orientation and the tool-axis controls (target, lead, side tilt, point, direction,
-largest tilt and its axis, tilt range, pole tilt), holder clearance, smoothing length, rotary
-weight, machine, controller, axes form, spindle speed) and a Stock object.
+largest tilt and its axis, tilt range, pole tilt, the lead/side-tilt limits from the normal,
+the largest axis step), holder clearance, smoothing length, rotary weight, machine,
+controller, axes form, spindle speed) and a Stock object. A document saved before a property
+existed gets it at its default on reload; the program's inputs key then changes, so its stored
+program counts as older than its inputs until recomputed (the safe side).
 :meth:`TsplcamProgram.settings` reads them back as JobSettings; on recompute (only when an
 input changed: orientation with collision checks takes seconds to minutes) the object calls
 the engine's one program builder, :func:`tsplcam.program.make_program`, which the command

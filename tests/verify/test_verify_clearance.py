@@ -491,6 +491,40 @@ class MoldSmallestClearance(unittest.TestCase):
         self.assertIsNotNone(got)
         self.assertLess(got[2], 0.5)
         self.assert_scouts_find_fcl_smallest(checker, centers, axes)
+        self.bound_from_a_scout_measured_too_near(checker, centers, axes)
+
+    def bound_from_a_scout_measured_too_near(self, checker, centers, axes):
+        """A scout whose distance lies below the growth at which it touches (a part's covered
+        bottom, measured by fcl.distance but never grown: the keycap job's closest scout, 0.3025
+        mm against 0.3409), made here by taking 0.05 mm off the scouts' distances: the
+        bound still stands (the scouts' touching growth, then every pose bisected up from
+        below it), and the search gives the pose and value of the search without scouts."""
+        from unittest import mock
+        from tsplcam.verify import orientation as VO
+        only, _ = checker.clearance_parts()
+        real = VO._smallest_of
+        calls = []
+
+        def too_near(*args):
+            d = real(*args)
+            calls.append(len(calls))
+            return d - 0.05 if len(calls) == 1 else d          # the scouts' distances only
+        with mock.patch.object(VO, "_smallest_of", too_near):
+            bound = VO._bounded(checker, centers, axes, 0.5, only, 32)
+        self.assertIsNotNone(bound)
+        pick, parts, g, below = bound
+        calls.clear()
+        near = real(checker, centers[VO._scout_rows(len(centers), 32)], axes[VO._scout_rows(len(centers), 32)],
+                    only, 0.5)
+        self.assertGreater(g, float(near[np.isfinite(near)].min()) - 0.05 + 1e-4)   # not the measured bound
+        self.assertTrue(checker.collides_parts(centers[pick], axes[pick], g, only=only)[0].all())
+        if below > 0:                                             # none touches there
+            self.assertFalse(checker.collides_parts(centers, axes, below, only=only)[0].any())
+        with mock.patch.object(VO, "_smallest_of", too_near):
+            got = min_clearance(checker, centers, axes)
+        plain = min_clearance(checker, centers, axes, scouts=0)
+        self.assertEqual(got[1], plain[1])
+        self.assertAlmostEqual(got[0], plain[0], delta=1e-12)
 
 
 class GrownPartTouches(unittest.TestCase):

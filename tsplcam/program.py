@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import contextlib
 import functools
+import multiprocessing
 import os
 import time
 from dataclasses import dataclass, field
@@ -287,17 +288,35 @@ class _Metrics:
     clearance, joints); :meth:`beside` gives the caller's work done there (the
     ``beside`` of :func:`make_program`). A context manager like the Aside it holds."""
 
-    def __init__(self, measure, aside):
+    def __init__(self, measure, aside, work=None, path=None, claim=None):
         self.measure, self.aside = measure, aside
+        self.work, self.path, self.claim = work, path, claim
         self._value = None
+        self._own = None                 # (value, error) of the work where this process took it
+
+    def _clearance(self):
+        """The forked process's clearance; first the caller's work, here, when that process
+        has not taken it yet (:func:`_take`): it is still measuring, so this one, done with its
+        own part, makes it meanwhile (the same function of the same path: the same value)."""
+        if self.work is not None and self._own is None and _take(self.claim, HERE):
+            try:
+                self._own = (self.work(self.path), None)
+            except Exception as exc:     # (raised after the metrics' errors, as in one process)
+                self._own = (None, exc)
+        return self.aside.result()[0]
 
     def result(self):
         if self._value is None:
-            self._value = self.measure(measured=lambda: self.aside.result()[0])
+            self._value = self.measure(measured=self._clearance)
         return self._value
 
     def beside(self):
         """The value of the caller's work on the path (None without one)."""
+        if self._own is not None:
+            value, error = self._own
+            if error is not None:
+                raise error
+            return value
         return self.aside.result()[1]
 
     def first(self) -> None:
@@ -329,13 +348,30 @@ def _clearance_beside(checker, parent: int, workers: str | None, centers, axes):
     return min_clearance(checker, centers, axes)
 
 
-def _measured_beside(checker, parent: int, workers: str | None, path, work, centers, axes):
+THERE, HERE = 1, 2                     # who took the caller's work: the forked process, this one
+
+
+def _take(claim, who: int) -> bool:
+    """Whether ``who`` takes the work ``claim`` (a shared byte, 0 while nobody has) stands for."""
+    if claim is None:
+        return True
+    with claim.get_lock():
+        if claim.value:
+            return False
+        claim.value = who
+        return True
+
+
+def _measured_beside(checker, parent: int, workers: str | None, path, work, claim, centers, axes):
     """The forked process's second piece: (:func:`_clearance_beside` of the poses, ``work``
-    (the caller's, :func:`make_program`'s ``beside``) of ``path`` with the axes, or None)."""
+    (the caller's, :func:`make_program`'s ``beside``) of ``path`` with the axes, or None:
+    also where the caller took it meanwhile, done with its own part first: ``claim``)."""
     from dataclasses import replace
     found = _clearance_beside(checker, parent, workers, centers, axes)
+    if work is None or not _take(claim, THERE):
+        return found, None
     # (the axes as the path with axes holds them: the same path, bit for bit)
-    return found, None if work is None else work(replace(path, axis=axes))
+    return found, work(replace(path, axis=axes))
 
 
 def _orient(path, model, settings: JobSettings, tool, machine, stock, progress, plist=None,
@@ -366,10 +402,13 @@ def _orient(path, model, settings: JobSettings, tool, machine, stock, progress, 
     # that then measures the axes' smallest clearance (most of the metrics' time) while this
     # one posts; it builds the checker's BVH between the two (the broad phase answers this
     # process's questions without it on most parts)
-    companion = None
+    companion = claim = None
     if beside and len(path) >= MIN_POINTS and Aside.can_fork():
+        # the caller's work goes to whichever process is free first (the keycap's CL text, 11
+        # ms: this one where the smallest clearance takes longer than the post)
+        claim = multiprocessing.get_context("fork").Value("b", 0) if work is not None else None
         companion = ball_check(path, checker, then=(_measured_beside, checker, os.getpid(),
-                                                    os.environ.get("TSPLCAM_WORKERS"), path, work))
+                                                    os.environ.get("TSPLCAM_WORKERS"), path, work, claim))
     checker.beside = companion                  # (half of the search's large batches there)
     try:
         # with the companion, the report's forced C travel is left for the wait for its metrics
@@ -389,7 +428,8 @@ def _orient(path, model, settings: JobSettings, tool, machine, stock, progress, 
     if companion is not None:
         clear = companion.follow(oriented.center, oriented.axis)
         if clear.forked:
-            return Program(oriented, report, None, checker=checker), _Metrics(measure, clear)
+            return Program(oriented, report, None, checker=checker), _Metrics(measure, clear, work, oriented,
+                                                                              claim)
         report.finish()
         metrics = measure(measured=lambda: clear.result()[0])
         made = clear.result()[1]

@@ -186,6 +186,11 @@ class Refusals(unittest.TestCase):
             (["job", "--out", self.f("job"), "--tool", "no_such_tool"], "--tool"),
             (["job", "--out", self.f("job"), "--dialect", "klingon"], "--dialect"),
             (["job", "--out", self.f("job"), "--holder-clearance", "nan"], "--holder-clearance"),
+            (["job", "--out", self.f("job"), "--max-lead", "95"], "--max-lead"),
+            (["job", "--out", self.f("job"), "--max-axis-step", "0"], "--max-axis-step"),
+            # the tool vector that LinuxCNC's dialect does not write: refused before the work, by its name
+            (["job", "--out", self.f("job"), "--machine", "linuxcnc_xyzac_trt", "--axes-form", "vector"],
+             "--axes-form"),
             (["plan", "keycap", "--out", os.path.join(self.out, "missing", "list.json")], "--out"),
         ]
 

@@ -42,8 +42,10 @@ class Settings(unittest.TestCase):
         self.assertEqual(OrientationSettings(strategy="closest-z").check().strategy, "closest")
         s = OrientationSettings().check()
         self.assertEqual(OrientationSettings.from_dict(s.as_dict()), s)
-        with self.assertRaises(InputError):
-            s.with_step({"smoothing_length": 3.0})            # not a per-step setting
+        for block in ({"smoothing_length": 3.0}, {"lead": 500.0}, [1]):   # not a per-step setting, too far
+            with self.assertRaises(InputError) as cm:
+                s.with_step(block, "list.json: line 24: step 1 (patch 0)")
+            self.assertEqual(str(cm.exception).count("step 1 (patch 0)"), 1, str(cm.exception))   # named once
         self.assertEqual(s.with_step({"lead": 5.0, "target": "lead-tilt"}).lead, 5.0)
         self.assertIn("max_tilt", STEP_KEYS)
 

@@ -124,15 +124,15 @@ class OrientationSettings:
         """These settings with a processing-list step's ``orientation`` block applied (only
         :data:`STEP_KEYS`), checked."""
         if not isinstance(block, dict):
-            raise InputError(f"{where}: 'orientation' must be an object of settings", item=where)
+            raise InputError("'orientation' must be an object of settings", item=where)
         unknown = sorted(set(block) - set(STEP_KEYS))
         if unknown:
-            raise InputError(f"{where}: unknown orientation setting(s) {', '.join(unknown)} (a step may set "
+            raise InputError(f"unknown orientation setting(s) {', '.join(unknown)} (a step may set "
                              f"{', '.join(STEP_KEYS)})", item=where)
         try:
             return replace(self, **block).check()
-        except InputError as exc:
-            raise InputError(f"{where}: {exc}", item=where) from None
+        except InputError as exc:                    # (the item names the place once)
+            raise InputError(str(exc), item=where) from None
 
     def as_dict(self) -> dict:
         return asdict(self)

@@ -245,3 +245,23 @@ class SameCodeWhateverTheHeap(unittest.TestCase):
 
 if __name__ == "__main__":
     unittest.main()
+
+
+class AtThePole(unittest.TestCase):
+    def test_flat_square_under_a_fork_head(self):
+        """A flat square (GeoPDEs' unstructured square) under the fork head, whose C is
+        limited: every axis at the pole, where the rotary value hardly weighs, so runs of
+        points were held to the programme by almost nothing and the rotary solve's factor
+        lost definiteness (numpy's LinAlgError from deep inside, 149th leading minor); the
+        axes now come out vertical, collision-free, C not moving."""
+        from conftest import external
+        from tsplcam import load_model
+        from tsplcam.orientation import CollisionChecker, load_tool, orient
+        from tsplcam.orientation.testpaths import zigzag
+        from tsplcam.post import load_machine
+        model = load_model(external("geopdes", "square_unstructured.iga"))
+        checker = CollisionChecker(model, load_tool("ball1_keycap"), clearance=0.3)
+        path = zigzag(model, 0.5, lines=12, points=40)
+        out, rep = orient(path, checker=checker, machine=load_machine("bc_head_head_fanuc"))
+        self.assertEqual(int(checker.collides_exact(out.center, out.axis).sum()), 0)
+        self.assertLess(np.degrees(angle_between(out.axis, out.normal)).max(), 1e-6)

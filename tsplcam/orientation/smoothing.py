@@ -858,7 +858,16 @@ def smooth_joints(path, rot: Rotary, theta0, phi0, pref, normal, cost: Smoothing
             B = _Banded(n, 2)
             B.ab[:] = quadratic(Qphi, bw_p, alpha * cost.w, cost.l_phi)
             B.add(hold, np.arange(n)[:, None], np.ones((n, 1)), -phi0)
-            ph_c = B.solve_box(plo, phi_hi)
+            try:
+                ph_c = B.solve_box(plo, phi_hi)
+            except np.linalg.LinAlgError:
+                # a run of points at the pole, where the rotary value hardly weighs, held to the
+                # programme by almost nothing: the factor cancels to a pivot of 0 or less (a flat
+                # square under a fork head: its C uncoupled across rewinds). Held by 1e-9 of the
+                # largest diagonal more, it is definite again; elsewhere nothing changes
+                B.add(np.full(n, 1e-9 * float(np.abs(B.ab[2]).max())), np.arange(n)[:, None],
+                      np.ones((n, 1)), -phi0)
+                ph_c = B.solve_box(plo, phi_hi)
             # 2. tilts: the convex problem on the admissible arcs at the new rotary values
             tp = rot.best_theta(pref, ph_c)
             lo, hi = arcs(ph_c, th_c)

@@ -201,6 +201,19 @@ class Refusals(unittest.TestCase):
         msg = str(cm.exception)
         self.assertRegex(msg, r"patch \d+: concave radius of curvature 0\.8\d+ mm at \(u, v\) = \(")
         self.assertIn("tool radius 1 mm", msg)
+        self.assertIn("use a tool of radius below 0.8", msg)
+
+    def test_a_crease_is_named_a_crease(self):
+        """OpenSubdiv's single crease: a concave radius of 6e-7 mm at the crease, which no ball
+        follows; the refusal says so rather than asking for a ball that small."""
+        from conftest import external
+        model = load(external("opensubdiv", "catmark_single_crease.obj"))
+        with self.assertRaises(GeometryError) as cm:
+            zigzag_path(model, None, tool_radius=0.5, scallop=0.05)
+        msg = str(cm.exception)
+        self.assertRegex(msg, r"concave radius of curvature \d\.\d+e-0\d mm")
+        self.assertIn("a sharp concave edge or corner (a crease) that no ball can follow", msg)
+        self.assertNotIn("use a tool of radius below", msg)
 
     def test_bad_settings(self):
         model = plane(10, 10)

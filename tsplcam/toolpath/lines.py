@@ -242,10 +242,15 @@ def check_reachable(frame: LineFrame, geom: FrameGeom, r: float) -> None:
     if bad.any():
         i = int(np.argmax(k1))
         p = frame.patch
+        rho = 1.0 / k1[i]
+        # below a micrometre the surface has a sharp concave edge or corner there (a crease):
+        # no ball follows it, whatever its size
+        what = (f"a ball that size gouges there (use a tool of radius below {rho:.4g} mm)" if rho >= 1e-3 else
+                "a sharp concave edge or corner (a crease) that no ball can follow: round it in the model, or "
+                "leave it to another operation")
         raise GeometryError(
-            f"{p.name}: concave radius of curvature {1.0 / k1[i]:.4g} mm at (u, v) = "
-            f"({geom.u[i]:.5f}, {geom.v[i]:.5f}) is not larger than the tool radius {r:g} mm; "
-            f"a ball that size gouges there (use a tool of radius below {1.0 / k1[i]:.4g} mm)")
+            f"{p.name}: concave radius of curvature {rho:.4g} mm at (u, v) = "
+            f"({geom.u[i]:.5f}, {geom.v[i]:.5f}) is not larger than the tool radius {r:g} mm; {what}")
 
 
 def check_patch_reachable(frame: LineFrame, r: float, per_cell: int = 8) -> None:

@@ -222,12 +222,12 @@ class JobSettings:
                 if getattr(self, name) >= self.tool_radius:
                     raise InputError(f"{getattr(self, name):g} mm must be smaller than the tool radius "
                                      f"{self.tool_radius:g} mm", item=label(name))
-        for name, lo, hi in (("max_lead", 0.0, 89.9), ("max_side_tilt", 0.0, 89.9), ("max_axis_step", 0.0, 180.0)):
-            v = getattr(self, name)
-            if name == "max_axis_step" and not 0.0 < v <= hi:
-                raise InputError(f"must be more than 0 and at most {hi:g} degrees, not {v:g}", item=label(name))
-            if not lo <= v <= hi:
-                raise InputError(f"must be from {lo:g} to {hi:g} degrees, not {v:g}", item=label(name))
+        for name in ("max_lead", "max_side_tilt"):
+            if not 0.0 <= getattr(self, name) <= 89.9:
+                raise InputError(f"must be from 0 to 89.9 degrees, not {getattr(self, name):g}", item=label(name))
+        if not 0.0 < self.max_axis_step <= 180.0:
+            raise InputError(f"must be more than 0 and at most 180 degrees, not {self.max_axis_step:g}",
+                             item=label("max_axis_step"))
         if self.orientation != "normal":
             try:
                 self.orientation_settings()

@@ -903,10 +903,9 @@ def smooth_joints(path, rot: Rotary, theta0, phi0, pref, normal, cost: Smoothing
                 bw_p = np.maximum(1.0 if bw_p is None else bw_p,
                                   np.minimum(1.0 + cost.over * np.maximum(r_p - 1.0, 0.0) ** 2, 100.0))
         # 3. lazy collision checks of the moved poses; a colliding one goes as far as it can.
-        # A moved pose outside the cones is not taken either: step 1 may move the rotary value
-        # to where only a little more tilt is admissible and step 2 keep the tilt (its box
-        # holds the current one), which left the keycap's side tilt up to 1.8 deg beyond its
-        # 60 at 406 points; it goes as far as the cones allow, as a colliding one does
+        # A moved pose outside the cones is not taken either, and goes as far as they allow (step
+        # 2 keeps the tilts on their arcs, ``keep``; when its box held the current tilt instead,
+        # the keycap's side tilt ended up to 1.8 deg beyond its 60 at 406 points)
         K = rot.axis(theta, phi)
         Kc = rot.axis(th_c, ph_c)
         todo = np.nonzero(angle_between(Kc, K) > 1e-9)[0]

@@ -247,7 +247,7 @@ def _bounded(checker, C, A, level: float, only: int, scouts: int, slack: float =
     g = float(d.min()) + slack
     if not g < level:
         return None
-    k = near[int(np.argmin(d)):int(np.argmin(d)) + 1]
+    k = near[[int(np.argmin(d))]]                  # the closest scout
     below = 0.0
     if checker.collides_parts(C[k], A[k], g, only=only)[0].any():
         hit, parts = checker.collides_parts(C, A, g, only=only)

@@ -819,6 +819,16 @@ def smooth_joints(path, rot: Rotary, theta0, phi0, pref, normal, cost: Smoothing
         lo, hi = theta_interval(rot, ph, cons, th)
         return np.maximum(lo, rot.theta_lo), np.minimum(hi, rot.theta_hi)
 
+    def admissible(ph, th, idx):
+        """Whether the poses (ph, th) of the points ``idx`` lie on their arcs (the cones, the
+        tilt axis's range) and off the pole by ``pole_tilt`` on the programme's side."""
+        lo, hi = arcs(ph, th, idx)
+        ok = (th >= lo - 1e-12) & (th <= hi + 1e-12)
+        if pole_tilt > 0:
+            t0 = theta0[idx]
+            ok &= np.where(t0 > 0, th >= pole_tilt - 1e-12, np.where(t0 < 0, th <= -pole_tilt + 1e-12, True))
+        return ok
+
     built = {}
 
     def quadratic(Q: _Banded, bw, w_vel: float, l_acc: float) -> np.ndarray:
@@ -871,12 +881,12 @@ def smooth_joints(path, rot: Rotary, theta0, phi0, pref, normal, cost: Smoothing
             # 2. tilts: the convex problem on the admissible arcs at the new rotary values
             tp = rot.best_theta(pref, ph_c)
             lo, hi = arcs(ph_c, th_c)
-            # the current tilt, or where the rotary value moved past its arc (to where a little
-            # more tilt is admissible) the nearest end of the arc: the box holds it
-            keep = np.minimum(np.maximum(th_c, lo), hi)
             if pole_tilt > 0:                          # stay on the programme's side of the pole
                 lo = np.where(theta0 > 0, np.maximum(lo, pole_tilt), lo)
                 hi = np.where(theta0 < 0, np.minimum(hi, -pole_tilt), hi)
+            # the current tilt, or where the rotary value moved past its arc (to where a little
+            # more tilt is admissible) the nearest end of the arc: the box holds it
+            keep = np.minimum(np.maximum(th_c, lo), hi)
             if free_tilt is not None:        # the free tilts the programme found
                 up = th_c >= 0
                 t_pos = _tilt_table(free_tilt, ph_c, M)
@@ -903,16 +913,16 @@ def smooth_joints(path, rot: Rotary, theta0, phi0, pref, normal, cost: Smoothing
                 bw_p = np.maximum(1.0 if bw_p is None else bw_p,
                                   np.minimum(1.0 + cost.over * np.maximum(r_p - 1.0, 0.0) ** 2, 100.0))
         # 3. lazy collision checks of the moved poses; a colliding one goes as far as it can.
-        # A moved pose outside the cones is not taken either, and goes as far as they allow (step
-        # 2 keeps the tilts on their arcs, ``keep``; when its box held the current tilt instead,
-        # the keycap's side tilt ended up to 1.8 deg beyond its 60 at 406 points)
+        # A moved pose outside the cones (or nearer the pole than ``pole_tilt``) is not taken
+        # either, and goes as far as they allow (step 2 keeps the tilts on their arcs, ``keep``;
+        # when its box held the current tilt instead, the keycap's side tilt ended up to 1.8 deg
+        # beyond its 60 at 406 points)
         K = rot.axis(theta, phi)
         Kc = rot.axis(th_c, ph_c)
         todo = np.nonzero(angle_between(Kc, K) > 1e-9)[0]
         bad = np.zeros(0, int)
         if len(todo):
-            lo, hi = arcs(ph_c[todo], th_c[todo], todo)
-            inside = (th_c[todo] >= lo - 1e-12) & (th_c[todo] <= hi + 1e-12)
+            inside = admissible(ph_c[todo], th_c[todo], todo)
             bad, ask = todo[~inside], todo[inside]
             if checker is not None and len(ask):
                 hit = checker.collides(path.center[ask], Kc[ask])
@@ -937,9 +947,8 @@ def smooth_joints(path, rot: Rotary, theta0, phi0, pref, normal, cost: Smoothing
             tt = np.clip(np.where(away[q] > 0, np.maximum(theta[bad[q]], th_c[bad[q]]),
                                   np.minimum(theta[bad[q]], th_c[bad[q]])) + away[q] * extra,
                          rot.theta_lo, rot.theta_hi)
-            lo, hi = arcs(ph_c[bad[q]], tt, bad[q])
-            q = q[(tt >= lo - 1e-12) & (tt <= hi + 1e-12)]
-            tt = tt[(tt >= lo - 1e-12) & (tt <= hi + 1e-12)]
+            ok = admissible(ph_c[bad[q]], tt, bad[q])
+            q, tt = q[ok], tt[ok]
             if len(q):
                 free = (np.ones(len(q), bool) if checker is None else
                         ~checker.collides(path.center[bad[q]], rot.axis(tt, ph_c[bad[q]])))
@@ -953,9 +962,7 @@ def smooth_joints(path, rot: Rotary, theta0, phi0, pref, normal, cost: Smoothing
             t = 0.5 * (t_lo + t_hi)
             tt = theta[bad] + t * (th_c[bad] - theta[bad])
             pt = phi[bad] + t * (ph_c[bad] - phi[bad])
-            lo, hi = arcs(pt, tt, bad)
-            ok = (tt >= lo - 1e-12) & (tt <= hi + 1e-12)
-            q = np.nonzero(ok)[0]
+            q = np.nonzero(admissible(pt, tt, bad))[0]
             free = np.zeros(len(bad), bool)
             if len(q):
                 free[q] = True if checker is None else ~checker.collides(path.center[bad[q]], rot.axis(tt[q], pt[q]))

@@ -243,10 +243,6 @@ class SameCodeWhateverTheHeap(unittest.TestCase):
         np.testing.assert_array_equal(components(h)[2], h[:, 2])
 
 
-if __name__ == "__main__":
-    unittest.main()
-
-
 class AtThePole(unittest.TestCase):
     def test_flat_square_under_a_fork_head(self):
         """A flat square (GeoPDEs' unstructured square) under the fork head, whose C is
@@ -265,3 +261,7 @@ class AtThePole(unittest.TestCase):
         out, rep = orient(path, checker=checker, machine=load_machine("bc_head_head_fanuc"))
         self.assertEqual(int(checker.collides_exact(out.center, out.axis).sum()), 0)
         self.assertLess(np.degrees(angle_between(out.axis, out.normal)).max(), 1e-6)
+
+
+if __name__ == "__main__":
+    unittest.main()

@@ -157,6 +157,34 @@ class OnParts(unittest.TestCase):
                 if limit == 20.0:
                     self.assertGreater(worst, limit - 0.5)            # (the limit binds)
 
+    def test_a_tight_cone_keeps_the_axis_step(self):
+        """The paper's keycap path under 25 deg lead and side-tilt limits: at a crossing of the
+        pole the polish held each tilt on its own arc, both sides leaning away (an 11.2 deg
+        step, the programme's 7.2, the limit 10): the points around go back to the
+        programme's poses, and every cutting step keeps the limit and every axis the cone."""
+        from unittest import mock
+        from tsplcam import load_model
+        from tsplcam.orientation import smoothing
+        from tsplcam.program import make_path, make_program, processing_list
+        s = JobSettings(max_lead=25.0, max_side_tilt=25.0, scallop=0.005)
+        model = load_model("keycap")
+        path = make_path(model, processing_list(model, s), s)
+        real, went_back = smoothing._within_steps, []
+
+        def within(*args):
+            back = real(*args)
+            went_back.append(int(back.sum()))
+            return back
+        with mock.patch.object(smoothing, "_within_steps", within):
+            out = make_program(path, model, s, post=False)
+        tp = out.path
+        self.free(tp, out.checker)
+        cut = tp.move[1:] == Move.CUT
+        self.assertLessEqual(deg_between(tp.axis[1:], tp.axis[:-1])[cut].max(), 10.0 + 1e-9)
+        lead, tilt = lead_tilt(tp.axis[:, None], tp.normal, cutting_directions(tp))
+        self.assertLessEqual(np.degrees(np.maximum(np.abs(lead), np.abs(tilt))).max(), 25.0 + 1e-9)
+        self.assertGreater(sum(went_back), 0)                      # (the crossing went back)
+
     def test_largest_axis_step(self):
         """``max_axis_step`` bounds the tool axis's change between neighbouring cutting points:
         at 1 deg the keycap's wall is refused naming the place and the setting; at 3 deg every

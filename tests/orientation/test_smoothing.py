@@ -263,5 +263,27 @@ class AtThePole(unittest.TestCase):
         self.assertLess(np.degrees(angle_between(out.axis, out.normal)).max(), 1e-6)
 
 
+class StepsWithinTheLimit(unittest.TestCase):
+    def test_points_go_back_to_the_programme_until_every_hard_move_keeps_it(self):
+        """``_within_steps``: a polished pair turning the axis by more than the limit on a hard
+        move goes back to the programme, and on while a boundary still turns too far; moves
+        that are not hard (links) are left alone."""
+        from tsplcam.orientation.smoothing import _within_steps
+        t = np.radians(np.array([0.0, 2.0, 4.0, 6.0, 8.0, 10.0, 12.0, 14.0]))
+        K0 = np.column_stack([np.sin(t), np.zeros_like(t), np.cos(t)])       # the programme: 2 deg a move
+        tp = t.copy()
+        tp[3], tp[4] = np.radians(-3.0), np.radians(12.0)                   # a polished pair 15 deg apart
+        tp[5] = np.radians(20.0)                            # 12 deg from point 4 once that is back
+        tp[6] = np.radians(40.0)                                            # and a link's far end
+        K = np.column_stack([np.sin(tp), np.zeros_like(tp), np.cos(tp)])
+        hard = np.array([True, True, True, True, True, False, False])
+        back = _within_steps(K, K0, hard, np.radians(5.0))
+        A = np.where(back[:, None], K0, K)
+        steps = np.degrees(angle_between(A[1:], A[:-1]))
+        self.assertLessEqual(steps[hard].max(), 5.0 + 1e-9)
+        np.testing.assert_array_equal(np.nonzero(back)[0], [2, 3, 4, 5])  # both pairs, then the next
+        self.assertFalse(back[6])                                           # behind links: as polished
+
+
 if __name__ == "__main__":
     unittest.main()

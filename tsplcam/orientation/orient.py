@@ -318,7 +318,8 @@ def orient_smooth(path, checker, preferred, limits: Limits, reach, feed, smoothi
     phi = phi[0] + np.concatenate([[0.0], np.cumsum(np.pi - np.mod(np.pi - np.diff(phi), 2 * np.pi))])
     moving = ~np.isin(path.move[1:], (Move.CUT, Move.LINK))
     theta, phi, info = smooth_joints(path, rot, theta, phi, pref, path.normal, cost, cons, checker=checker,
-                                     free_tilt=free_tilts(grid, status), move_free=moving, pole_tilt=pole_tilt, tick=lambda: tick(M))
+                                     free_tilt=free_tilts(grid, status), move_free=moving, pole_tilt=pole_tilt,
+                                     tick=lambda: tick(M), max_step=max_step, hard=~free_step[1:])
     return rot.axis(theta, phi), {"dp_rounds": rounds, "resolved_points": 0,
                                   "relaxation_moves": info["joint_checks"], "candidates": M,
                                   "dp_checks": checks, "c_travel_forced_deg": forced} | info

@@ -779,7 +779,8 @@ def _quadratic(x0_len: int, ds, couple, L: float, w_vel: float, l_acc: float, bl
 
 def smooth_joints(path, rot: Rotary, theta0, phi0, pref, normal, cost: SmoothingCost, constraints, *,
                   checker=None, move_free=None, pole_tilt: float = 0.0, rounds: int = 6, alternations: int = 3,
-                  lean: float = 2.0 * DEG, bisect: int = 4, free_tilt=None, tick=None):
+                  lean: float = 2.0 * DEG, bisect: int = 4, free_tilt=None, tick=None, max_step=None,
+                  hard=None):
     """Polish the programme's collision-free poses ``(theta0, phi0)`` (rad, phi unwound) in
     joint space: the rotary values are smoothed (velocity and acceleration terms, held to the
     programme's tool-axis direction in proportion to sin^2 theta: nothing near the pole),
@@ -788,7 +789,10 @@ def smooth_joints(path, rot: Rotary, theta0, phi0, pref, normal, cost: Smoothing
     are checked. A colliding pose goes as far toward its new value as the checks allow
     (bisection in joint space), its rotary value is held there and its tilt may not come
     nearer the preferred axis; then the polish is repeated (``rounds`` at most). Every
-    returned pose was checked free (or is the programme's). Returns ``(theta, phi, info)``."""
+    returned pose was checked free (or is the programme's). ``max_step`` (rad) with ``hard``
+    ((n-1,) bool, the moves the programme kept within it): where polished neighbours end up
+    farther apart, the poses around go back to the programme's (:func:`_within_steps`).
+    Returns ``(theta, phi, info)``."""
     n = len(theta0)
     info = {"joint_rounds": 0, "joint_checks": 0, "held_points": 0}
     theta0 = np.asarray(theta0, float)
@@ -884,9 +888,6 @@ def smooth_joints(path, rot: Rotary, theta0, phi0, pref, normal, cost: Smoothing
             if pole_tilt > 0:                          # stay on the programme's side of the pole
                 lo = np.where(theta0 > 0, np.maximum(lo, pole_tilt), lo)
                 hi = np.where(theta0 < 0, np.minimum(hi, -pole_tilt), hi)
-            # the current tilt, or where the rotary value moved past its arc (to where a little
-            # more tilt is admissible) the nearest end of the arc: the box holds it
-            keep = np.minimum(np.maximum(th_c, lo), hi)
             if free_tilt is not None:        # the free tilts the programme found
                 up = th_c >= 0
                 t_pos = _tilt_table(free_tilt, ph_c, M)
@@ -897,7 +898,7 @@ def smooth_joints(path, rot: Rotary, theta0, phi0, pref, normal, cost: Smoothing
                 b_dn = np.where(t_neg > 0, -t_neg, np.where(t_pos > 0, 0.0, np.inf))
                 lo = np.where(up, np.maximum(lo, b_up), lo)
                 hi = np.where(~up, np.minimum(hi, b_dn), hi)
-            lo, hi = np.minimum(lo, keep), np.maximum(hi, keep)
+            lo, hi = np.minimum(lo, th_c), np.maximum(hi, th_c)
             lo, hi = np.where(held, th_c, lo), np.where(held, th_c, hi)
             B = _Banded(n, 2)
             B.ab[:] = quadratic(Qth, bw_t, alpha + cost.beta, cost.l_theta)
@@ -912,11 +913,20 @@ def smooth_joints(path, rot: Rotary, theta0, phi0, pref, normal, cost: Smoothing
                                   np.minimum(1.0 + cost.over * np.maximum(r_t - 1.0, 0.0) ** 2, 100.0))
                 bw_p = np.maximum(1.0 if bw_p is None else bw_p,
                                   np.minimum(1.0 + cost.over * np.maximum(r_p - 1.0, 0.0) ** 2, 100.0))
-        # 3. lazy collision checks of the moved poses; a colliding one goes as far as it can.
-        # A moved pose outside the cones (or nearer the pole than ``pole_tilt``) is not taken
-        # either, and goes as far as they allow (step 2 keeps the tilts on their arcs, ``keep``;
-        # when its box held the current tilt instead, the keycap's side tilt ended up to 1.8 deg
-        # beyond its 60 at 406 points)
+        # 3. the tilts onto their arcs: step 1 may move a rotary value to where only a little
+        # more tilt is admissible (``lean``) and step 2's box holds the current tilt, so a tilt
+        # may end up to ``lean`` beyond its cone (the keycap's side tilt 61.8 deg against its 60
+        # at 406 points); it goes to the arc's nearest end, once per round (inside the
+        # alternations the moves added up: up to 3 ``lean`` more tilt on both sides of a pole
+        # crossing, a 19 deg step against the programme's 7)
+        a_lo, a_hi = arcs(ph_c, th_c)
+        if pole_tilt > 0:
+            a_lo = np.where(theta0 > 0, np.maximum(a_lo, pole_tilt), a_lo)
+            a_hi = np.where(theta0 < 0, np.minimum(a_hi, -pole_tilt), a_hi)
+        th_c = np.where(held | (a_lo > a_hi), th_c, np.minimum(np.maximum(th_c, a_lo), a_hi))
+        # lazy collision checks of the moved poses; a colliding one goes as far as it can. A
+        # moved pose still outside the cones (an empty arc) is not taken either, and goes as far
+        # as they allow
         K = rot.axis(theta, phi)
         Kc = rot.axis(th_c, ph_c)
         todo = np.nonzero(angle_between(Kc, K) > 1e-9)[0]
@@ -972,7 +982,33 @@ def smooth_joints(path, rot: Rotary, theta0, phi0, pref, normal, cost: Smoothing
         theta[bad] = theta[bad] + t_lo * (th_c[bad] - theta[bad])
         phi[bad] = phi[bad] + t_lo * (ph_c[bad] - phi[bad])
     info["held_points"] = int(held.sum())
+    if max_step is not None and hard is not None:
+        back = _within_steps(rot.axis(theta, phi), rot.axis(theta0, phi0), hard, max_step)
+        theta, phi = np.where(back, theta0, theta), np.where(back, phi0, phi)
     return theta, phi, info
+
+
+def _within_steps(K, K0, hard, max_step: float) -> np.ndarray:
+    """Mask of the points whose polished axes ``K`` go back to the programme's ``K0`` so that
+    no ``hard`` move turns the axis by more than ``max_step`` (rad): both ends of a move
+    beyond it, and on, until none is (the programme keeps it on every hard move, so this
+    ends). The polish holds each tilt on its own arc: at a pole crossing under a tight cone
+    both sides may lean away (the keycap under 25 deg limits: 11.2 deg against the
+    programme's 7.2)."""
+    n = len(K)
+    back = np.zeros(n, bool)
+    moves = np.nonzero(np.asarray(hard, bool))[0]         # move i joins points i and i + 1
+    while len(moves):
+        a, b = (np.where(back[m, None], K0[m], K[m]) for m in (moves, moves + 1))
+        over = moves[angle_between(b, a) > max_step + 1e-9]
+        new = np.unique(np.concatenate([over, over + 1]))
+        new = new[~back[new]]
+        back[new] = True
+        # only the moves next to a point that went back can change
+        near = np.unique(np.concatenate([new - 1, new]))
+        moves = near[(near >= 0) & (near < n - 1)]
+        moves = moves[np.asarray(hard, bool)[moves]]
+    return back
 
 
 # --- the rotary travel the cones force -----------------------------------------------------------

@@ -932,7 +932,7 @@ def smooth_joints(path, rot: Rotary, theta0, phi0, pref, normal, cost: Smoothing
         todo = np.nonzero(angle_between(Kc, K) > 1e-9)[0]
         bad = np.zeros(0, int)
         if len(todo):
-            inside = admissible(ph_c[todo], th_c[todo], todo)
+            inside = (th_c[todo] >= a_lo[todo] - 1e-12) & (th_c[todo] <= a_hi[todo] + 1e-12)
             bad, ask = todo[~inside], todo[inside]
             if checker is not None and len(ask):
                 hit = checker.collides(path.center[ask], Kc[ask])

@@ -83,8 +83,8 @@ def load_machine(settings: JobSettings):
     machine.check_feed(settings.feed, "feed")
     machine.check_spindle(settings.spindle, "spindle")
     if settings.axes_form is not None:
-        from .post import dialects
-        mod = dialects.get(settings.dialect or machine.post.get("dialect") or machine.controller)
+        from .post.post import dialect_of
+        mod = dialect_of(machine, settings.dialect)
         if settings.axes_form not in mod.ORIENTATIONS:
             raise InputError(f"the {mod.NAME} dialect writes the tool axes as {' or '.join(mod.ORIENTATIONS)}, "
                              f"not as the tool {settings.axes_form}", item="axes_form")

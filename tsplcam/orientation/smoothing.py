@@ -997,7 +997,8 @@ def _within_steps(K, K0, hard, max_step: float) -> np.ndarray:
     programme's 7.2)."""
     n = len(K)
     back = np.zeros(n, bool)
-    moves = np.nonzero(np.asarray(hard, bool))[0]         # move i joins points i and i + 1
+    hard = np.asarray(hard, bool)
+    moves = np.nonzero(hard)[0]                           # move i joins points i and i + 1
     while len(moves):
         a, b = (np.where(back[m, None], K0[m], K[m]) for m in (moves, moves + 1))
         over = moves[angle_between(b, a) > max_step + 1e-9]
@@ -1007,7 +1008,7 @@ def _within_steps(K, K0, hard, max_step: float) -> np.ndarray:
         # only the moves next to a point that went back can change
         near = np.unique(np.concatenate([new - 1, new]))
         moves = near[(near >= 0) & (near < n - 1)]
-        moves = moves[np.asarray(hard, bool)[moves]]
+        moves = moves[hard[moves]]
     return back
 
 

@@ -92,6 +92,12 @@ class PostResult:
         return "\n".join(lines)
 
 
+def dialect_of(machine: Machine, dialect: str | None = None):
+    """The dialect module a program for ``machine`` is written in: ``dialect``, else the
+    machine file's post dialect, else its controller's."""
+    return dialects.get(dialect or machine.post.get("dialect") or machine.controller)
+
+
 def resolve_settings(machine: Machine, dialect_module, options: dict) -> dict:
     """Options of a call over the machine's "post" section over the dialect's defaults."""
     unknown = sorted(set(options) - set(GENERIC) - {"decimals"})
@@ -190,8 +196,7 @@ def post_program(toolpath: ToolPath, machine, dialect: str | None = None, progre
         if progress is not None:
             progress(stage, done, total)
     machine = load_machine(machine)
-    name = dialect or machine.post.get("dialect") or machine.controller
-    mod = dialects.get(name)
+    mod = dialect_of(machine, dialect)
     s = resolve_settings(machine, mod, options)
     for key in ("approach_feed", "link_feed", "retract_feed"):
         machine.check_feed(s[key], key)

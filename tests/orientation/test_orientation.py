@@ -183,14 +183,25 @@ class CollisionGeometry(unittest.TestCase):
         np.testing.assert_array_equal(ch.ball_gouges(C), [False, False, True])
 
     def test_workpiece_bvh_built_when_fcl_is_first_asked(self):
-        """The workpiece's BVH is built at fcl's first question, not before: balls the broad
-        phase proves clear build nothing; one it cannot prove builds it once."""
+        """fcl's view of the workpiece is built at its first question, not before: balls the
+        broad phase proves clear build nothing; one it cannot prove builds a BVH of the
+        triangles near it (the whole workpiece's stays unbuilt), which a ball within those
+        answers from; a batch of more balls than the near BVHs take builds the whole one, once."""
+        from tsplcam.orientation.nearby import MAX_CAPSULES
         tool = Tool("t", 1.0, 2.0, 2.0, 10.0, [])
         ch = CollisionChecker(None, tool, meshes=[plane_mesh()], tolerance=0.001)
         self.assertIsNone(ch._wp_object)
         np.testing.assert_array_equal(ch.ball_gouges(np.array([[0, 0, 5.0]])), [False])
         self.assertIsNone(ch._wp_object)
+        self.assertIsNone(getattr(ch, "_nearby", None))
         np.testing.assert_array_equal(ch.ball_gouges(np.array([[0, 0, 1.0 - 0.01]])), [True])
+        self.assertIsNone(ch._wp_object)
+        self.assertEqual(ch._nearby.builds, 1)
+        np.testing.assert_array_equal(ch.ball_gouges(np.array([[0, 0, 0.5]])), [True])
+        self.assertEqual(ch._nearby.builds, 1)                  # (its triangles were near the first)
+        x = np.linspace(-4.0, 4.0, MAX_CAPSULES + 1)
+        balls = np.column_stack([x, np.zeros_like(x), np.full_like(x, 0.5)])
+        self.assertTrue(ch.ball_gouges(balls).all())
         built = ch._wp_object
         self.assertIsNotNone(built)
         ch.ball_gouges(np.array([[0, 0, 0.5]]))

@@ -59,8 +59,23 @@ class WhileWaiting(unittest.TestCase):
         out = map_pieces(_square_pid, (1,), 4, 1, while_waiting=lambda: called.append(1))
         self.assertEqual([v for v, _ in out], [1, 2, 5, 10])
         self.assertEqual(called, [])
-        map_pieces(_square_pid, (1,), 1, 2, while_waiting=lambda: called.append(1))      # one piece
+        map_pieces(_square_pid, (1,), 0, 2, while_waiting=lambda: called.append(1))      # no piece
         self.assertEqual(called, [])
+
+    def test_a_piece_alone_goes_to_a_worker(self):
+        """One piece and work for this process: the piece is made in a worker beside it (the
+        same value), not after it here."""
+        if not FORK:
+            self.skipTest("no forked workers here")
+        called = []
+        with tempfile.TemporaryDirectory() as marks:
+            def meanwhile():
+                called.append(os.getpid())
+                _until_marked(marks, 1)                       # (the worker has the piece)
+            out = map_pieces(_held_until_started, (1, marks), 1, 2, while_waiting=meanwhile)
+        self.assertEqual(called, [os.getpid()])
+        self.assertEqual(out[0][0], 100)
+        self.assertNotEqual(out[0][1], os.getpid())
 
     def test_its_error_stops_the_work(self):
         if not FORK:

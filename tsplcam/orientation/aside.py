@@ -42,6 +42,7 @@ import multiprocessing
 import os
 import pickle
 import signal
+import threading
 import weakref
 from multiprocessing import util
 
@@ -188,14 +189,20 @@ class Aside:
         if self._pending:                         # (an answer never read: it would come first)
             self.answer()
         self._stop_serving()
+        data = None
         if nxt.forked:
             try:
-                self._ask.send_bytes(pickle.dumps(("then", extra), protocol=pickle.HIGHEST_PROTOCOL))
-            except (OSError, pickle.PickleError):
+                data = pickle.dumps(("then", extra), protocol=pickle.HIGHEST_PROTOCOL)
+            except pickle.PickleError:
                 nxt.forked = False
         if nxt.forked:                            # the process and its pipe go to the second piece
+            # the arguments written by a thread: the forked process reads them only once done
+            # with its ``meanwhile`` work, and a pipe holds 64 kB, so this process goes on with
+            # its own work meanwhile (tjunction_mold's: its 85k triangles' BVH, 0.18 s, ended
+            # 0.12 s after the axes, which waited for it; the poses' 1.4 MB). Where the write
+            # fails the process is gone: the second piece's result is computed here.
+            threading.Thread(target=_write_close, args=(self._ask, data), daemon=True).start()
             nxt._proc, nxt._conn = self._proc, self._conn
-            self._ask.close()
             self._proc = self._conn = self._ask = None
         else:
             self.close()
@@ -302,6 +309,16 @@ def _child(conn, fn, args, then=None, ask=None, meanwhile=None, serve=None, repl
         if extra is not None:
             _send(conn, then[0], tuple(then[1:]) + tuple(extra))
     conn.close()
+
+
+def _write_close(conn, data: bytes) -> None:
+    """Write ``data`` to the pipe ``conn`` and close it (a broken pipe: the reader is gone)."""
+    try:
+        conn.send_bytes(data)
+    except OSError:
+        pass
+    finally:
+        conn.close()
 
 
 def _send(conn, fn, args, quiet: bool = False) -> bool:

@@ -3,8 +3,10 @@
 Workpiece: every patch is tessellated on a (u, v) grid refined until the *measured* chordal
 error (distance between the surface and the triangles, sampled at every grid edge midpoint
 and cell centre) is below ``tolerance``; optional stock and fixture triangle meshes are
-added as they are. One ``fcl.BVHModel`` (OBBRSS) holds all of it, built once. Every
-triangle remembers its owner (a patch or a named mesh) so a collision names its obstacle.
+added as they are. One ``fcl.BVHModel`` (OBBRSS) holds all of it, built once where fcl is
+asked about many poses; questions about a few poses are answered from a BVH of the triangles
+near them (:mod:`~tsplcam.orientation.nearby`, the same answers). Every triangle remembers its
+owner (a patch or a named mesh) so a collision names its obstacle.
 
 Tool: the solids above the ball centre (flutes, shank, holder segments; see
 :meth:`Tool.parts`) are turned into one closed triangle mesh of circumscribed polygons
@@ -51,6 +53,7 @@ from ..errors import GeometryError, InputError
 from ..toolpath.parallel import map_pieces, worker_count
 from ..npfast import cross_rows, row_norms
 from .broadphase import FREE, HIT, UNKNOWN, BroadPhase, Profile, longest_edges, mesh_components, row_bits
+from .nearby import MAX_CAPSULES, NearWorkpiece, bvh_model as _bvh
 from .tool import Tool
 
 try:                                   # python-fcl is a dependency of this stage only
@@ -574,6 +577,7 @@ def axis_quaternions(axes: np.ndarray) -> np.ndarray:
 POOL_MIN = 400                 # fcl batches at least twice this long go to worker processes,
 POOL_START = 8000              # once a batch this long has started them (see CollisionChecker._fcl)
 _POOL_CHECKER = None           # the checker forked workers inherit
+NEAR_EPS = 1e-6                # mm: the capsules of a question to fcl widened past rounding
 BESIDE_MIN = 1000              # poses: a batch this large is shared with the process beside
 BESIDE_CELL = 1.0              # mm: ball centres in a checkerboard of cells go to one process or the other
 
@@ -586,14 +590,6 @@ def decided_there(checker, C, A, grow) -> np.ndarray:
     """The process beside's answer to :meth:`CollisionChecker.collides`' request (its own
     copy of the checker, its own BVH)."""
     return checker._decided(C, A, float(grow))
-
-
-def _bvh(V, T):
-    m = fcl.BVHModel()
-    m.beginModel(len(T), len(V))
-    m.addSubModel(np.ascontiguousarray(V, float), np.ascontiguousarray(T, np.int64))
-    m.endModel()
-    return m
 
 
 # --- the checker ---------------------------------------------------------------------------
@@ -685,11 +681,11 @@ class CollisionChecker:
     @property
     def _wp(self):
         """The workpiece as an fcl object (a BVH over the mesh's triangles), built when fcl is
-        first asked: the broad phase answers most questions without it (the keycap job's
-        search, none of whose poses go to fcl), and its build (about 0.1 CPU-s on the
-        keycap's 38k triangles, in C++ holding the GIL) is then done by the process that
-        needs it (the job's forked one measuring the ball gouges and the clearance) rather
-        than while the path's workers need the cores."""
+        first asked about many poses (questions about a few: :meth:`_near`): the broad phase
+        answers most questions without it (the keycap job's search, none of whose poses go to
+        fcl), and its build (about 0.08 CPU-s on the keycap's 38k triangles, in C++ holding the
+        GIL) is then done by the process that needs it (the job's forked one, beside the
+        search, for the clearance) rather than while the path's workers need the cores."""
         if self._wp_object is None:
             self._wp_object = fcl.CollisionObject(_bvh(self.mesh.vertices, self.mesh.triangles), fcl.Transform())
         return self._wp_object
@@ -698,6 +694,39 @@ class CollisionChecker:
         """Build the workpiece's BVH now (otherwise at fcl's first question): for timing the
         questions alone, or before forking processes that will ask fcl."""
         self._wp
+
+    def _near(self, P0: np.ndarray, P1: np.ndarray, R0: np.ndarray, R1: np.ndarray):
+        """The workpiece as fcl sees it for questions about solids inside the frustums about the
+        segments P0-P1 (radii R0 at P0, R1 at P1): the whole BVH where it is built already (or
+        there is no broad phase, or the frustums reach much of the workpiece), else a BVH of the
+        triangles near them (:mod:`~tsplcam.orientation.nearby`: the same answers)."""
+        if self._wp_object is not None or self.broad is None:
+            return self._wp
+        near = self.__dict__.get("_nearby")
+        if near is None:
+            near = self._nearby = NearWorkpiece(self.mesh.vertices, self.mesh.triangles, self.broad)
+        obj = near.obj(P0, P1, R0, R1)
+        return self._wp if obj is None else obj
+
+    def _near_parts(self, C, A, frustums, masks):
+        """:meth:`_near` for the parts in the bit masks ``masks`` (per pose, -1: all) of
+        ``frustums`` (name, z0, z1, r0, r1, as the tool's meshes are made: circumscribed
+        polygons) at the poses (C, A)."""
+        if self._wp_object is not None or self.broad is None:
+            return self._wp
+        m = np.asarray(masks, np.int64).reshape(-1, 1)
+        on = (m == -1) | ((m >> np.arange(len(frustums))) & 1).astype(bool)
+        if int(on.sum()) > MAX_CAPSULES:
+            return self._wp
+        return self._near_at(C, A, *np.nonzero(on), frustums)
+
+    def _near_at(self, C, A, k, j, frustums):
+        """:meth:`_near` for part ``j[i]`` of ``frustums`` (name, z0, z1, r0, r1: held by
+        circumscribed polygons) at pose ``k[i]`` of (C, A), for every i."""
+        z0, z1, r0, r1 = (np.array(c, float) for c in list(zip(*frustums))[1:])
+        f = np.array([corner_factor(r, self.polygon_tolerance) for r in np.maximum(r0, r1)])
+        return self._near(C[k] + z0[j, None] * A[k], C[k] + z1[j, None] * A[k], (r0 * f + NEAR_EPS)[j],
+                          (r1 * f + NEAR_EPS)[j])
 
     def profile(self, grow: float = 0.0) -> Profile:
         """The tool above the ball centre as the fcl checks see it, grown by ``grow`` mm more
@@ -816,7 +845,9 @@ class CollisionChecker:
         out = np.zeros(len(Q), bool)
         if len(Q) == 0:
             return out
-        wp, req, collide, Res = self._wp, self._req, fcl.collide, fcl.CollisionResult
+        # the triangles near the parts asked (a few poses: a BVH of their own, not the whole one)
+        wp = self._near_parts(C, A, self._grown(float(grow)), parts)
+        req, collide, Res = self._req, fcl.collide, fcl.CollisionResult
 
         def ask(obj, rows):
             for k in rows:
@@ -989,6 +1020,9 @@ class CollisionChecker:
         Q = axis_quaternions(A)
         out = np.zeros(len(Q), bool)
         masks = np.full(len(Q), -1) if parts is None else np.broadcast_to(np.asarray(parts, np.int64), (len(Q),))
+        if len(Q) == 0:
+            return out
+        wp = self._near_parts(C, A, self._frustums, masks)      # (the primitives lie inside the meshes)
         for k in range(len(Q)):
             m = int(masks[k])
             for j, (_, obj, z) in enumerate(self._prims):
@@ -996,7 +1030,7 @@ class CollisionChecker:
                     continue
                 obj.setQuatRotation(Q[k])
                 obj.setTranslation(C[k] + z * A[k])
-                if fcl.collide(obj, self._wp, self._req, fcl.CollisionResult()):
+                if fcl.collide(obj, wp, self._req, fcl.CollisionResult()):
                     out[k] = True
                     break
         return out
@@ -1011,7 +1045,8 @@ class CollisionChecker:
         todo = np.nonzero(ask)[0]
         if len(todo) == 0:
             return out
-        obj, wp, req = self._ball, self._wp, self._req
+        r = np.full(len(todo), self.tool.ball_radius - self.gouge_tolerance + NEAR_EPS)
+        obj, wp, req = self._ball, self._near(C[todo], C[todo], r, r), self._req
         for k in todo:
             obj.setTranslation(C[k])
             out[k] = fcl.collide(obj, wp, req, fcl.CollisionResult()) > 0
@@ -1048,18 +1083,29 @@ class CollisionChecker:
         mask = int(parts)
         parts = self.tool.parts()
         floor = float(below) if smallest else np.inf  # the smallest distance measured so far
+        wp, far = self._wp_object, np.zeros((len(C), len(parts)), bool)
+        if wp is None and np.isfinite(floor) and self.broad is not None:
+            # every distance measured here that can be the smallest lies below ``floor`` (a
+            # part is measured where it is nearer: see above): the triangles within ``floor``
+            # of the parts that may be measured are all fcl needs (a BVH of their own), and
+            # the parts the broad phase shows farther than ``floor`` need none (the holders)
+            far = self._proven_far(C, A, mask, floor)
+            bits = ((mask >> np.arange(len(parts))) & 1).astype(bool)
+            k, j = np.nonzero(bits[None, :] & ~far & (bound < floor))
+            wp = self._near_at(C, A, k, j, [("", *self._grown_part(p, floor)[1:]) for p in range(len(parts))])
+        wp = self._wp if wp is None else wp
         for k in range(len(Q)):
             best = floor if smallest else np.inf
             own = np.inf
             for j in range(len(parts)):
-                if bound[k, j] >= best or not (mask >> j) & 1:
+                if bound[k, j] >= best or not (mask >> j) & 1 or far[k, j]:
                     continue
                 _, obj, z = self._prims[j]
-                if np.isfinite(best) and not self._touches_grown(j, Q[k], C[k], A[k], best):
+                if np.isfinite(best) and not self._touches_grown(j, Q[k], C[k], A[k], best, wp):
                     continue
                 obj.setQuatRotation(Q[k])
                 obj.setTranslation(C[k] + z * A[k])
-                d = max(fcl.distance(obj, self._wp, req, fcl.DistanceResult()), 0.0)
+                d = max(fcl.distance(obj, wp, req, fcl.DistanceResult()), 0.0)
                 best, own = min(best, d), min(own, d)
                 if best <= 0:
                     break
@@ -1067,7 +1113,7 @@ class CollisionChecker:
             floor = min(floor, own)
         return out
 
-    def _touches_grown(self, part: int, q, c, a, by: float) -> bool:
+    def _touches_grown(self, part: int, q, c, a, by: float, wp=None) -> bool:
         """Whether some point within ``by`` mm of part ``part``'s primitive lies in the workpiece
         (a part it clears lies farther than ``by``): those points lie in the primitive's
         frustum grown by ``by`` (:func:`grown_frustum`, both ends) and by the polygons'
@@ -1080,28 +1126,61 @@ class CollisionChecker:
         # (``by`` rounded up to a micrometre: a pose's part is measured at worst a micrometre
         # more often, and the grown meshes are made for a few values, not for every smallest
         # distance a batch goes through: the keycap's 13 closest poses, 13 meshes before)
-        by = float(np.ceil(by * 1e3) * 1e-3)
-        _, z0, z1, r0, r1 = self._frustums[part]
-        z0, z1, r0, r1 = grown_frustum(z0, z1, r0, r1, by)
-        pad = self.polygon_tolerance if abs(r1 - r0) > 1e-12 else 0.0
+        by, z0, z1, r0, r1 = self._grown_part(part, by)
         cache = self.__dict__.setdefault("_grown_objects", {})
         key = (int(part), float(by))             # (the smallest distance so far: few values)
         grown = cache.get(key)
         if grown is None:
             if len(cache) >= 64:
                 cache.clear()
-            V, T, _, _ = frustum_mesh([("", z0, z1, r0 + pad, r1 + pad)], self.polygon_tolerance)
+            V, T, _, _ = frustum_mesh([("", z0, z1, r0, r1)], self.polygon_tolerance)
             grown = cache[key] = fcl.CollisionObject(_bvh(V, T), fcl.Transform())
         grown.setQuatRotation(q)
         grown.setTranslation(c)
-        if fcl.collide(grown, self._wp, self._req, fcl.CollisionResult()):
+        if fcl.collide(grown, self._wp if wp is None else wp, self._req, fcl.CollisionResult()):
             return True
         P = self._piece_vertices - c
         t = P @ a
         rho = row_norms(P - t[:, None] * a)
-        f = corner_factor(max(r0, r1) + pad, self.polygon_tolerance)
-        rout = (r0 + pad + (r1 - r0) * (t - z0) / (z1 - z0)) * f
+        f = corner_factor(max(r0, r1), self.polygon_tolerance)
+        rout = (r0 + (r1 - r0) * (t - z0) / (z1 - z0)) * f
         return bool(np.any((t >= z0) & (t <= z1) & (rho <= rout)))
+
+    def _grown_part(self, part: int, by: float) -> tuple:
+        """(``by`` rounded up to a micrometre, z0, z1, r0, r1): the region of
+        :meth:`_touches_grown` for ``part``, its frustum grown by ``by`` at both ends
+        (:func:`grown_frustum`) and, on a cone, by the polygons' excess across the axis (the
+        corners of its ``Convex`` primitive), to be held by circumscribed polygons."""
+        by = float(np.ceil(by * 1e3) * 1e-3)
+        _, z0, z1, r0, r1 = self._frustums[part]
+        z0, z1, r0, r1 = grown_frustum(z0, z1, r0, r1, by)
+        pad = self.polygon_tolerance if abs(r1 - r0) > 1e-12 else 0.0
+        return by, z0, z1, r0 + pad, r1 + pad
+
+    def _proven_far(self, C, A, mask: int, by: float) -> np.ndarray:
+        """(poses, parts): True where the broad phase proves that no point of the workpiece lies
+        within ``by`` of the part's primitive, for the parts of the bit mask ``mask`` whose
+        covered ends (:meth:`Tool.exposed_ends`) lie on parts of that set too: the set's
+        frustums grown by ``by`` and the polygons' excess, at their exposed ends only, hold every
+        such point (above a covered top lies the part above, grown itself; a shank's covered
+        bottom lies on the flutes, which are not asked), so a pose the broad phase finds free
+        at that growth has them all farther (asked together: one batch)."""
+        parts = self.tool.parts()
+        ends = self.tool.exposed_ends()
+        group = {j for j in range(len(parts)) if (mask >> j) & 1}
+        while True:
+            drop = {j for j in group if (not ends[j][0] and j - 1 not in group)
+                    or (not ends[j][1] and j + 1 not in group)}
+            if not drop:
+                break
+            group -= drop
+        out = np.zeros((len(C), len(parts)), bool)
+        if not group or self.broad is None or len(C) == 0:
+            return out
+        grow = float(np.ceil(by * 1e3) * 1e-3) + self.polygon_tolerance + NEAR_EPS
+        free = self.broad.decide(C, A, grow, int(sum(1 << j for j in group))) == FREE
+        out[:, sorted(group)] = free[:, None]
+        return out
 
     @cached_property
     def _piece_vertices(self) -> np.ndarray:

@@ -68,9 +68,11 @@ def map_pieces(fn, shared: tuple, count: int, workers: int, order=None, tick=Non
     made (for progress; it may raise to stop the work; pieces made while ``while_waiting``
     runs are told when it returns). ``while_waiting()``, when given, is called once in this
     process after the workers are started and before their results are read, and only then:
-    with one process (or one piece) it is not called, and the caller does that work later as
-    it would without it. Its exceptions propagate (the workers are stopped); a caller that
-    wants the pieces' errors first catches its own. ``when_idle()``, when given, is called
+    with one process (or no piece) it is not called, and the caller does that work later as
+    it would without it; a piece alone goes to a worker (tjunction_mold's one patch: its path,
+    0.21 s, beside its collision checker's 0.17 s, which came after it before). Its exceptions
+    propagate (the workers are stopped); a caller that wants the pieces' errors first catches
+    its own. ``when_idle()``, when given, is called
     once in this process when no piece is left to take while the workers still make theirs
     (not with one process, nor when every piece is in): work for the core this process would
     leave idle meanwhile; it may fork (no piece, thread or ``while_waiting`` of this call runs
@@ -81,7 +83,7 @@ def map_pieces(fn, shared: tuple, count: int, workers: int, order=None, tick=Non
     once that has returned. They all take the next piece of ``order`` from one shared
     counter, so whoever is free takes the next and no one waits at the end for a piece
     handed out early to a busy process."""
-    if workers <= 1 or count <= 1:
+    if workers <= 1 or count == 0 or (count == 1 and while_waiting is None):
         out = []
         for i in range(count):
             out.append(fn(*shared, i))
@@ -95,7 +97,8 @@ def map_pieces(fn, shared: tuple, count: int, workers: int, order=None, tick=Non
     nxt = ctx.Value("q", 0)                                   # the next position in order
     out_there = ctx.Value("q", 0, lock=False)                 # pieces in the workers' hands (nxt's lock)
     sent = ctx.Queue()                                        # pickled (index, result, error)
-    forks = min(workers, count) - 1
+    # (``while_waiting`` keeps this process busy: a piece alone goes to a worker beside it)
+    forks = min(workers, count + (while_waiting is not None)) - 1
     got = {}                            # index -> (result, None) or (None, error: str | Exception)
     made, finished = 0, False
 

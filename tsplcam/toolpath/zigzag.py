@@ -252,7 +252,8 @@ def build_path(model, steps, settings: PathSettings, name: str = "", workers: in
     if tick is not None:
         tick(0, len(steps))
     pieces = map_pieces(_step_piece, (model, steps, settings), len(steps),
-                        worker_count(workers, len(steps)), order=np.argsort(size)[::-1], tick=tick,
+                        worker_count(workers, len(steps) + (while_waiting is not None)),
+                        order=np.argsort(size)[::-1], tick=tick,
                         while_waiting=while_waiting)
     clearance = None
     rows = []                 # per chunk: (P, n, axis, move, patch, uv, line)

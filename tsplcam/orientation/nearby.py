@@ -1,0 +1,125 @@
+"""The workpiece's triangles near a few tool poses, as an fcl BVH of their own.
+
+fcl answers a question about a tool placed somewhere from the triangles near it: a triangle
+farther from the tool's solids than they reach (grown for the question) can neither touch them
+nor be the nearest. So where fcl is asked about a few poses only (the keycap job asks it about
+the smallest clearance's 10-20 closest poses and nothing else), a BVH over the triangles
+within reach of those poses answers as the workpiece's whole BVH does, and costs a fraction
+to build (the keycap: 38,482 triangles, the whole BVH 0.08 s; its smallest clearance's
+questions reach 3-4k of them).
+
+A question's reach is given as capsules: the segment of each solid's axis and a radius that
+holds the solid (a part's circumscribed polygons, the gouge check's ball), grown by what the
+question asks about. The triangles are found from the broad phase's samples
+(:class:`~tsplcam.orientation.broadphase.BroadPhase`): every point of a triangle lies within
+``sqrt(e2)`` of one of the triangle's own samples (its corners and the points of its
+subdivision), so a triangle that reaches into a capsule has a sample within the capsule's
+radius plus ``sqrt(e2)`` of its segment, which balls along the segment cover.
+
+The last few BVHs are kept: a question whose triangles one of them holds is answered from it
+(a BVH over more triangles than needed answers the same), else a BVH is built over its own. Where the capsules are many, or the triangles near them are a large share of the
+workpiece, the caller takes the whole BVH instead (:meth:`NearWorkpiece.obj` gives None).
+"""
+from __future__ import annotations
+
+import itertools
+
+import numpy as np
+
+try:                                   # python-fcl: the orientation stage's dependency
+    import fcl
+except ImportError:                    # pragma: no cover - reported when a checker is built
+    fcl = None
+
+#: at most this many capsules per question (more: the whole BVH)
+MAX_CAPSULES = 512
+#: the triangles kept near the poses: at most this share of the workpiece's (more: the whole
+#: BVH, which a build over that many would cost about as much as)
+MAX_SHARE = 0.25
+#: BVHs kept for later questions (each over the triangles one question needed: a later one
+#: within those is answered from it; growing one BVH for every new question built the
+#: keycap's 5-6k triangles three times over)
+KEEP = 4
+
+
+def bvh_model(V: np.ndarray, T: np.ndarray):
+    """fcl's BVH (OBBRSS) of the triangle mesh (V, T)."""
+    m = fcl.BVHModel()
+    m.beginModel(len(T), len(V))
+    m.addSubModel(np.ascontiguousarray(V, float), np.ascontiguousarray(T, np.int64))
+    m.endModel()
+    return m
+
+
+class NearWorkpiece:
+    """BVHs over the triangles of (V, T) near given capsules, from the broad phase ``broad``
+    (its samples' tree, their triangles, its sample spacing)."""
+
+    def __init__(self, V: np.ndarray, T: np.ndarray, broad):
+        self.V, self.T, self.broad = V, T, broad
+        self.kept = []                           # (triangle mask, fcl object), newest last
+        self.builds = 0                          # BVHs built (for tests and benchmarks)
+
+    def triangles(self, P0: np.ndarray, P1: np.ndarray, R0: np.ndarray, R1: np.ndarray) -> np.ndarray:
+        """Mask of the triangles that may reach into the frustums about the segments P0-P1 of
+        radii R0 at P0 and R1 at P1 (a superset: every triangle that does)."""
+        b = self.broad
+        e = float(np.sqrt(b.e2))
+        R0, R1 = np.asarray(R0, float), np.asarray(R1, float)
+        Rc = np.maximum(R0, R1) + e
+        D = P1 - P0
+        L = np.sqrt(np.einsum("ij,ij->i", D, D))
+        # balls along each segment, at most ``Rc`` apart: a point within Rc of the segment
+        # lies within sqrt(Rc^2 + (s/2)^2) of the nearest ball's centre (s their spacing)
+        cnt = np.ceil(L / np.maximum(Rc, 1e-9)).astype(np.int64) + 1
+        seg = np.repeat(np.arange(len(P0)), cnt)
+        first = np.repeat(np.cumsum(cnt) - cnt, cnt)
+        t = (np.arange(len(seg)) - first) / np.maximum(cnt[seg] - 1, 1)
+        X = P0[seg] + t[:, None] * D[seg]
+        s = L[seg] / np.maximum(cnt[seg] - 1, 1)
+        r = np.sqrt(Rc[seg] ** 2 + 0.25 * s * s) * (1.0 + 1e-9) + 1e-9
+        lists = b.tree.ref.query_ball_point(X, r, return_sorted=False)
+        cnt = np.fromiter(map(len, lists), np.int64, len(lists))
+        js = np.fromiter(itertools.chain.from_iterable(lists), np.int64, int(cnt.sum()))
+        # only the samples within ``e`` of the frustum itself (the balls bulge past its ends and
+        # its side, a holder's far beyond: the samples near it lie in the thin shell between the
+        # solid and its growth): ``e`` along the axis past either end, and across it ``e`` beyond
+        # the frustum's widest radius within ``e`` along the axis
+        c = seg[np.repeat(np.arange(len(X)), cnt)]
+        w = b.samples[js] - P0[c]
+        Lc = L[c]
+        t = np.einsum("ij,ij->i", w, D[c]) / np.maximum(Lc, 1e-300)
+        rho2 = np.einsum("ij,ij->i", w, w) - t * t
+        tol = 1e-9 * (1.0 + Rc[c] + Lc)
+        lo = np.clip(t - e, 0.0, Lc) / np.maximum(Lc, 1e-300)
+        hi = np.clip(t + e, 0.0, Lc) / np.maximum(Lc, 1e-300)
+        r0, r1 = R0[c], R1[c]
+        wide = np.maximum(r0 + (r1 - r0) * lo, r0 + (r1 - r0) * hi) + e + tol
+        keep = (t >= -e - tol) & (t <= Lc + e + tol) & (rho2 <= wide * wide)
+        js = np.unique(js[keep])
+        out = np.zeros(len(self.T), bool)
+        if len(js):
+            out[b._triangles_of(js)[1]] = True
+        return out
+
+    def obj(self, P0: np.ndarray, P1: np.ndarray, R0: np.ndarray, R1: np.ndarray):
+        """The fcl object of a BVH holding every triangle that reaches into the frustums
+        (:meth:`triangles`), or None where they are more than :data:`MAX_CAPSULES` or their
+        triangles with those kept more than :data:`MAX_SHARE` of the workpiece's."""
+        if len(P0) > MAX_CAPSULES:
+            return None
+        want = self.triangles(np.asarray(P0, float).reshape(-1, 3), np.asarray(P1, float).reshape(-1, 3),
+                              R0, R1)
+        for mask, obj in reversed(self.kept):
+            if not (want & ~mask).any():
+                return obj
+        if want.sum() > MAX_SHARE * len(self.T):
+            return None
+        if not want.any():
+            want[0] = True                       # (fcl's BVH holds a triangle: one far away)
+        tri = self.T[want]
+        vid, inv = np.unique(tri, return_inverse=True)
+        obj = fcl.CollisionObject(bvh_model(self.V[vid], inv.reshape(-1, 3)), fcl.Transform())
+        self.kept = self.kept[-(KEEP - 1):] + [(want, obj)]
+        self.builds += 1
+        return obj

@@ -36,6 +36,9 @@ MAX_CAPSULES = 512
 #: the triangles kept near the poses: at most this share of the workpiece's (more: the whole
 #: BVH, which a build over that many would cost about as much as)
 MAX_SHARE = 0.25
+#: at most this many samples met in the balls that find a question's triangles, per triangle
+#: of the workpiece (more: the whole BVH)
+MAX_MET = 2.0
 #: BVHs kept for later questions (each over the triangles one question needed: a later one
 #: within those is answered from it; growing one BVH for every new question built the
 #: keycap's 5-6k triangles three times over)
@@ -60,9 +63,10 @@ class NearWorkpiece:
         self.kept = []                           # (triangle mask, fcl object), newest last
         self.builds = 0                          # BVHs built (for tests and benchmarks)
 
-    def triangles(self, P0: np.ndarray, P1: np.ndarray, R0: np.ndarray, R1: np.ndarray) -> np.ndarray:
+    def triangles(self, P0: np.ndarray, P1: np.ndarray, R0: np.ndarray, R1: np.ndarray) -> np.ndarray | None:
         """Mask of the triangles that may reach into the frustums about the segments P0-P1 of
-        radii R0 at P0 and R1 at P1 (a superset: every triangle that does)."""
+        radii R0 at P0 and R1 at P1 (a superset: every triangle that does); None where finding
+        them would cost about as much as the whole BVH (:data:`MAX_MET`)."""
         b = self.broad
         e = float(np.sqrt(b.e2))
         R0, R1 = np.asarray(R0, float), np.asarray(R1, float)
@@ -78,6 +82,12 @@ class NearWorkpiece:
         X = P0[seg] + t[:, None] * D[seg]
         s = L[seg] / np.maximum(cnt[seg] - 1, 1)
         r = np.sqrt(Rc[seg] ** 2 + 0.25 * s * s) * (1.0 + 1e-9) + 1e-9
+        # counted first (a tenth of the lists' time): the samples met in the balls cost about a
+        # tenth of a triangle's share of the whole BVH each, so beyond ``MAX_MET`` per triangle
+        # of the workpiece the whole BVH is built (keycap_mold's first fcl batch of the search:
+        # 681 parts of poses, the holders' wide balls meeting 1.4 M samples, 0.14 s to list)
+        if int(b.tree.ref.query_ball_point(X, r, return_length=True).sum()) > MAX_MET * len(self.T):
+            return None
         lists = b.tree.ref.query_ball_point(X, r, return_sorted=False)
         cnt = np.fromiter(map(len, lists), np.int64, len(lists))
         js = np.fromiter(itertools.chain.from_iterable(lists), np.int64, int(cnt.sum()))
@@ -110,6 +120,8 @@ class NearWorkpiece:
             return None
         want = self.triangles(np.asarray(P0, float).reshape(-1, 3), np.asarray(P1, float).reshape(-1, 3),
                               R0, R1)
+        if want is None:
+            return None
         for mask, obj in reversed(self.kept):
             if not (want & ~mask).any():
                 return obj

@@ -20,8 +20,10 @@ on arguments given later (:meth:`Aside.follow`), keeping what the first built th
 work to do while it waits for them (``meanwhile``): the ball gouge check (which the broad
 phase answers without fcl) is followed there by building the checker's BVH while the axes
 are searched here, and the same process then measures the axes' smallest clearance with it
-while this one posts the program (the main process builds a BVH of its own only where its
-questions reach fcl, as on the molds).
+while this one posts the program (the main process builds a BVH of its own only where many
+of its questions reach fcl, as on the molds; a few are answered from the triangles near them,
+:mod:`~tsplcam.orientation.nearby`). The arguments are written by a thread, so this process
+goes on with its own work where the forked one is still busy with its ``meanwhile`` work.
 
 While it waits for the second piece's arguments, the forked process may also answer
 requests (``serve``): the job's process hands it half of each large batch of collision

@@ -8,17 +8,20 @@ within reach of those poses answers as the workpiece's whole BVH does, and costs
 to build (the keycap: 38,482 triangles, the whole BVH 0.08 s; its smallest clearance's
 questions reach 3-4k of them).
 
-A question's reach is given as capsules: the segment of each solid's axis and a radius that
-holds the solid (a part's circumscribed polygons, the gouge check's ball), grown by what the
-question asks about. The triangles are found from the broad phase's samples
+A question's reach is given as frustums about segments: each solid's axis and its radii at
+both ends, held by its circumscribed polygons (the gouge check's ball: a segment of length 0),
+grown by what the question asks about. The triangles are found from the broad phase's samples
 (:class:`~tsplcam.orientation.broadphase.BroadPhase`): every point of a triangle lies within
-``sqrt(e2)`` of one of the triangle's own samples (its corners and the points of its
-subdivision), so a triangle that reaches into a capsule has a sample within the capsule's
-radius plus ``sqrt(e2)`` of its segment, which balls along the segment cover.
+``e = sqrt(e2)`` of one of the triangle's own samples (its corners and the points of its
+subdivision), so a triangle that reaches into a frustum has a sample within ``e`` of it, which
+lies within the widest radius plus ``e`` of the segment: balls along the segment find it, and of
+what they find only the samples within ``e`` of the frustum itself are kept.
 
 The last few BVHs are kept: a question whose triangles one of them holds is answered from it
-(a BVH over more triangles than needed answers the same), else a BVH is built over its own. Where the capsules are many, or the triangles near them are a large share of the
-workpiece, the caller takes the whole BVH instead (:meth:`NearWorkpiece.obj` gives None).
+(a BVH over more triangles than needed answers the same), else a BVH is built over its own.
+Where the frustums are many, the triangles near them a large share of the workpiece's, or the
+balls would meet too many samples, the caller takes the whole BVH instead
+(:meth:`NearWorkpiece.obj` gives None).
 """
 from __future__ import annotations
 
@@ -31,7 +34,7 @@ try:                                   # python-fcl: the orientation stage's dep
 except ImportError:                    # pragma: no cover - reported when a checker is built
     fcl = None
 
-#: at most this many capsules per question (more: the whole BVH)
+#: at most this many frustums per question (more: the whole BVH)
 MAX_CAPSULES = 512
 #: the triangles kept near the poses: at most this share of the workpiece's (more: the whole
 #: BVH, which a build over that many would cost about as much as)
@@ -55,7 +58,7 @@ def bvh_model(V: np.ndarray, T: np.ndarray):
 
 
 class NearWorkpiece:
-    """BVHs over the triangles of (V, T) near given capsules, from the broad phase ``broad``
+    """BVHs over the triangles of (V, T) near given frustums, from the broad phase ``broad``
     (its samples' tree, their triangles, its sample spacing)."""
 
     def __init__(self, V: np.ndarray, T: np.ndarray, broad):

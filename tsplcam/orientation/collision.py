@@ -577,7 +577,7 @@ def axis_quaternions(axes: np.ndarray) -> np.ndarray:
 POOL_MIN = 400                 # fcl batches at least twice this long go to worker processes,
 POOL_START = 8000              # once a batch this long has started them (see CollisionChecker._fcl)
 _POOL_CHECKER = None           # the checker forked workers inherit
-NEAR_EPS = 1e-6                # mm: the capsules of a question to fcl widened past rounding
+NEAR_EPS = 1e-6                # mm: the frustums of a question to fcl widened past rounding
 BESIDE_MIN = 1000              # poses: a batch this large is shared with the process beside
 BESIDE_CELL = 1.0              # mm: ball centres in a checkerboard of cells go to one process or the other
 

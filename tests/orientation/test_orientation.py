@@ -187,7 +187,7 @@ class CollisionGeometry(unittest.TestCase):
         broad phase proves clear build nothing; one it cannot prove builds a BVH of the
         triangles near it (the whole workpiece's stays unbuilt), which a ball within those
         answers from; a batch of more balls than the near BVHs take builds the whole one, once."""
-        from tsplcam.orientation.nearby import MAX_CAPSULES
+        from tsplcam.orientation.nearby import MAX_FRUSTUMS
         tool = Tool("t", 1.0, 2.0, 2.0, 10.0, [])
         ch = CollisionChecker(None, tool, meshes=[plane_mesh()], tolerance=0.001)
         self.assertIsNone(ch._wp_object)
@@ -199,7 +199,7 @@ class CollisionGeometry(unittest.TestCase):
         self.assertEqual(ch._nearby.builds, 1)
         np.testing.assert_array_equal(ch.ball_gouges(np.array([[0, 0, 0.5]])), [True])
         self.assertEqual(ch._nearby.builds, 1)                  # (its triangles were near the first)
-        x = np.linspace(-4.0, 4.0, MAX_CAPSULES + 1)
+        x = np.linspace(-4.0, 4.0, MAX_FRUSTUMS + 1)
         balls = np.column_stack([x, np.zeros_like(x), np.full_like(x, 0.5)])
         self.assertTrue(ch.ball_gouges(balls).all())
         built = ch._wp_object

@@ -53,7 +53,7 @@ from ..errors import GeometryError, InputError
 from ..toolpath.parallel import map_pieces, worker_count
 from ..npfast import cross_rows, row_norms
 from .broadphase import FREE, HIT, UNKNOWN, BroadPhase, Profile, longest_edges, mesh_components, row_bits
-from .nearby import MAX_CAPSULES, NearWorkpiece, bvh_model as _bvh
+from .nearby import MAX_FRUSTUMS, NearWorkpiece, bvh_model as _bvh
 from .tool import Tool
 
 try:                                   # python-fcl is a dependency of this stage only
@@ -716,7 +716,7 @@ class CollisionChecker:
             return self._wp
         m = np.asarray(masks, np.int64).reshape(-1, 1)
         on = (m == -1) | ((m >> np.arange(len(frustums))) & 1).astype(bool)
-        if int(on.sum()) > MAX_CAPSULES:
+        if int(on.sum()) > MAX_FRUSTUMS:
             return self._wp
         return self._near_at(C, A, *np.nonzero(on), frustums)
 

@@ -147,6 +147,17 @@ def one_patch_model(patch, name: str = "test patch"):
     return Model([patch], corners, [], "bspline", name=name)
 
 
+def keycap_mold_checker(tool: str = "ball1_keycap", **options):
+    """(model, CollisionChecker) of the keycap_mold sample and its stock block with ``tool``;
+    ``options``: the checker's (clearance, tolerance, ...)."""
+    from tsplcam.model import samples
+    from tsplcam.model.cage import cage_model
+    from tsplcam.orientation import CollisionChecker, load_tool
+    model = cage_model(samples.keycap_mold())
+    V, T = samples.keycap_mold_stock()
+    return model, CollisionChecker(model, load_tool(tool), meshes=[("stock", V, T)], **options)
+
+
 def assert_finite_everywhere(test, named_models, samples: int = 17) -> None:
     """No evaluation returns NaN: position, derivatives, normal, principal curvatures and
     directions on a grid of every patch (corners included) of every (name, model)."""

@@ -14,6 +14,7 @@ import unittest
 
 import numpy as np
 
+from conftest import keycap_mold_checker
 from tsplcam.model import samples
 from tsplcam.model.cage import cage_model
 from tsplcam.orientation import CollisionChecker, load_tool
@@ -66,13 +67,10 @@ class Nogil:
 class AgreesWithFcl(unittest.TestCase):
     @classmethod
     def setUpClass(cls):
-        mold = cage_model(samples.keycap_mold())
-        V, T = samples.keycap_mold_stock()
-        tool = load_tool("ball1_keycap")
-        cls.mold = CollisionChecker(mold, tool, meshes=[("stock", V, T)], clearance=0.3)
+        mold, cls.mold = keycap_mold_checker(clearance=0.3)
         cls.mold_path = zigzag(mold, 0.5, lines=12, points=40)
         keycap = cage_model(samples.keycap())
-        cls.keycap = CollisionChecker(keycap, tool, clearance=0.3)
+        cls.keycap = CollisionChecker(keycap, load_tool("ball1_keycap"), clearance=0.3)
         cls.keycap_path = zigzag(keycap, 0.5, lines=12, points=40)
 
     def check(self, checker, path, grow, seed, n=2500):

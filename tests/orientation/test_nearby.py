@@ -7,6 +7,7 @@ import unittest
 
 import numpy as np
 
+from conftest import keycap_mold_checker
 from tsplcam.model import samples
 from tsplcam.model.cage import cage_model
 from tsplcam.orientation import CollisionChecker, load_tool
@@ -27,11 +28,8 @@ class NearAnswersAsWhole(unittest.TestCase):
 
     @classmethod
     def setUpClass(cls):
-        model = cage_model(samples.keycap_mold())
-        V, T = samples.keycap_mold_stock()
-        tool = load_tool("ball1_keycap")
-        cls.near = CollisionChecker(model, tool, meshes=[("stock", V, T)], clearance=0.3)
-        cls.whole = CollisionChecker(model, tool, meshes=[("stock", V, T)], clearance=0.3)
+        _, cls.near = keycap_mold_checker(clearance=0.3)
+        _, cls.whole = keycap_mold_checker(clearance=0.3)
         cls.whole.build_bvh()
         rng = np.random.default_rng(11)
         n = 240

@@ -12,7 +12,7 @@ import numpy as np
 
 import fcl
 
-from conftest import cylinder_patch, one_patch_model
+from conftest import cylinder_patch, keycap_mold_checker, one_patch_model
 from tsplcam.model.bspline import bspline_patch
 from tsplcam.orientation import CollisionChecker, load_tool
 from tsplcam.orientation.collision import axis_quaternions, tool_primitives
@@ -321,13 +321,9 @@ class MoldSmallestClearance(unittest.TestCase):
         self.assertAlmostEqual(got[0], float(every.min()), delta=1e-12)
 
     def test_scouts_against_every_pose(self):
-        from tsplcam.model import samples
-        from tsplcam.model.cage import cage_model
         from tsplcam.orientation.testpaths import zigzag
         from tsplcam.verify.orientation import _bounded, _scouted
-        mold = cage_model(samples.keycap_mold())
-        V, T = samples.keycap_mold_stock()
-        checker = CollisionChecker(mold, load_tool("ball1_keycap"), meshes=[("stock", V, T)], clearance=0.3)
+        mold, checker = keycap_mold_checker(clearance=0.3)
         path = zigzag(mold, 0.5, lines=12, points=32)
         rng = np.random.default_rng(3)
         up = np.array([0.0, 0.0, 1.0])                          # axes within 25 deg of +z
@@ -351,12 +347,8 @@ class MoldSmallestClearance(unittest.TestCase):
         cavity, where the holder's lower rim meets the stock's top edge. With the parts grown
         across the axis only (before 2026-11-29), 20 of the 828 free poses brought the holder
         0.085-0.29 mm close."""
-        from tsplcam.model import samples
-        from tsplcam.model.cage import cage_model
         from tsplcam.orientation.testpaths import zigzag
-        mold = cage_model(samples.keycap_mold())
-        V, T = samples.keycap_mold_stock()
-        checker = CollisionChecker(mold, load_tool("ball1_keycap"), meshes=[("stock", V, T)], clearance=0.3)
+        mold, checker = keycap_mold_checker(clearance=0.3)
         path = zigzag(mold, 0.5, lines=16, points=40)
         rng = np.random.default_rng(11)
         up = np.array([0.0, 0.0, 1.0])

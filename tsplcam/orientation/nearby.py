@@ -99,23 +99,23 @@ class NearWorkpiece:
             if met > most:
                 return None
         lists = b.tree.ref.query_ball_point(X, r, return_sorted=False)
-        cnt = np.fromiter(map(len, lists), np.int64, len(lists))
-        js = np.fromiter(itertools.chain.from_iterable(lists), np.int64, int(cnt.sum()))
+        found = np.fromiter(map(len, lists), np.int64, len(lists))
+        js = np.fromiter(itertools.chain.from_iterable(lists), np.int64, int(found.sum()))
         # only the samples within ``e`` of the frustum itself (the balls bulge past its ends and
         # its side, a holder's far beyond: the samples near it lie in the thin shell between the
         # solid and its growth): ``e`` along the axis past either end, and across it ``e`` beyond
         # the frustum's widest radius within ``e`` along the axis
-        c = seg[np.repeat(np.arange(len(X)), cnt)]
+        c = seg[np.repeat(np.arange(len(X)), found)]
         w = b.samples[js] - P0[c]
         Lc = L[c]
-        t = np.einsum("ij,ij->i", w, D[c]) / np.maximum(Lc, 1e-300)
-        rho2 = np.einsum("ij,ij->i", w, w) - t * t
+        z = np.einsum("ij,ij->i", w, D[c]) / np.maximum(Lc, 1e-300)     # along the axis
+        rho2 = np.einsum("ij,ij->i", w, w) - z * z
         tol = 1e-9 * (1.0 + Rc[c] + Lc)
-        lo = np.clip(t - e, 0.0, Lc) / np.maximum(Lc, 1e-300)
-        hi = np.clip(t + e, 0.0, Lc) / np.maximum(Lc, 1e-300)
+        lo = np.clip(z - e, 0.0, Lc) / np.maximum(Lc, 1e-300)
+        hi = np.clip(z + e, 0.0, Lc) / np.maximum(Lc, 1e-300)
         r0, r1 = R0[c], R1[c]
         wide = np.maximum(r0 + (r1 - r0) * lo, r0 + (r1 - r0) * hi) + e + tol
-        keep = (t >= -e - tol) & (t <= Lc + e + tol) & (rho2 <= wide * wide)
+        keep = (z >= -e - tol) & (z <= Lc + e + tol) & (rho2 <= wide * wide)
         js = np.unique(js[keep])
         out = np.zeros(len(self.T), bool)
         if len(js):

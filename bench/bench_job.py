@@ -22,7 +22,9 @@ every core it is allowed (the path and fcl use both); the machine and its load a
    broad phase and on one asking fcl alone: poses decided per second, and how they were
    decided; the same for every candidate axis of every tenth path point.
 5. Path generation: seconds against points for scallops 0.05 .. 0.002 mm on the keycap
-   (log-log slope: 1 is linear), one process against all cores (the same points).
+   (log-log slope: 1 is linear), one process against all cores (the same points); then the
+   whole job of 2 at those scallops, its ratio to 1 at each, and its time split into a part
+   every keycap job pays and a part per point.
 6. Peak memory of the five-keycap job (25 patches, the main job's ball 0.5 mm and scallop
    0.005 mm; a 3 mm ball gouges the keycap's lower corners, so the whole job refuses it).
 """
@@ -321,6 +323,25 @@ def path_growth(repeat):
           f"(ratio {t1 / t2:.2f}); the same points: {same}")
 
 
+def job_growth(tmp: str, repeat: int, ocl: float, main_job: dict) -> None:
+    """The whole keycap job (model to G-code, as in 1-2) against its size: the scallops of the
+    path's growth, each job the fastest of ``repeat`` (the 0.005 mm one is 1-2's), its ratio to
+    OpenCAMLib's rate of this run, the log-log slope, and the least-squares split of its time
+    into a part every job pays (model, collision checker, BVH: the keycap's whatever its
+    points) and a part per point."""
+    rows = []
+    for h in (0.05, 0.02, 0.005, 0.002):
+        r = main_job if h == 0.005 else best_job(["--scallop", str(h)], tmp, repeat)
+        n, t = r["path"]["points"], r["seconds"]
+        rows.append((n, t))
+        print(f"    scallop {h:<6g} {n:7d} points  {t:6.2f} s  {n / t:8.0f} points/s = {n / t / ocl:5.2f} x OpenCAMLib")
+    n, t = np.array(rows, float).T
+    slope = np.polyfit(np.log(n), np.log(t), 1)[0]
+    per, fixed = np.polyfit(n, t, 1)
+    print(f"    log-log slope of the job's time against points: {slope:.2f} (1 = linear); time = "
+          f"{fixed:.2f} s + {per * 1e6:.1f} us a point (least squares)")
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser()
     ap.add_argument("--repeat", type=int, default=3)
@@ -379,6 +400,8 @@ def main(argv=None) -> int:
 
     print("\n5. path generation on the keycap (r 0.5 mm), cost against size")
     path_growth(args.repeat)
+    print("  the whole job (as 1-2), cost against size")
+    job_growth(tmp, max(1, args.repeat - 1), ocl, rep)
 
     if not args.quick:
         print("\n6. five keycaps (25 patches), the main job's tool and scallop (ball 0.5 mm, 0.005 mm)")

@@ -297,13 +297,17 @@ def all_candidates(path, model, meshes, repeat, every=10):
 
 
 # --- 5. path growth ------------------------------------------------------------------------------
+#: the scallops (mm) the path's and the whole job's cost is measured at (0.005: the main job's)
+GROWTH_SCALLOPS = (0.05, 0.02, 0.005, 0.002)
+
+
 def path_growth(repeat):
     from tsplcam import load_model
     from tsplcam.toolpath.zigzag import default_plan, zigzag_path
     model = load_model("keycap")
     plan = default_plan(model)
     rows = []
-    for h in (0.05, 0.02, 0.005, 0.002):
+    for h in GROWTH_SCALLOPS:
         t, p = best_of(lambda: zigzag_path(model, plan, 0.5, h, 0.001), repeat if h > 0.002 else 1)
         rows.append((h, len(p), t))
         print(f"    scallop {h:<6g} {len(p):7d} points  {t:6.2f} s  {len(p) / t:8.0f} points/s")
@@ -330,7 +334,7 @@ def job_growth(tmp: str, repeat: int, ocl: float, main_job: dict) -> None:
     into a part every job pays (model, collision checker, BVH: the keycap's whatever its
     points) and a part per point."""
     rows = []
-    for h in (0.05, 0.02, 0.005, 0.002):
+    for h in GROWTH_SCALLOPS:
         r = main_job if h == 0.005 else best_job(["--scallop", str(h)], tmp, repeat)
         n, t = r["path"]["points"], r["seconds"]
         rows.append((n, t))

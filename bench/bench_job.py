@@ -329,13 +329,13 @@ def path_growth(repeat):
 
 def job_growth(tmp: str, repeat: int, ocl: float, main_job: dict) -> None:
     """The whole keycap job (model to G-code, as in 1-2) against its size: the scallops of the
-    path's growth, each job the fastest of ``repeat`` (the 0.005 mm one is 1-2's), its ratio to
+    path's growth, each job the fastest of ``repeat`` (the main job's scallop: 1-2's run), its ratio to
     OpenCAMLib's rate of this run, the log-log slope, and the least-squares split of its time
     into a part every job pays (model, collision checker, BVH: the keycap's whatever its
     points) and a part per point."""
     rows = []
     for h in GROWTH_SCALLOPS:
-        r = main_job if h == 0.005 else best_job(["--scallop", str(h)], tmp, repeat)
+        r = main_job if h == main_job["settings"]["scallop"] else best_job(["--scallop", str(h)], tmp, repeat)
         n, t = r["path"]["points"], r["seconds"]
         rows.append((n, t))
         print(f"    scallop {h:<6g} {n:7d} points  {t:6.2f} s  {n / t:8.0f} points/s = {n / t / ocl:5.2f} x OpenCAMLib")

@@ -505,12 +505,13 @@ def _define(jit):
         return 0
 
     @jit
-    def solve_box(ab0, g, lo, hi, iterations, x):
+    def solve_box(ab0, g, lo, hi, iterations, x, at):
         """``smoothing._Banded.solve_box`` whole for u = 2: its active-set loop, each step's
         numpy operations element for element in their order (the matvec's sum per element:
         the diagonal, then per band the term above and the one below) and ``banded_solve``'s
         arithmetic, so the same x bit for bit. ``x`` (N,) receives the result before the final
-        clip. Returns 0, or the leading minor ``banded_solve`` reports.
+        clip; ``at`` (N,) the active set to start from (-1 at lo, +1 at hi, 0 free), left as
+        the loop ends. Returns 0, or the leading minor ``banded_solve`` reports.
 
         An iteration changes the active set in a few rows, and the right-hand side, the
         factor, the forward and the back substitution are recurrences along the rows whose
@@ -528,7 +529,6 @@ def _define(jit):
         substitution's rows change per iteration. Values are compared with their sign (-0 is
         not +0); NaN always counts as changed."""
         N = ab0.shape[1]
-        at = np.zeros(N, np.int8)
         cxf = np.zeros(N, np.bool_)         # at[i] (so xf[i]) changed since the last iteration
         chg = np.empty(N, np.int64)         # those rows, ascending
         nchg = 0
@@ -544,6 +544,8 @@ def _define(jit):
         sU = np.full(N, -1, np.int64)       # the iteration that last changed column j of U, y[j]
         sY = np.full(N, -1, np.int64)
         x[:] = 0.0
+        for i in range(N):
+            xf[i] = lo[i] if at[i] < 0 else (hi[i] if at[i] > 0 else 0.0)
         for it in range(iterations):
             first = it == 0
             for q in range(nchg):
@@ -2104,7 +2106,7 @@ SIGNATURES = {
     "viterbi_path": "void(i4[2], i8, i8[1]w)",
     "two_states": "i8(f8[2], f8[3], f8, i8[1]w)",
     "banded_solve": "i8(f8[2]w, f8[1]w)",
-    "solve_box": "i8(f8[2], f8[1], f8[1], f8[1], i8, f8[1]w)",
+    "solve_box": "i8(f8[2], f8[1], f8[1], f8[1], i8, f8[1]w, i1[1]w)",
     "grid_read": "void(f8[2], f8[1], f8, i8[1], i8[1], i8[1], f8[1], i8[1], f8[1]w, i8[1]w, b1[1]w)",
     "sphere_loop": "i8(f8[2], f8[2], i8[1], i8[1], f8[1], f8[1], f8[1], f8[1], f8[1], f8[1], i8[1], i8,"
                    " f8[1], f8[1], f8[2], f8[1], i8[2], i8[2], i8[2], i8[1], f8[1], i8[1], f8[2], i4[1],"

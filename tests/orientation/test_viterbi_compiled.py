@@ -250,6 +250,36 @@ class CompiledBandedSolve(unittest.TestCase):
                 with mock.patch.object(compiled, "loaded", lambda: None):
                     np.testing.assert_array_equal(B.solve_box(lo, hi, iterations), x, (trial, iterations))
 
+    def test_solve_box_warm_start(self):
+        """From a given active set (``at``): the kernel and the loop give the same x and leave
+        the same active set, from random starts too; from the active set a solve ended with,
+        the next ends in its first iteration on the same x, bit for bit, and leaves it as it
+        was; from a random one it reaches the same minimum (within 1e-9 of the box's width)."""
+        self.assertIsNotNone(compiled.kernels())
+        rng = np.random.default_rng(11)
+        for trial in range(30):
+            N = int(rng.integers(2, 60)) if trial else 400
+            B = _Banded(N, 2)
+            B.ab[:] = random_band(rng, N, 2, fixed=0.0)
+            B.g[:] = rng.standard_normal(N) * 10.0 ** rng.uniform(-1, 2)
+            lo = rng.uniform(-1.0, 0.0, N)
+            hi = lo + rng.uniform(0.0, 1.0, N) * (rng.random(N) > 0.1)
+            ended = np.zeros(N, np.int8)
+            x = B.solve_box(lo, hi, 400, ended)
+            again = ended.copy()
+            np.testing.assert_array_equal(B.solve_box(lo, hi, 1, again), x)
+            np.testing.assert_array_equal(again, ended)
+            start = rng.integers(-1, 2, N).astype(np.int8)
+            for iterations in (1, 3, 400):
+                a, b = start.copy(), start.copy()
+                got = B.solve_box(lo, hi, iterations, a)
+                with mock.patch.object(compiled, "loaded", lambda: None):
+                    np.testing.assert_array_equal(B.solve_box(lo, hi, iterations, b), got, (trial, iterations))
+                np.testing.assert_array_equal(a, b)
+            np.testing.assert_allclose(got, x, rtol=0, atol=1e-9)
+        with self.assertRaises(ValueError):
+            B.solve_box(lo, hi, 40, np.zeros(N, np.int64))
+
 
 def random_programme(rng, n, M):
     """A joint programme's transition function on random tilts (some at the pole, some
@@ -397,7 +427,7 @@ class KeycapJob(unittest.TestCase):
         from tsplcam.settings import JobSettings
         from tsplcam.orientation import rotary
 
-        seen = {"viterbi": 0, "banded": 0}
+        seen = {"viterbi": 0, "banded": 0, "boxes": 0}
         real_solve = smoothing._solve_banded
 
         def both_viterbi(node, trans, kernel=True):
@@ -419,10 +449,15 @@ class KeycapJob(unittest.TestCase):
 
         real_box = smoothing._Banded.solve_box
 
-        def both_box(box, lo, hi, iterations=40):
-            got = real_box(box, lo, hi, iterations)              # the solve_box kernel
+        def both_box(box, lo, hi, iterations=40, at=None):
+            start = None if at is None else at.copy()
+            got = real_box(box, lo, hi, iterations, at)          # the solve_box kernel
+            again = None if start is None else start.copy()
             with mock.patch.object(compiled, "loaded", lambda: None):
-                np.testing.assert_array_equal(real_box(box, lo, hi, iterations), got)   # the loop
+                np.testing.assert_array_equal(real_box(box, lo, hi, iterations, again), got)   # the loop
+            if at is not None:
+                np.testing.assert_array_equal(again, at)         # and the same active set left
+            seen["boxes"] += 1
             return got
 
         with tempfile.TemporaryDirectory() as tmp, \
@@ -433,7 +468,8 @@ class KeycapJob(unittest.TestCase):
             figures = run_job(JobSettings(out=os.path.join(tmp, "job"), verify=False, html_report=False),
                               log=None, progress=lambda stage, done, total: None)
         self.assertGreaterEqual(seen["viterbi"], 2)       # the joint programme and the forced travel
-        self.assertGreater(seen["banded"], 100)
+        self.assertGreaterEqual(seen["boxes"], 4)
+        self.assertGreater(seen["banded"], 40)         # (57: the first solves' loops, the rest warm)
         self.assertEqual(figures["orientation"]["collisions"], 0)
 
 

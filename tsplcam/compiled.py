@@ -1193,6 +1193,111 @@ def _define(jit):
                     nf += 1
         return nf
 
+    @numba.njit(inline="always")
+    def _div(a, b):
+        """a / b with IEEE's quotients by zero (numpy's; numba's Python error model raises)."""
+        if b == 0.0:
+            if a != a or a == 0.0:
+                return np.nan
+            return np.inf if (a > 0.0) == (np.copysign(1.0, b) > 0.0) else -np.inf
+        return a / b
+
+    @numba.njit(inline="always")
+    def _finite(t):
+        """``np.nan_to_num`` of one value: nan 0, infinities the largest finite values."""
+        if t != t:
+            return 0.0
+        if t == np.inf:
+            return 1.7976931348623157e308
+        if t == -np.inf:
+            return -1.7976931348623157e308
+        return t
+
+    @jit
+    def measure_pairs(x, R, V, T, nrm, row, tri, slack, out):
+        """:meth:`~tsplcam.orientation.broadphase.BroadPhase._measure_into` pair by pair: where
+        triangle ``tri[k]``'s plane lies within ``R[row[k]] + slack`` of point ``x[row[k]]``,
+        its distance to the triangle's closest point (``broadphase.closest_on_triangles``:
+        the same operations in the same order, its regions in its order of precedence) lowers
+        ``out[row[k]]`` (a NaN wins, as in ``np.minimum``). Pairs may repeat (a minimum does
+        not change)."""
+        for k in range(row.shape[0]):
+            q = row[k]
+            t = tri[k]
+            ia = T[t, 0]
+            ib = T[t, 1]
+            ic = T[t, 2]
+            px = x[q, 0]
+            py = x[q, 1]
+            pz = x[q, 2]
+            ax = V[ia, 0]
+            ay = V[ia, 1]
+            az = V[ia, 2]
+            apx = px - ax
+            apy = py - ay
+            apz = pz - az
+            gap = apx * nrm[t, 0] + apy * nrm[t, 1] + apz * nrm[t, 2]
+            if not abs(gap) < R[q] + slack:
+                continue
+            bx = V[ib, 0]
+            by = V[ib, 1]
+            bz = V[ib, 2]
+            cx = V[ic, 0]
+            cy = V[ic, 1]
+            cz = V[ic, 2]
+            abx = bx - ax
+            aby = by - ay
+            abz = bz - az
+            acx = cx - ax
+            acy = cy - ay
+            acz = cz - az
+            d1 = abx * apx + aby * apy + abz * apz
+            d2 = acx * apx + acy * apy + acz * apz
+            bpx = px - bx
+            bpy = py - by
+            bpz = pz - bz
+            d3 = abx * bpx + aby * bpy + abz * bpz
+            d4 = acx * bpx + acy * bpy + acz * bpz
+            cpx = px - cx
+            cpy = py - cy
+            cpz = pz - cz
+            d5 = abx * cpx + aby * cpy + abz * cpz
+            d6 = acx * cpx + acy * cpy + acz * cpz
+            va = d3 * d6 - d5 * d4
+            vb = d5 * d2 - d1 * d6
+            vc = d1 * d4 - d3 * d2
+            if d1 <= 0 and d2 <= 0:
+                qx, qy, qz = ax, ay, az
+            elif d3 >= 0 and d4 <= d3:
+                qx, qy, qz = bx, by, bz
+            elif d6 >= 0 and d5 <= d6:
+                qx, qy, qz = cx, cy, cz
+            elif vc <= 0 and d1 >= 0 and d3 <= 0:
+                u = _finite(_div(d1, d1 - d3))
+                qx, qy, qz = ax + u * abx, ay + u * aby, az + u * abz
+            elif vb <= 0 and d2 >= 0 and d6 <= 0:
+                u = _finite(_div(d2, d2 - d6))
+                qx, qy, qz = ax + u * acx, ay + u * acy, az + u * acz
+            elif va <= 0 and d4 - d3 >= 0 and d5 - d6 >= 0:
+                u = _finite(_div(d4 - d3, (d4 - d3) + (d5 - d6)))
+                qx, qy, qz = bx + u * (cx - bx), by + u * (cy - by), bz + u * (cz - bz)
+            else:
+                den = va + vb + vc
+                v = 0.0
+                w = 0.0
+                if den != 0:
+                    v = vb / den
+                    w = vc / den
+                qx = ax + v * abx + w * acx
+                qy = ay + v * aby + w * acy
+                qz = az + v * abz + w * acz
+            dx = qx - px
+            dy = qy - py
+            dz = qz - pz
+            d = np.sqrt(dx * dx + dy * dy + dz * dz)
+            if d < out[q] or d != d:
+                out[q] = d
+
     @jit
     def band_samples(x, ub, pts, items, start, origin, h, shape, k, d0, j0, cnt, lst, tie):
         """The mesh samples in each point's band (:meth:`~tsplcam.orientation.broadphase.BroadPhase.exact_bound`),
@@ -2057,7 +2162,7 @@ def _define(jit):
             "solve_box": solve_box, "sphere_loop": sphere_loop, "side_bounds": side_bounds,
             "store_cones": store_cones, "centre_slots": centre_slots,
             "cubic_points": cubic_points, "cusp_ends": cusp_ends, "cusp_foot": cusp_foot,
-            "band_samples": band_samples,
+            "band_samples": band_samples, "measure_pairs": measure_pairs,
             "capsule_entries": capsule_entries, "k_nearest": k_nearest, "cell_sort": cell_sort,
             "cylinder_clear": cylinder_clear}
 
@@ -2123,6 +2228,7 @@ SIGNATURES = {
     "cusp_ends": "void(f8[3], f8[3], i8, i8, f8[4], f8[4], f8[4], f8[3], f8, f8[2]w, f8[2]w, f8[2]w)",
     "cusp_foot": "void(f8[3], f8[3], f8[3], f8[3], f8[3], f8[3], f8[3], f8[3], f8[3], f8[3], f8[3], b1[2], f8,"
                  " b1[1], f8[2]w)",
+    "measure_pairs": "void(f8[2], f8[1], f8[2], i8[2], f8[2], i8[1], i8[1], f8, f8[1]w)",
     "band_samples": "void(f8[2], f8[1], f8[2], i8[1], i8[1], f8[1], f8, i8[1], i8, f8[1]w, i8[1]w, i8[1]w, i8[2]w,"
                     " b1[1]w)",
     "capsule_entries": "void(f8[2], f8[2], i8[2], f8[1], f8[2], f8[2], f8[2], f8, b1[2], b1[2], f8[2]w, f8[1]w,"

@@ -203,7 +203,7 @@ def _define(jit):
     # the kernels' inlined helpers are module globals, not closure cells: numba's cache keys a
     # closure by its cells, and a dispatcher in a cell differs in every process, so a kernel
     # calling one was compiled again in every process (cusp_foot: 1.2-1.6 s)
-    global viterbi_step, dot3, meets_cylinder
+    global viterbi_step, dot3, meets_cylinder, ieee_quotient, to_finite
 
     @numba.njit(inline="always")
     def viterbi_step(acc, node, X, q, i, tie, back, tot, m, nan):
@@ -1194,7 +1194,7 @@ def _define(jit):
         return nf
 
     @numba.njit(inline="always")
-    def _div(a, b):
+    def ieee_quotient(a, b):
         """a / b with IEEE's quotients by zero (numpy's; numba's Python error model raises)."""
         if b == 0.0:
             if a != a or a == 0.0:
@@ -1203,7 +1203,7 @@ def _define(jit):
         return a / b
 
     @numba.njit(inline="always")
-    def _finite(t):
+    def to_finite(t):
         """``np.nan_to_num`` of one value: nan 0, infinities the largest finite values."""
         if t != t:
             return 0.0
@@ -1273,13 +1273,13 @@ def _define(jit):
             elif d6 >= 0 and d5 <= d6:
                 qx, qy, qz = cx, cy, cz
             elif vc <= 0 and d1 >= 0 and d3 <= 0:
-                u = _finite(_div(d1, d1 - d3))
+                u = to_finite(ieee_quotient(d1, d1 - d3))
                 qx, qy, qz = ax + u * abx, ay + u * aby, az + u * abz
             elif vb <= 0 and d2 >= 0 and d6 <= 0:
-                u = _finite(_div(d2, d2 - d6))
+                u = to_finite(ieee_quotient(d2, d2 - d6))
                 qx, qy, qz = ax + u * acx, ay + u * acy, az + u * acz
             elif va <= 0 and d4 - d3 >= 0 and d5 - d6 >= 0:
-                u = _finite(_div(d4 - d3, (d4 - d3) + (d5 - d6)))
+                u = to_finite(ieee_quotient(d4 - d3, (d4 - d3) + (d5 - d6)))
                 qx, qy, qz = bx + u * (cx - bx), by + u * (cy - by), bz + u * (cz - bz)
             else:
                 den = va + vb + vc

@@ -527,6 +527,43 @@ class Geometry(unittest.TestCase):
         self.assertFalse((cleared & (dist <= 0)).any(), "a triangle with a point inside was cleared")
         np.testing.assert_array_equal(cleared[dist >= 0.01], True)
 
+    def test_measure_pairs_same_bits(self):
+        """``measure_pairs`` (the exact pass's pairs, compiled) lowers the bounds to the same
+        bits as the numpy form (planes far from the points passed over, repeated pairs, each
+        triangle's closest point by its region): random triangles at scales 1e-3 to 1e2,
+        degenerate ones (repeated and collinear corners, a NaN corner), points on corners."""
+        from unittest import mock
+        from tsplcam import compiled
+        from tsplcam.orientation.broadphase import BroadPhase
+        if compiled.kernels() is None:
+            self.skipTest("numba not available (or TSPLCAM_COMPILED=0)")
+        rng = np.random.default_rng(9)
+        for trial in range(120):
+            scale = 10.0 ** rng.uniform(-3, 2)
+            V = rng.normal(size=(30, 3)) * scale
+            T = rng.integers(0, 30, (40, 3)).astype(np.int64)
+            if trial % 4 == 0:
+                V[5], V[6] = V[4], 2.0 * V[4] - V[3]             # repeated, collinear corners
+                T[:6] = [[4, 5, 6], [4, 4, 7], [3, 4, 6], [5, 5, 5], [4, 6, 3], [8, 8, 9]]
+            if trial == 7:
+                V[10] = np.nan
+            b = BroadPhase.__new__(BroadPhase)                 # only what _measure_into reads
+            b.V, b.T = V, T
+            nrm = np.cross(V[T[:, 1]] - V[T[:, 0]], V[T[:, 2]] - V[T[:, 0]])
+            ln = np.linalg.norm(nrm, axis=1)
+            with np.errstate(invalid="ignore"):
+                b.tri_normal = np.where((ln > 1e-300)[:, None], nrm / np.where(ln > 1e-300, ln, 1.0)[:, None], 0.0)
+            x = rng.normal(size=(25, 3)) * scale
+            x[:4] = V[T[:4, 0]]
+            R = rng.uniform(0.0, 3.0, 25) * scale
+            row, ti = rng.integers(0, 25, 300), rng.integers(0, 40, 300)
+            got, want = R.copy(), R.copy()
+            b._measure_into(got, x, R, row, ti)
+            with mock.patch.object(compiled, "kernels", lambda work=None: None), np.errstate(all="ignore"):
+                b._measure_into(want, x, R, row, ti)
+            self.assertEqual(got.tobytes(), want.tobytes(), trial)
+            self.assertTrue((got <= R).all() or trial == 7)
+
     def test_closest_on_triangles_against_brute_force(self):
         rng = np.random.default_rng(0)
         P = rng.normal(size=(400, 3)) * 2

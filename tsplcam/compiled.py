@@ -112,8 +112,8 @@ those rows (none of tjunction_mold's 3.1 M capsule queries, 5 of its 138,499 gou
 tjunction_mold's capsule queries 4.4 -> 1.8 s, the keycap's 0.73 -> 0.29 s, about 0.55 us a
 query against 1.6 in the tree.
 
-The banded Cholesky solve of the smoothing's polish (``_Banded.solve_box``, 215 solves on
-the keycap) is latency-bound in LAPACK as here; the kernel takes LAPACK's operations in
+The banded Cholesky solve of the smoothing's polish (``_Banded.solve_box``, 57 solves on
+the keycap, 215 before its problems started from the last active set) is latency-bound in LAPACK as here; the kernel takes LAPACK's operations in
 LAPACK's reference order, with less overhead per call. Where OpenBLAS's dtbsv keeps that
 order x is the same bit for bit; its AVX-512 kernels sum otherwise, and as the polish's
 systems are ill-conditioned the two x then differ by up to 1e-6 rad on the keycap (both
@@ -124,7 +124,8 @@ Where the kernels are loaded already, ``solve_box`` runs the polish's whole acti
 (its numpy steps element for element, the solve as ``banded_solve``): the same x as the loop
 calling ``banded_solve``, without numpy's overhead per iteration; an iteration takes again only
 the steps of the factor and of the substitutions whose inputs changed since the last (a step on
-the same bits gives the same bits: keycap 0.100 -> 0.019 s for its six solves).
+the same bits gives the same bits: keycap 0.100 -> 0.019 s for its six solves of then; its
+four of now, started warm, 0.017 -> 0.005 s).
 
 Where the kernels come from, in this order: the ahead-of-time module ``_aot_kernels``
 beside this file (built by ``scripts/install.sh`` through :func:`build_aot`, numba's pycc,

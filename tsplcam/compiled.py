@@ -117,8 +117,9 @@ tjunction_mold's capsule queries 4.4 -> 1.8 s, the keycap's 0.73 -> 0.29 s, abou
 query against 1.6 in the tree.
 
 The banded Cholesky solve of the smoothing's polish (``_Banded.solve_box``, 57 solves on
-the keycap, 215 before its problems started from the last active set) is latency-bound in LAPACK as here; the kernel takes LAPACK's operations in
-LAPACK's reference order, with less overhead per call. Where OpenBLAS's dtbsv keeps that
+the keycap, 215 before its problems started from the last active set) is latency-bound in
+LAPACK as here; the kernel takes LAPACK's operations in LAPACK's reference order, with less
+overhead per call. Where OpenBLAS's dtbsv keeps that
 order x is the same bit for bit; its AVX-512 kernels sum otherwise, and as the polish's
 systems are ill-conditioned the two x then differ by up to 1e-6 rad on the keycap (both
 backward stable to a few machine epsilons), so the program's angles can move in their last

@@ -1196,13 +1196,14 @@ class BroadPhase:
         PLANE_SLACK farther than ``R[row]`` cannot lower a bound below R: only the others are
         measured (the same minima, for a fifth of the work next to the gouge check's balls).
         With the compiled kernels pair by pair (``measure_pairs``: the same distances bit for
-        bit, without the pairs' temporaries: the keycap's gouge check 13 -> 3 ms in its forked
-        process, whose page faults they were)."""
+        bit, without the pairs' temporaries: the keycap's gouge check 13 -> 1 ms in its forked
+        process, whose page faults they were); ``out`` is written in place either way."""
         k = compiled.kernels(work=MEASURE_WORK * len(row)) if len(row) else None
-        if k is not None:
-            k["measure_pairs"](np.ascontiguousarray(x, float), np.ascontiguousarray(np.broadcast_to(R, (len(x),)), float),
-                               self.V, self.T, self.tri_normal, np.ascontiguousarray(row, np.int64),
-                               np.ascontiguousarray(ti, np.int64), PLANE_SLACK, out)
+        if k is not None and out.dtype == np.float64 and out.flags.c_contiguous and out.flags.writeable:
+            R = np.ascontiguousarray(np.broadcast_to(R, (len(x),)), float)
+            k["measure_pairs"](np.ascontiguousarray(x, float), R, self.V, self.T, self.tri_normal,
+                               np.ascontiguousarray(row, np.int64), np.ascontiguousarray(ti, np.int64),
+                               PLANE_SLACK, out)
             return
         key = np.unique(row * len(self.T) + ti)
         q, ti = key // len(self.T), key % len(self.T)

@@ -239,12 +239,7 @@ class CompiledBandedSolve(unittest.TestCase):
         self.assertIsNotNone(compiled.kernels())            # loaded: B.solve_box runs the kernel
         rng = np.random.default_rng(7)
         for trial in range(60):
-            N = int(rng.integers(1, 50)) if trial else 300
-            B = _Banded(N, 2)
-            B.ab[:] = random_band(rng, N, 2, fixed=0.0)
-            B.g[:] = rng.standard_normal(N) * 10.0 ** rng.uniform(-1, 2)
-            lo = rng.uniform(-1.0, 0.0, N)
-            hi = lo + rng.uniform(0.0, 1.0, N) * (rng.random(N) > 0.1)
+            B, lo, hi = random_box(rng, int(rng.integers(1, 50)) if trial else 300)
             for iterations in (1, 2, 40):
                 x = B.solve_box(lo, hi, iterations)
                 with mock.patch.object(compiled, "loaded", lambda: None):
@@ -259,11 +254,7 @@ class CompiledBandedSolve(unittest.TestCase):
         rng = np.random.default_rng(11)
         for trial in range(30):
             N = int(rng.integers(2, 60)) if trial else 400
-            B = _Banded(N, 2)
-            B.ab[:] = random_band(rng, N, 2, fixed=0.0)
-            B.g[:] = rng.standard_normal(N) * 10.0 ** rng.uniform(-1, 2)
-            lo = rng.uniform(-1.0, 0.0, N)
-            hi = lo + rng.uniform(0.0, 1.0, N) * (rng.random(N) > 0.1)
+            B, lo, hi = random_box(rng, N)
             ended = np.zeros(N, np.int8)
             x = B.solve_box(lo, hi, 400, ended)
             again = ended.copy()
@@ -279,6 +270,16 @@ class CompiledBandedSolve(unittest.TestCase):
             np.testing.assert_allclose(got, x, rtol=0, atol=1e-9)
         with self.assertRaises(ValueError):
             B.solve_box(lo, hi, 40, np.zeros(N, np.int64))
+
+
+def random_box(rng, N: int):
+    """A box-constrained problem as the polish's: (its band, lower and upper bounds), the
+    boxes tight and about one in ten of them empty (lo = hi)."""
+    B = _Banded(N, 2)
+    B.ab[:] = random_band(rng, N, 2, fixed=0.0)
+    B.g[:] = rng.standard_normal(N) * 10.0 ** rng.uniform(-1, 2)
+    lo = rng.uniform(-1.0, 0.0, N)
+    return B, lo, lo + rng.uniform(0.0, 1.0, N) * (rng.random(N) > 0.1)
 
 
 def random_programme(rng, n, M):

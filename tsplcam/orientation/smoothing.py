@@ -861,7 +861,7 @@ def smooth_joints(path, rot: Rotary, theta0, phi0, pref, normal, cost: Smoothing
         ph_c = np.where(held, phi, phi0)
         tp = None                                      # best_theta(pref, ph_c) once known
         for _ in range(alternations):
-            start = (th_c, ph_c, bw_t, bw_p)
+            start = (th_c, ph_c, bw_t, bw_p, act_phi.copy(), act_theta.copy())
             # 1. rotary values: smooth where the tilt stays admissible, held where the tool
             # axis would turn with them (nothing near the pole)
             plo, phi_hi = phi_interval(rot, th_c, constraints, ph_c, lat)
@@ -925,9 +925,10 @@ def smooth_joints(path, rot: Rotary, theta0, phi0, pref, normal, cost: Smoothing
                 bw_p = np.maximum(1.0 if bw_p is None else bw_p,
                                   np.minimum(1.0 + cost.over * np.maximum(r_p - 1.0, 0.0) ** 2, 100.0))
             if all(a is b or (a is not None and b is not None and np.array_equal(a, b))
-                   for a, b in zip(start, (th_c, ph_c, bw_t, bw_p))):
+                   for a, b in zip(start, (th_c, ph_c, bw_t, bw_p, act_phi, act_theta))):
                 # a fixed point: the next alternation would start from the same values and
-                # give them again (the keycap's second alternation gave the first's bits)
+                # active sets and give them again (the keycap's second alternation gave the
+                # first's bits, its solves ending where they started)
                 break
         # 3. the tilts onto their arcs: step 1 may move a rotary value to where only a little
         # more tilt is admissible (``lean``) and step 2's box holds the current tilt, so a tilt

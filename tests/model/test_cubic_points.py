@@ -19,6 +19,8 @@ import numpy as np
 import tsplcam
 from tsplcam import compiled
 from tsplcam.model import cubic_points
+from tsplcam.model.cells import BezierCells
+from tsplcam.model.patch import Patch
 from test_grid_points import rational_patch
 
 REL = 1e-12
@@ -48,6 +50,14 @@ def patches():
     zero.groups[0]._cj[:] = 0.0
     zero._cubic = None
     yield "weight 0", zero
+    # a polynomial cell 1e-170 wide: its second derivatives' widths (1e-340) underflow to 0,
+    # which the kernel's written-out route for polynomial cells leaves to its generic loop
+    ctrl = np.empty((2, 4, 4, 4))
+    j, i = np.meshgrid(np.arange(4), np.arange(4), indexing="ij")
+    for c in range(2):
+        ctrl[c] = np.stack([i + 3.0 * c, j, rng.random((4, 4)), np.ones((4, 4))], axis=-1)
+    yield "tiny cell", Patch(0, [0.0, 1e-170, 1.0], [0.0, 1.0], np.zeros((2, 1), int), np.array([[0], [1]]),
+                             [BezierCells(ctrl)])
 
 
 class CubicPoints(unittest.TestCase):
@@ -56,7 +66,7 @@ class CubicPoints(unittest.TestCase):
         rng = np.random.default_rng(1)
         kinds = set()
         for name, patch in patches():
-            if name == "weight 0":
+            if name in ("weight 0", "tiny cell"):       # (inf and nan: the bits test's)
                 continue
             table = patch._cubic_table()
             self.assertIsNotNone(table, name)
@@ -94,6 +104,8 @@ class CubicPoints(unittest.TestCase):
                 with mock.patch.object(compiled, "kernels", lambda work=None: None), np.errstate(all="ignore"):
                     H0, ep0 = cubic_points.evaluate_points(table, u, v, nd)
                 self.assertTrue(np.array_equal(H, H0, equal_nan=True), (name, nd))   # bits, not closeness
+                self.assertTrue(np.array_equal(np.signbit(H) | np.isnan(H), np.signbit(H0) | np.isnan(H0)),
+                                (name, nd))                                          # (0.0 and -0.0)
                 self.assertEqual(ep is None, ep0 is None, name)
                 if ep is not None:
                     self.assertTrue(np.array_equal(ep[0], ep0[0]) and np.array_equal(ep[1], ep0[1]), name)

@@ -1,11 +1,14 @@
 """Patch.grid_points and grids_points (the collision checker's tessellation route: positions alone)
 and Patch.evaluate_grid without second derivatives (the verification's grid) against
-Patch.evaluate_grid's P, first derivatives and normals. The claim is not closeness but the same values bit for bit (the same
-products on the same arrays, LevelCells point by point), since the tessellation's triangles
-and measured error feed the collision margins and the program bytes: so the comparison is
-exact. Grids: uniform, on the cell breaks, within 2^-30 of a cell's corner (below the cached
-nets' levels), unsorted (blocks that are not one run); cells: polynomial and rational
-Bezier, Catmull-Clark cells next to extraordinary points (LevelCells), T-spline star cells."""
+Patch.evaluate_grid's P, first derivatives and normals. The claim is not closeness but the
+same values bit for bit, since the tessellation's triangles and measured error feed the
+collision margins and the program bytes: a patch of bicubic cells gives each grid point as
+Patch.evaluate gives it (point by point, whatever else is asked with it; evaluate_grid's BLAS
+products round otherwise, within 1e-15 of the part's size), any other patch evaluate_grid's P
+(the same products on the same arrays, LevelCells point by point). Grids: uniform, on the cell
+breaks, within 2^-30 of a cell's corner (below the cached nets' levels), unsorted (blocks that
+are not one run); cells: polynomial and rational Bezier, Catmull-Clark cells next to
+extraordinary points (LevelCells), T-spline star cells."""
 import unittest
 
 import numpy as np
@@ -50,12 +53,20 @@ class GridPoints(unittest.TestCase):
     def check(self, patches, seed=0):
         rng = np.random.default_rng(seed)
         for patch in patches:
+            points = patch._cubic_table() is not None
             for us, vs in grids(patch, rng):
                 got = patch.grid_points(us, vs)
                 full = patch.evaluate_grid(us, vs)
-                want = full.P
                 self.assertEqual(got.shape, (len(us) * len(vs), 3))
-                np.testing.assert_array_equal(got, want, err_msg=f"{patch.name}: {len(us)} x {len(vs)}")
+                where = f"{patch.name}: {len(us)} x {len(vs)}"
+                if points:
+                    U, V = np.meshgrid(us, vs, indexing="ij")
+                    np.testing.assert_array_equal(got, patch.evaluate(U.ravel(), V.ravel(), second=False).P,
+                                                  err_msg=where)
+                    size = np.abs(full.P).max()
+                    np.testing.assert_allclose(got, full.P, rtol=0, atol=1e-14 * size, err_msg=where)
+                else:
+                    np.testing.assert_array_equal(got, full.P, err_msg=where)
                 # without the second derivatives (the verification's grid): the rest the same
                 first = patch.evaluate_grid(us, vs, second=False)
                 self.assertIsNone(first.Puu)
@@ -66,7 +77,7 @@ class GridPoints(unittest.TestCase):
             every = list(grids(patch, np.random.default_rng(seed)))
             for some in (every[:2] + every[3:], every):
                 for (us, vs), got in zip(some, patch.grids_points(some)):
-                    np.testing.assert_array_equal(got, patch.evaluate_grid(us, vs).P, err_msg=patch.name)
+                    np.testing.assert_array_equal(got, patch.grid_points(us, vs), err_msg=patch.name)
 
     def test_keycap_bezier_and_extraordinary_cells(self):
         self.check([self.keycap.patches[0], self.keycap.patches[4]])     # 2 and 4 such cells

@@ -120,9 +120,9 @@ def _patch_grid_error(patch, gu: np.ndarray, gv: np.ndarray,
 
     Sampled at edge midpoints (distance from the chord) and at the quarter points of each
     cell's diagonals (distance from the triangle planes): the error of a smooth surface
-    between grid lines peaks near those places. Positions only (``Patch.grids_points``, the
-    same values as ``evaluate_grid``'s, the five grids in one call, or with ``coarse`` the edges'
-    three first): no derivative is needed.
+    between grid lines peaks near those places. Positions only (``Patch.grids_points``: each
+    point as ``Patch.evaluate`` gives it, the five grids in one call, or with ``coarse`` the
+    edges' three first): no derivative is needed.
     """
     nu, nv = len(gu) - 1, len(gv) - 1
     mu = 0.5 * (gu[:-1] + gu[1:])
@@ -237,8 +237,8 @@ def _interval_errors(patch, gu: np.ndarray, gv: np.ndarray, coarse: float = np.i
     by its largest factor either way). ``prev``: the state of the call on a grid these lines
     refine (lines only added): its vertices and the errors of its edges and cells that no new
     line crosses are taken over, only the rest measured (a last pass often adds a few
-    lines). Positions only (``Patch.grids_points``, the same values as ``evaluate_grid``'s, the
-    grids of a pass in one call): no derivative is needed."""
+    lines). Positions only (``Patch.grids_points``: each point as ``Patch.evaluate`` gives it,
+    the grids of a pass in one call): no derivative is needed."""
     nu, nv = len(gu) - 1, len(gv) - 1
     du, dv = np.diff(gu), np.diff(gv)
     ne, nc = len(EDGE_FRACTIONS), len(CELL_POINTS)

@@ -1735,6 +1735,28 @@ def _define(jit):
         return deep
 
     @jit
+    def unit_normals(a, b, out):
+        """:func:`tsplcam.toolpath.lines._unit_normal` of the rows a[:, i], b[:, i] (the
+        derivatives of a surface point, coordinate-major (3, n) as ``cubic_points`` writes
+        them) into out (n, 3): the cross product's products and differences in
+        ``npfast.cross_rows``' order, the squares summed x, y, z, the length 1 where it is not
+        positive (nan too), as numpy's operations there (the same bits)."""
+        n = a.shape[1]
+        for i in range(n):
+            a0, a1, a2 = a[0, i], a[1, i], a[2, i]
+            b0, b1, b2 = b[0, i], b[1, i], b[2, i]
+            c0 = a1 * b2 - a2 * b1
+            c1 = a2 * b0 - a0 * b2
+            c2 = a0 * b1 - a1 * b0
+            q = c0 * c0 + c1 * c1
+            q += c2 * c2
+            ln = math.sqrt(q)
+            d = ln if ln > 0.0 else 1.0
+            out[i, 0] = c0 / d
+            out[i, 1] = c1 / d
+            out[i, 2] = c2 / d
+
+    @jit
     def cusp_ends(P, N, off, k, ca, cb, eh, L, r, ends, lo, width):
         """The line ends' pass of :func:`tsplcam.toolpath.lines._cusp_heights` (its
         ``end_pass``, whose numpy operations these are, in their order: the same bits) for each
@@ -2312,7 +2334,8 @@ def _define(jit):
             "banded_solve": banded_solve, "grid_read": grid_read, "two_states": two_states,
             "solve_box": solve_box, "sphere_loop": sphere_loop, "side_bounds": side_bounds,
             "store_cones": store_cones, "centre_slots": centre_slots,
-            "cubic_points": cubic_points, "cusp_ends": cusp_ends, "cusp_foot": cusp_foot,
+            "cubic_points": cubic_points, "unit_normals": unit_normals, "cusp_ends": cusp_ends,
+            "cusp_foot": cusp_foot,
             "band_samples": band_samples, "measure_pairs": measure_pairs,
             "capsule_entries": capsule_entries, "k_nearest": k_nearest, "cell_sort": cell_sort,
             "cylinder_clear": cylinder_clear}
@@ -2374,6 +2397,7 @@ SIGNATURES = {
                    " f8[2]w, f8[1]w)",
     "store_cones": "void(i8[1], i8[1], f8[2], f8[1], i8, f8[3]w, f8[2]w)",
     "centre_slots": "i8(i8[2], i8[1]w, i8[2]w, i8, i8[1]w, i8[1]w)",
+    "unit_normals": "void(f8[2], f8[2], f8[2]w)",
     "cubic_points": "i8(f8[1], f8[1], f8[1], f8[1], i8[2], i8[2], f8[4], f8[2], f8[2], f8[2], b1[1], f8[3], i8, i8,"
                     " i8, f8[3]w, i1[1]w)",
     "cusp_ends": "void(f8[3], f8[3], i8, i8, f8[4], f8[4], f8[4], f8[3], f8, f8[2]w, f8[2]w, f8[2]w)",

@@ -7,7 +7,7 @@ from unittest.mock import patch
 
 import numpy as np
 
-from tsplcam import load_model
+from tsplcam import compiled, load_model
 from tsplcam.model.basis import bernstein_rows
 from tsplcam.errors import GeometryError
 from tsplcam.model.cells import DERIVS, BezierCells, LevelCells
@@ -205,6 +205,14 @@ class SameBytes(unittest.TestCase):
         p = self.model.patches[0]
         sp = p.evaluate(self.rng.random(300), self.rng.random(300))
         self.assertTrue(same(_unit_normal(sp.Pu, sp.Pv), sp.normal))
+        # the compiled unit_normals (rows of coordinate-major arrays) and numpy's route, also on
+        # a zero and a nan normal: the same bytes
+        H = np.stack([sp.Pu.T, sp.Pv.T])
+        H[0, :, :2] = 0.0
+        H[0, 1, 2] = np.nan
+        with patch.object(compiled, "kernels", lambda work=None: None):
+            want = _unit_normal(H[0].T, H[1].T)
+        self.assertTrue(same(_unit_normal(H[0].T, H[1].T), want))
         self.assertTrue(same(_cross(sp.Pu, sp.Puu), np.cross(sp.Pu, sp.Puu)))
         self.assertTrue(same(_norm3(sp.Puv), np.linalg.norm(sp.Puv, axis=-1, keepdims=True)))
         # the frame's normal where the patch has exact normals (its extraordinary corners)

@@ -29,9 +29,11 @@ def exercise() -> None:
     E = np.ones((1, 2 * END_SAMPLES, 3))
     _end_pass(E, E, 0, ca, cb, 0.5, _capsule_segments(ca, cb), np.zeros((1, 2)), np.zeros((1, 2)),
               np.ones((1, 2)), compiled.kernels())
-    from ..toolpath.lines import _cusp_foot
+    from ..toolpath.lines import _cusp_foot, _unit_normal
     x = np.ones((1, 1, 3))
     _cusp_foot(x, x, x, x, x, x, x, x, x, x, x, np.zeros((1, 1), bool), 0.5, compiled.kernels())
+    cm = np.eye(3)                                 # two points' derivatives, coordinate-major
+    _unit_normal(cm[:, :2].copy().T, cm[:, 1:].copy().T)
 
     from .viterbi import viterbi
     node = np.zeros((3, 3))

@@ -215,7 +215,7 @@ def _define(jit):
     # the kernels' inlined helpers are module globals, not closure cells: numba's cache keys a
     # closure by its cells, and a dispatcher in a cell differs in every process, so a kernel
     # calling one was compiled again in every process (cusp_foot: 1.2-1.6 s)
-    global viterbi_step, dot3, meets_cylinder, ieee_quotient, to_finite, bicubic_point
+    global viterbi_step, dot3, meets_cylinder, ieee_quotient, to_finite, bicubic_point, bernstein_row, comb4
 
     @numba.njit(inline="always")
     def viterbi_step(acc, node, X, q, i, tie, back, tot, m, nan):
@@ -1449,140 +1449,61 @@ def _define(jit):
         return size
 
     @numba.njit(inline="always")
+    def bernstein_row(t):
+        """``basis._bernstein3`` at t, its operations in its order: the cubic Bernstein values
+        and their first and second derivatives, (B0..B3, B'0..B'3, B''0..B''3)."""
+        s = 1.0 - t
+        t2 = t * t
+        s2 = s * s
+        ts = t * s
+        d13 = 3.0 * t2
+        tmp = 3.0 * s2
+        ts = 6.0 * ts
+        tmp2 = 18.0 * t
+        return (s2 * s, (3.0 * t) * s2, d13 * s, t2 * t,
+                -tmp, tmp - ts, ts - d13, d13,
+                6.0 * s, tmp2 - 12.0, 6.0 - tmp2, 6.0 * t)
+
+    @numba.njit(inline="always")
+    def comb4(w0, w1, w2, w3, x0, x1, x2, x3):
+        """w0 x0 + w1 x1 + w2 x2 + w3 x3, summed in that order (the kernel's contractions)."""
+        acc = w0 * x0
+        acc += w1 * x1
+        acc += w2 * x2
+        acc += w3 * x3
+        return acc
+
+    @numba.njit(inline="always")
     def bicubic_point(q, off, a, b, sc, wu, wv, H, p, nd):
         """:func:`cubic_points`' operations for one point of a polynomial net (three
         coordinates, no extraordinary vertex, cells of non-zero width), written out: the
         Bernstein bases of a and b, the rows' products along a, the derivatives along b, the
         offset, the scales and the widths' divisions, each sum in the generic loop's order (the
         same bits, without its scratch arrays and its branches per derivative)."""
-        t = a
-        s = 1.0 - t
-        t2 = t * t
-        s2 = s * s
-        ts = t * s
-        a0 = s2 * s
-        a1 = (3.0 * t) * s2
-        a7 = 3.0 * t2
-        a2 = a7 * s
-        a3 = t2 * t
-        tmp = 3.0 * s2
-        a4 = -tmp
-        ts = 6.0 * ts
-        a5 = tmp - ts
-        a6 = ts - a7
-        a8 = 6.0 * s
-        tmp = 18.0 * t
-        a9 = tmp - 12.0
-        a10 = 6.0 - tmp
-        a11 = 6.0 * t
-        t = b
-        s = 1.0 - t
-        t2 = t * t
-        s2 = s * s
-        ts = t * s
-        b0 = s2 * s
-        b1 = (3.0 * t) * s2
-        b7 = 3.0 * t2
-        b2 = b7 * s
-        b3 = t2 * t
-        tmp = 3.0 * s2
-        b4 = -tmp
-        ts = 6.0 * ts
-        b5 = tmp - ts
-        b6 = ts - b7
-        b8 = 6.0 * s
-        tmp = 18.0 * t
-        b9 = tmp - 12.0
-        b10 = 6.0 - tmp
-        b11 = 6.0 * t
+        a0, a1, a2, a3, a4, a5, a6, a7, a8, a9, a10, a11 = bernstein_row(a)
+        b0, b1, b2, b3, b4, b5, b6, b7, b8, b9, b10, b11 = bernstein_row(b)
         ss = sc * sc
         for c in range(3):
-            # the rows j of the net along a: order 0 (x0), 1 (x1)
-            x00 = q[c, 0, 0] * a0
-            x00 += q[c, 0, 1] * a1
-            x00 += q[c, 0, 2] * a2
-            x00 += q[c, 0, 3] * a3
-            x01 = q[c, 1, 0] * a0
-            x01 += q[c, 1, 1] * a1
-            x01 += q[c, 1, 2] * a2
-            x01 += q[c, 1, 3] * a3
-            x02 = q[c, 2, 0] * a0
-            x02 += q[c, 2, 1] * a1
-            x02 += q[c, 2, 2] * a2
-            x02 += q[c, 2, 3] * a3
-            x03 = q[c, 3, 0] * a0
-            x03 += q[c, 3, 1] * a1
-            x03 += q[c, 3, 2] * a2
-            x03 += q[c, 3, 3] * a3
-            x10 = q[c, 0, 0] * a4
-            x10 += q[c, 0, 1] * a5
-            x10 += q[c, 0, 2] * a6
-            x10 += q[c, 0, 3] * a7
-            x11 = q[c, 1, 0] * a4
-            x11 += q[c, 1, 1] * a5
-            x11 += q[c, 1, 2] * a6
-            x11 += q[c, 1, 3] * a7
-            x12 = q[c, 2, 0] * a4
-            x12 += q[c, 2, 1] * a5
-            x12 += q[c, 2, 2] * a6
-            x12 += q[c, 2, 3] * a7
-            x13 = q[c, 3, 0] * a4
-            x13 += q[c, 3, 1] * a5
-            x13 += q[c, 3, 2] * a6
-            x13 += q[c, 3, 3] * a7
-            acc = b0 * x00
-            acc += b1 * x01
-            acc += b2 * x02
-            acc += b3 * x03
-            acc += off[c]
-            H[0, c, p] = acc
-            acc = b0 * x10
-            acc += b1 * x11
-            acc += b2 * x12
-            acc += b3 * x13
-            acc *= sc
-            H[1, c, p] = acc / wu
-            acc = b4 * x00
-            acc += b5 * x01
-            acc += b6 * x02
-            acc += b7 * x03
-            acc *= sc
-            H[2, c, p] = acc / wv
+            # the net's rows j along a: order 0 (x0j), 1 (x1j), 2; then along b
+            x00 = comb4(q[c, 0, 0], q[c, 0, 1], q[c, 0, 2], q[c, 0, 3], a0, a1, a2, a3)
+            x01 = comb4(q[c, 1, 0], q[c, 1, 1], q[c, 1, 2], q[c, 1, 3], a0, a1, a2, a3)
+            x02 = comb4(q[c, 2, 0], q[c, 2, 1], q[c, 2, 2], q[c, 2, 3], a0, a1, a2, a3)
+            x03 = comb4(q[c, 3, 0], q[c, 3, 1], q[c, 3, 2], q[c, 3, 3], a0, a1, a2, a3)
+            x10 = comb4(q[c, 0, 0], q[c, 0, 1], q[c, 0, 2], q[c, 0, 3], a4, a5, a6, a7)
+            x11 = comb4(q[c, 1, 0], q[c, 1, 1], q[c, 1, 2], q[c, 1, 3], a4, a5, a6, a7)
+            x12 = comb4(q[c, 2, 0], q[c, 2, 1], q[c, 2, 2], q[c, 2, 3], a4, a5, a6, a7)
+            x13 = comb4(q[c, 3, 0], q[c, 3, 1], q[c, 3, 2], q[c, 3, 3], a4, a5, a6, a7)
+            H[0, c, p] = comb4(b0, b1, b2, b3, x00, x01, x02, x03) + off[c]
+            H[1, c, p] = comb4(b0, b1, b2, b3, x10, x11, x12, x13) * sc / wu
+            H[2, c, p] = comb4(b4, b5, b6, b7, x00, x01, x02, x03) * sc / wv
             if nd == 6:
-                x20 = q[c, 0, 0] * a8
-                x20 += q[c, 0, 1] * a9
-                x20 += q[c, 0, 2] * a10
-                x20 += q[c, 0, 3] * a11
-                x21 = q[c, 1, 0] * a8
-                x21 += q[c, 1, 1] * a9
-                x21 += q[c, 1, 2] * a10
-                x21 += q[c, 1, 3] * a11
-                x22 = q[c, 2, 0] * a8
-                x22 += q[c, 2, 1] * a9
-                x22 += q[c, 2, 2] * a10
-                x22 += q[c, 2, 3] * a11
-                x23 = q[c, 3, 0] * a8
-                x23 += q[c, 3, 1] * a9
-                x23 += q[c, 3, 2] * a10
-                x23 += q[c, 3, 3] * a11
-                acc = b0 * x20
-                acc += b1 * x21
-                acc += b2 * x22
-                acc += b3 * x23
-                acc *= ss
-                H[3, c, p] = acc / (wu * wu)
-                acc = b4 * x10
-                acc += b5 * x11
-                acc += b6 * x12
-                acc += b7 * x13
-                acc *= ss
-                H[4, c, p] = acc / (wu * wv)
-                acc = b8 * x00
-                acc += b9 * x01
-                acc += b10 * x02
-                acc += b11 * x03
-                acc *= ss
-                H[5, c, p] = acc / (wv * wv)
+                x20 = comb4(q[c, 0, 0], q[c, 0, 1], q[c, 0, 2], q[c, 0, 3], a8, a9, a10, a11)
+                x21 = comb4(q[c, 1, 0], q[c, 1, 1], q[c, 1, 2], q[c, 1, 3], a8, a9, a10, a11)
+                x22 = comb4(q[c, 2, 0], q[c, 2, 1], q[c, 2, 2], q[c, 2, 3], a8, a9, a10, a11)
+                x23 = comb4(q[c, 3, 0], q[c, 3, 1], q[c, 3, 2], q[c, 3, 3], a8, a9, a10, a11)
+                H[3, c, p] = comb4(b0, b1, b2, b3, x20, x21, x22, x23) * ss / (wu * wu)
+                H[4, c, p] = comb4(b4, b5, b6, b7, x10, x11, x12, x13) * ss / (wu * wv)
+                H[5, c, p] = comb4(b8, b9, b10, b11, x00, x01, x02, x03) * ss / (wv * wv)
 
     @jit
     def cubic_points(u, v, ub, vb, kind, ref, nets, origin, limit, corner, swap, vertex, nb, net_levels,

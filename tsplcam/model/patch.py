@@ -304,24 +304,24 @@ class Patch:
         """:meth:`_near_corners` of the tensor grid us x vs from its lines: a point lies within
         2^-20 of its cell's corner but not on it where both its lines lie within 2^-20 of a
         cell's side and one of them not on it."""
-        def sides(x, breaks, n):
-            i = _clip(np.searchsorted(breaks, x, side="right") - 1, 0, n - 1)
-            a = (x - breaks[i]) / (breaks[i + 1] - breaks[i])
-            d = np.minimum(a, 1.0 - a)
-            return bool(np.any(d < 2.0 ** -20)), bool(np.any((d > 0.0) & (d < 2.0 ** -20)))
-        nu, nv = self.shape
-        (u_in, u_near), (v_in, v_near) = sides(us, self.ubreaks, nu), sides(vs, self.vbreaks, nv)
+        du, dv = self._side_distances(us, self.ubreaks), self._side_distances(vs, self.vbreaks)
+        u_in, v_in = bool(np.any(du < 2.0 ** -20)), bool(np.any(dv < 2.0 ** -20))
+        u_near = bool(np.any((du > 0.0) & (du < 2.0 ** -20)))
+        v_near = bool(np.any((dv > 0.0) & (dv < 2.0 ** -20)))
         return (u_near and v_in) or (u_in and v_near)
+
+    @staticmethod
+    def _side_distances(x, breaks) -> np.ndarray:
+        """Each parameter's distance from the nearer side of its cell, in the cell's widths (a
+        value on a break goes to the cell above it, the last break to the last cell)."""
+        i = _clip(np.searchsorted(breaks, x, side="right") - 1, 0, len(breaks) - 2)
+        a = (x - breaks[i]) / (breaks[i + 1] - breaks[i])
+        return np.minimum(a, 1.0 - a)
 
     def _near_corners(self, u, v) -> bool:
         """Whether a point lies within 2^-20 of its cell's width from one of the cell's corners
         without being on it."""
-        nu, nv = self.shape
-        iu = _clip(np.searchsorted(self.ubreaks, u, side="right") - 1, 0, nu - 1)
-        iv = _clip(np.searchsorted(self.vbreaks, v, side="right") - 1, 0, nv - 1)
-        a = (u - self.ubreaks[iu]) / (self.ubreaks[iu + 1] - self.ubreaks[iu])
-        b = (v - self.vbreaks[iv]) / (self.vbreaks[iv + 1] - self.vbreaks[iv])
-        d = np.maximum(np.minimum(a, 1.0 - a), np.minimum(b, 1.0 - b))
+        d = np.maximum(self._side_distances(u, self.ubreaks), self._side_distances(v, self.vbreaks))
         return bool(np.any((d > 0.0) & (d < 2.0 ** -20)))
 
     def _grid_blocks(self, us, vs):

@@ -149,6 +149,14 @@ cached kernels cost a process about 0.35 s; else none. Both compile the same Pyt
 functions (:func:`_define`) for the same CPU without fast-math: the same bits. The module's
 kernels check their arguments' types (:class:`_Exported`) and hand others to numba's.
 
+The broad phase's nearest-sample calls (:meth:`~tsplcam.orientation.broadphase.SampleTree.query`,
+k 1: the distance grids' nodes, most of the checker's build) go to a kd-tree of its own
+(``kd_build``: median splits of the widest coordinate; ``kd_nearest2``: the two nearest below
+a bound, each search starting from the previous point's answers, which a grid's next node
+lies next to). The same squared distances as scipy's tree (summed x, y, z) and the same two
+nearest, so the same answers bit for bit, ties left to scipy's default tree as before; the
+keycap's two grids (50k nodes) 28.9 + 26.3 -> 17.2 + 8.6 ms against scipy's fast tree.
+
 The kernels are optional: :func:`kernels` returns None when neither is there (a FreeCAD
 without numba and no module) or when ``TSPLCAM_COMPILED=0`` is set, and the callers run
 their numpy version. A process asks for them only once the work it has asked for reaches
@@ -2249,6 +2257,196 @@ def _define(jit):
                 low_a[q] = ma
                 low_b[q] = mb
 
+    @jit
+    def kd_build(P, leaf, idx, lo, hi, first, last, child):
+        """A kd-tree over the points ``P`` (n, 3) for :func:`kd_nearest2`: a node's points
+        split at the median of their widest coordinate (Wirth's selection) until at most
+        ``leaf`` are left; node k holds ``idx[first[k]:last[k]]``, its box ``lo[k]``-``hi[k]``
+        is its points' own, its children are ``child[k]`` and ``child[k] + 1`` (-1: a leaf).
+        Node 0 is the root. Returns the count of nodes (the arrays hold at least
+        4 n / leaf + 8: every leaf keeps at least half of ``leaf``)."""
+        n = P.shape[0]
+        for i in range(n):
+            idx[i] = i
+        first[0] = 0
+        last[0] = n
+        count = 1
+        stack = np.empty(256, np.int64)
+        stack[0] = 0
+        sp = 1
+        while sp > 0:
+            sp -= 1
+            k = stack[sp]
+            s = first[k]
+            e = last[k]
+            for d in range(3):
+                lo[k, d] = np.inf
+                hi[k, d] = -np.inf
+            for i in range(s, e):
+                j = idx[i]
+                for d in range(3):
+                    v = P[j, d]
+                    if v < lo[k, d]:
+                        lo[k, d] = v
+                    if v > hi[k, d]:
+                        hi[k, d] = v
+            child[k] = -1
+            if e - s <= leaf:
+                continue
+            dim = 0
+            w = hi[k, 0] - lo[k, 0]
+            for d in range(1, 3):
+                if hi[k, d] - lo[k, d] > w:
+                    w = hi[k, d] - lo[k, d]
+                    dim = d
+            if not w > 0.0:                     # (one point many times: a leaf)
+                continue
+            m = (s + e) // 2
+            a = s
+            b = e - 1
+            while a < b:                        # Wirth: idx[m] the median, none larger left of it
+                piv = P[idx[m], dim]
+                i = a
+                j = b
+                while i <= j:
+                    while P[idx[i], dim] < piv:
+                        i += 1
+                    while piv < P[idx[j], dim]:
+                        j -= 1
+                    if i <= j:
+                        t = idx[i]
+                        idx[i] = idx[j]
+                        idx[j] = t
+                        i += 1
+                        j -= 1
+                if j < m:
+                    a = i
+                if m < i:
+                    b = j
+            c = count
+            count += 2
+            child[k] = c
+            first[c] = s
+            last[c] = m
+            first[c + 1] = m
+            last[c + 1] = e
+            stack[sp] = c
+            stack[sp + 1] = c + 1
+            sp += 2
+        return count
+
+    @jit
+    def kd_nearest2(x, P, pts, idx, lo, hi, first, last, child, wide, D, U):
+        """The two nearest of the points ``P`` to each point x[i] at distances below ``wide``,
+        nearest first, into ``D[i]`` (inf where none) and ``U[i]`` (their rows of P; P's
+        size where none): scipy's kd-tree query (k 2, ``distance_upper_bound`` wide) but for
+        the order of two at one distance. Each squared distance summed x, y, z in that order
+        (the tree's bits), then its root. The tree is :func:`kd_build`'s over P, ``pts`` P's
+        rows in the tree's order (``P[idx]``). The previous point's two answers are measured
+        first (a grid's nodes in their order: a bound near the answer from the start), then
+        every node whose box lies nearer than the second found, nearer child first. A box's
+        squared distance (its gaps outside it, squared and summed in order) is never more than
+        that of a point in it summed as here (each rounded gap and square is at most the
+        point's; the sums add the same or larger terms in the same order), so no point that
+        would be kept is passed over."""
+        n = P.shape[0]
+        b2 = wide * wide
+        stk = np.empty(256, np.int64)
+        p1 = -1
+        p2 = -1
+        for q in range(x.shape[0]):
+            x0 = x[q, 0]
+            x1 = x[q, 1]
+            x2 = x[q, 2]
+            d1 = np.inf
+            d2 = np.inf
+            j1 = -1
+            j2 = -1
+            for t in range(2):
+                j = p1 if t == 0 else p2
+                if j < 0:
+                    continue
+                a = x0 - P[j, 0]
+                b = x1 - P[j, 1]
+                e = x2 - P[j, 2]
+                dd = a * a + b * b + e * e
+                if dd < b2 and dd < d2:
+                    if dd < d1:
+                        d2 = d1
+                        j2 = j1
+                        d1 = dd
+                        j1 = j
+                    else:
+                        d2 = dd
+                        j2 = j
+            stk[0] = 0
+            sp = 1
+            while sp > 0:
+                sp -= 1
+                k = stk[sp]
+                m = 0.0
+                for d in range(3):
+                    v = x[q, d]
+                    if v < lo[k, d]:
+                        g = lo[k, d] - v
+                        m += g * g
+                    elif v > hi[k, d]:
+                        g = v - hi[k, d]
+                        m += g * g
+                if m >= (d2 if d2 < b2 else b2):
+                    continue
+                c = child[k]
+                if c < 0:
+                    for r in range(first[k], last[k]):
+                        j = idx[r]
+                        if j == j1 or j == j2:
+                            continue
+                        a = x0 - pts[r, 0]
+                        b = x1 - pts[r, 1]
+                        e = x2 - pts[r, 2]
+                        dd = a * a + b * b + e * e
+                        if dd < d2 and dd < b2:
+                            if dd < d1:
+                                d2 = d1
+                                j2 = j1
+                                d1 = dd
+                                j1 = j
+                            else:
+                                d2 = dd
+                                j2 = j
+                    continue
+                m0 = 0.0
+                m1 = 0.0
+                for d in range(3):
+                    v = x[q, d]
+                    if v < lo[c, d]:
+                        g = lo[c, d] - v
+                        m0 += g * g
+                    elif v > hi[c, d]:
+                        g = v - hi[c, d]
+                        m0 += g * g
+                    if v < lo[c + 1, d]:
+                        g = lo[c + 1, d] - v
+                        m1 += g * g
+                    elif v > hi[c + 1, d]:
+                        g = v - hi[c + 1, d]
+                        m1 += g * g
+                if m0 <= m1:                    # (the nearer popped first)
+                    stk[sp] = c + 1
+                    stk[sp + 1] = c
+                else:
+                    stk[sp] = c
+                    stk[sp + 1] = c + 1
+                sp += 2
+            D[q, 0] = np.sqrt(d1) if j1 >= 0 else np.inf
+            D[q, 1] = np.sqrt(d2) if j2 >= 0 else np.inf
+            U[q, 0] = j1 if j1 >= 0 else n
+            U[q, 1] = j2 if j2 >= 0 else n
+            if j1 >= 0:
+                p1 = j1
+            if j2 >= 0:
+                p2 = j2
+
     return {"hit_pairs": hit_pairs, "viterbi_steps": viterbi_steps, "kind_steps": kind_steps, "cone_arcs": cone_arcs,
             "meridian_dots": meridian_dots,
             "joint_steps": joint_steps, "viterbi_path": viterbi_path,
@@ -2259,7 +2457,7 @@ def _define(jit):
             "cusp_foot": cusp_foot,
             "band_samples": band_samples, "measure_pairs": measure_pairs,
             "capsule_entries": capsule_entries, "k_nearest": k_nearest, "cell_sort": cell_sort,
-            "cylinder_clear": cylinder_clear}
+            "cylinder_clear": cylinder_clear, "kd_build": kd_build, "kd_nearest2": kd_nearest2}
 
 
 def cell_table(points: np.ndarray, edge: float, max_cells: int, coarsest: float = np.inf) -> tuple | None:
@@ -2333,6 +2531,8 @@ SIGNATURES = {
     "cell_sort": "void(f8[2], f8[1], f8, i8[1], i8[1]w, i8[1]w, f8[2]w)",
     "cylinder_clear": "i8(f8[2], f8[2], i8[1], i8[1], f8[1], f8[1], f8[1], f8[1], f8, i8[1], i8[1], i8[1],"
                       " f8[2], f8[1], f8, i8[1], i8[1], f8[2], i8[2], f8, i8, b1[1]w)",
+    "kd_build": "i8(f8[2], i8, i8[1]w, f8[2]w, f8[2]w, i8[1]w, i8[1]w, i8[1]w)",
+    "kd_nearest2": "void(f8[2], f8[2], f8[2], i8[1], f8[2], f8[2], i8[1], i8[1], i8[1], f8, f8[2]w, i8[2]w)",
 }
 #: the ahead-of-time module's name (beside this file, built by :func:`build_aot`)
 AOT_MODULE = "_aot_kernels"

@@ -767,6 +767,55 @@ class Geometry(unittest.TestCase):
         self.assertTrue(tree._use_fast(1))                   # the nearest sample: the fast tree
         self.assertFalse(tree._use_fast(3))                  # the k nearest: the default tree
 
+    def test_sample_tree_kernel_answers_as_scipy(self):
+        """The nearest-sample calls through the compiled kd-tree (``kd_build``, ``kd_nearest2``)
+        give scipy's default tree's answers bit for bit, whatever work came before: a grid's
+        nodes in order (each search seeded by the previous node's answers), scattered points,
+        points on the samples (distance 0), samples on a lattice with lattice points asked
+        (many ties: the default tree's own choice), exact duplicates, bounds finite and not, and
+        the rows on two threads. The tree partitions the points: every point in one leaf, in
+        its box, a node's two children split at one value of the widest coordinate."""
+        from unittest import mock
+        from scipy.spatial import cKDTree
+        from tsplcam import compiled
+        from tsplcam.orientation.broadphase import KD_LEAF, LEAFSIZE, SampleTree
+        k = compiled.kernels()
+        if k is None:
+            self.skipTest("numba not available (or TSPLCAM_COMPILED=0)")
+        rng = np.random.default_rng(11)
+        u, v = rng.random((2, 4000))
+        S = np.column_stack([u * 10, v * 10, np.sin(u * 3) + 0.5 * np.cos(v * 4)])
+        lattice = np.round(S[:1500] * 4) / 4                    # ties: lattice points asked of lattice samples
+        S = np.concatenate([S, S[:300], lattice])[rng.permutation(5800)]
+        g = np.arange(-2.0, 12.0, 0.4)
+        grid = np.stack(np.meshgrid(g, g, np.arange(-3.0, 3.0, 0.4), indexing="ij"), axis=-1).reshape(-1, 3)
+        asks = [grid, rng.random((3000, 3)) * [14, 14, 8] - [2, 2, 4], S[rng.integers(0, len(S), 500)],
+                np.round(rng.random((3000, 3)) * [40, 40, 8] - [0, 0, 4]) / 4]
+        ref = cKDTree(S, leafsize=LEAFSIZE)
+        with mock.patch.object(compiled, "kernels", lambda work=None: k):
+            for x in asks:
+                for ub in (0.3, 1.5, 20.0, np.inf):
+                    want = ref.query(x, k=1, distance_upper_bound=ub)
+                    for workers in (1, 2):
+                        tree = SampleTree(S)
+                        got = tree.query(x, k=1, distance_upper_bound=ub, workers=workers)
+                        self.assertIsNotNone(tree._kd)                   # (the kernel answered)
+                        for a, b in zip(got, want):
+                            self.assertEqual(a.tobytes(), b.tobytes(), (len(x), ub, workers))
+        pts, idx, lo, hi, first, last, child = tree._kd
+        self.assertEqual(sorted(idx.tolist()), list(range(len(tree.distinct))))
+        np.testing.assert_array_equal(pts, tree.distinct[idx])
+        leaves = np.flatnonzero(child < 0)
+        self.assertEqual(int((last[leaves] - first[leaves]).sum()), len(idx))
+        self.assertLessEqual(int((last[leaves] - first[leaves]).max()), KD_LEAF)
+        for node in range(len(child)):
+            P = pts[first[node]:last[node]]
+            self.assertTrue(np.all(P >= lo[node]) and np.all(P <= hi[node]))
+            c = child[node]
+            if c >= 0:
+                d = int(np.argmax(hi[node] - lo[node]))
+                self.assertLessEqual(pts[first[c]:last[c], d].max(), pts[first[c + 1]:last[c + 1], d].min())
+
     def test_centre_table(self):
         """Slots by a centre's exact bytes: the same centre (also -0.0 against 0.0: other
         bytes, another slot) gets the same slot in every batch, new centres new slots; keyed by

@@ -262,6 +262,7 @@ def make_program(path, model, settings: JobSettings, stock=None, progress=None, 
             stack.enter_context(pending)
         if post and machine is not None:
             from .post import post_program
+            from .post.post import metrics_solution
             t = time.perf_counter()
             options = {} if settings.axes_form is None else {"orientation": settings.axes_form}
             if settings.spindle is not None:
@@ -269,6 +270,8 @@ def make_program(path, model, settings: JobSettings, stock=None, progress=None, 
             try:
                 program.posted = post_program(program.path, machine, settings.dialect, progress=progress,
                                               **options)
+                if pending is not None:      # (its metrics take the post's poses: the same values)
+                    pending.joints = metrics_solution(program.posted)
             except Exception:
                 if pending is not None:      # one process measures the axes first: its error first
                     pending.first()
@@ -297,6 +300,7 @@ class _Metrics:
     def __init__(self, measure, aside, work=None, path=None, claim=None):
         self.measure, self.aside = measure, aside
         self.work, self.path, self.claim = work, path, claim
+        self.joints = None               # the post's poses of the path, where they are the metrics'
         self._value = None
         self._own = None                 # (value, error) of the work where this process took it
 
@@ -313,7 +317,7 @@ class _Metrics:
 
     def result(self):
         if self._value is None:
-            self._value = self.measure(measured=self._clearance)
+            self._value = self.measure(measured=self._clearance, joints=self.joints)
         return self._value
 
     def beside(self):

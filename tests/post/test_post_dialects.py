@@ -298,6 +298,25 @@ class SafeStartAndEnd(unittest.TestCase):
                     if tok[0] in "XYZAC" and tok[1:2] not in ("",):
                         self.assertIn(tok[1], "+-", ln)
 
+    def test_metrics_take_the_posts_poses(self):
+        """The orientation's metrics given the post's poses of the path's points
+        (post.metrics_solution: the machine's tool length and part origin, the default cone and
+        swing limit) are the metrics that solve the poses themselves, field for field; a post
+        with another tool length, part origin, cone or swing limit gives none to take."""
+        from dataclasses import asdict
+        from tsplcam.post.post import metrics_solution
+        from tsplcam.verify.orientation import orientation_metrics
+        for tp, machine in ((oriented_keycap(), "mikron_ucp600_heidenhain"), (helix(n=400, turns=2.5, tilt=25.0,
+                                                                                     radius=30.0), "linuxcnc_xyzac_trt")):
+            r = post_program(tp, machine)
+            sol = metrics_solution(r)
+            self.assertIs(sol, r.solution)
+            own, taken = orientation_metrics(tp, None, r.machine), orientation_metrics(tp, None, r.machine, joints=sol)
+            self.assertEqual(repr(asdict(own)), repr(asdict(taken)))
+            for options in ({"tool_length": r.machine.tool_length + 10.0}, {"part_origin": (1.0, 0.0, 0.0)},
+                            {"singular_cone": 1.0}, {"swing_limit": 7.0}):
+                self.assertIsNone(metrics_solution(post_program(tp, machine, **options)), options)
+
     def test_approach_from_safe_height(self):
         # On the table-table machine the tool axis is machine Z: the first move in the program
         # frame puts the spindle gauge point at the safe Z, straight above the first point.

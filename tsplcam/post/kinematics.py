@@ -229,11 +229,16 @@ class JointSolution:
     deviation: np.ndarray       # (n,) rad between requested and reached tool axis
     flips: int = 0              # branch changes between consecutive non-singular points
     info: dict = field(default_factory=dict)
+    tip: np.ndarray | None = None   # (n,3) the tips the poses hold (solve_joints' second value)
+
+
+SINGULAR_CONE = 0.5           # deg: solve_joints' default singular cone
+SWING_LIMIT = 5.0             # deg: solve_joints' default swing limit
 
 
 def solve_joints(machine: Machine, tip, axis, *, tool_length=None, part_origin=None,
-                 singular_cone: float = 0.5, radius: float = 0.0, patch=None, uv=None,
-                 index_offset: int = 0, move=None, swing_limit: float = 5.0) -> tuple:
+                 singular_cone: float = SINGULAR_CONE, radius: float = 0.0, patch=None, uv=None,
+                 index_offset: int = 0, move=None, swing_limit: float = SWING_LIMIT) -> tuple:
     """Machine poses for tool tips and axes (program coordinates), see the module docstring.
 
     ``singular_cone`` (deg): inside it the rotary (C) angle is interpolated between the poses
@@ -320,7 +325,7 @@ def solve_joints(machine: Machine, tip, axis, *, tool_length=None, part_origin=N
             "tilt_travel_deg": float(np.abs(np.diff(tilt)).sum()) if n > 1 else 0.0,
             "max_rotary_step_deg": float(np.abs(np.diff(rotv)).max()) if n > 1 else 0.0}
     return (JointSolution(joints=joints, axis=reached, branch=branch, singular=singular,
-                          deviation=deviation, flips=ps.flips, info=info), new_tip)
+                          deviation=deviation, flips=ps.flips, info=info, tip=new_tip), new_tip)
 
 
 def slerp(a, b, t) -> np.ndarray:

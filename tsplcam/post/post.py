@@ -17,7 +17,7 @@ from ..errors import InputError, KinematicsError
 from ..toolpath.path import Move, ToolPath
 from . import dialects
 from .dialects import Job, Motion
-from .kinematics import JointSolution, linear_joints, linearise, solve_joints, swing
+from .kinematics import SINGULAR_CONE, SWING_LIMIT, JointSolution, linear_joints, linearise, solve_joints, swing
 from .machine import Machine, load_machine
 from .timing import TimeReport, estimate
 
@@ -26,10 +26,10 @@ APPROACH, RETRACT_OUT = -1, -2
 # Options of post_program with their defaults when neither the call, the machine's "post"
 # section nor the dialect sets them.
 GENERIC = {"tool": 1, "spindle": 10000.0, "coolant": "flood", "approach_distance": 5.0,
-           "approach_height_max": 200.0, "swing_limit": 5.0,
+           "approach_height_max": 200.0, "swing_limit": SWING_LIMIT,
            "approach_feed": None, "link_feed": None, "retract_feed": None, "inverse_time": "auto",
            "orientation": "angles", "tcp": None, "refpnt": None, "linear_tolerance": 0.001,
-           "singular_cone": 0.5, "blend_tolerance": 0.01, "program_name": "TSPLCAM",
+           "singular_cone": SINGULAR_CONE, "blend_tolerance": 0.01, "program_name": "TSPLCAM",
            "inverse_time_max": None, "work_offset": "G54", "tool_length": None,
            "part_origin": None, "point": "tip", "program_number": 1000}
 
@@ -170,6 +170,19 @@ def _approach_height(machine, tip0, axis0, q0, L, origin, d):
                 if d - 1e-9 <= h_lim < h:
                     h = h_lim
     return max(h, d)
+
+
+def metrics_solution(result: PostResult) -> JointSolution | None:
+    """The post's joint solution of the path's points where it is the one the orientation's
+    metrics solve for themselves (:func:`~tsplcam.verify.orientation.orientation_metrics`:
+    the machine's own tool length and part origin, :func:`solve_joints`' singular cone and
+    swing limit, the path's moves), so they take it rather than solving the same poses again
+    (the keycap: 10 ms); else None."""
+    s, m = result.settings, result.machine
+    same = (float(s["tool_length"]) == float(m.tool_length)
+            and tuple(map(float, s["part_origin"])) == tuple(map(float, m.part_origin))
+            and float(s["singular_cone"]) == SINGULAR_CONE and float(s["swing_limit"]) == SWING_LIMIT)
+    return result.solution if same and result.solution.tip is not None else None
 
 
 def post_program(toolpath: ToolPath, machine, dialect: str | None = None, progress=None,

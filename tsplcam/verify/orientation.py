@@ -571,7 +571,7 @@ def _simple_ac(axis):
 
 def orientation_metrics(path: ToolPath, checker=None, machine=None, v_rotary=(5400.0, 9000.0),
                         clearance: bool = True, gouges: int | None = None,
-                        measured=None) -> OrientationMetrics:
+                        measured=None, joints=None) -> OrientationMetrics:
     """Metrics of ``path`` (its axes). ``checker``: the CollisionChecker the path was oriented
     with (None skips collisions and clearance); ``machine``: a tsplcam.post Machine (or name)
     for joints and time; ``v_rotary``: (A, C) deg/min of the simple model; ``gouges``: the
@@ -579,7 +579,10 @@ def orientation_metrics(path: ToolPath, checker=None, machine=None, v_rotary=(54
     ball centres alone, not on the axes: ``orient`` refuses a path with any);
     ``measured``: a callable giving :func:`min_clearance` of the path's poses measured
     elsewhere (the job's forked process), asked after the joints and time, which it overlaps;
-    errors come in the order of the measurements here (collisions, clearance, joints)."""
+    errors come in the order of the measurements here (collisions, clearance, joints);
+    ``joints``: the machine poses of the path's points where the caller has them already, as
+    :func:`~tsplcam.post.kinematics.solve_joints` gives them here (the post's, by
+    :func:`~tsplcam.post.post.metrics_solution`), not solved again."""
     n = len(path)
     K = path.axis
     collisions = 0
@@ -593,20 +596,21 @@ def orientation_metrics(path: ToolPath, checker=None, machine=None, v_rotary=(54
             clr, clr_at = min_clearance(checker, path.center, K)
     if clear and measured is not None:
         try:
-            out = _motion_metrics(path, machine, v_rotary)
+            out = _motion_metrics(path, machine, v_rotary, joints)
         except Exception:
             measured()                   # the clearance's error, if any, comes first
             raise
         clr, clr_at = measured()
     else:
-        out = _motion_metrics(path, machine, v_rotary)
+        out = _motion_metrics(path, machine, v_rotary, joints)
     return OrientationMetrics(points=n, collisions=collisions, gouges=gouges, min_clearance=clr,
                               min_clearance_point=clr_at, **out)
 
 
-def _motion_metrics(path: ToolPath, machine, v_rotary) -> dict:
+def _motion_metrics(path: ToolPath, machine, v_rotary, joints=None) -> dict:
     """The axes' steps, travels, time and speeds of :func:`orientation_metrics` (the fields of
-    :class:`OrientationMetrics` after the collisions and the clearance)."""
+    :class:`OrientationMetrics` after the collisions and the clearance); ``joints``: the
+    JointSolution of the path's points with its tips, where the caller has it."""
     K = path.axis
     step = _angle(K[1:], K[:-1]) / DEG
     cut = path.move[1:] == Move.CUT
@@ -623,7 +627,11 @@ def _motion_metrics(path: ToolPath, machine, v_rotary) -> dict:
         from ..post.timing import estimate
         if isinstance(machine, str):
             machine = load_machine(machine)
-        sol, tip = solve_joints(machine, path.tip, K, radius=path.tool_radius, patch=path.patch, uv=path.uv)
+        if joints is None:
+            sol, tip = solve_joints(machine, path.tip, K, radius=path.tool_radius, patch=path.patch, uv=path.uv,
+                                    move=path.move)
+        else:
+            sol, tip = joints, joints.tip
         # joints and tips to 1e-6 mm or deg, far below what a program writes: the time
         # estimate's junction speeds and maxima would carry the inverse kinematics' last bits
         # (which follow the floating-point path taken) into the report's figures

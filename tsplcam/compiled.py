@@ -2258,6 +2258,39 @@ def _define(jit):
                 low_b[q] = mb
 
     @jit
+    def mesh_labels(nv, T, label):
+        """Connected component of every vertex of a triangle mesh (vertices joined by the
+        triangles' edges) into ``label``: union-find over two edges of each triangle (they
+        join its three corners), then the components numbered in the order of their lowest
+        vertex, as scipy's ``connected_components`` numbers them. Returns the count."""
+        parent = np.arange(nv)
+        for t in range(T.shape[0]):
+            for e in range(2):
+                a = T[t, e]
+                while parent[a] != a:
+                    parent[a] = parent[parent[a]]
+                    a = parent[a]
+                b = T[t, e + 1]
+                while parent[b] != b:
+                    parent[b] = parent[parent[b]]
+                    b = parent[b]
+                if a < b:
+                    parent[b] = a
+                elif b < a:
+                    parent[a] = b
+        count = 0
+        for v in range(nv):
+            r = v
+            while parent[r] != r:
+                r = parent[r]
+            if r == v:
+                label[v] = count
+                count += 1
+            else:
+                label[v] = label[r]
+        return count
+
+    @jit
     def kd_build(P, leaf, idx, lo, hi, first, last, child):
         """A kd-tree over the points ``P`` (n, 3) for :func:`kd_nearest2`: a node's points
         split at the median of their widest coordinate (Wirth's selection) until at most
@@ -2457,7 +2490,8 @@ def _define(jit):
             "cusp_foot": cusp_foot,
             "band_samples": band_samples, "measure_pairs": measure_pairs,
             "capsule_entries": capsule_entries, "k_nearest": k_nearest, "cell_sort": cell_sort,
-            "cylinder_clear": cylinder_clear, "kd_build": kd_build, "kd_nearest2": kd_nearest2}
+            "cylinder_clear": cylinder_clear, "kd_build": kd_build, "kd_nearest2": kd_nearest2,
+            "mesh_labels": mesh_labels}
 
 
 def cell_table(points: np.ndarray, edge: float, max_cells: int, coarsest: float = np.inf) -> tuple | None:
@@ -2532,6 +2566,7 @@ SIGNATURES = {
     "cylinder_clear": "i8(f8[2], f8[2], i8[1], i8[1], f8[1], f8[1], f8[1], f8[1], f8, i8[1], i8[1], i8[1],"
                       " f8[2], f8[1], f8, i8[1], i8[1], f8[2], i8[2], f8, i8, b1[1]w)",
     "kd_build": "i8(f8[2], i8, i8[1]w, f8[2]w, f8[2]w, i8[1]w, i8[1]w, i8[1]w)",
+    "mesh_labels": "i8(i8, i8[2], i8[1]w)",
     "kd_nearest2": "void(f8[2], f8[2], f8[2], i8[1], f8[2], f8[2], i8[1], i8[1], i8[1], f8, f8[2]w, i8[2]w)",
 }
 #: the ahead-of-time module's name (beside this file, built by :func:`build_aot`)

@@ -816,6 +816,36 @@ class Geometry(unittest.TestCase):
                 d = int(np.argmax(hi[node] - lo[node]))
                 self.assertLessEqual(pts[first[c]:last[c], d].max(), pts[first[c + 1]:last[c + 1], d].min())
 
+    def test_mesh_components_kernel_is_scipys(self):
+        """The components by union-find (``compiled.mesh_labels``) are scipy's
+        ``connected_components`` labels, numbers and dtype: random meshes, sparse ones (many
+        components, lone vertices), one triangle, the keycap's tessellation."""
+        from unittest import mock
+        from scipy.sparse import coo_matrix
+        from scipy.sparse.csgraph import connected_components
+        from tsplcam import compiled
+        from tsplcam.orientation.broadphase import mesh_components
+        k = compiled.kernels()
+        if k is None:
+            self.skipTest("numba not available (or TSPLCAM_COMPILED=0)")
+        rng = np.random.default_rng(12)
+        from tsplcam import load_model
+        from tsplcam.orientation.collision import tessellate_model
+        keycap = tessellate_model(load_model("keycap"), 0.005)
+        meshes = [(3, np.array([[0, 1, 2]])), (len(keycap.vertices), keycap.triangles)]
+        for trial in range(30):
+            nv, nt = int(rng.integers(1, 4000)), int(rng.integers(1, 3000))
+            T = rng.integers(0, nv, (nt, 3))
+            meshes.append((nv, T if trial % 2 else T % max(1, nv // 7) * 7 % nv))
+        for nv, T in meshes:
+            rows, cols = np.concatenate([T[:, 0], T[:, 1], T[:, 2]]), np.concatenate([T[:, 1], T[:, 2], T[:, 0]])
+            want = connected_components(coo_matrix((np.ones(len(rows), np.int8), (rows, cols)), shape=(nv, nv)),
+                                        directed=False)[1]
+            with mock.patch.object(compiled, "loaded", lambda: k):
+                got = mesh_components(nv, T)
+            self.assertEqual(got.dtype, want.dtype)
+            np.testing.assert_array_equal(got, want)
+
     def test_centre_table(self):
         """Slots by a centre's exact bytes: the same centre (also -0.0 against 0.0: other
         bytes, another slot) gets the same slot in every batch, new centres new slots; keyed by

@@ -112,6 +112,37 @@ class NearAnswersAsWhole(unittest.TestCase):
 
 
 @unittest.skipIf(fcl is None, "python-fcl is not installed")
+class BvhModel(unittest.TestCase):
+    def test_rows_give_the_arrays_bvh(self):
+        """nearby.bvh_model hands python-fcl its vertices as rows that are their own float64
+        copy: the BVH answers as one made from the plain arrays, bit for bit (distances and
+        nearest points to spheres all round the keycap's mesh, collisions)."""
+        checker = CollisionChecker(cage_model(samples.keycap()), load_tool("ball1_keycap"))
+        V, T = checker.mesh.vertices, checker.mesh.triangles
+        from tsplcam.orientation.nearby import bvh_model
+        plain = fcl.BVHModel()
+        plain.beginModel(len(T), len(V))
+        plain.addSubModel(np.ascontiguousarray(V, float), np.ascontiguousarray(T, np.int64))
+        plain.endModel()
+        ours = fcl.CollisionObject(bvh_model(V, T), fcl.Transform())
+        plain = fcl.CollisionObject(plain, fcl.Transform())
+        rng = np.random.default_rng(5)
+        lo, hi = V.min(axis=0) - 2.0, V.max(axis=0) + 2.0
+        hits = 0
+        for c in rng.uniform(lo, hi, (60, 3)):
+            ball = fcl.CollisionObject(fcl.Sphere(float(rng.uniform(0.2, 2.0))), fcl.Transform(c))
+            got = []
+            for wp in (ours, plain):
+                req, res = fcl.DistanceRequest(enable_nearest_points=True), fcl.DistanceResult()
+                d = fcl.distance(ball, wp, req, res)
+                hit = fcl.collide(ball, wp, fcl.CollisionRequest(), fcl.CollisionResult())
+                got.append((d, tuple(res.nearest_points[1]), hit))
+            self.assertEqual(got[0], got[1])
+            hits += got[0][2]
+        self.assertGreater(hits, 0)
+
+
+@unittest.skipIf(fcl is None, "python-fcl is not installed")
 class NearTriangles(unittest.TestCase):
     def test_every_triangle_reaching_in_is_taken(self):
         """Frustums (cylinders, cones, balls) about random segments over the keycap: every

@@ -1079,7 +1079,10 @@ class BroadPhase:
         if len(T):
             # each vertex's corners in the order of the flat index (triangle * 3 + corner): the
             # vertices are the first samples, so their runs are the sorted corners in order
-            order = np.argsort(T.ravel(), kind="stable")
+            # (vertex numbers below 2^16 as uint16: numpy sorts those stably by radix, the same
+            # order, 1.5 -> 0.4 ms on the keycap's 115k corners)
+            key = T.ravel()
+            order = np.argsort(key.astype(np.uint16) if nv <= 1 << 16 else key, kind="stable")
             self.tris_flat[:len(order)] = order // 3
         self.tris_flat[self.tris_start[:-1][extra]] = tri_of[extra]
         # unit normals of the triangles (0 for a degenerate one: its plane test never skips it)

@@ -50,11 +50,20 @@ COUNT_ROWS = 64
 KEEP = 4
 
 
+class _Rows(np.ndarray):
+    """Float64 rows whose ``astype`` is the row itself: python-fcl's ``addSubModel`` copies
+    every vertex by ``astype(float64)`` before reading its three values (the keycap's 20k
+    vertices: 14.7 -> 11.9 ms the call); the values read are the same."""
+
+    def astype(self, dtype, *args, **kwargs):
+        return self if np.dtype(dtype) == self.dtype else np.asarray(self).astype(dtype, *args, **kwargs)
+
+
 def bvh_model(V: np.ndarray, T: np.ndarray):
     """fcl's BVH (OBBRSS) of the triangle mesh (V, T)."""
     m = fcl.BVHModel()
     m.beginModel(len(T), len(V))
-    m.addSubModel(np.ascontiguousarray(V, float), np.ascontiguousarray(T, np.int64))
+    m.addSubModel(np.ascontiguousarray(V, float).view(_Rows), np.ascontiguousarray(T, np.int64))
     m.endModel()
     return m
 

@@ -2377,11 +2377,12 @@ def _define(jit):
         (the tree's bits), then its root. The tree is :func:`kd_build`'s over P, ``pts`` P's
         rows in the tree's order (``P[idx]``). The previous point's two answers are measured
         first (a grid's nodes in their order: a bound near the answer from the start), then
-        every node whose box lies nearer than the second found, nearer child first. A box's
-        squared distance (its gaps outside it, squared and summed in order) is never more than
-        that of a point in it summed as here (each rounded gap and square is at most the
-        point's; the sums add the same or larger terms in the same order), so no point that
-        would be kept is passed over."""
+        every node whose box lies nearer than the second found (or the bound), nearer child
+        first. A box's squared distance (its gaps outside it, squared and summed in order) is
+        never more than that of a point in it summed as here (each rounded gap and square is at
+        most the point's; the sums add the same or larger terms in the same order), so no point
+        that would be kept is passed over; the gaps taken as max(lo - v, v - hi, 0), without a
+        branch (the keycap's fine grid 16.5 -> 13.8 ms)."""
         n = P.shape[0]
         b2 = wide * wide
         stk = np.empty(256, np.int64)
@@ -2391,8 +2392,8 @@ def _define(jit):
             x0 = x[q, 0]
             x1 = x[q, 1]
             x2 = x[q, 2]
-            d1 = np.inf
-            d2 = np.inf
+            d1 = b2                             # (b2 with no point: the bound)
+            d2 = b2
             j1 = -1
             j2 = -1
             for t in range(2):
@@ -2403,7 +2404,7 @@ def _define(jit):
                 b = x1 - P[j, 1]
                 e = x2 - P[j, 2]
                 dd = a * a + b * b + e * e
-                if dd < b2 and dd < d2:
+                if dd < d2:
                     if dd < d1:
                         d2 = d1
                         j2 = j1
@@ -2418,15 +2419,11 @@ def _define(jit):
                 sp -= 1
                 k = stk[sp]
                 m = 0.0
-                for d in range(3):
+                for d in range(3):                  # (max: no branch, the same gap)
                     v = x[q, d]
-                    if v < lo[k, d]:
-                        g = lo[k, d] - v
-                        m += g * g
-                    elif v > hi[k, d]:
-                        g = v - hi[k, d]
-                        m += g * g
-                if m >= (d2 if d2 < b2 else b2):
+                    g = max(lo[k, d] - v, v - hi[k, d], 0.0)
+                    m += g * g
+                if m >= d2:
                     continue
                 c = child[k]
                 if c < 0:
@@ -2438,7 +2435,7 @@ def _define(jit):
                         b = x1 - pts[r, 1]
                         e = x2 - pts[r, 2]
                         dd = a * a + b * b + e * e
-                        if dd < d2 and dd < b2:
+                        if dd < d2:
                             if dd < d1:
                                 d2 = d1
                                 j2 = j1
@@ -2452,18 +2449,10 @@ def _define(jit):
                 m1 = 0.0
                 for d in range(3):
                     v = x[q, d]
-                    if v < lo[c, d]:
-                        g = lo[c, d] - v
-                        m0 += g * g
-                    elif v > hi[c, d]:
-                        g = v - hi[c, d]
-                        m0 += g * g
-                    if v < lo[c + 1, d]:
-                        g = lo[c + 1, d] - v
-                        m1 += g * g
-                    elif v > hi[c + 1, d]:
-                        g = v - hi[c + 1, d]
-                        m1 += g * g
+                    g = max(lo[c, d] - v, v - hi[c, d], 0.0)
+                    m0 += g * g
+                    g = max(lo[c + 1, d] - v, v - hi[c + 1, d], 0.0)
+                    m1 += g * g
                 if m0 <= m1:                    # (the nearer popped first)
                     stk[sp] = c + 1
                     stk[sp + 1] = c

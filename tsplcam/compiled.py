@@ -223,7 +223,8 @@ def _define(jit):
     # the kernels' inlined helpers are module globals, not closure cells: numba's cache keys a
     # closure by its cells, and a dispatcher in a cell differs in every process, so a kernel
     # calling one was compiled again in every process (cusp_foot: 1.2-1.6 s)
-    global viterbi_step, dot3, meets_cylinder, ieee_quotient, to_finite, bicubic_point, bernstein_row, comb4
+    global viterbi_step, dot3, meets_cylinder, ieee_quotient, to_finite, bicubic_point, bernstein_row, comb4, \
+        sq_dist, keep_two
 
     @numba.njit(inline="always")
     def viterbi_step(acc, node, X, q, i, tie, back, tot, m, nan):
@@ -2257,6 +2258,26 @@ def _define(jit):
                 low_a[q] = ma
                 low_b[q] = mb
 
+    @numba.njit(inline="always")
+    def sq_dist(x0, x1, x2, y0, y1, y2):
+        """Squared distance of two points, the differences' squares summed x, y, z in that
+        order (scipy's kd-tree's bits). Inlined into its callers."""
+        a = x0 - y0
+        b = x1 - y1
+        e = x2 - y2
+        return a * a + b * b + e * e
+
+    @numba.njit(inline="always")
+    def keep_two(dd, j, d1, j1, d2, j2):
+        """The two nearest so far, (d1, j1) and (d2, j2), with point j at squared distance dd
+        kept where it is nearer than the second (a tie with the second: not kept). Inlined into
+        :func:`kd_nearest2`."""
+        if dd < d2:
+            if dd < d1:
+                return dd, j, d1, j1
+            return d1, j1, dd, j
+        return d1, j1, d2, j2
+
     @jit
     def mesh_labels(nv, T, label):
         """Connected component of every vertex of a triangle mesh (vertices joined by the
@@ -2398,21 +2419,9 @@ def _define(jit):
             j2 = -1
             for t in range(2):
                 j = p1 if t == 0 else p2
-                if j < 0:
-                    continue
-                a = x0 - P[j, 0]
-                b = x1 - P[j, 1]
-                e = x2 - P[j, 2]
-                dd = a * a + b * b + e * e
-                if dd < d2:
-                    if dd < d1:
-                        d2 = d1
-                        j2 = j1
-                        d1 = dd
-                        j1 = j
-                    else:
-                        d2 = dd
-                        j2 = j
+                if j >= 0:
+                    d1, j1, d2, j2 = keep_two(sq_dist(x0, x1, x2, P[j, 0], P[j, 1], P[j, 2]), j,
+                                              d1, j1, d2, j2)
             stk[0] = 0
             sp = 1
             while sp > 0:
@@ -2429,21 +2438,9 @@ def _define(jit):
                 if c < 0:
                     for r in range(first[k], last[k]):
                         j = idx[r]
-                        if j == j1 or j == j2:
-                            continue
-                        a = x0 - pts[r, 0]
-                        b = x1 - pts[r, 1]
-                        e = x2 - pts[r, 2]
-                        dd = a * a + b * b + e * e
-                        if dd < d2:
-                            if dd < d1:
-                                d2 = d1
-                                j2 = j1
-                                d1 = dd
-                                j1 = j
-                            else:
-                                d2 = dd
-                                j2 = j
+                        if j != j1 and j != j2:
+                            d1, j1, d2, j2 = keep_two(sq_dist(x0, x1, x2, pts[r, 0], pts[r, 1], pts[r, 2]), j,
+                                                      d1, j1, d2, j2)
                     continue
                 m0 = 0.0
                 m1 = 0.0

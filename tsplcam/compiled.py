@@ -155,7 +155,7 @@ k 1: the distance grids' nodes, most of the checker's build) go to a kd-tree of 
 a bound, each search starting from the previous point's answers, which a grid's next node
 lies next to). The same squared distances as scipy's tree (summed x, y, z) and the same two
 nearest, so the same answers bit for bit, ties left to scipy's default tree as before; the
-keycap's two grids (50k nodes) 28.9 + 26.3 -> 17.2 + 8.6 ms against scipy's fast tree.
+keycap's two grids (50k nodes) 28.9 + 26.3 -> 13.7 + 8.6 ms against scipy's fast tree.
 
 The kernels are optional: :func:`kernels` returns None when neither is there (a FreeCAD
 without numba and no module) or when ``TSPLCAM_COMPILED=0`` is set, and the callers run

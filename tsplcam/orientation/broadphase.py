@@ -490,14 +490,13 @@ class SampleTree:
             D[a], J[a] = np.reshape(d, (len(a), k)), np.reshape(j, (len(a), k))
         return (np.ascontiguousarray(D[:, 0]), np.ascontiguousarray(J[:, 0])) if k == 1 else (D, J)
 
-
     def _two_nearest(self, x: np.ndarray, wide: float, workers: int, kern) -> tuple:
         """The fast tree's ``query(x, k=2, distance_upper_bound=wide)`` from the compiled
         kd-tree over the same points (``kd_build``, ``kd_nearest2``): the same distances and,
         but for the order of two at one distance (which :meth:`_query_fast` leaves to ``ref``),
         the same indices. Each point's search starts from the previous point's answers, so a
         grid's nodes in their order cost a third to a half of the scipy tree's time (the keycap's
-        distance grids, 50k nodes: 53 -> 25 ms); the rows in two halves on two threads where
+        distance grids, 50k nodes: 55 -> 22 ms); the rows in two halves on two threads where
         ``workers`` is 2."""
         if self._kd is None:
             P = self.distinct

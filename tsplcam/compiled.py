@@ -2143,6 +2143,9 @@ def _define(jit):
             for i0 in range(cl[0], ch[0] + 1):
                 for i1 in range(cl[1], ch[1] + 1):
                     for i2 in range(cl[2], ch[2] + 1):
+                        cell = (i0 * shape[1] + i1) * shape[2] + i2
+                        if start[cell] == start[cell + 1]:  # (an empty cell: nothing to cull)
+                            continue
                         dx = lo[0] + (i0 + 0.5) * h - c[0]
                         dy = lo[1] + (i1 + 0.5) * h - c[1]
                         dz = lo[2] + (i2 + 0.5) * h - c[2]
@@ -2150,7 +2153,6 @@ def _define(jit):
                         dx, dy, dz = dx - z * a[0], dy - z * a[1], dz - z * a[2]
                         if dx * dx + dy * dy + dz * dz > cull * cull:
                             continue
-                        cell = (i0 * shape[1] + i1) * shape[2] + i2
                         for s in range(start[cell], start[cell + 1]):
                             dx, dy, dz = pts[s, 0] - c[0], pts[s, 1] - c[1], pts[s, 2] - c[2]
                             z = dx * a[0] + dy * a[1] + dz * a[2]
